@@ -1,0 +1,66 @@
+#include "core/camera.h"
+
+#include <cmath>
+
+#include "core/check.h"
+
+namespace sightmap {
+
+Intrinsics Intrinsics::FromFieldOfView(int width, int height, double hfov_rad, double vfov_rad) {
+  if (width <= 0 || height <= 0 || !(hfov_rad > 0.0) || !(hfov_rad < M_PI)) {
+    SIGHTMAP_THROW(InvalidArgument, "cannot derive intrinsics from a " << width << "x" << height
+                                                                        << " image with a field of view of "
+                                                                        << hfov_rad << " rad");
+  }
+  Intrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = width / (2.0 * std::tan(hfov_rad / 2.0));
+  k.fy = (vfov_rad > 0.0 && vfov_rad < M_PI) ? height / (2.0 * std::tan(vfov_rad / 2.0)) : k.fx;
+  k.cx = (width - 1) / 2.0;
+  k.cy = (height - 1) / 2.0;
+  return k;
+}
+
+Intrinsics Intrinsics::Scaled(int new_width, int new_height) const {
+  const double sx = static_cast<double>(new_width) / width;
+  const double sy = static_cast<double>(new_height) / height;
+  Intrinsics k = *this;
+  k.width = new_width;
+  k.height = new_height;
+  k.fx = fx * sx;
+  k.fy = fy * sy;
+  // Pixel centres sit at integers, so the continuous image edge is at -0.5.
+  k.cx = (cx + 0.5) * sx - 0.5;
+  k.cy = (cy + 0.5) * sy - 0.5;
+  return k;
+}
+
+Intrinsics Intrinsics::MirroredHorizontally() const {
+  Intrinsics k = *this;
+  k.cx = (width - 1) - cx;
+  return k;
+}
+
+Eigen::Vector3d Intrinsics::Unproject(double u, double v, double z) const {
+  return {(u - cx) * z / fx, (v - cy) * z / fy, z};
+}
+
+Eigen::Vector2d Intrinsics::Project(const Eigen::Vector3d& cam_point) const {
+  return {fx * cam_point.x() / cam_point.z() + cx, fy * cam_point.y() / cam_point.z() + cy};
+}
+
+double Intrinsics::HorizontalFieldOfView() const { return 2.0 * std::atan(width / (2.0 * fx)); }
+
+bool Intrinsics::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    if (error) *error = what;
+    return false;
+  };
+  if (width <= 0 || height <= 0) return fail("image size must be positive");
+  if (!(fx > 0.0) || !(fy > 0.0)) return fail("focal lengths must be positive");
+  if (!std::isfinite(cx) || !std::isfinite(cy)) return fail("principal point must be finite");
+  return true;
+}
+
+}  // namespace sightmap

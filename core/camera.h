@@ -1,0 +1,38 @@
+// Pinhole intrinsics in pixels. Camera frame: x right, y down, z forward (OpenCV).
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+
+namespace sightmap {
+
+struct Intrinsics {
+  int width = 0;    // image width [px]
+  int height = 0;   // image height [px]
+  double fx = 0.0;  // focal lengths [px]
+  double fy = 0.0;
+  double cx = 0.0;  // principal point [px], pixel centres at integer coordinates
+  double cy = 0.0;
+
+  // From horizontal and vertical fields of view [rad], principal point at the image centre. A
+  // non-positive vfov means "square pixels": fy = fx.
+  static Intrinsics FromFieldOfView(int width, int height, double hfov_rad, double vfov_rad);
+
+  // The same camera at another resolution (e.g. 320x240 colour mapped onto 640x480 depth).
+  Intrinsics Scaled(int new_width, int new_height) const;
+
+  // The same camera with the image flipped left-right.
+  Intrinsics MirroredHorizontally() const;
+
+  // Pixel (u, v) with depth z [m] to a point in the camera frame [m].
+  Eigen::Vector3d Unproject(double u, double v, double z) const;
+  // Camera-frame point [m] to pixel coordinates; the point must have z > 0.
+  Eigen::Vector2d Project(const Eigen::Vector3d& cam_point) const;
+
+  double HorizontalFieldOfView() const;  // [rad]
+
+  bool Check(std::string* error) const;
+};
+
+}  // namespace sightmap

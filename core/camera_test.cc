@@ -1,0 +1,69 @@
+#include "core/camera.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+TEST(Intrinsics, FromFieldOfViewMatchesPinholeFormula) {
+  const Intrinsics k = Intrinsics::FromFieldOfView(640, 480, 1.0145, 0.7898);
+  EXPECT_NEAR(k.fx, 640.0 / (2.0 * std::tan(1.0145 / 2.0)), 1e-9);
+  EXPECT_NEAR(k.fy, 480.0 / (2.0 * std::tan(0.7898 / 2.0)), 1e-9);
+  EXPECT_DOUBLE_EQ(k.cx, 319.5);
+  EXPECT_DOUBLE_EQ(k.cy, 239.5);
+  EXPECT_NEAR(k.HorizontalFieldOfView(), 1.0145, 1e-12);
+}
+
+TEST(Intrinsics, ZeroVerticalFovMeansSquarePixels) {
+  const Intrinsics k = Intrinsics::FromFieldOfView(320, 240, 1.0, 0.0);
+  EXPECT_DOUBLE_EQ(k.fx, k.fy);
+}
+
+TEST(Intrinsics, RejectsImpossibleFieldOfView) {
+  EXPECT_THROW(Intrinsics::FromFieldOfView(640, 480, 0.0, 0.0), InvalidArgument);
+  EXPECT_THROW(Intrinsics::FromFieldOfView(0, 480, 1.0, 0.0), InvalidArgument);
+  EXPECT_THROW(Intrinsics::FromFieldOfView(640, 480, 4.0, 0.0), InvalidArgument);
+}
+
+TEST(Intrinsics, ScaledKeepsTheSameRays) {
+  const Intrinsics small = Intrinsics::FromFieldOfView(320, 240, 1.02, 0.79);
+  const Intrinsics big = small.Scaled(640, 480);
+  // The ray through the small image's pixel (u, v) goes through the big image's (2u + 0.5, 2v + 0.5).
+  const Eigen::Vector3d ray_small = small.Unproject(100.0, 50.0, 1.0);
+  const Eigen::Vector3d ray_big = big.Unproject(200.5, 100.5, 1.0);
+  EXPECT_NEAR((ray_small - ray_big).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(big.HorizontalFieldOfView(), small.HorizontalFieldOfView(), 1e-12);
+}
+
+TEST(Intrinsics, ProjectInvertsUnproject) {
+  Intrinsics k;
+  k.width = 640;
+  k.height = 480;
+  k.fx = 525.0;
+  k.fy = 520.0;
+  k.cx = 319.5;
+  k.cy = 239.5;
+  const Eigen::Vector3d p = k.Unproject(12.25, 400.75, 2.5);
+  const Eigen::Vector2d uv = k.Project(p);
+  EXPECT_NEAR(uv.x(), 12.25, 1e-9);
+  EXPECT_NEAR(uv.y(), 400.75, 1e-9);
+  EXPECT_NEAR(k.MirroredHorizontally().cx, 319.5, 1e-12);
+}
+
+TEST(Intrinsics, CheckRejectsNonPositiveFocalLength) {
+  Intrinsics k;
+  k.width = 640;
+  k.height = 480;
+  std::string error;
+  EXPECT_FALSE(k.Check(&error));
+  EXPECT_FALSE(error.empty());
+  k.fx = k.fy = 500.0;
+  EXPECT_TRUE(k.Check(&error));
+}
+
+}  // namespace
+}  // namespace sightmap
