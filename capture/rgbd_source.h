@@ -57,7 +57,8 @@ struct SourceMetadata {
 
   // The camera of the frames Next() returns: the colour camera, at the colour image size.
   Intrinsics intrinsics;
-  std::string intrinsics_origin;  // "field-of-view", "calibration-file", "camera-intrinsics.txt", ...
+  std::string
+      intrinsics_origin;  // "field-of-view", "calibration-file", "camera-intrinsics.txt", ...
 
   DepthRegistration registration = DepthRegistration::kNone;
   bool depth_resized_to_color = false;  // depth and colour differed in size; depth was mapped
@@ -108,8 +109,8 @@ struct SourceSpec {
 // SOURCE strings:
 //   openni://               the first OpenNI2 device      openni://URI   that device
 //   PATH.oni                an OpenNI recording
-//   tum:DIR                 a TUM RGB-D folder            3dmatch:DIR    a 3DMatch / 7-Scenes folder
-//   sim:NAME                the synthetic building (reserved)
+//   tum:DIR                 a TUM RGB-D folder            3dmatch:DIR    a 3DMatch / 7-Scenes
+//   folder sim:NAME                the synthetic building (reserved)
 // A bare folder is recognised by its layout (rgb.txt -> tum, camera-intrinsics.txt -> 3dmatch).
 // Throws InvalidArgument with a message that lists the accepted forms.
 SourceSpec ParseSourceSpec(const std::string& source);

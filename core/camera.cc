@@ -8,9 +8,9 @@ namespace sightmap {
 
 Intrinsics Intrinsics::FromFieldOfView(int width, int height, double hfov_rad, double vfov_rad) {
   if (width <= 0 || height <= 0 || !(hfov_rad > 0.0) || !(hfov_rad < M_PI)) {
-    SIGHTMAP_THROW(InvalidArgument, "cannot derive intrinsics from a " << width << "x" << height
-                                                                        << " image with a field of view of "
-                                                                        << hfov_rad << " rad");
+    SIGHTMAP_THROW(InvalidArgument, "cannot derive intrinsics from a "
+                                        << width << "x" << height
+                                        << " image with a field of view of " << hfov_rad << " rad");
   }
   Intrinsics k;
   k.width = width;

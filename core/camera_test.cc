@@ -32,7 +32,8 @@ TEST(Intrinsics, RejectsImpossibleFieldOfView) {
 TEST(Intrinsics, ScaledKeepsTheSameRays) {
   const Intrinsics small = Intrinsics::FromFieldOfView(320, 240, 1.02, 0.79);
   const Intrinsics big = small.Scaled(640, 480);
-  // The ray through the small image's pixel (u, v) goes through the big image's (2u + 0.5, 2v + 0.5).
+  // The ray through the small image's pixel (u, v) goes through the big image's (2u + 0.5, 2v +
+  // 0.5).
   const Eigen::Vector3d ray_small = small.Unproject(100.0, 50.0, 1.0);
   const Eigen::Vector3d ray_big = big.Unproject(200.5, 100.5, 1.0);
   EXPECT_NEAR((ray_small - ray_big).norm(), 0.0, 1e-12);

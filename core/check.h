@@ -48,18 +48,19 @@ class MessageBuilder {
   throw ExceptionType((::sightmap::internal::MessageBuilder() << message).str(), __FILE__, __LINE__)
 
 // SIGHTMAP_CHECK(cond, "what went wrong and what to do") throws sightmap::Error when cond is false.
-#define SIGHTMAP_CHECK(condition, message)            \
-  do {                                                \
-    if (!(condition)) {                               \
-      SIGHTMAP_THROW(::sightmap::Error, message);     \
-    }                                                 \
+#define SIGHTMAP_CHECK(condition, message)        \
+  do {                                            \
+    if (!(condition)) {                           \
+      SIGHTMAP_THROW(::sightmap::Error, message); \
+    }                                             \
   } while (false)
 
 // Throws InvalidArgument when an options struct fails its Check().
-#define SIGHTMAP_CHECK_OPTIONS(options)                                               \
-  do {                                                                                \
-    std::string sightmap_options_error_;                                              \
-    if (!(options).Check(&sightmap_options_error_)) {                                 \
-      SIGHTMAP_THROW(::sightmap::InvalidArgument, "invalid " #options ": " << sightmap_options_error_); \
-    }                                                                                 \
+#define SIGHTMAP_CHECK_OPTIONS(options)                                    \
+  do {                                                                     \
+    std::string sightmap_options_error_;                                   \
+    if (!(options).Check(&sightmap_options_error_)) {                      \
+      SIGHTMAP_THROW(::sightmap::InvalidArgument,                          \
+                     "invalid " #options ": " << sightmap_options_error_); \
+    }                                                                      \
   } while (false)

@@ -17,19 +17,21 @@ std::string FindSharedData(const std::string& relative);
 // True when running under CI (the environment variable CI is set to anything but "" or "false").
 bool RunningUnderCi();
 
-// A fresh empty folder under the test's temporary directory, removed by nobody (ctest's build tree).
+// A fresh empty folder under the test's temporary directory, removed by nobody (ctest's build
+// tree).
 std::string MakeTempDir(const std::string& name);
 
 }  // namespace sightmap::testing
 
 // In a TEST body: binds `var` to the data path, or skips (fails under CI) when it is absent.
-#define SIGHTMAP_REQUIRE_SHARED_DATA(var, relative)                                               \
-  const std::string var = ::sightmap::testing::FindSharedData(relative);                           \
-  if (var.empty()) {                                                                               \
-    if (::sightmap::testing::RunningUnderCi()) {                                                   \
-      FAIL() << "shared test data " << (relative) << " is missing under "                          \
-             << ::sightmap::testing::SharedDataDir() << " and CI is set";                          \
-    }                                                                                              \
-    GTEST_SKIP() << "shared test data " << (relative) << " not found under "                       \
-                 << ::sightmap::testing::SharedDataDir() << " (clone ../shared beside the project)"; \
+#define SIGHTMAP_REQUIRE_SHARED_DATA(var, relative)                          \
+  const std::string var = ::sightmap::testing::FindSharedData(relative);     \
+  if (var.empty()) {                                                         \
+    if (::sightmap::testing::RunningUnderCi()) {                             \
+      FAIL() << "shared test data " << (relative) << " is missing under "    \
+             << ::sightmap::testing::SharedDataDir() << " and CI is set";    \
+    }                                                                        \
+    GTEST_SKIP() << "shared test data " << (relative) << " not found under " \
+                 << ::sightmap::testing::SharedDataDir()                     \
+                 << " (clone ../shared beside the project)";                 \
   }

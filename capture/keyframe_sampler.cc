@@ -1,0 +1,38 @@
+#include "capture/keyframe_sampler.h"
+
+#include <cmath>
+
+#include "core/check.h"
+
+namespace sightmap {
+
+bool KeyframeSamplerOptions::Check(std::string* error) const {
+  if (!(rate_hz >= 0.0) || !std::isfinite(rate_hz) || rate_hz > 1000.0) {
+    if (error) *error = "rate_hz must be in [0, 1000] (0 keeps every frame)";
+    return false;
+  }
+  return true;
+}
+
+KeyframeSampler::KeyframeSampler(const KeyframeSamplerOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  period_ns_ =
+      options.rate_hz > 0.0 ? static_cast<int64_t>(std::llround(1e9 / options.rate_hz)) : 0;
+}
+
+bool KeyframeSampler::Accept(TimestampNs timestamp_ns) {
+  if (period_ns_ == 0) return true;
+  const bool first = !next_due_ns_;
+  const bool went_back = next_due_ns_ && timestamp_ns < *next_due_ns_ - period_ns_;
+  if (first || went_back) {
+    next_due_ns_ = timestamp_ns + period_ns_;
+    return true;
+  }
+  if (timestamp_ns < *next_due_ns_) return false;
+  // Skip the grid points a gap in the stream jumped over.
+  const int64_t periods_late = (timestamp_ns - *next_due_ns_) / period_ns_;
+  *next_due_ns_ += (periods_late + 1) * period_ns_;
+  return true;
+}
+
+}  // namespace sightmap
