@@ -28,7 +28,7 @@ namespace {
 constexpr double kPrimeSenseHfovRad = 1.0145;
 constexpr double kPrimeSenseVfovRad = 0.7898;
 constexpr double kPrimeSenseBaselineM = 0.025;
-constexpr std::chrono::milliseconds kLiveStopGrace(150);
+constexpr std::chrono::milliseconds kStopGrace(150);
 
 std::string Fixed(double value, int digits) {
   std::ostringstream out;
@@ -147,14 +147,24 @@ class OpenNiSource final : public RgbdSource {
   }
 
   ~OpenNiSource() override {
-    // Streams before the device, the device before the runtime (member order handles the last).
+    // The device goes before the runtime (member order handles that).
     depth_.stop();
     color_.stop();
-    if (!is_file_) {
-      // Some drivers (Debian's DummyDevice) hand out one more frame from their own thread after
-      // stop(); destroying the stream under it crashes the process. A live session ends once, so
-      // a short grace costs nothing.
-      std::this_thread::sleep_for(kLiveStopGrace);
+    // Drivers deliver frames from threads of their own and check "started" only before they
+    // begin a delivery: one that began before stop() still runs into the stream's buffers
+    // (Debian's DummyDevice; OpenNI2's file player, which a read triggers one frame ahead).
+    // Tearing the stream down under it crashes the process. A source ends once, so a short grace
+    // for that last delivery costs nothing.
+    std::this_thread::sleep_for(kStopGrace);
+    if (is_file_) {
+      // The file player's thread also walks its stream list without a lock, and destroying a
+      // stream unlinks and frees it from that list. Closing the device first joins the thread;
+      // streams destroyed afterwards no longer reach the driver (their device handle is gone),
+      // which leaks two small driver objects per recording instead of risking a crash.
+      device_.close();
+      depth_.destroy();
+      color_.destroy();
+      return;
     }
     depth_.destroy();
     color_.destroy();
