@@ -1,0 +1,10 @@
+// One thin function per `sightmap` subcommand: parse its options, call the libraries, return an
+// exit code (see command_util.h). Library errors propagate as exceptions to main().
+#pragma once
+
+namespace sightmap::cli {
+
+int RunDevices(int argc, char** argv);
+int RunProbe(int argc, char** argv);
+
+}  // namespace sightmap::cli

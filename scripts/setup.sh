@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages sightmap needs, only those that are missing. Idempotent; runs as
+# root, or as a user with sudo. Nothing is downloaded except through apt.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config git      # toolchain
+  libopenni2-dev                            # OpenNI2: live sensors and .oni replay
+  libusb-1.0-0-dev                          # USB sensor discovery (sightmap devices)
+  libopencv-dev                             # image codecs, colour conversion
+  libeigen3-dev                             # geometry
+  libcli11-dev                              # command line
+  nlohmann-json3-dev                        # JSON output and calibration files
+  libgtest-dev                              # tests
+)
+
+missing=()
+for package in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
+  [[ "$status" == "install ok installed" ]] || missing+=("$package")
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "setup: all ${#packages[@]} packages are installed"
+  exit 0
+fi
+
+if [[ $EUID -eq 0 ]]; then
+  sudo=()
+elif command -v sudo >/dev/null 2>&1; then
+  sudo=(sudo)
+else
+  echo "error: missing packages ${missing[*]} and no sudo: run this script as root" >&2
+  exit 1
+fi
+
+echo "setup: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo[@]}" apt-get update -q
+"${sudo[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
