@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
+#include <map>
+#include <mutex>
 
 #include "capture/folder_source.h"
 #include "capture/openni_source.h"
@@ -26,7 +28,28 @@ bool EndsWithNoCase(const std::string& text, const std::string& suffix) {
   });
 }
 
+std::mutex& OpenersMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+std::map<SourceSpec::Kind, SourceOpener>& Openers() {
+  static std::map<SourceSpec::Kind, SourceOpener> openers;
+  return openers;
+}
+
+SourceOpener FindOpener(SourceSpec::Kind kind) {
+  std::lock_guard<std::mutex> lock(OpenersMutex());
+  const auto it = Openers().find(kind);
+  return it == Openers().end() ? SourceOpener() : it->second;
+}
+
 }  // namespace
+
+void RegisterSourceOpener(SourceSpec::Kind kind, SourceOpener opener) {
+  std::lock_guard<std::mutex> lock(OpenersMutex());
+  Openers()[kind] = std::move(opener);
+}
 
 bool SourceOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
@@ -107,6 +130,7 @@ std::unique_ptr<RgbdSource> OpenSource(const std::string& source, const SourceOp
     case SourceSpec::Kind::kThreeDMatch:
       return OpenThreeDMatchFolder(spec.location, options);
     case SourceSpec::Kind::kSim:
+      if (const SourceOpener opener = FindOpener(spec.kind)) return opener(spec.location, options);
       SIGHTMAP_THROW(Error,
                      "sim:" << spec.location
                             << " — the synthetic building is not part of this build yet; map "

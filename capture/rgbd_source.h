@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -114,6 +115,13 @@ struct SourceSpec {
 // A bare folder is recognised by its layout (rgb.txt -> tum, camera-intrinsics.txt -> 3dmatch).
 // Throws InvalidArgument with a message that lists the accepted forms.
 SourceSpec ParseSourceSpec(const std::string& source);
+
+// Opens the sources of a kind implemented above capture/: the synthetic building (sim/) renders
+// through render/, so it registers itself at start-up (sim::RegisterSimSource()) instead of
+// capture depending on it. Thread-safe; a later registration replaces an earlier one.
+using SourceOpener = std::function<std::unique_ptr<RgbdSource>(const std::string& location,
+                                                               const SourceOptions& options)>;
+void RegisterSourceOpener(SourceSpec::Kind kind, SourceOpener opener);
 
 // Opens any source. Throws sightmap::Error when it cannot be opened, with what to do.
 std::unique_ptr<RgbdSource> OpenSource(const std::string& source,

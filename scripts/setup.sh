@@ -11,7 +11,11 @@ packages=(
   libeigen3-dev                             # geometry
   libcli11-dev                              # command line
   nlohmann-json3-dev                        # JSON output and calibration files
-  libgtest-dev                              # tests
+  libsqlite3-dev                            # the model (store/)
+  libpcl-dev                                # PLY export: voxel filter, outlier removal, PLY I/O
+  libosmesa6-dev                            # off-screen rendering (render/, the simulator)
+  opencv-doc                                # real photographs the simulator textures its scene with
+  libgtest-dev libbenchmark-dev             # tests and benchmarks
 )
 
 missing=()
