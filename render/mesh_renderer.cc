@@ -1,0 +1,356 @@
+#include "render/mesh_renderer.h"
+
+#include <GL/gl.h>
+#include <GL/glext.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+// One face as seen from outside: corners bottom-left, bottom-right, top-right, top-left.
+void AddQuad(const Eigen::Vector3f& bl, const Eigen::Vector3f& br, const Eigen::Vector3f& tr,
+             const Eigen::Vector3f& tl, const Eigen::Vector3f& normal, float width_m,
+             float height_m, float texture_scale_m, TriangleMesh* mesh) {
+  float u1 = 1.0f;
+  float v1 = 1.0f;
+  if (texture_scale_m > 0.0f) {
+    u1 = width_m / texture_scale_m;
+    v1 = height_m / texture_scale_m;
+  }
+  // Texture row 0 (the image top) at the face's top edge.
+  const Eigen::Vector2f uv_bl(0, v1), uv_br(u1, v1), uv_tr(u1, 0), uv_tl(0, 0);
+  const Eigen::Vector3f corners[6] = {bl, br, tr, bl, tr, tl};
+  const Eigen::Vector2f uvs[6] = {uv_bl, uv_br, uv_tr, uv_bl, uv_tr, uv_tl};
+  for (int i = 0; i < 6; ++i) {
+    mesh->positions.push_back(corners[i]);
+    mesh->normals.push_back(normal);
+    mesh->uvs.push_back(uvs[i]);
+  }
+}
+
+// OpenGL's eye frame has y up and z backward; OpenCV's camera frame has y down, z forward.
+Eigen::Matrix4d GlEyeFromCam() {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m(1, 1) = -1;
+  m(2, 2) = -1;
+  return m;
+}
+
+// Projection that maps an OpenCV pixel (u, v) (centres at integers) to GL window coordinates
+// (u + 0.5, height - v - 0.5), with the image read back top row first.
+Eigen::Matrix4d GlProjection(const Intrinsics& k, double near_m, double far_m) {
+  Eigen::Matrix4d p = Eigen::Matrix4d::Zero();
+  p(0, 0) = 2.0 * k.fx / k.width;
+  p(0, 2) = 1.0 - 2.0 * (k.cx + 0.5) / k.width;
+  p(1, 1) = 2.0 * k.fy / k.height;
+  p(1, 2) = 2.0 * (k.cy + 0.5) / k.height - 1.0;
+  p(2, 2) = -(far_m + near_m) / (far_m - near_m);
+  p(2, 3) = -2.0 * far_m * near_m / (far_m - near_m);
+  p(3, 2) = -1.0;
+  return p;
+}
+
+}  // namespace
+
+TriangleMesh MakeBox(const Eigen::Vector3f& center, const Eigen::Vector3f& size, float yaw_rad,
+                     const Material& material, int id) {
+  TriangleMesh mesh;
+  mesh.material = material;
+  mesh.id = id;
+  const Eigen::Matrix3f rotation =
+      Eigen::AngleAxisf(yaw_rad, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3f h = 0.5f * size;
+  auto corner = [&](float sx, float sy, float sz) -> Eigen::Vector3f {
+    return center + rotation * Eigen::Vector3f(sx * h.x(), sy * h.y(), sz * h.z());
+  };
+  auto axis = [&](int i, float sign) -> Eigen::Vector3f { return sign * rotation.col(i); };
+  const float s = material.texture_scale_m;
+  // +x face, seen from +x: right is +y.
+  AddQuad(corner(1, -1, -1), corner(1, 1, -1), corner(1, 1, 1), corner(1, -1, 1), axis(0, 1),
+          size.y(), size.z(), s, &mesh);
+  // -x face: right is -y.
+  AddQuad(corner(-1, 1, -1), corner(-1, -1, -1), corner(-1, -1, 1), corner(-1, 1, 1), axis(0, -1),
+          size.y(), size.z(), s, &mesh);
+  // +y face: right is -x.
+  AddQuad(corner(1, 1, -1), corner(-1, 1, -1), corner(-1, 1, 1), corner(1, 1, 1), axis(1, 1),
+          size.x(), size.z(), s, &mesh);
+  // -y face: right is +x.
+  AddQuad(corner(-1, -1, -1), corner(1, -1, -1), corner(1, -1, 1), corner(-1, -1, 1), axis(1, -1),
+          size.x(), size.z(), s, &mesh);
+  // Top (+z), seen from above with +y up in the image.
+  AddQuad(corner(-1, -1, 1), corner(1, -1, 1), corner(1, 1, 1), corner(-1, 1, 1), axis(2, 1),
+          size.x(), size.y(), s, &mesh);
+  // Bottom (-z), seen from below.
+  AddQuad(corner(-1, 1, -1), corner(1, 1, -1), corner(1, -1, -1), corner(-1, -1, -1), axis(2, -1),
+          size.x(), size.y(), s, &mesh);
+  return mesh;
+}
+
+bool RenderOptions::Check(std::string* error) const {
+  if (!(near_m > 0.0 && far_m > near_m)) {
+    *error = "need 0 < near_m < far_m";
+    return false;
+  }
+  if (ambient < 0.0f || ambient > 1.0f) {
+    *error = "ambient must be in [0, 1]";
+    return false;
+  }
+  for (const DirectionalLight& light : lights) {
+    if (light.direction_to_light.norm() <= 0.0f || light.intensity < 0.0f) {
+      *error = "each light needs a non-zero direction and a non-negative intensity";
+      return false;
+    }
+  }
+  if (lights.size() > 8) {
+    *error = "at most 8 lights (the fixed-function pipeline's minimum)";
+    return false;
+  }
+  return true;
+}
+
+struct MeshRenderer::Impl {
+  explicit Impl(const RenderOptions& render_options) : context(64, 64), options(render_options) {}
+
+  OffscreenContext context;
+  RenderOptions options;
+  std::vector<TriangleMesh> meshes;
+  std::vector<GLuint> textures;
+
+  void Prepare(const Intrinsics& k, const Eigen::Isometry3d& world_from_cam,
+               const Eigen::Vector3f& clear_rgb) {
+    std::string error;
+    SIGHTMAP_CHECK(k.Check(&error), "cannot render with invalid intrinsics: " << error);
+    context.Resize(k.width, k.height);
+    glViewport(0, 0, k.width, k.height);
+    glClearColor(clear_rgb.x(), clear_rgb.y(), clear_rgb.z(), 1.0f);
+    glClearDepth(1.0);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_DITHER);
+    glDisable(GL_BLEND);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+
+    const Eigen::Matrix4d projection = GlProjection(k, options.near_m, options.far_m);
+    glMatrixMode(GL_PROJECTION);
+    glLoadMatrixd(projection.data());  // Eigen is column-major like GL
+    const Eigen::Matrix4d gl_eye_from_world = GlEyeFromCam() * world_from_cam.inverse().matrix();
+    glMatrixMode(GL_MODELVIEW);
+    glLoadMatrixd(gl_eye_from_world.data());
+  }
+
+  void Draw(const TriangleMesh& mesh) {
+    if (mesh.positions.empty()) return;
+    glEnableClientState(GL_VERTEX_ARRAY);
+    glVertexPointer(3, GL_FLOAT, sizeof(Eigen::Vector3f), mesh.positions.data());
+    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.positions.size()));
+    glDisableClientState(GL_VERTEX_ARRAY);
+  }
+
+  // Converts a window depth in [0, 1] to the distance along the optical axis [m].
+  float MetricDepth(float window_depth) const {
+    if (window_depth >= 1.0f) return 0.0f;
+    const double n = options.near_m;
+    const double f = options.far_m;
+    const double ndc = 2.0 * window_depth - 1.0;
+    return static_cast<float>(2.0 * f * n / ((f + n) - ndc * (f - n)));
+  }
+};
+
+MeshRenderer::MeshRenderer(const RenderOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  impl_ = std::make_unique<Impl>(options);
+}
+
+MeshRenderer::~MeshRenderer() {
+  if (impl_ && !impl_->textures.empty()) {
+    impl_->context.MakeCurrent();
+    glDeleteTextures(static_cast<GLsizei>(impl_->textures.size()), impl_->textures.data());
+  }
+}
+
+int MeshRenderer::AddTexture(const cv::Mat& image) {
+  SIGHTMAP_CHECK(
+      !image.empty() && image.depth() == CV_8U && (image.channels() == 3 || image.channels() == 1),
+      "a texture must be a non-empty 8-bit BGR or grey image");
+  cv::Mat bgr;
+  if (image.channels() == 1) {
+    cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+  } else {
+    bgr = image.isContinuous() ? image : image.clone();
+  }
+  impl_->context.MakeCurrent();
+  GLuint name = 0;
+  glGenTextures(1, &name);
+  glBindTexture(GL_TEXTURE_2D, name);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  // Mipmaps keep distant posters from aliasing into noise that real optics would blur away.
+  glTexParameteri(GL_TEXTURE_2D, GL_GENERATE_MIPMAP, GL_TRUE);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, bgr.cols, bgr.rows, 0, GL_BGR, GL_UNSIGNED_BYTE,
+               bgr.data);
+  SIGHTMAP_CHECK(glGetError() == GL_NO_ERROR,
+                 "OpenGL rejected a " << bgr.cols << "x" << bgr.rows << " texture");
+  impl_->textures.push_back(name);
+  return static_cast<int>(impl_->textures.size()) - 1;
+}
+
+void MeshRenderer::AddMesh(TriangleMesh mesh) {
+  SIGHTMAP_CHECK(mesh.positions.size() % 3 == 0 && mesh.normals.size() == mesh.positions.size() &&
+                     mesh.uvs.size() == mesh.positions.size(),
+                 "a mesh needs three vertices per triangle, each with a normal and a uv");
+  SIGHTMAP_CHECK(mesh.material.texture < static_cast<int>(impl_->textures.size()),
+                 "mesh refers to texture " << mesh.material.texture << " which was never added");
+  SIGHTMAP_CHECK(mesh.id >= 0 && mesh.id < (1 << 24), "mesh ids must be in [0, 2^24)");
+  impl_->meshes.push_back(std::move(mesh));
+}
+
+void MeshRenderer::ClearMeshes() { impl_->meshes.clear(); }
+size_t MeshRenderer::num_meshes() const { return impl_->meshes.size(); }
+
+void MeshRenderer::set_options(const RenderOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  impl_->options = options;
+}
+const RenderOptions& MeshRenderer::options() const { return impl_->options; }
+OffscreenContext& MeshRenderer::context() { return impl_->context; }
+
+RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
+                                  const Eigen::Isometry3d& world_from_cam) {
+  Impl& impl = *impl_;
+  const RenderOptions& options = impl.options;
+  impl.Prepare(intrinsics, world_from_cam, options.background_rgb);
+
+  // Lights are given in world coordinates: set them with the world-to-eye modelview loaded.
+  glEnable(GL_NORMALIZE);
+  glShadeModel(GL_SMOOTH);
+  const GLfloat ambient[4] = {options.ambient, options.ambient, options.ambient, 1.0f};
+  glLightModelfv(GL_LIGHT_MODEL_AMBIENT, ambient);
+  glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
+  for (int i = 0; i < 8; ++i) glDisable(GL_LIGHT0 + i);
+  for (size_t i = 0; i < options.lights.size(); ++i) {
+    const DirectionalLight& light = options.lights[i];
+    const Eigen::Vector3f d = light.direction_to_light.normalized();
+    const GLfloat position[4] = {d.x(), d.y(), d.z(), 0.0f};
+    const GLfloat diffuse[4] = {light.intensity, light.intensity, light.intensity, 1.0f};
+    const GLfloat zero[4] = {0, 0, 0, 1};
+    const GLenum id = GL_LIGHT0 + static_cast<GLenum>(i);
+    glLightfv(id, GL_POSITION, position);
+    glLightfv(id, GL_DIFFUSE, diffuse);
+    glLightfv(id, GL_AMBIENT, zero);
+    glLightfv(id, GL_SPECULAR, zero);
+    glEnable(id);
+  }
+  const GLfloat zero[4] = {0, 0, 0, 1};
+  glMaterialfv(GL_FRONT_AND_BACK, GL_SPECULAR, zero);
+  glMaterialfv(GL_FRONT_AND_BACK, GL_EMISSION, zero);
+  glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
+  glEnable(GL_COLOR_MATERIAL);
+  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+
+  glEnableClientState(GL_VERTEX_ARRAY);
+  glEnableClientState(GL_NORMAL_ARRAY);
+  for (const TriangleMesh& mesh : impl.meshes) {
+    if (mesh.positions.empty()) continue;
+    const Material& m = mesh.material;
+    // Alpha carries the no-depth flag to the read-back (blending is off, so it is stored as is).
+    const float alpha = m.no_depth ? 0.0f : 1.0f;
+    glColor4f(m.color_rgb.x(), m.color_rgb.y(), m.color_rgb.z(), alpha);
+    if (m.unlit) {
+      glDisable(GL_LIGHTING);
+    } else {
+      glEnable(GL_LIGHTING);
+    }
+    if (m.texture >= 0) {
+      glEnable(GL_TEXTURE_2D);
+      glBindTexture(GL_TEXTURE_2D, impl.textures[static_cast<size_t>(m.texture)]);
+      glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+      glTexCoordPointer(2, GL_FLOAT, sizeof(Eigen::Vector2f), mesh.uvs.data());
+    } else {
+      glDisable(GL_TEXTURE_2D);
+      glDisableClientState(GL_TEXTURE_COORD_ARRAY);
+    }
+    glVertexPointer(3, GL_FLOAT, sizeof(Eigen::Vector3f), mesh.positions.data());
+    glNormalPointer(GL_FLOAT, sizeof(Eigen::Vector3f), mesh.normals.data());
+    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.positions.size()));
+  }
+  glDisableClientState(GL_TEXTURE_COORD_ARRAY);
+  glDisableClientState(GL_NORMAL_ARRAY);
+  glDisableClientState(GL_VERTEX_ARRAY);
+  glDisable(GL_TEXTURE_2D);
+  glDisable(GL_LIGHTING);
+  glDisable(GL_COLOR_MATERIAL);
+  glFinish();
+
+  const int w = intrinsics.width;
+  const int h = intrinsics.height;
+  cv::Mat bgra(h, w, CV_8UC4);
+  glReadPixels(0, 0, w, h, GL_BGRA, GL_UNSIGNED_BYTE, bgra.data);
+  cv::Mat window_depth(h, w, CV_32F);
+  glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, window_depth.data);
+  SIGHTMAP_CHECK(glGetError() == GL_NO_ERROR, "OpenGL failed to read back the rendered image");
+
+  // GL rows start at the bottom.
+  cv::flip(bgra, bgra, 0);
+  cv::flip(window_depth, window_depth, 0);
+  RenderedView view;
+  view.color.create(h, w, CV_8UC3);
+  view.no_depth.create(h, w, CV_8U);
+  view.depth.create(h, w, CV_32F);
+  for (int v = 0; v < h; ++v) {
+    const cv::Vec4b* in = bgra.ptr<cv::Vec4b>(v);
+    const float* wd = window_depth.ptr<float>(v);
+    cv::Vec3b* out = view.color.ptr<cv::Vec3b>(v);
+    uint8_t* mask = view.no_depth.ptr<uint8_t>(v);
+    float* depth = view.depth.ptr<float>(v);
+    for (int u = 0; u < w; ++u) {
+      out[u] = cv::Vec3b(in[u][0], in[u][1], in[u][2]);
+      depth[u] = impl.MetricDepth(wd[u]);
+      mask[u] = (depth[u] > 0.0f && in[u][3] < 128) ? 255 : 0;
+    }
+  }
+  return view;
+}
+
+cv::Mat MeshRenderer::RenderIds(const Intrinsics& intrinsics,
+                                const Eigen::Isometry3d& world_from_cam, int only_id) {
+  Impl& impl = *impl_;
+  impl.Prepare(intrinsics, world_from_cam, Eigen::Vector3f::Zero());
+  glDisable(GL_LIGHTING);
+  glDisable(GL_TEXTURE_2D);
+  glShadeModel(GL_FLAT);
+  for (const TriangleMesh& mesh : impl.meshes) {
+    if (only_id > 0 && mesh.id != only_id) continue;
+    // The ID as exact 8-bit channels: 24 bits in RGB.
+    glColor4ub(static_cast<GLubyte>(mesh.id & 0xff), static_cast<GLubyte>((mesh.id >> 8) & 0xff),
+               static_cast<GLubyte>((mesh.id >> 16) & 0xff), 255);
+    impl.Draw(mesh);
+  }
+  glFinish();
+  const int w = intrinsics.width;
+  const int h = intrinsics.height;
+  cv::Mat rgba(h, w, CV_8UC4);
+  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data);
+  SIGHTMAP_CHECK(glGetError() == GL_NO_ERROR, "OpenGL failed to read back the ID buffer");
+  cv::flip(rgba, rgba, 0);
+  cv::Mat ids(h, w, CV_32S);
+  for (int v = 0; v < h; ++v) {
+    const cv::Vec4b* in = rgba.ptr<cv::Vec4b>(v);
+    int32_t* out = ids.ptr<int32_t>(v);
+    for (int u = 0; u < w; ++u) out[u] = in[u][0] | (in[u][1] << 8) | (in[u][2] << 16);
+  }
+  return ids;
+}
+
+}  // namespace sightmap
