@@ -1,0 +1,845 @@
+#include "store/model.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <numeric>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/check.h"
+#include "store/schema.h"
+#include "store/sqlite_util.h"
+
+namespace sightmap {
+
+using store_internal::Exec;
+using store_internal::Statement;
+using store_internal::Transaction;
+
+namespace {
+
+TimestampNs NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// Binds tx ty tz qx qy qz qw starting at `first`.
+void BindPose(Statement& statement, int first, const Eigen::Isometry3d& pose) {
+  const Eigen::Vector3d t = pose.translation();
+  const Eigen::Quaterniond q(pose.rotation());
+  statement.Bind(first, t.x()).Bind(first + 1, t.y()).Bind(first + 2, t.z());
+  statement.Bind(first + 3, q.x()).Bind(first + 4, q.y()).Bind(first + 5, q.z());
+  statement.Bind(first + 6, q.w());
+}
+
+Eigen::Isometry3d ColumnPose(const Statement& statement, int first) {
+  Eigen::Quaterniond q(statement.Double(first + 6), statement.Double(first + 3),
+                       statement.Double(first + 4), statement.Double(first + 5));
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = q.normalized().toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(statement.Double(first), statement.Double(first + 1),
+                                       statement.Double(first + 2));
+  return pose;
+}
+
+void BindIntrinsics(Statement& statement, int first, const Intrinsics& k) {
+  statement.Bind(first, k.width).Bind(first + 1, k.height).Bind(first + 2, k.fx);
+  statement.Bind(first + 3, k.fy).Bind(first + 4, k.cx).Bind(first + 5, k.cy);
+}
+
+Intrinsics ColumnIntrinsics(const Statement& statement, int first) {
+  Intrinsics k;
+  k.width = static_cast<int>(statement.Int(first));
+  k.height = static_cast<int>(statement.Int(first + 1));
+  k.fx = statement.Double(first + 2);
+  k.fy = statement.Double(first + 3);
+  k.cx = statement.Double(first + 4);
+  k.cy = statement.Double(first + 5);
+  return k;
+}
+
+// Keypoints as packed little-endian records (x, y, size, angle, response as float32; octave,
+// class_id as int32): 28 bytes each, no per-feature rows (1,000 rows per keyframe would dominate
+// write time).
+constexpr size_t kKeypointBytes = 5 * sizeof(float) + 2 * sizeof(int32_t);
+
+std::vector<uint8_t> EncodeKeypoints(const std::vector<cv::KeyPoint>& keypoints) {
+  std::vector<uint8_t> blob(keypoints.size() * kKeypointBytes);
+  uint8_t* out = blob.data();
+  for (const cv::KeyPoint& kp : keypoints) {
+    const float floats[5] = {kp.pt.x, kp.pt.y, kp.size, kp.angle, kp.response};
+    const int32_t ints[2] = {kp.octave, kp.class_id};
+    std::memcpy(out, floats, sizeof(floats));
+    std::memcpy(out + sizeof(floats), ints, sizeof(ints));
+    out += kKeypointBytes;
+  }
+  return blob;
+}
+
+std::vector<cv::KeyPoint> DecodeKeypoints(const std::vector<uint8_t>& blob) {
+  SIGHTMAP_CHECK(blob.size() % kKeypointBytes == 0,
+                 "corrupt keypoints blob in the model: restore it from a backup");
+  std::vector<cv::KeyPoint> keypoints(blob.size() / kKeypointBytes);
+  const uint8_t* in = blob.data();
+  for (cv::KeyPoint& kp : keypoints) {
+    float floats[5];
+    int32_t ints[2];
+    std::memcpy(floats, in, sizeof(floats));
+    std::memcpy(ints, in + sizeof(floats), sizeof(ints));
+    kp = cv::KeyPoint(floats[0], floats[1], floats[2], floats[3], floats[4], ints[0], ints[1]);
+    in += kKeypointBytes;
+  }
+  return keypoints;
+}
+
+template <typename Row>
+Statement& BindRowAsBlob(Statement& statement, int index, const std::vector<Row>& rows) {
+  return statement.BindBlob(index, rows.data(), rows.size() * sizeof(Row));
+}
+
+std::string FileDescription(const std::string& path) { return "'" + path + "'"; }
+
+bool IsMemoryPath(const std::string& path) { return path == ":memory:" || path.empty(); }
+
+}  // namespace
+
+const char* SessionEndName(SessionEnd end) {
+  switch (end) {
+    case SessionEnd::kRunning:
+      return "running";
+    case SessionEnd::kFinished:
+      return "finished";
+    case SessionEnd::kInterrupted:
+      return "interrupted";
+    case SessionEnd::kResumedInto:
+      return "resumed-into";
+  }
+  return "unknown";
+}
+
+const char* LinkTypeName(LinkType type) {
+  switch (type) {
+    case LinkType::kOdometry:
+      return "odometry";
+    case LinkType::kLoopClosure:
+      return "loop";
+    case LinkType::kRelocalisation:
+      return "relocalisation";
+    case LinkType::kUser:
+      return "user";
+  }
+  return "unknown";
+}
+
+bool ModelOptions::Check(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (jpeg_quality < 1 || jpeg_quality > 100) return fail("jpeg_quality must be in [1, 100]");
+  if (png_compression < 0 || png_compression > 9) return fail("png_compression must be in [0, 9]");
+  if (busy_timeout_ms < 0) return fail("busy_timeout_ms must be >= 0");
+  return true;
+}
+
+struct Model::Impl {
+  std::string path;
+  ModelOptions options;
+  sqlite3* db = nullptr;
+  int schema_version = 0;
+
+  ~Impl() {
+    // sqlite3_close_v2 checkpoints the WAL when this is the last connection.
+    if (db) sqlite3_close_v2(db);
+  }
+
+  void CheckWritable() const {
+    SIGHTMAP_CHECK(!options.read_only,
+                   "model " << FileDescription(path)
+                            << " was opened read-only; open it without read_only to change it");
+  }
+
+  void InsertLink(const LinkRecord& link, KeyframeId self) {
+    const KeyframeId from = link.from.valid() ? link.from : self;
+    const KeyframeId to = link.to.valid() ? link.to : self;
+    SIGHTMAP_CHECK(from.valid() && to.valid(), "a link needs keyframe ids at both ends");
+    Statement insert(db,
+                     "INSERT INTO links (from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, "
+                     "information) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+    insert.Bind(1, from.value()).Bind(2, to.value()).Bind(3, static_cast<int>(link.type));
+    BindPose(insert, 4, link.from_from_to);
+    // Eigen stores column-major; the 6x6 is symmetric so the order does not matter to readers.
+    insert.BindBlob(11, link.information.data(), sizeof(double) * 36);
+    insert.Run();
+  }
+
+  void InsertLabelPoints(LabelId id, const std::vector<LabelPoint>& points) {
+    Statement insert(db,
+                     "INSERT INTO label_points (label_id, idx, x, y, z, source, keyframe_id, u, v, "
+                     "cam_x, cam_y, cam_z, file) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+    for (size_t i = 0; i < points.size(); ++i) {
+      const LabelPoint& p = points[i];
+      insert.Bind(1, id.value()).Bind(2, static_cast<int64_t>(i));
+      insert.Bind(3, p.world.x()).Bind(4, p.world.y()).Bind(5, p.world.z());
+      insert.Bind(6, static_cast<int>(p.source));
+      if (p.source == LabelPointSource::kKeyframePixel) {
+        SIGHTMAP_CHECK(p.keyframe.valid(), "a label point clicked on a keyframe needs its id");
+        insert.Bind(7, p.keyframe.value()).Bind(8, p.pixel.x()).Bind(9, p.pixel.y());
+        insert.Bind(10, p.cam_point.x()).Bind(11, p.cam_point.y()).Bind(12, p.cam_point.z());
+      } else {
+        for (int column = 7; column <= 12; ++column) insert.BindNull(column);
+      }
+      if (p.file.empty()) {
+        insert.BindNull(13);
+      } else {
+        insert.Bind(13, p.file);
+      }
+      insert.Run();
+    }
+  }
+
+  void CheckLabel(const LabelRecord& label) const {
+    SIGHTMAP_CHECK(!label.name.empty(), "a label needs a name");
+    SIGHTMAP_CHECK(!label.points.empty(), "label '" << label.name << "' needs at least one point");
+  }
+
+  std::vector<LabelRecord> QueryLabels(const std::string& where, const std::string* name) const {
+    std::vector<LabelRecord> labels;
+    Statement query(db, "SELECT id, name, type, created_ns, updated_ns FROM labels " + where +
+                            " ORDER BY name");
+    if (name) query.Bind(1, *name);
+    while (query.Step()) {
+      LabelRecord label;
+      label.id = LabelId(query.Int(0));
+      label.name = query.Text(1);
+      label.type = query.Text(2);
+      label.created_ns = query.Int(3);
+      label.updated_ns = query.Int(4);
+      labels.push_back(std::move(label));
+    }
+    // Keyframe-relative points take the keyframe's current pose, so labels follow loop closures.
+    Statement points(db,
+                     "SELECT p.x, p.y, p.z, p.source, p.keyframe_id, p.u, p.v, p.cam_x, p.cam_y, "
+                     "p.cam_z, p.file, k.tx, k.ty, k.tz, k.qx, k.qy, k.qz, k.qw, k.id "
+                     "FROM label_points p LEFT JOIN keyframes k ON k.id = p.keyframe_id "
+                     "WHERE p.label_id = ? ORDER BY p.idx");
+    for (LabelRecord& label : labels) {
+      points.Bind(1, label.id.value());
+      while (points.Step()) {
+        LabelPoint p;
+        p.world = Eigen::Vector3d(points.Double(0), points.Double(1), points.Double(2));
+        p.source = static_cast<LabelPointSource>(points.Int(3));
+        if (!points.IsNull(4)) {
+          p.keyframe = KeyframeId(points.Int(4));
+          p.pixel = Eigen::Vector2d(points.Double(5), points.Double(6));
+          p.cam_point = Eigen::Vector3d(points.Double(7), points.Double(8), points.Double(9));
+          if (!points.IsNull(18)) p.world = ColumnPose(points, 11) * p.cam_point;
+        }
+        if (!points.IsNull(10)) p.file = points.Text(10);
+        label.points.push_back(std::move(p));
+      }
+      points.Reset();
+    }
+    return labels;
+  }
+
+  KeyframeInfo RowToKeyframeInfo(const Statement& row) const {
+    KeyframeInfo info;
+    info.id = KeyframeId(row.Int(0));
+    info.session = SessionId(row.Int(1));
+    info.timestamp_ns = row.Int(2);
+    info.world_from_cam = ColumnPose(row, 3);
+    info.odom_world_from_cam = ColumnPose(row, 10);
+    info.intrinsics = ColumnIntrinsics(row, 17);
+    info.num_features = static_cast<int>(row.Int(23));
+    info.color_bytes = row.Int(24);
+    info.depth_bytes = row.Int(25);
+    return info;
+  }
+
+  std::vector<uint8_t> LoadImageBlob(KeyframeId id, const char* column) const {
+    Statement query(
+        db, std::string("SELECT ") + column + " FROM keyframe_images WHERE keyframe_id = ?");
+    query.Bind(1, id.value());
+    SIGHTMAP_CHECK(query.Step(),
+                   "keyframe " << id.value() << " is not in model " << FileDescription(path));
+    return query.Blob(0);
+  }
+};
+
+static constexpr const char* kKeyframeColumns =
+    "id, session_id, timestamp_ns, tx, ty, tz, qx, qy, qz, qw, odom_tx, odom_ty, odom_tz, "
+    "odom_qx, odom_qy, odom_qz, odom_qw, width, height, fx, fy, cx, cy, num_features, "
+    "color_bytes, depth_bytes";
+
+int Model::LatestSchemaVersion() { return store_internal::LatestSchemaVersion(); }
+
+Model::Model(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Model::Model(Model&&) noexcept = default;
+Model& Model::operator=(Model&&) noexcept = default;
+Model::~Model() = default;
+
+Model Model::Open(const std::string& path, const ModelOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->options = options;
+  const std::string what = FileDescription(path);
+  const bool memory = IsMemoryPath(path);
+
+  std::error_code ec;
+  const bool exists = !memory && std::filesystem::exists(path, ec);
+  if (!memory && !exists) {
+    SIGHTMAP_CHECK(!options.read_only && options.create_if_missing,
+                   "model " << what << " does not exist: check the path");
+  }
+  if (exists) {
+    SIGHTMAP_CHECK(std::filesystem::is_regular_file(path, ec),
+                   what << " is not a file: pass the model's .db file");
+  }
+
+  int flags = SQLITE_OPEN_NOMUTEX;
+  flags |= options.read_only ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+  const int open_rc =
+      sqlite3_open_v2(memory ? ":memory:" : path.c_str(), &impl->db, flags, nullptr);
+  if (open_rc != SQLITE_OK) {
+    const std::string detail = impl->db ? sqlite3_errmsg(impl->db) : sqlite3_errstr(open_rc);
+    SIGHTMAP_THROW(Error, "cannot open model " << what << ": " << detail
+                                               << "; check the path and its permissions");
+  }
+  sqlite3* db = impl->db;
+  sqlite3_extended_result_codes(db, 1);
+  SIGHTMAP_SQLITE3_CALL(db, sqlite3_busy_timeout(db, options.busy_timeout_ms));
+
+  // SQLite silently falls back to read-only when the OS refuses writes; say so now rather than at
+  // the first keyframe.
+  if (!options.read_only && sqlite3_db_readonly(db, "main") == 1) {
+    SIGHTMAP_THROW(Error, "model " << what
+                                   << " is read-only: make it writable (chmod u+w) or copy it "
+                                      "to a writable folder");
+  }
+
+  // The first read decides whether this is SQLite at all.
+  int64_t num_objects = 0;
+  {
+    sqlite3_stmt* probe = nullptr;
+    int rc = sqlite3_prepare_v2(db, "SELECT count(*) FROM sqlite_master", -1, &probe, nullptr);
+    if (rc == SQLITE_OK) {
+      rc = sqlite3_step(probe);
+      if (rc == SQLITE_ROW) num_objects = sqlite3_column_int64(probe, 0);
+    }
+    sqlite3_finalize(probe);
+    if ((rc & 0xff) == SQLITE_NOTADB) {
+      SIGHTMAP_THROW(Error, what << " is not a sightmap model (not a SQLite database): pass the "
+                                    ".db file that sightmap wrote");
+    }
+    if (rc != SQLITE_ROW) {
+      store_internal::ThrowSqliteError(db, sqlite3_extended_errcode(db), "probe", __FILE__,
+                                       __LINE__);
+    }
+  }
+
+  auto read_application_id = [db]() {
+    Statement query(db, "PRAGMA application_id");
+    query.Step();
+    return static_cast<int>(query.Int(0));
+  };
+  auto read_version = [db]() {
+    Statement query(db, "SELECT COALESCE(MAX(version), 0) FROM sightmap_schema");
+    query.Step();
+    return static_cast<int>(query.Int(0));
+  };
+  auto check_ours = [&](int application_id, int64_t objects) {
+    if (application_id != store_internal::kApplicationId && objects > 0) {
+      SIGHTMAP_THROW(Error, what << " is a SQLite database of another application, not a sightmap "
+                                    "model: pass a sightmap model, or a new file name to create "
+                                    "one");
+    }
+  };
+
+  check_ours(read_application_id(), num_objects);
+  const int latest = LatestSchemaVersion();
+  if (options.read_only) {
+    SIGHTMAP_CHECK(num_objects > 0, what << " is an empty database, not a sightmap model");
+    impl->schema_version = read_version();
+  } else {
+    if (!memory) {
+      Statement journal(db, "PRAGMA journal_mode=WAL");
+      journal.Step();
+      SIGHTMAP_CHECK(journal.Text(0) == "wal",
+                     "cannot switch model " << what << " to WAL mode (got '" << journal.Text(0)
+                                            << "'); put the model on a local filesystem");
+    }
+    Exec(db, options.sync_every_commit ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
+    // Decide and upgrade under the write lock, so two processes opening a new file do not both
+    // create the schema.
+    Transaction transaction(db);
+    Statement count(db, "SELECT count(*) FROM sqlite_master");
+    count.Step();
+    const int64_t objects = count.Int(0);
+    check_ours(read_application_id(), objects);
+    const int version = objects == 0 ? 0 : read_version();
+    if (version > latest) {
+      SIGHTMAP_THROW(Error, "model " << what << " has schema version " << version
+                                     << ", newer than this sightmap reads (" << latest
+                                     << "): update sightmap");
+    }
+    if (version < latest) store_internal::ApplyMigrations(db, version, latest);
+    transaction.Commit();
+    impl->schema_version = latest;
+  }
+  if (impl->schema_version > latest) {
+    SIGHTMAP_THROW(Error, "model " << what << " has schema version " << impl->schema_version
+                                   << ", newer than this sightmap reads (" << latest
+                                   << "): update sightmap");
+  }
+  if (options.read_only && impl->schema_version < latest) {
+    SIGHTMAP_THROW(Error, "model " << what << " has the older schema version "
+                                   << impl->schema_version
+                                   << ": open it once for writing to upgrade it");
+  }
+  Exec(db, "PRAGMA foreign_keys=ON");
+  return Model(std::move(impl));
+}
+
+const std::string& Model::path() const { return impl_->path; }
+
+int Model::SchemaVersion() const { return impl_->schema_version; }
+
+SessionId Model::BeginSession(const SessionRecord& session) {
+  impl_->CheckWritable();
+  Statement insert(impl_->db,
+                   "INSERT INTO sessions (start_time_ns, end_time_ns, source, device_name, "
+                   "device_serial, width, height, fx, fy, cx, cy, end_state, resumed_into, "
+                   "options_json) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, NULL, ?)");
+  insert.Bind(1, session.start_time_ns ? session.start_time_ns : NowNs());
+  insert.Bind(2, session.end_time_ns).Bind(3, session.source).Bind(4, session.device_name);
+  insert.Bind(5, session.device_serial);
+  BindIntrinsics(insert, 6, session.intrinsics);
+  insert.Bind(12, static_cast<int>(session.end_state));
+  insert.Bind(13, session.options_json.empty() ? std::string("{}") : session.options_json);
+  insert.Run();
+  return SessionId(sqlite3_last_insert_rowid(impl_->db));
+}
+
+void Model::EndSession(SessionId id, SessionEnd end_state, TimestampNs end_time_ns,
+                       SessionId resumed_into) {
+  impl_->CheckWritable();
+  SIGHTMAP_CHECK(end_state != SessionEnd::kResumedInto || resumed_into.valid(),
+                 "a session resumed into another needs that session's id");
+  Statement update(
+      impl_->db,
+      "UPDATE sessions SET end_state = ?, end_time_ns = ?, resumed_into = ? WHERE id = "
+      "?");
+  update.Bind(1, static_cast<int>(end_state)).Bind(2, end_time_ns);
+  if (resumed_into.valid()) {
+    update.Bind(3, resumed_into.value());
+  } else {
+    update.BindNull(3);
+  }
+  update.Bind(4, id.value()).Run();
+  SIGHTMAP_CHECK(sqlite3_changes(impl_->db) == 1,
+                 "session " << id.value() << " is not in model " << FileDescription(impl_->path));
+}
+
+int Model::MarkRunningSessionsInterrupted(TimestampNs now_ns) {
+  impl_->CheckWritable();
+  Statement update(impl_->db,
+                   "UPDATE sessions SET end_state = ?, end_time_ns = ? WHERE end_state = ?");
+  update.Bind(1, static_cast<int>(SessionEnd::kInterrupted)).Bind(2, now_ns);
+  update.Bind(3, static_cast<int>(SessionEnd::kRunning)).Run();
+  return sqlite3_changes(impl_->db);
+}
+
+std::vector<SessionRecord> Model::Sessions() const {
+  Statement query(impl_->db,
+                  "SELECT id, start_time_ns, end_time_ns, source, device_name, device_serial, "
+                  "width, height, fx, fy, cx, cy, end_state, resumed_into, options_json FROM "
+                  "sessions ORDER BY id");
+  std::vector<SessionRecord> sessions;
+  while (query.Step()) {
+    SessionRecord s;
+    s.id = SessionId(query.Int(0));
+    s.start_time_ns = query.Int(1);
+    s.end_time_ns = query.Int(2);
+    s.source = query.Text(3);
+    s.device_name = query.Text(4);
+    s.device_serial = query.Text(5);
+    s.intrinsics = ColumnIntrinsics(query, 6);
+    s.end_state = static_cast<SessionEnd>(query.Int(12));
+    if (!query.IsNull(13)) s.resumed_into = SessionId(query.Int(13));
+    s.options_json = query.Text(14);
+    sessions.push_back(std::move(s));
+  }
+  return sessions;
+}
+
+KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
+  impl_->CheckWritable();
+  const KeyframeFeatures& features = keyframe.features;
+  SIGHTMAP_CHECK(keyframe.session.valid(), "a keyframe needs the session that made it");
+  SIGHTMAP_CHECK(keyframe.color.type() == CV_8UC3 && keyframe.depth.type() == CV_16UC1 &&
+                     keyframe.color.size() == keyframe.depth.size(),
+                 "a keyframe needs 8-bit BGR colour and 16-bit depth of the same size");
+  SIGHTMAP_CHECK(features.descriptors.empty() ||
+                     features.descriptors.rows == static_cast<int>(features.keypoints.size()),
+                 "a keyframe needs one descriptor row per keypoint");
+  SIGHTMAP_CHECK(
+      features.cam_points.empty() || features.cam_points.size() == features.keypoints.size(),
+      "a keyframe needs one 3D point per keypoint (NaN where there is no depth)");
+
+  // Encode before taking the write lock: the lock is held only for the inserts.
+  std::vector<uint8_t> jpeg;
+  std::vector<uint8_t> png;
+  SIGHTMAP_CHECK(cv::imencode(".jpg", keyframe.color, jpeg,
+                              {cv::IMWRITE_JPEG_QUALITY, impl_->options.jpeg_quality}),
+                 "cannot encode a keyframe's colour image as JPEG");
+  SIGHTMAP_CHECK(cv::imencode(".png", keyframe.depth, png,
+                              {cv::IMWRITE_PNG_COMPRESSION, impl_->options.png_compression}),
+                 "cannot encode a keyframe's depth image as PNG");
+  const std::vector<uint8_t> keypoints = EncodeKeypoints(features.keypoints);
+  const cv::Mat descriptors =
+      features.descriptors.isContinuous() ? features.descriptors : features.descriptors.clone();
+
+  sqlite3* db = impl_->db;
+  Transaction transaction(db);
+  Statement insert(db,
+                   "INSERT INTO keyframes (session_id, timestamp_ns, tx, ty, tz, qx, qy, qz, qw, "
+                   "odom_tx, odom_ty, odom_tz, odom_qx, odom_qy, odom_qz, odom_qw, width, height, "
+                   "fx, fy, cx, cy, num_features, color_bytes, depth_bytes) VALUES (?, ?, ?, ?, ?, "
+                   "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+  insert.Bind(1, keyframe.session.value()).Bind(2, keyframe.timestamp_ns);
+  BindPose(insert, 3, keyframe.world_from_cam);
+  BindPose(insert, 10, keyframe.odom_world_from_cam);
+  Intrinsics k = keyframe.intrinsics;
+  k.width = keyframe.color.cols;
+  k.height = keyframe.color.rows;
+  BindIntrinsics(insert, 17, k);
+  insert.Bind(23, static_cast<int64_t>(features.keypoints.size()));
+  insert.Bind(24, static_cast<int64_t>(jpeg.size())).Bind(25, static_cast<int64_t>(png.size()));
+  insert.Run();
+  const KeyframeId id(sqlite3_last_insert_rowid(db));
+
+  Statement images(db,
+                   "INSERT INTO keyframe_images (keyframe_id, color_jpeg, depth_png) VALUES (?, ?, "
+                   "?)");
+  images.Bind(1, id.value());
+  BindRowAsBlob(images, 2, jpeg);
+  BindRowAsBlob(images, 3, png);
+  images.Run();
+
+  Statement insert_features(db,
+                            "INSERT INTO features (keyframe_id, count, keypoints, descriptor_type, "
+                            "descriptor_rows, descriptor_cols, descriptors, cam_points) VALUES (?, "
+                            "?, ?, ?, ?, ?, ?, ?)");
+  insert_features.Bind(1, id.value()).Bind(2, static_cast<int64_t>(features.keypoints.size()));
+  BindRowAsBlob(insert_features, 3, keypoints);
+  insert_features.Bind(4, descriptors.type()).Bind(5, descriptors.rows).Bind(6, descriptors.cols);
+  insert_features.BindBlob(7, descriptors.data, descriptors.total() * descriptors.elemSize());
+  BindRowAsBlob(insert_features, 8, features.cam_points);
+  insert_features.Run();
+
+  for (const LinkRecord& link : keyframe.links) impl_->InsertLink(link, id);
+  transaction.Commit();
+  return id;
+}
+
+void Model::UpdatePoses(
+    const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam) {
+  impl_->CheckWritable();
+  Transaction transaction(impl_->db);
+  Statement update(impl_->db,
+                   "UPDATE keyframes SET tx = ?, ty = ?, tz = ?, qx = ?, qy = ?, qz = ?, qw = ? "
+                   "WHERE id = ?");
+  for (const auto& [id, pose] : world_from_cam) {
+    BindPose(update, 1, pose);
+    update.Bind(8, id.value());
+    update.Run();
+    SIGHTMAP_CHECK(sqlite3_changes(impl_->db) == 1, "keyframe " << id.value() << " is not in model "
+                                                                << FileDescription(impl_->path)
+                                                                << "; no pose was changed");
+  }
+  transaction.Commit();
+}
+
+std::vector<KeyframeInfo> Model::Keyframes() const {
+  Statement query(impl_->db,
+                  std::string("SELECT ") + kKeyframeColumns + " FROM keyframes ORDER BY id");
+  std::vector<KeyframeInfo> keyframes;
+  while (query.Step()) keyframes.push_back(impl_->RowToKeyframeInfo(query));
+  return keyframes;
+}
+
+KeyframeInfo Model::Keyframe(KeyframeId id) const {
+  Statement query(impl_->db,
+                  std::string("SELECT ") + kKeyframeColumns + " FROM keyframes WHERE id = ?");
+  query.Bind(1, id.value());
+  SIGHTMAP_CHECK(query.Step(),
+                 "keyframe " << id.value() << " is not in model " << FileDescription(impl_->path));
+  return impl_->RowToKeyframeInfo(query);
+}
+
+int64_t Model::NumKeyframes() const {
+  Statement query(impl_->db, "SELECT count(*) FROM keyframes");
+  query.Step();
+  return query.Int(0);
+}
+
+cv::Mat Model::LoadColor(KeyframeId id) const {
+  const std::vector<uint8_t> jpeg = impl_->LoadImageBlob(id, "color_jpeg");
+  cv::Mat color = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+  SIGHTMAP_CHECK(!color.empty(), "keyframe " << id.value() << "'s colour image in model "
+                                             << FileDescription(impl_->path)
+                                             << " does not decode: restore it from a backup");
+  return color;
+}
+
+cv::Mat Model::LoadDepth(KeyframeId id) const {
+  const std::vector<uint8_t> png = impl_->LoadImageBlob(id, "depth_png");
+  cv::Mat depth = cv::imdecode(png, cv::IMREAD_UNCHANGED);
+  SIGHTMAP_CHECK(depth.type() == CV_16UC1, "keyframe " << id.value() << "'s depth image in model "
+                                                       << FileDescription(impl_->path)
+                                                       << " does not decode to 16-bit depth");
+  return depth;
+}
+
+KeyframeFeatures Model::LoadFeatures(KeyframeId id) const {
+  Statement query(impl_->db,
+                  "SELECT count, keypoints, descriptor_type, descriptor_rows, descriptor_cols, "
+                  "descriptors, cam_points FROM features WHERE keyframe_id = ?");
+  query.Bind(1, id.value());
+  SIGHTMAP_CHECK(query.Step(), "keyframe " << id.value() << " has no features in model "
+                                           << FileDescription(impl_->path));
+  KeyframeFeatures features;
+  features.keypoints = DecodeKeypoints(query.Blob(1));
+  const int type = static_cast<int>(query.Int(2));
+  const int rows = static_cast<int>(query.Int(3));
+  const int cols = static_cast<int>(query.Int(4));
+  const std::vector<uint8_t> descriptors = query.Blob(5);
+  if (rows > 0 && cols > 0) {
+    features.descriptors.create(rows, cols, type);
+    const size_t bytes = features.descriptors.total() * features.descriptors.elemSize();
+    SIGHTMAP_CHECK(bytes == descriptors.size(), "corrupt descriptors of keyframe " << id.value());
+    std::memcpy(features.descriptors.data, descriptors.data(), bytes);
+  }
+  const std::vector<uint8_t> points = query.Blob(6);
+  SIGHTMAP_CHECK(points.size() % sizeof(Eigen::Vector3f) == 0,
+                 "corrupt 3D points of keyframe " << id.value());
+  features.cam_points.resize(points.size() / sizeof(Eigen::Vector3f));
+  for (size_t i = 0; i < features.cam_points.size(); ++i) {
+    float xyz[3];
+    std::memcpy(xyz, points.data() + i * sizeof(xyz), sizeof(xyz));
+    features.cam_points[i] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
+  }
+  SIGHTMAP_CHECK(static_cast<int64_t>(features.keypoints.size()) == query.Int(0),
+                 "keyframe " << id.value() << " lists " << query.Int(0) << " features but has "
+                             << features.keypoints.size());
+  return features;
+}
+
+LinkId Model::AddLink(const LinkRecord& link) {
+  impl_->CheckWritable();
+  SIGHTMAP_CHECK(link.from.valid() && link.to.valid(), "a link needs keyframe ids at both ends");
+  impl_->InsertLink(link, KeyframeId());
+  return LinkId(sqlite3_last_insert_rowid(impl_->db));
+}
+
+std::vector<LinkRecord> Model::Links() const {
+  Statement query(impl_->db,
+                  "SELECT id, from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, information FROM "
+                  "links ORDER BY id");
+  std::vector<LinkRecord> links;
+  while (query.Step()) {
+    LinkRecord link;
+    link.id = LinkId(query.Int(0));
+    link.from = KeyframeId(query.Int(1));
+    link.to = KeyframeId(query.Int(2));
+    link.type = static_cast<LinkType>(query.Int(3));
+    link.from_from_to = ColumnPose(query, 4);
+    const std::vector<uint8_t> information = query.Blob(11);
+    SIGHTMAP_CHECK(information.size() == sizeof(double) * 36,
+                   "corrupt information matrix of link " << link.id.value());
+    std::memcpy(link.information.data(), information.data(), information.size());
+    links.push_back(link);
+  }
+  return links;
+}
+
+LabelId Model::AddLabel(const LabelRecord& label) {
+  impl_->CheckWritable();
+  impl_->CheckLabel(label);
+  Transaction transaction(impl_->db);
+  {
+    Statement existing(impl_->db, "SELECT 1 FROM labels WHERE name = ?");
+    existing.Bind(1, label.name);
+    SIGHTMAP_CHECK(!existing.Step(), "a label named '" << label.name
+                                                       << "' already exists: pick another name "
+                                                          "or update that label");
+  }
+  const TimestampNs now = NowNs();
+  Statement insert(impl_->db,
+                   "INSERT INTO labels (name, type, created_ns, updated_ns) VALUES (?, ?, ?, ?)");
+  insert.Bind(1, label.name).Bind(2, label.type).Bind(3, now).Bind(4, now).Run();
+  const LabelId id(sqlite3_last_insert_rowid(impl_->db));
+  impl_->InsertLabelPoints(id, label.points);
+  transaction.Commit();
+  return id;
+}
+
+void Model::UpdateLabel(const LabelRecord& label) {
+  impl_->CheckWritable();
+  impl_->CheckLabel(label);
+  Transaction transaction(impl_->db);
+  Statement update(impl_->db, "UPDATE labels SET name = ?, type = ?, updated_ns = ? WHERE id = ?");
+  update.Bind(1, label.name).Bind(2, label.type).Bind(3, NowNs()).Bind(4, label.id.value()).Run();
+  SIGHTMAP_CHECK(sqlite3_changes(impl_->db) == 1,
+                 "label " << label.id.value() << " ('" << label.name << "') is not in the model");
+  Statement remove(impl_->db, "DELETE FROM label_points WHERE label_id = ?");
+  remove.Bind(1, label.id.value()).Run();
+  impl_->InsertLabelPoints(label.id, label.points);
+  transaction.Commit();
+}
+
+void Model::DeleteLabel(LabelId id) {
+  impl_->CheckWritable();
+  Statement remove(impl_->db, "DELETE FROM labels WHERE id = ?");
+  remove.Bind(1, id.value()).Run();
+  SIGHTMAP_CHECK(sqlite3_changes(impl_->db) == 1, "label " << id.value() << " is not in the model");
+}
+
+std::optional<LabelRecord> Model::FindLabel(const std::string& name) const {
+  std::vector<LabelRecord> labels = impl_->QueryLabels("WHERE name = ?", &name);
+  if (labels.empty()) return std::nullopt;
+  return std::move(labels.front());
+}
+
+std::vector<LabelRecord> Model::Labels() const { return impl_->QueryLabels("", nullptr); }
+
+void Model::SetVocabulary(const std::string& format, const std::vector<uint8_t>& data) {
+  impl_->CheckWritable();
+  Statement upsert(impl_->db,
+                   "INSERT OR REPLACE INTO vocabulary (id, format, data, updated_ns) VALUES (1, ?, "
+                   "?, ?)");
+  upsert.Bind(1, format);
+  BindRowAsBlob(upsert, 2, data);
+  upsert.Bind(3, NowNs()).Run();
+}
+
+std::optional<std::pair<std::string, std::vector<uint8_t>>> Model::LoadVocabulary() const {
+  Statement query(impl_->db, "SELECT format, data FROM vocabulary WHERE id = 1");
+  if (!query.Step()) return std::nullopt;
+  return std::make_pair(query.Text(0), query.Blob(1));
+}
+
+ModelSummary Model::Summary() const {
+  sqlite3* db = impl_->db;
+  ModelSummary summary;
+  summary.schema_version = impl_->schema_version;
+  auto count = [db](const std::string& sql) {
+    Statement query(db, sql);
+    query.Step();
+    return query.Int(0);
+  };
+  summary.sessions = count("SELECT count(*) FROM sessions");
+  summary.keyframes = count("SELECT count(*) FROM keyframes");
+  summary.labels = count("SELECT count(*) FROM labels");
+  {
+    Statement query(db, "SELECT type, count(*) FROM links GROUP BY type");
+    while (query.Step()) {
+      switch (static_cast<LinkType>(query.Int(0))) {
+        case LinkType::kOdometry:
+          summary.odometry_links = query.Int(1);
+          break;
+        case LinkType::kLoopClosure:
+          summary.loop_closures = query.Int(1);
+          break;
+        case LinkType::kRelocalisation:
+          summary.relocalisation_links = query.Int(1);
+          break;
+        case LinkType::kUser:
+          summary.user_links = query.Int(1);
+          break;
+      }
+    }
+  }
+
+  // Segments: connected components of the pose graph (union-find over keyframe ids).
+  std::vector<int64_t> ids;
+  {
+    Statement query(db, "SELECT id FROM keyframes ORDER BY id");
+    while (query.Step()) ids.push_back(query.Int(0));
+  }
+  std::vector<size_t> parent(ids.size());
+  std::iota(parent.begin(), parent.end(), size_t{0});
+  auto index_of = [&ids](int64_t id) {
+    return static_cast<size_t>(std::lower_bound(ids.begin(), ids.end(), id) - ids.begin());
+  };
+  auto find = [&parent](size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  {
+    Statement query(db, "SELECT from_id, to_id FROM links");
+    while (query.Step()) {
+      const size_t a = find(index_of(query.Int(0)));
+      const size_t b = find(index_of(query.Int(1)));
+      if (a != b) parent[a] = b;
+    }
+  }
+  for (size_t i = 0; i < parent.size(); ++i) summary.segments += find(i) == i;
+
+  // Bounding box of camera positions and label points.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  auto extend = [&](const Eigen::Vector3d& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+    summary.has_bounding_box = true;
+  };
+  {
+    Statement query(db, "SELECT tx, ty, tz FROM keyframes");
+    while (query.Step()) {
+      extend(Eigen::Vector3d(query.Double(0), query.Double(1), query.Double(2)));
+    }
+  }
+  for (const LabelRecord& label : Labels()) {
+    for (const LabelPoint& point : label.points) extend(point.world);
+  }
+  if (summary.has_bounding_box) {
+    summary.bbox_min = lo;
+    summary.bbox_max = hi;
+  }
+
+  if (IsMemoryPath(impl_->path)) {
+    summary.size_bytes = count("PRAGMA page_count") * count("PRAGMA page_size");
+  } else {
+    std::error_code ec;
+    for (const std::string& file : {impl_->path, impl_->path + "-wal"}) {
+      const auto size = std::filesystem::file_size(file, ec);
+      if (!ec) summary.size_bytes += static_cast<int64_t>(size);
+    }
+  }
+  return summary;
+}
+
+std::string Model::IntegrityCheck() const {
+  Statement query(impl_->db, "PRAGMA integrity_check");
+  std::string result;
+  while (query.Step()) {
+    if (!result.empty()) result += "; ";
+    result += query.Text(0);
+  }
+  Statement foreign(impl_->db, "PRAGMA foreign_key_check");
+  if (foreign.Step()) result += "; foreign key violation in table " + foreign.Text(0);
+  return result;
+}
+
+}  // namespace sightmap

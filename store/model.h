@@ -1,0 +1,230 @@
+// The building model: one SQLite file holding sessions, keyframes (poses, images, features), the
+// pose graph's links, appliance labels and a visual vocabulary. Written by mapping, read by
+// identification. Crash-safe: WAL journal, one transaction per keyframe with its features and
+// links, one transaction per pose-graph update; images are decoded only when asked for.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "core/rgbd_frame.h"
+
+namespace sightmap {
+
+// IDs are SQLite row ids: positive once stored; 0 is "none". A distinct type per table so a
+// keyframe id cannot be passed where a label id is expected.
+template <typename Tag>
+class StoreId {
+ public:
+  constexpr StoreId() = default;
+  constexpr explicit StoreId(int64_t value) : value_(value) {}
+  constexpr int64_t value() const { return value_; }
+  constexpr bool valid() const { return value_ > 0; }
+  constexpr bool operator==(StoreId other) const { return value_ == other.value_; }
+  constexpr bool operator!=(StoreId other) const { return value_ != other.value_; }
+  constexpr bool operator<(StoreId other) const { return value_ < other.value_; }
+
+ private:
+  int64_t value_ = 0;
+};
+
+using SessionId = StoreId<struct SessionIdTag>;
+using KeyframeId = StoreId<struct KeyframeIdTag>;
+using LinkId = StoreId<struct LinkIdTag>;
+using LabelId = StoreId<struct LabelIdTag>;
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// How a session ended. kRunning is also what a crashed session looks like until
+// Model::MarkRunningSessionsInterrupted() is called by whoever resumes.
+enum class SessionEnd { kRunning = 0, kFinished = 1, kInterrupted = 2, kResumedInto = 3 };
+const char* SessionEndName(SessionEnd end);
+
+struct SessionRecord {
+  SessionId id;                   // set by the model
+  TimestampNs start_time_ns = 0;  // wall clock, ns since the epoch
+  TimestampNs end_time_ns = 0;    // 0 while running
+  std::string source;             // e.g. "openni://", "tum:DIR"
+  std::string device_name;
+  std::string device_serial;
+  Intrinsics intrinsics;
+  SessionEnd end_state = SessionEnd::kRunning;
+  SessionId resumed_into;    // the session that continued this one, for kResumedInto
+  std::string options_json;  // every option the session ran with, so the model explains itself
+};
+
+// What relocalisation and photo matching need without decoding images.
+struct KeyframeFeatures {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;  // one row per keypoint; any depth and width (CV_8U ORB, CV_32F SIFT...)
+  // Each keypoint's 3D point in the camera frame [m]; NaN where the keypoint had no depth.
+  std::vector<Eigen::Vector3f> cam_points;
+};
+
+enum class LinkType { kOdometry = 0, kLoopClosure = 1, kRelocalisation = 2, kUser = 3 };
+const char* LinkTypeName(LinkType type);
+
+struct LinkRecord {
+  LinkId id;  // set by the model
+  KeyframeId from;
+  KeyframeId to;
+  LinkType type = LinkType::kOdometry;
+  Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Identity();  // over (tx, ty, tz, rx, ry, rz) [1/m^2, 1/rad^2]
+};
+
+struct KeyframeRecord {
+  SessionId session;
+  TimestampNs timestamp_ns = 0;  // the frame's timestamp (source clock)
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();       // optimised
+  Eigen::Isometry3d odom_world_from_cam = Eigen::Isometry3d::Identity();  // raw odometry
+  Intrinsics intrinsics;
+  cv::Mat color;  // CV_8UC3 BGR, stored as JPEG
+  cv::Mat depth;  // CV_16UC1 [mm], stored as lossless 16-bit PNG
+  KeyframeFeatures features;
+  // Links written in the same transaction. An invalid id at either end stands for this keyframe.
+  std::vector<LinkRecord> links;
+};
+
+// A keyframe's metadata, listed without touching its image blobs.
+struct KeyframeInfo {
+  KeyframeId id;
+  SessionId session;
+  TimestampNs timestamp_ns = 0;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d odom_world_from_cam = Eigen::Isometry3d::Identity();
+  Intrinsics intrinsics;  // its width/height are the image size
+  int num_features = 0;
+  int64_t color_bytes = 0;  // encoded sizes
+  int64_t depth_bytes = 0;
+};
+
+enum class LabelPointSource { kKeyframePixel = 0, kImportedFile = 1, kTyped = 2 };
+
+struct LabelPoint {
+  Eigen::Vector3d world = Eigen::Vector3d::Zero();  // [m]
+  LabelPointSource source = LabelPointSource::kTyped;
+  // kKeyframePixel: the keyframe and pixel it was clicked on, and the point in that keyframe's
+  // camera frame [m]. `world` is then derived from the keyframe's current optimised pose, so a
+  // label follows its keyframe when a loop closure moves it.
+  KeyframeId keyframe;
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
+  Eigen::Vector3d cam_point = Eigen::Vector3d::Zero();
+  std::string file;  // kImportedFile: the file it came from
+};
+
+struct LabelRecord {
+  LabelId id;                      // set by the model
+  std::string name;                // unique in a model
+  std::string type;                // free text: "lamp", "projector", ...
+  std::vector<LabelPoint> points;  // at least one
+  TimestampNs created_ns = 0;      // set by the model (wall clock)
+  TimestampNs updated_ns = 0;
+};
+
+struct ModelOptions {
+  // Open without writing; the model must exist. For inspection and export.
+  bool read_only = false;
+  // Create the file when it does not exist (ignored with read_only).
+  bool create_if_missing = true;
+  // JPEG quality of colour images [1, 100].
+  int jpeg_quality = 90;
+  // PNG compression of depth images [0, 9]; lossless at every level, higher is smaller and slower.
+  int png_compression = 1;
+  // fsync the WAL at every commit, so a keyframe reported as written survives a power cut (a
+  // process crash is survived either way). Off trades that for write speed.
+  bool sync_every_commit = true;
+  // How long a writer waits for another connection's lock before failing [ms].
+  int busy_timeout_ms = 2000;
+
+  bool Check(std::string* error) const;
+};
+
+// Counts for `sightmap info`.
+struct ModelSummary {
+  int schema_version = 0;
+  int64_t sessions = 0;
+  int64_t keyframes = 0;
+  int64_t odometry_links = 0;
+  int64_t loop_closures = 0;
+  int64_t relocalisation_links = 0;
+  int64_t user_links = 0;
+  // Connected parts of the pose graph: a new one starts when tracking was lost and not recovered.
+  int64_t segments = 0;
+  int64_t labels = 0;
+  int64_t size_bytes = 0;  // the database file plus its WAL
+  // Axis-aligned box of keyframe positions and label points [m]; empty when there are none.
+  bool has_bounding_box = false;
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();
+  Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
+};
+
+class Model {
+ public:
+  // Opens (or creates) a model file; ":memory:" for a throwaway one. Upgrades an older schema in
+  // one transaction. Throws Error with one line saying what to do when the file is read-only, not
+  // SQLite, another application's database, or from a newer sightmap.
+  static Model Open(const std::string& path, const ModelOptions& options = {});
+  // The schema version this build writes.
+  static int LatestSchemaVersion();
+
+  Model(Model&&) noexcept;
+  Model& operator=(Model&&) noexcept;
+  ~Model();
+
+  const std::string& path() const;
+  int SchemaVersion() const;
+
+  // Sessions.
+  SessionId BeginSession(const SessionRecord& session);
+  void EndSession(SessionId id, SessionEnd end_state, TimestampNs end_time_ns,
+                  SessionId resumed_into = SessionId());
+  // Sessions still marked running (left by a crash) become interrupted; returns how many.
+  int MarkRunningSessionsInterrupted(TimestampNs now_ns);
+  std::vector<SessionRecord> Sessions() const;
+
+  // Keyframes. AddKeyframe writes the keyframe, its features and its links in one transaction.
+  KeyframeId AddKeyframe(const KeyframeRecord& keyframe);
+  // A pose-graph optimisation's result: every optimised world_from_cam in one transaction.
+  void UpdatePoses(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam);
+  std::vector<KeyframeInfo> Keyframes() const;  // ordered by id; no image is read
+  KeyframeInfo Keyframe(KeyframeId id) const;
+  int64_t NumKeyframes() const;
+  cv::Mat LoadColor(KeyframeId id) const;  // CV_8UC3 BGR
+  cv::Mat LoadDepth(KeyframeId id) const;  // CV_16UC1 [mm]
+  KeyframeFeatures LoadFeatures(KeyframeId id) const;
+
+  // Links of the pose graph.
+  LinkId AddLink(const LinkRecord& link);
+  std::vector<LinkRecord> Links() const;
+
+  // Labels. Names are unique; AddLabel fails with Error on a duplicate.
+  LabelId AddLabel(const LabelRecord& label);
+  void UpdateLabel(const LabelRecord& label);  // by id; replaces type and points
+  void DeleteLabel(LabelId id);
+  std::optional<LabelRecord> FindLabel(const std::string& name) const;
+  std::vector<LabelRecord> Labels() const;  // ordered by name
+
+  // The visual vocabulary place recognition trains (format names the library that reads it).
+  void SetVocabulary(const std::string& format, const std::vector<uint8_t>& data);
+  std::optional<std::pair<std::string, std::vector<uint8_t>>> LoadVocabulary() const;
+
+  ModelSummary Summary() const;
+  // `PRAGMA integrity_check`'s answer: "ok" for a sound file.
+  std::string IntegrityCheck() const;
+
+ private:
+  struct Impl;
+  explicit Model(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sightmap

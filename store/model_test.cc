@@ -1,0 +1,430 @@
+#include "store/model.h"
+
+#include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "store/schema.h"
+#include "store/store_test_util.h"
+#include "store/synthetic_model.h"
+#include "tests/test_data.h"
+
+namespace sightmap {
+namespace {
+
+SyntheticKeyframeOptions SmallKeyframes() {
+  SyntheticKeyframeOptions options;
+  options.width = 64;
+  options.height = 48;
+  options.num_features = 50;
+  return options;
+}
+
+Eigen::Isometry3d MakePose(double angle_rad, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() =
+      Eigen::AngleAxisd(angle_rad, Eigen::Vector3d(0.3, 1.0, -0.2).normalized()).toRotationMatrix();
+  pose.translation() = t;
+  return pose;
+}
+
+int CountLines(const std::string& text) {
+  int lines = 0;
+  for (char c : text) lines += c == '\n';
+  return lines;
+}
+
+TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
+  Model model = Model::Open(":memory:");
+  EXPECT_EQ(model.SchemaVersion(), Model::LatestSchemaVersion());
+  SessionRecord session;
+  session.source = "tum:/data/fr1";
+  session.device_name = "Xtion";
+  session.device_serial = "1234";
+  session.intrinsics = SyntheticIntrinsics(64, 48);
+  session.options_json = R"({"keyframe_hz":1})";
+  const SessionId session_id = model.BeginSession(session);
+
+  KeyframeRecord first = MakeSyntheticKeyframe(session_id, 0, SmallKeyframes());
+  first.world_from_cam = MakePose(0.3, {1.0, 2.0, 3.0});
+  first.odom_world_from_cam = MakePose(0.25, {1.1, 2.0, 3.0});
+  const KeyframeId a = model.AddKeyframe(first);
+  // Big enough that the texture is not finer than JPEG's chroma subsampling.
+  SyntheticKeyframeOptions medium = SmallKeyframes();
+  medium.width = 320;
+  medium.height = 240;
+  KeyframeRecord second = MakeSyntheticKeyframe(session_id, 1, medium);
+  LinkRecord odometry;
+  odometry.from = a;  // `to` left invalid: the keyframe being added
+  odometry.type = LinkType::kOdometry;
+  odometry.from_from_to = MakePose(0.1, {0.1, 0.0, 0.0});
+  odometry.information(0, 0) = 400.0;
+  odometry.information(3, 5) = odometry.information(5, 3) = 0.5;
+  second.links.push_back(odometry);
+  const KeyframeId b = model.AddKeyframe(second);
+  EXPECT_TRUE(a.valid() && b.valid() && a != b);
+
+  const std::vector<KeyframeInfo> keyframes = model.Keyframes();
+  ASSERT_EQ(keyframes.size(), 2u);
+  EXPECT_EQ(keyframes[0].id, a);
+  EXPECT_EQ(keyframes[0].session, session_id);
+  EXPECT_TRUE(keyframes[0].world_from_cam.isApprox(first.world_from_cam, 1e-12));
+  EXPECT_TRUE(keyframes[0].odom_world_from_cam.isApprox(first.odom_world_from_cam, 1e-12));
+  EXPECT_EQ(keyframes[1].timestamp_ns, 1000000000);
+  EXPECT_EQ(keyframes[1].intrinsics.width, 320);
+  EXPECT_DOUBLE_EQ(keyframes[1].intrinsics.fx, second.intrinsics.fx);
+  EXPECT_EQ(keyframes[1].num_features, 50);
+  EXPECT_GT(keyframes[1].color_bytes, 0);
+
+  // Depth is lossless; colour is JPEG, so close but not equal.
+  const cv::Mat depth = model.LoadDepth(b);
+  EXPECT_EQ(cv::norm(depth, second.depth, cv::NORM_INF), 0.0);
+  const cv::Mat color = model.LoadColor(b);
+  ASSERT_EQ(color.size(), second.color.size());
+  EXPECT_LT(cv::norm(color, second.color, cv::NORM_L1) / color.total() / 3, 6.0);
+
+  const KeyframeFeatures features = model.LoadFeatures(b);
+  ASSERT_EQ(features.keypoints.size(), 50u);
+  EXPECT_FLOAT_EQ(features.keypoints[7].pt.x, second.features.keypoints[7].pt.x);
+  EXPECT_EQ(features.keypoints[7].octave, second.features.keypoints[7].octave);
+  EXPECT_EQ(cv::norm(features.descriptors, second.features.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_EQ(features.descriptors.type(), CV_8U);
+  EXPECT_TRUE(features.cam_points[9].isApprox(second.features.cam_points[9]));
+
+  const std::vector<LinkRecord> links = model.Links();
+  ASSERT_EQ(links.size(), 1u);
+  EXPECT_EQ(links[0].from, a);
+  EXPECT_EQ(links[0].to, b);
+  EXPECT_TRUE(links[0].from_from_to.isApprox(odometry.from_from_to, 1e-12));
+  EXPECT_EQ(links[0].information, odometry.information);
+
+  const std::vector<SessionRecord> sessions = model.Sessions();
+  ASSERT_EQ(sessions.size(), 1u);
+  EXPECT_EQ(sessions[0].device_serial, "1234");
+  EXPECT_EQ(sessions[0].options_json, session.options_json);
+  EXPECT_EQ(sessions[0].end_state, SessionEnd::kRunning);
+  EXPECT_EQ(model.IntegrityCheck(), "ok");
+}
+
+TEST(Model, FloatDescriptorsAndMissingDepthPointsRoundTrip) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  KeyframeRecord keyframe = MakeSyntheticKeyframe(session, 0, SmallKeyframes());
+  keyframe.features.descriptors = cv::Mat(50, 128, CV_32F);
+  cv::randu(keyframe.features.descriptors, -1.0, 1.0);
+  keyframe.features.cam_points[3] = Eigen::Vector3f::Constant(NAN);
+  const KeyframeId id = model.AddKeyframe(keyframe);
+  const KeyframeFeatures features = model.LoadFeatures(id);
+  EXPECT_EQ(features.descriptors.type(), CV_32F);
+  EXPECT_EQ(features.descriptors.cols, 128);
+  EXPECT_EQ(cv::norm(features.descriptors, keyframe.features.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_TRUE(std::isnan(features.cam_points[3].x()));
+}
+
+TEST(Model, BadKeyframesAreRejectedAndLeaveNothingBehind) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  KeyframeRecord keyframe = MakeSyntheticKeyframe(session, 0, SmallKeyframes());
+  LinkRecord dangling;
+  dangling.from = KeyframeId(999);  // no such keyframe: the foreign key fails mid-transaction
+  keyframe.links.push_back(dangling);
+  EXPECT_THROW(model.AddKeyframe(keyframe), Error);
+  EXPECT_EQ(model.NumKeyframes(), 0);
+  EXPECT_TRUE(model.Links().empty());
+
+  KeyframeRecord mismatched = MakeSyntheticKeyframe(session, 1, SmallKeyframes());
+  mismatched.features.cam_points.pop_back();
+  EXPECT_THROW(model.AddKeyframe(mismatched), Error);
+  EXPECT_EQ(model.NumKeyframes(), 0);
+}
+
+TEST(Model, UpdatePosesIsAllOrNothingAndLabelsFollowKeyframes) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  const KeyframeId a = model.AddKeyframe(MakeSyntheticKeyframe(session, 0, SmallKeyframes()));
+  const KeyframeId b = model.AddKeyframe(MakeSyntheticKeyframe(session, 1, SmallKeyframes()));
+
+  LabelRecord lamp;
+  lamp.name = "lamp-3f";
+  lamp.type = "lamp";
+  LabelPoint clicked;
+  clicked.source = LabelPointSource::kKeyframePixel;
+  clicked.keyframe = b;
+  clicked.pixel = Eigen::Vector2d(10, 20);
+  clicked.cam_point = Eigen::Vector3d(0.5, -0.25, 2.0);
+  clicked.world = Eigen::Vector3d(0.6, -0.25, 2.0);
+  lamp.points.push_back(clicked);
+  LabelPoint typed;
+  typed.world = Eigen::Vector3d(5, 6, 7);
+  lamp.points.push_back(typed);
+  model.AddLabel(lamp);
+
+  const Eigen::Isometry3d moved = MakePose(0.5, {3.0, 0.0, 1.0});
+  // One bad id aborts the whole update.
+  EXPECT_THROW(model.UpdatePoses({{a, moved}, {KeyframeId(77), moved}}), Error);
+  EXPECT_TRUE(model.Keyframe(a).world_from_cam.isApprox(Eigen::Isometry3d::Identity()));
+
+  model.UpdatePoses({{a, moved}, {b, moved}});
+  EXPECT_TRUE(model.Keyframe(b).world_from_cam.isApprox(moved, 1e-12));
+  // Odometry is the raw estimate: optimisation leaves it.
+  EXPECT_NEAR(model.Keyframe(b).odom_world_from_cam.translation().x(), 0.1, 1e-12);
+
+  const std::optional<LabelRecord> found = model.FindLabel("lamp-3f");
+  ASSERT_TRUE(found);
+  ASSERT_EQ(found->points.size(), 2u);
+  EXPECT_TRUE(found->points[0].world.isApprox(moved * clicked.cam_point, 1e-12));
+  EXPECT_EQ(found->points[0].keyframe, b);
+  EXPECT_EQ(found->points[0].pixel, clicked.pixel);
+  EXPECT_EQ(found->points[1].world, typed.world);
+  EXPECT_EQ(found->points[1].source, LabelPointSource::kTyped);
+}
+
+TEST(Model, LabelCrud) {
+  Model model = Model::Open(":memory:");
+  LabelRecord projector;
+  projector.name = "projector";
+  projector.type = "projector";
+  LabelPoint point;
+  point.world = Eigen::Vector3d(1, 2, 3);
+  point.source = LabelPointSource::kImportedFile;
+  point.file = "projector.txt";
+  projector.points = {point};
+  const LabelId id = model.AddLabel(projector);
+  EXPECT_THROW(model.AddLabel(projector), Error);  // names are unique
+  LabelRecord empty;
+  empty.name = "nothing";
+  EXPECT_THROW(model.AddLabel(empty), Error);
+
+  LabelRecord changed = *model.FindLabel("projector");
+  EXPECT_EQ(changed.id, id);
+  EXPECT_GT(changed.created_ns, 0);
+  EXPECT_EQ(changed.points[0].file, "projector.txt");
+  changed.type = "beamer";
+  changed.points.push_back(point);
+  changed.points.back().world = Eigen::Vector3d(4, 5, 6);
+  model.UpdateLabel(changed);
+  const LabelRecord updated = *model.FindLabel("projector");
+  EXPECT_EQ(updated.type, "beamer");
+  EXPECT_EQ(updated.points.size(), 2u);
+  EXPECT_GE(updated.updated_ns, updated.created_ns);
+  EXPECT_EQ(model.Labels().size(), 1u);
+  model.DeleteLabel(id);
+  EXPECT_FALSE(model.FindLabel("projector"));
+  EXPECT_THROW(model.DeleteLabel(id), Error);
+}
+
+TEST(Model, SessionsEndAndCrashedOnesBecomeInterrupted) {
+  Model model = Model::Open(":memory:");
+  const SessionId first = model.BeginSession({});
+  const SessionId second = model.BeginSession({});
+  const SessionId third = model.BeginSession({});
+  model.EndSession(first, SessionEnd::kResumedInto, 5, second);
+  model.EndSession(second, SessionEnd::kFinished, 9);
+  EXPECT_THROW(model.EndSession(first, SessionEnd::kResumedInto, 5), Error);
+  EXPECT_EQ(model.MarkRunningSessionsInterrupted(11), 1);
+  const std::vector<SessionRecord> sessions = model.Sessions();
+  ASSERT_EQ(sessions.size(), 3u);
+  EXPECT_EQ(sessions[0].end_state, SessionEnd::kResumedInto);
+  EXPECT_EQ(sessions[0].resumed_into, second);
+  EXPECT_EQ(sessions[1].end_state, SessionEnd::kFinished);
+  EXPECT_EQ(sessions[2].id, third);
+  EXPECT_EQ(sessions[2].end_state, SessionEnd::kInterrupted);
+  EXPECT_EQ(sessions[2].end_time_ns, 11);
+}
+
+TEST(Model, SummaryCountsLinksSegmentsAndBoundingBox) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  std::vector<KeyframeId> ids;
+  for (int i = 0; i < 5; ++i) {
+    KeyframeRecord keyframe = MakeSyntheticKeyframe(session, i, SmallKeyframes());
+    // Keyframe 3 starts a new segment (tracking lost): no odometry link to 2.
+    if (i > 0 && i != 3) {
+      LinkRecord link;
+      link.from = ids.back();
+      keyframe.links.push_back(link);
+    }
+    ids.push_back(model.AddKeyframe(keyframe));
+  }
+  EXPECT_EQ(model.Summary().segments, 2);
+  LinkRecord loop;
+  loop.from = ids[4];
+  loop.to = ids[0];
+  loop.type = LinkType::kLoopClosure;
+  model.AddLink(loop);
+  const ModelSummary summary = model.Summary();
+  EXPECT_EQ(summary.sessions, 1);
+  EXPECT_EQ(summary.keyframes, 5);
+  EXPECT_EQ(summary.odometry_links, 3);
+  EXPECT_EQ(summary.loop_closures, 1);
+  EXPECT_EQ(summary.segments, 1);
+  EXPECT_TRUE(summary.has_bounding_box);
+  EXPECT_NEAR(summary.bbox_max.x(), 0.4, 1e-12);
+  EXPECT_NEAR(summary.bbox_min.x(), 0.0, 1e-12);
+  EXPECT_GT(summary.size_bytes, 0);
+  EXPECT_EQ(summary.schema_version, Model::LatestSchemaVersion());
+}
+
+TEST(Model, VocabularyRoundTrip) {
+  Model model = Model::Open(":memory:");
+  EXPECT_FALSE(model.LoadVocabulary());
+  model.SetVocabulary("dbow3", {1, 2, 3});
+  model.SetVocabulary("dbow3", {4, 5});
+  const auto vocabulary = model.LoadVocabulary();
+  ASSERT_TRUE(vocabulary);
+  EXPECT_EQ(vocabulary->first, "dbow3");
+  EXPECT_EQ(vocabulary->second, (std::vector<uint8_t>{4, 5}));
+}
+
+TEST(Model, ReopensFileInWalModeAndReadOnly) {
+  const std::string path = testing::MakeTempDir("store_reopen") + "/model.db";
+  {
+    Model model = Model::Open(path);
+    model.AddKeyframe(MakeSyntheticKeyframe(model.BeginSession({}), 0, SmallKeyframes()));
+  }
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+    sqlite3_stmt* stmt = nullptr;
+    sqlite3_prepare_v2(db, "PRAGMA journal_mode", -1, &stmt, nullptr);
+    ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
+    EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "wal");
+    sqlite3_finalize(stmt);
+    sqlite3_close(db);
+  }
+  ModelOptions read_only;
+  read_only.read_only = true;
+  const Model model = Model::Open(path, read_only);
+  EXPECT_EQ(model.NumKeyframes(), 1);
+  EXPECT_EQ(model.IntegrityCheck(), "ok");
+  EXPECT_THROW(const_cast<Model&>(model).BeginSession({}), Error);
+  EXPECT_THROW(Model::Open(path + ".missing", read_only), Error);
+}
+
+// Builds a model at schema 1 directly, as an older sightmap would have left it.
+void MakeVersionOneModel(const std::string& path) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN", nullptr, nullptr, nullptr), SQLITE_OK);
+  store_internal::ApplyMigrations(db, 0, 1);
+  ASSERT_EQ(sqlite3_exec(db,
+                         "INSERT INTO labels (name, type, created_ns, updated_ns) VALUES "
+                         "('old-lamp', 'lamp', 1, 1); COMMIT",
+                         nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+}
+
+TEST(Model, OlderSchemaIsUpgradedInPlace) {
+  ASSERT_GE(Model::LatestSchemaVersion(), 2);
+  const std::string path = testing::MakeTempDir("store_migrate") + "/old.db";
+  MakeVersionOneModel(path);
+  ModelOptions read_only;
+  read_only.read_only = true;
+  try {
+    Model::Open(path, read_only);
+    ADD_FAILURE() << "a read-only open of an old model must ask for an upgrade";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("older schema version 1"), std::string::npos) << e.what();
+  }
+  Model model = Model::Open(path);
+  EXPECT_EQ(model.SchemaVersion(), Model::LatestSchemaVersion());
+  model.SetVocabulary("dbow3", {9});  // the table migration 2 added
+  EXPECT_EQ(model.IntegrityCheck(), "ok");
+  // The data written under schema 1 survived.
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  sqlite3_prepare_v2(db, "SELECT group_concat(version) FROM sightmap_schema", -1, &stmt, nullptr);
+  ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2");
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+}
+
+std::string OpenError(const std::string& path, const ModelOptions& options = {}) {
+  try {
+    Model::Open(path, options);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Model, NewerSchemaIsRefused) {
+  const std::string path = testing::MakeTempDir("store_newer") + "/new.db";
+  { Model::Open(path); }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(
+      sqlite3_exec(db, "INSERT INTO sightmap_schema VALUES (99, 0)", nullptr, nullptr, nullptr),
+      SQLITE_OK);
+  sqlite3_close(db);
+  const std::string message = OpenError(path);
+  EXPECT_NE(message.find("schema version 99"), std::string::npos) << message;
+  EXPECT_NE(message.find("update sightmap"), std::string::npos) << message;
+  EXPECT_EQ(CountLines(message), 0);
+}
+
+TEST(Model, NonSqliteFileGivesOneLineError) {
+  const std::string path = testing::MakeTempDir("store_notdb") + "/notes.db";
+  std::ofstream(path) << "this is a shopping list, not a database\n" << std::string(5000, 'x');
+  const std::string message = OpenError(path);
+  EXPECT_NE(message.find("not a SQLite database"), std::string::npos) << message;
+  EXPECT_EQ(CountLines(message), 0);
+  // And the file was not touched.
+  EXPECT_EQ(std::filesystem::file_size(path), 5040u);
+}
+
+TEST(Model, OtherApplicationsDatabaseGivesOneLineError) {
+  const std::string path = testing::MakeTempDir("store_other") + "/places.sqlite";
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "CREATE TABLE moz_places (id INTEGER PRIMARY KEY, url TEXT)", nullptr,
+                         nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  const std::string message = OpenError(path);
+  EXPECT_NE(message.find("another application"), std::string::npos) << message;
+  EXPECT_EQ(CountLines(message), 0);
+  ModelOptions read_only;
+  read_only.read_only = true;
+  EXPECT_NE(OpenError(path, read_only).find("another application"), std::string::npos);
+}
+
+TEST(Model, ReadOnlyFileGivesOneLineError) {
+  const std::string dir = testing::MakeTempDir("store_readonly");
+  const std::string path = dir + "/model.db";
+  { Model::Open(path); }
+  ASSERT_EQ(chmod(path.c_str(), 0444), 0);
+  ASSERT_EQ(chmod(dir.c_str(), 0755), 0);
+  // Root writes through any mode bits, so the open runs in a child that gives up root first.
+  const testing::ChildOutcome outcome = testing::RunInChild([&] {
+    if (geteuid() == 0) {
+      SIGHTMAP_CHECK(setgid(65534) == 0 && setuid(65534) == 0, "cannot drop root for the test");
+    }
+    Model::Open(path);
+  });
+  EXPECT_EQ(outcome.exit_code, 3) << outcome.message;
+  EXPECT_NE(outcome.message.find("read-only"), std::string::npos) << outcome.message;
+  EXPECT_NE(outcome.message.find("chmod u+w"), std::string::npos) << outcome.message;
+  EXPECT_EQ(CountLines(outcome.message), 0);
+}
+
+TEST(Model, OptionsAreChecked) {
+  ModelOptions options;
+  std::string error;
+  EXPECT_TRUE(options.Check(&error));
+  options.jpeg_quality = 0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("jpeg_quality"), std::string::npos);
+  EXPECT_THROW(Model::Open(":memory:", options), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace sightmap
