@@ -1,0 +1,58 @@
+// Keypoints and descriptors of one image, with the 3D point of each keypoint where the frame has
+// depth: what registration, place recognition and photo matching consume.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+
+namespace sightmap {
+
+struct FeatureOptions {
+  enum class Type { kOrb, kSift };
+  Type type = Type::kOrb;
+  // Keypoints kept per image, spread over a grid so one textured poster cannot take them all.
+  int max_features = 1000;
+  int grid_cols = 8;  // cells across the image
+  int grid_rows = 6;  // cells down the image
+  // ORB scale pyramid.
+  int orb_levels = 8;
+  double orb_scale_factor = 1.2;
+  // ORB's FAST threshold; lowered per cell when a low-texture cell finds too few corners.
+  int orb_fast_threshold = 20;
+  // Depth outside [min_depth_m, max_depth_m] is not trusted for a 3D point (Kinect-class sensors
+  // measure 0.5-4.5 m; noise grows with the square of depth) [m].
+  double min_depth_m = 0.4;
+  double max_depth_m = 5.0;
+  // Corners often sit on depth edges, where the depth under a keypoint may belong to the
+  // foreground or the background: a keypoint gets no 3D point when the depth within
+  // depth_window_radius_px varies by more than depth_edge_ratio x its depth (holes ignored).
+  int depth_window_radius_px = 1;
+  double depth_edge_ratio = 0.05;
+
+  bool Check(std::string* error) const;
+};
+
+// Features of one image. points_cam[i] is the camera-frame point [m] of keypoints[i], valid when
+// has_point[i]; descriptors has one row per keypoint (CV_8U for ORB, CV_32F for SIFT).
+struct Features {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  std::vector<Eigen::Vector3d> points_cam;
+  std::vector<bool> has_point;
+
+  size_t size() const { return keypoints.size(); }
+  size_t NumPoints() const;
+};
+
+// Detects and describes features in a BGR or grey image; with a depth image (16-bit mm, same size,
+// registered), each keypoint whose depth is valid gets its 3D point through `camera`. Pass an
+// empty depth for a photo without depth.
+Features ExtractFeatures(const cv::Mat& image, const cv::Mat& depth_mm, const Intrinsics& camera,
+                         const FeatureOptions& options = FeatureOptions());
+
+}  // namespace sightmap

@@ -1,0 +1,347 @@
+#include "slam/registration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "core/check.h"
+#include "slam/rigid_alignment.h"
+
+namespace sightmap {
+namespace {
+
+struct Correspondence {
+  Eigen::Vector3d source;
+  Eigen::Vector3d target;
+  Eigen::Vector2d source_px;
+  Eigen::Vector2d target_px;
+  double tolerance_m;  // inlier distance for this pair
+  double weight;       // 1 / combined variance, for the refinement
+};
+
+double DepthSigma(double z, const RegistrationOptions& options) {
+  return options.depth_noise_coeff * z * z;
+}
+
+std::vector<Correspondence> MakeCorrespondences(const Features& source, const Features& target,
+                                                const std::vector<cv::DMatch>& matches,
+                                                const RegistrationOptions& options) {
+  std::vector<Correspondence> pairs;
+  pairs.reserve(matches.size());
+  for (const cv::DMatch& match : matches) {
+    const auto s = static_cast<size_t>(match.queryIdx);
+    const auto t = static_cast<size_t>(match.trainIdx);
+    if (!source.has_point[s] || !target.has_point[t]) continue;
+    const double sigma = std::hypot(DepthSigma(source.points_cam[s].z(), options),
+                                    DepthSigma(target.points_cam[t].z(), options));
+    const cv::Point2f& source_px = source.keypoints[s].pt;
+    const cv::Point2f& target_px = target.keypoints[t].pt;
+    pairs.push_back({source.points_cam[s], target.points_cam[t],
+                     Eigen::Vector2d(source_px.x, source_px.y),
+                     Eigen::Vector2d(target_px.x, target_px.y),
+                     std::max(options.min_inlier_distance_m, options.inlier_sigmas * sigma),
+                     1.0 / (sigma * sigma + 1e-6)});
+  }
+  return pairs;
+}
+
+std::vector<size_t> FindInliers(const std::vector<Correspondence>& pairs,
+                                const Eigen::Isometry3d& target_from_source) {
+  std::vector<size_t> inliers;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    if ((target_from_source * pairs[i].source - pairs[i].target).norm() < pairs[i].tolerance_m) {
+      inliers.push_back(i);
+    }
+  }
+  return inliers;
+}
+
+bool FitOn(const std::vector<Correspondence>& pairs, const std::vector<size_t>& subset,
+           bool weighted, Eigen::Isometry3d* target_from_source) {
+  std::vector<Eigen::Vector3d> src;
+  std::vector<Eigen::Vector3d> dst;
+  std::vector<double> weights;
+  for (size_t i : subset) {
+    src.push_back(pairs[i].source);
+    dst.push_back(pairs[i].target);
+    if (weighted) weights.push_back(pairs[i].weight);
+  }
+  return AlignRigid(src, dst, weights, target_from_source);
+}
+
+// A rigid motion keeps distances: a sample whose pairwise distances disagree cannot be all
+// inliers, so it is skipped before solving.
+bool SampleIsPlausible(const std::vector<Correspondence>& pairs, const size_t (&idx)[3],
+                       const RegistrationOptions& options) {
+  for (int a = 0; a < 3; ++a) {
+    for (int b = a + 1; b < 3; ++b) {
+      const Correspondence& p = pairs[idx[a]];
+      const Correspondence& q = pairs[idx[b]];
+      const double d_source = (p.source - q.source).norm();
+      const double d_target = (p.target - q.target).norm();
+      if (d_source < options.min_sample_spread_m) return false;
+      if (std::abs(d_source - d_target) > p.tolerance_m + q.tolerance_m) return false;
+    }
+  }
+  return true;
+}
+
+struct DenseAgreement {
+  int samples = 0;
+  int consistent = 0;
+  int violations = 0;
+};
+
+// Moves every stride-th measured pixel of `from` into the `to` camera and compares depths there.
+DenseAgreement CompareDepth(const cv::Mat& from_depth, const cv::Mat& to_depth,
+                            const Eigen::Isometry3d& to_from_from, const Intrinsics& camera,
+                            const RegistrationOptions& options) {
+  DenseAgreement agreement;
+  for (int v = 0; v < from_depth.rows; v += options.verify_stride_px) {
+    for (int u = 0; u < from_depth.cols; u += options.verify_stride_px) {
+      const uint16_t z_mm = from_depth.at<uint16_t>(v, u);
+      if (z_mm == 0) continue;
+      const Eigen::Vector3d point = to_from_from * camera.Unproject(u, v, z_mm * 1e-3);
+      if (point.z() <= 0.1) continue;
+      const Eigen::Vector2d pixel = camera.Project(point);
+      const int tu = static_cast<int>(std::lround(pixel.x()));
+      const int tv = static_cast<int>(std::lround(pixel.y()));
+      if (tu < 0 || tv < 0 || tu >= to_depth.cols || tv >= to_depth.rows) continue;
+      const uint16_t observed_mm = to_depth.at<uint16_t>(tv, tu);
+      if (observed_mm == 0) continue;
+      const double observed = observed_mm * 1e-3;
+      const double tolerance =
+          std::max(options.verify_min_tolerance_m,
+                   options.inlier_sigmas *
+                       std::hypot(DepthSigma(observed, options), DepthSigma(point.z(), options)));
+      ++agreement.samples;
+      const double difference = point.z() - observed;
+      if (std::abs(difference) <= tolerance) {
+        ++agreement.consistent;
+      } else if (difference < -tolerance) {
+        // In front of a surface the other camera saw: the space was seen empty.
+        ++agreement.violations;
+      }
+    }
+  }
+  return agreement;
+}
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta) {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d rotation = delta.tail<3>();
+  if (rotation.norm() > 0.0) {
+    motion.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
+  }
+  motion.translation() = delta.head<3>();
+  return motion;
+}
+
+// Refines target_from_source by Gauss-Newton on the symmetric reprojection error of the inliers
+// (each 3D point projected into the other image, Huber-weighted). Keypoint positions are good to
+// a pixel while depth errs by centimetres at a few metres, so this is what makes the pose
+// accurate; the 3D fit only gets it close.
+Eigen::Isometry3d RefineByReprojection(const std::vector<Correspondence>& pairs,
+                                       const std::vector<size_t>& inliers, const Intrinsics& camera,
+                                       Eigen::Isometry3d pose, const RegistrationOptions& options) {
+  if (!(camera.fx > 0.0) || !(camera.fy > 0.0)) return pose;
+  const auto projection_jacobian = [&camera](const Eigen::Vector3d& q) {
+    Eigen::Matrix<double, 2, 3> d;
+    d << camera.fx / q.z(), 0.0, -camera.fx * q.x() / (q.z() * q.z()), 0.0, camera.fy / q.z(),
+        -camera.fy * q.y() / (q.z() * q.z());
+    return d;
+  };
+  for (int iteration = 0; iteration < options.refine_iterations; ++iteration) {
+    Eigen::Matrix<double, 6, 6> hessian = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> gradient = Eigen::Matrix<double, 6, 1>::Zero();
+    const Eigen::Isometry3d inverse = pose.inverse();
+    const auto accumulate = [&](const Eigen::Vector2d& residual,
+                                const Eigen::Matrix<double, 2, 6>& jacobian) {
+      const double norm = residual.norm();
+      const double weight = norm <= options.huber_px ? 1.0 : options.huber_px / norm;
+      hessian += weight * jacobian.transpose() * jacobian;
+      gradient += weight * jacobian.transpose() * residual;
+    };
+    for (size_t i : inliers) {
+      const Correspondence& pair = pairs[i];
+      // Source point seen by the target camera.
+      const Eigen::Vector3d in_target = pose * pair.source;
+      if (in_target.z() > 0.1) {
+        Eigen::Matrix<double, 3, 6> d_point;
+        d_point.leftCols<3>().setIdentity();
+        d_point.rightCols<3>() = -Skew(in_target);
+        accumulate(camera.Project(in_target) - pair.target_px,
+                   projection_jacobian(in_target) * d_point);
+      }
+      // Target point seen by the source camera: T^-1 exp(-delta) p.
+      const Eigen::Vector3d in_source = inverse * pair.target;
+      if (in_source.z() > 0.1) {
+        Eigen::Matrix<double, 3, 6> d_point;
+        d_point.leftCols<3>() = -inverse.linear();
+        d_point.rightCols<3>() = inverse.linear() * Skew(pair.target);
+        accumulate(camera.Project(in_source) - pair.source_px,
+                   projection_jacobian(in_source) * d_point);
+      }
+    }
+    const Eigen::Matrix<double, 6, 1> delta = hessian.ldlt().solve(-gradient);
+    if (!delta.allFinite()) break;
+    pose = ExpSe3(delta) * pose;
+    if (delta.norm() < 1e-8) break;
+  }
+  return pose;
+}
+
+}  // namespace
+
+bool RegistrationOptions::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    if (error) *error = what;
+    return false;
+  };
+  if (!matching.Check(error)) return false;
+  if (ransac_max_iterations <= 0) return fail("ransac_max_iterations must be positive");
+  if (!(ransac_confidence > 0.0 && ransac_confidence < 1.0)) {
+    return fail("ransac_confidence must be in (0, 1)");
+  }
+  if (!(min_inlier_distance_m > 0.0) || !(inlier_sigmas > 0.0) || depth_noise_coeff < 0.0) {
+    return fail("inlier distances and noise must be positive");
+  }
+  if (min_inliers < 3) return fail("min_inliers must be at least 3");
+  if (min_inlier_ratio < 0.0 || min_inlier_ratio > 1.0) {
+    return fail("min_inlier_ratio must be in [0, 1]");
+  }
+  if (verify_stride_px <= 0 || !(verify_min_tolerance_m > 0.0)) {
+    return fail("verify_stride_px and verify_min_tolerance_m must be positive");
+  }
+  if (min_consistent_fraction < 0.0 || min_consistent_fraction > 1.0 ||
+      max_violation_fraction < 0.0 || max_violation_fraction > 1.0) {
+    return fail("verification fractions must be in [0, 1]");
+  }
+  return true;
+}
+
+RegistrationResult RegisterRgbd(const Features& source, const Features& target,
+                                const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
+                                const Intrinsics& camera, const RegistrationOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  RegistrationResult result;
+  const std::vector<cv::DMatch> matches =
+      MatchDescriptors(source.descriptors, target.descriptors, options.matching);
+  result.matches = static_cast<int>(matches.size());
+  const std::vector<Correspondence> pairs = MakeCorrespondences(source, target, matches, options);
+  result.correspondences = static_cast<int>(pairs.size());
+  if (result.correspondences < options.min_inliers) {
+    result.failure = "too few 3D correspondences (" + std::to_string(result.correspondences) + ")";
+    return result;
+  }
+
+  // RANSAC with an adaptive number of iterations.
+  std::mt19937_64 rng(options.ransac_seed);
+  std::uniform_int_distribution<size_t> pick(0, pairs.size() - 1);
+  std::vector<size_t> best_inliers;
+  Eigen::Isometry3d best = Eigen::Isometry3d::Identity();
+  int needed = options.ransac_max_iterations;
+  for (int iteration = 0; iteration < needed; ++iteration) {
+    size_t idx[3] = {pick(rng), pick(rng), pick(rng)};
+    if (idx[0] == idx[1] || idx[0] == idx[2] || idx[1] == idx[2]) continue;
+    if (!SampleIsPlausible(pairs, idx, options)) continue;
+    Eigen::Isometry3d candidate;
+    if (!FitOn(pairs, {idx[0], idx[1], idx[2]}, false, &candidate)) continue;
+    std::vector<size_t> inliers = FindInliers(pairs, candidate);
+    if (inliers.size() <= best_inliers.size()) continue;
+    best_inliers = std::move(inliers);
+    best = candidate;
+    const double ratio = static_cast<double>(best_inliers.size()) / pairs.size();
+    const double all_good = std::pow(ratio, 3.0);
+    if (all_good > 1.0 - 1e-12) break;
+    const double adaptive = std::log(1.0 - options.ransac_confidence) / std::log(1.0 - all_good);
+    needed = std::min(options.ransac_max_iterations, static_cast<int>(std::ceil(adaptive)));
+  }
+  if (static_cast<int>(best_inliers.size()) < options.min_inliers) {
+    result.inliers = static_cast<int>(best_inliers.size());
+    result.failure = "too few RANSAC inliers (" + std::to_string(result.inliers) + " of " +
+                     std::to_string(result.correspondences) + ")";
+    return result;
+  }
+
+  // Refine on all inliers, weighting near points (less depth noise) more, until the set settles.
+  for (int round = 0; round < 5; ++round) {
+    Eigen::Isometry3d refined;
+    if (!FitOn(pairs, best_inliers, true, &refined)) break;
+    std::vector<size_t> inliers = FindInliers(pairs, refined);
+    if (inliers.size() < best_inliers.size()) break;
+    const bool settled = inliers == best_inliers;
+    best = refined;
+    best_inliers = std::move(inliers);
+    if (settled) break;
+  }
+  best = RefineByReprojection(pairs, best_inliers, camera, best, options);
+  result.target_from_source = best;
+  result.inliers = static_cast<int>(best_inliers.size());
+  double squared = 0.0;
+  for (size_t i : best_inliers) {
+    const Correspondence& pair = pairs[i];
+    const Eigen::Vector3d moved = best * pair.source;
+    squared += (moved - pair.target).squaredNorm();
+    Eigen::Matrix<double, 3, 6> jacobian;
+    jacobian.leftCols<3>().setIdentity();
+    jacobian.rightCols<3>() = -Skew(moved);
+    result.information += pair.weight * jacobian.transpose() * jacobian;
+  }
+  result.rmse_m = std::sqrt(squared / best_inliers.size());
+
+  if (result.inliers < options.min_inliers) {
+    result.failure = "too few inliers after refinement (" + std::to_string(result.inliers) + ")";
+    return result;
+  }
+  const double ratio = static_cast<double>(result.inliers) / result.correspondences;
+  if (ratio < options.min_inlier_ratio) {
+    result.failure = "inlier ratio " + std::to_string(ratio) + " below " +
+                     std::to_string(options.min_inlier_ratio);
+    return result;
+  }
+
+  if (!source_depth_mm.empty() && !target_depth_mm.empty()) {
+    SIGHTMAP_CHECK(source_depth_mm.type() == CV_16UC1 && target_depth_mm.type() == CV_16UC1 &&
+                       source_depth_mm.cols == camera.width &&
+                       source_depth_mm.rows == camera.height &&
+                       target_depth_mm.size() == source_depth_mm.size(),
+                   "registration needs 16-bit depth images of the camera's size");
+    const DenseAgreement forward =
+        CompareDepth(source_depth_mm, target_depth_mm, best, camera, options);
+    const DenseAgreement backward =
+        CompareDepth(target_depth_mm, source_depth_mm, best.inverse(), camera, options);
+    result.overlap_samples = std::min(forward.samples, backward.samples);
+    auto fraction = [](int part, int whole) {
+      return whole > 0 ? static_cast<double>(part) / whole : 0.0;
+    };
+    result.consistent_fraction = std::min(fraction(forward.consistent, forward.samples),
+                                          fraction(backward.consistent, backward.samples));
+    result.violation_fraction = std::max(fraction(forward.violations, forward.samples),
+                                         fraction(backward.violations, backward.samples));
+    if (result.overlap_samples < options.min_overlap_samples) {
+      result.failure =
+          "too little overlap to verify (" + std::to_string(result.overlap_samples) + " samples)";
+      return result;
+    }
+    if (result.violation_fraction > options.max_violation_fraction ||
+        result.consistent_fraction < options.min_consistent_fraction) {
+      result.failure =
+          "depth maps disagree: " +
+          std::to_string(static_cast<int>(100 * result.consistent_fraction)) + "% consistent, " +
+          std::to_string(static_cast<int>(100 * result.violation_fraction)) + "% seen through";
+      return result;
+    }
+  }
+  result.success = true;
+  return result;
+}
+
+}  // namespace sightmap

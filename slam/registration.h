@@ -1,0 +1,91 @@
+// Registration of two RGB-D frames from their features: nearest-neighbour-ratio matches, RANSAC
+// over 3D-3D correspondences with a rigid (Kabsch) minimal solver, a weighted refinement on all
+// inliers, and a dense verification that a wrong pose cannot pass on a handful of lucky inliers.
+//
+// Why the dense check: on real frames 48 cm and 32 degrees apart, a plain RANSAC with a 20-inlier
+// minimum accepts a pose 65 cm wrong on 32 "inliers" (repeated texture agrees with itself). A wrong
+// pose puts many of one frame's measured surfaces in front of surfaces the other camera saw
+// through (free-space violations); a right pose makes the depth maps agree where they overlap.
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "slam/features.h"
+#include "slam/matching.h"
+
+namespace sightmap {
+
+struct RegistrationOptions {
+  MatchOptions matching;
+
+  // RANSAC.
+  int ransac_max_iterations = 2000;
+  double ransac_confidence = 0.999;
+  uint64_t ransac_seed = 0x5eed;  // fixed: the same frames always give the same answer
+  // A correspondence is an inlier when the aligned points are closer than
+  // max(min_inlier_distance_m, inlier_sigmas x the combined depth noise of both points).
+  double min_inlier_distance_m = 0.02;
+  double inlier_sigmas = 3.0;
+  // Axial depth noise sigma(z) = depth_noise_coeff x z^2 [1/m] (Kinect v1: Khoshelham & Elberink
+  // 2012).
+  double depth_noise_coeff = 1.425e-3;
+  // Three sample points closer together than this give an ill-conditioned rotation [m].
+  double min_sample_spread_m = 0.05;
+
+  // Refinement on the symmetric reprojection error of the inliers (Gauss-Newton iterations, and
+  // the Huber threshold [px] beyond which a residual's weight falls off).
+  int refine_iterations = 10;
+  double huber_px = 2.0;
+
+  // Acceptance.
+  int min_inliers = 20;
+  // Inliers / correspondences with 3D points on both sides.
+  double min_inlier_ratio = 0.15;
+
+  // Dense verification (skipped when either depth image is empty): every verify_stride_px-th
+  // pixel of each frame is moved into the other. Of those landing on a measured depth, the share
+  // that agree (within max(verify_min_tolerance_m, inlier_sigmas x noise)) must reach
+  // min_consistent_fraction, and the share lying in front of the other frame's surface must stay
+  // below max_violation_fraction. Both directions are checked.
+  int verify_stride_px = 4;
+  double verify_min_tolerance_m = 0.03;
+  double min_consistent_fraction = 0.5;
+  double max_violation_fraction = 0.15;
+  // Fewer overlapping samples than this cannot confirm a pose.
+  int min_overlap_samples = 500;
+
+  bool Check(std::string* error) const;
+};
+
+struct RegistrationResult {
+  bool success = false;
+  std::string failure;  // why it was refused, when !success
+  // Maps points of the source camera into the target camera (cam_target_from_cam_source).
+  Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
+  int matches = 0;          // descriptor matches
+  int correspondences = 0;  // matches with 3D points on both sides
+  int inliers = 0;
+  double rmse_m = 0.0;  // of the inliers after refinement
+  // Dense verification, the worse of both directions (0 when skipped).
+  double consistent_fraction = 0.0;
+  double violation_fraction = 0.0;
+  int overlap_samples = 0;
+  // Information (inverse covariance) of target_from_source, parameters ordered as translation
+  // (x, y, z) then a small rotation (x, y, z) applied on the left, as in Ceres' pose_graph_3d.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+};
+
+// Registers `source` to `target`. Depth images (16-bit mm, registered, the size of the camera)
+// enable the dense verification; `camera` is shared by both frames. Refusal is a result, not an
+// exception; exceptions are for invalid options or inputs.
+RegistrationResult RegisterRgbd(const Features& source, const Features& target,
+                                const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
+                                const Intrinsics& camera,
+                                const RegistrationOptions& options = RegistrationOptions());
+
+}  // namespace sightmap

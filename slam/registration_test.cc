@@ -1,0 +1,149 @@
+#include "slam/registration.h"
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
+
+#include "capture/rgbd_source.h"
+#include "tests/test_data.h"
+
+namespace sightmap {
+namespace {
+
+double AngleDeg(const Eigen::Isometry3d& motion) {
+  return Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
+}
+
+// Source features at random points in front of the camera; the target sees the same points
+// moved by `target_from_source`, plus `outliers` matches whose target point is somewhere else.
+void SyntheticPair(const Eigen::Isometry3d& target_from_source, int inliers, int outliers,
+                   double noise_m, Features* source, Features* target) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> lateral(-1.5, 1.5);
+  std::uniform_real_distribution<double> depth(1.0, 4.0);
+  std::normal_distribution<double> noise(0.0, noise_m);
+  std::uniform_int_distribution<int> byte(0, 255);
+  const int total = inliers + outliers;
+  source->descriptors.create(total, 32, CV_8U);
+  target->descriptors.create(total, 32, CV_8U);
+  for (int i = 0; i < total; ++i) {
+    for (int b = 0; b < 32; ++b) {
+      source->descriptors.at<uint8_t>(i, b) = static_cast<uint8_t>(byte(rng));
+    }
+    source->descriptors.row(i).copyTo(target->descriptors.row(i));
+    const Eigen::Vector3d point(lateral(rng), lateral(rng), depth(rng));
+    Eigen::Vector3d seen = target_from_source * point;
+    if (i >= inliers) seen = Eigen::Vector3d(lateral(rng), lateral(rng), depth(rng));
+    seen += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    for (Features* features : {source, target}) {
+      features->keypoints.emplace_back(cv::Point2f(0, 0), 31.0f);
+      features->has_point.push_back(true);
+    }
+    source->points_cam.push_back(point);
+    target->points_cam.push_back(seen);
+  }
+}
+
+Eigen::Isometry3d Motion(double angle_rad, const Eigen::Vector3d& translation) {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.linear() =
+      Eigen::AngleAxisd(angle_rad, Eigen::Vector3d(0.1, 1.0, 0.2).normalized()).matrix();
+  motion.translation() = translation;
+  return motion;
+}
+
+TEST(Registration, RecoversAKnownMotionAmongFortyPercentOutliers) {
+  const Eigen::Isometry3d truth = Motion(0.5, {0.4, -0.1, 0.3});
+  Features source;
+  Features target;
+  SyntheticPair(truth, 300, 200, 0.003, &source, &target);
+  const RegistrationResult result =
+      RegisterRgbd(source, target, cv::Mat(), cv::Mat(), Intrinsics());
+  ASSERT_TRUE(result.success) << result.failure;
+  EXPECT_EQ(result.correspondences, 500);
+  EXPECT_GE(result.inliers, 290);
+  EXPECT_LE(result.inliers, 310);
+  EXPECT_LT((result.target_from_source.translation() - truth.translation()).norm(), 0.005);
+  EXPECT_LT(AngleDeg(result.target_from_source.inverse() * truth), 0.2);
+  // Six directions constrained by hundreds of points: the information is well conditioned.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(result.information);
+  EXPECT_GT(eigen.eigenvalues().minCoeff(), 0.0);
+}
+
+TEST(Registration, RefusesWhenOutliersDominate) {
+  Features source;
+  Features target;
+  SyntheticPair(Motion(0.3, {0.2, 0.0, 0.1}), 10, 300, 0.003, &source, &target);
+  const RegistrationResult result =
+      RegisterRgbd(source, target, cv::Mat(), cv::Mat(), Intrinsics());
+  EXPECT_FALSE(result.success);
+  EXPECT_FALSE(result.failure.empty());
+}
+
+TEST(Registration, RefusesFramesWithoutDepth) {
+  Features source;
+  Features target;
+  SyntheticPair(Motion(0.3, {0.2, 0.0, 0.1}), 100, 0, 0.0, &source, &target);
+  std::fill(source.has_point.begin(), source.has_point.end(), false);
+  const RegistrationResult result =
+      RegisterRgbd(source, target, cv::Mat(), cv::Mat(), Intrinsics());
+  EXPECT_FALSE(result.success);
+  EXPECT_NE(result.failure.find("3D correspondences"), std::string::npos) << result.failure;
+}
+
+// Real Kinect-class frames with ground truth good to about a centimetre (ARCHITECTURE.md and the
+// data README): near pairs must register within 2 cm and 0.8 deg; far pairs within 5 cm and
+// 2 deg, or be refused — never a wrong pose.
+TEST(Registration, RealLoungeFramesRegisterOrAreRefusedNeverWrong) {
+  SIGHTMAP_REQUIRE_SHARED_DATA(dir, "rgbd/3dmatch-lounge/seq-01");
+  std::unique_ptr<RgbdSource> source = OpenSource("3dmatch:" + dir);
+  const Intrinsics camera = source->metadata().intrinsics;
+  std::vector<RgbdFrame> frames;
+  std::vector<Features> features;
+  while (auto frame = source->Next()) {
+    features.push_back(ExtractFeatures(frame->color, frame->depth, camera));
+    frames.push_back(std::move(*frame));
+  }
+  ASSERT_EQ(frames.size(), 5u);  // frames 0, 1, 2, 116, 422
+  for (const Features& f : features) {
+    EXPECT_GE(f.size(), 900u);
+    EXPECT_GE(f.NumPoints(), 500u);
+  }
+  struct Pair {
+    size_t target, source;
+    bool must_register;
+    double max_translation_m, max_rotation_deg;
+  };
+  const Pair pairs[] = {{0, 1, true, 0.02, 0.8},
+                        {0, 2, true, 0.02, 0.8},
+                        {0, 3, false, 0.05, 2.0},
+                        {3, 4, false, 0.05, 2.0}};
+  for (const Pair& pair : pairs) {
+    const RgbdFrame& target = frames[pair.target];
+    const RgbdFrame& src = frames[pair.source];
+    const Eigen::Isometry3d truth = target.world_from_cam_gt->inverse() * *src.world_from_cam_gt;
+    const RegistrationResult result =
+        RegisterRgbd(features[pair.source], features[pair.target], src.depth, target.depth, camera);
+    const Eigen::Isometry3d error = truth.inverse() * result.target_from_source;
+    std::printf(
+        "pair %zu->%zu: truth %.1f cm %.1f deg | %s, %d matches, %d corr, %d inliers, rmse %.1f "
+        "mm, consistent %.2f, seen-through %.2f | error %.2f cm %.2f deg %s\n",
+        pair.target, pair.source, 100 * truth.translation().norm(), AngleDeg(truth),
+        result.success ? "accepted" : "refused", result.matches, result.correspondences,
+        result.inliers, 1000 * result.rmse_m, result.consistent_fraction, result.violation_fraction,
+        100 * error.translation().norm(), AngleDeg(error), result.failure.c_str());
+    if (pair.must_register) {
+      ASSERT_TRUE(result.success) << result.failure;
+    }
+    if (result.success) {
+      EXPECT_LT(error.translation().norm(), pair.max_translation_m);
+      EXPECT_LT(AngleDeg(error), pair.max_rotation_deg);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace sightmap

@@ -1,0 +1,151 @@
+#include "slam/trajectory_eval.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/check.h"
+#include "slam/rigid_alignment.h"
+
+namespace sightmap {
+namespace {
+
+struct MatchedPose {
+  TimestampNs timestamp_ns;
+  Eigen::Isometry3d gt;
+  Eigen::Isometry3d est;
+};
+
+std::vector<MatchedPose> MatchByTimestamp(std::vector<StampedPose> ground_truth,
+                                          const std::vector<StampedPose>& estimate,
+                                          int64_t max_difference_ns) {
+  const auto earlier = [](const StampedPose& a, const StampedPose& b) {
+    return a.timestamp_ns < b.timestamp_ns;
+  };
+  std::sort(ground_truth.begin(), ground_truth.end(), earlier);
+  std::vector<MatchedPose> matched;
+  for (const StampedPose& pose : estimate) {
+    const auto after = std::lower_bound(ground_truth.begin(), ground_truth.end(), pose, earlier);
+    const StampedPose* nearest = nullptr;
+    int64_t best = max_difference_ns + 1;
+    for (auto it : {after, after == ground_truth.begin() ? after : std::prev(after)}) {
+      if (it == ground_truth.end()) continue;
+      const int64_t difference = std::llabs(it->timestamp_ns - pose.timestamp_ns);
+      if (difference < best) {
+        best = difference;
+        nearest = &*it;
+      }
+    }
+    if (nearest)
+      matched.push_back({pose.timestamp_ns, nearest->world_from_cam, pose.world_from_cam});
+  }
+  std::sort(matched.begin(), matched.end(), [](const MatchedPose& a, const MatchedPose& b) {
+    return a.timestamp_ns < b.timestamp_ns;
+  });
+  return matched;
+}
+
+double AngleDeg(const Eigen::Matrix3d& rotation) {
+  return Eigen::AngleAxisd(rotation).angle() * 180.0 / M_PI;
+}
+
+// Mean drift over pairs (i, j) chosen by `next(i)`; returns {translation, rotation} per unit of
+// `length(i, j)`.
+template <typename NextFn, typename LengthFn>
+std::pair<double, double> MeanDrift(const std::vector<MatchedPose>& poses, NextFn next,
+                                    LengthFn length, int* pairs) {
+  double translation = 0.0;
+  double rotation = 0.0;
+  *pairs = 0;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const size_t j = next(i);
+    if (j >= poses.size()) break;
+    const double span = length(i, j);
+    if (!(span > 0.0)) continue;
+    const Eigen::Isometry3d gt_motion = poses[i].gt.inverse() * poses[j].gt;
+    const Eigen::Isometry3d est_motion = poses[i].est.inverse() * poses[j].est;
+    const Eigen::Isometry3d error = gt_motion.inverse() * est_motion;
+    translation += error.translation().norm() / span;
+    rotation += AngleDeg(error.linear()) / span;
+    ++*pairs;
+  }
+  if (*pairs == 0) return {0.0, 0.0};
+  return {translation / *pairs, rotation / *pairs};
+}
+
+}  // namespace
+
+bool TrajectoryEvalOptions::Check(std::string* error) const {
+  if (max_time_difference_ns < 0 || !(rpe_distance_m > 0.0) || !(rpe_interval_s > 0.0)) {
+    if (error) *error = "time difference must be >= 0 and RPE distance and interval positive";
+    return false;
+  }
+  return true;
+}
+
+TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
+                                   const std::vector<StampedPose>& estimate,
+                                   const TrajectoryEvalOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const std::vector<MatchedPose> poses =
+      MatchByTimestamp(ground_truth, estimate, options.max_time_difference_ns);
+  SIGHTMAP_CHECK(poses.size() >= 3, "only " << poses.size() << " of " << estimate.size()
+                                            << " estimated poses have a ground-truth pose within "
+                                            << options.max_time_difference_ns * 1e-6
+                                            << " ms: check that both files use the same clock");
+  TrajectoryError result;
+  result.matched_poses = static_cast<int>(poses.size());
+
+  std::vector<Eigen::Vector3d> est_positions;
+  for (const MatchedPose& pose : poses) {
+    est_positions.push_back(pose.est.translation());
+    result.gt_positions.push_back(pose.gt.translation());
+  }
+  SIGHTMAP_CHECK(AlignRigid(est_positions, result.gt_positions, {}, &result.gt_from_est),
+                 "cannot align the trajectories: the matched positions are (nearly) collinear");
+
+  std::vector<double> errors;
+  double squared = 0.0;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    result.aligned_positions.push_back(result.gt_from_est * est_positions[i]);
+    const double error = (result.aligned_positions[i] - result.gt_positions[i]).norm();
+    errors.push_back(error);
+    squared += error * error;
+    result.ate_mean_m += error;
+    result.ate_max_m = std::max(result.ate_max_m, error);
+  }
+  result.ate_rmse_m = std::sqrt(squared / errors.size());
+  result.ate_mean_m /= errors.size();
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  result.ate_median_m = errors[errors.size() / 2];
+
+  // Distance travelled along the ground truth, for the per-metre RPE.
+  std::vector<double> travelled(poses.size(), 0.0);
+  for (size_t i = 1; i < poses.size(); ++i) {
+    travelled[i] =
+        travelled[i - 1] + (poses[i].gt.translation() - poses[i - 1].gt.translation()).norm();
+  }
+  const auto by_distance = [&](size_t i) {
+    return static_cast<size_t>(std::lower_bound(travelled.begin() + static_cast<std::ptrdiff_t>(i),
+                                                travelled.end(),
+                                                travelled[i] + options.rpe_distance_m) -
+                               travelled.begin());
+  };
+  const auto distance = [&](size_t i, size_t j) { return travelled[j] - travelled[i]; };
+  std::tie(result.rpe_trans_per_m, result.rpe_rot_deg_per_m) =
+      MeanDrift(poses, by_distance, distance, &result.rpe_pairs_distance);
+
+  const auto interval_ns = static_cast<int64_t>(options.rpe_interval_s * 1e9);
+  const auto by_time = [&](size_t i) {
+    size_t j = i;
+    while (j < poses.size() && poses[j].timestamp_ns - poses[i].timestamp_ns < interval_ns) ++j;
+    return j;
+  };
+  const auto seconds = [&](size_t i, size_t j) {
+    return (poses[j].timestamp_ns - poses[i].timestamp_ns) * 1e-9;
+  };
+  std::tie(result.rpe_trans_per_s, result.rpe_rot_deg_per_s) =
+      MeanDrift(poses, by_time, seconds, &result.rpe_pairs_time);
+  return result;
+}
+
+}  // namespace sightmap

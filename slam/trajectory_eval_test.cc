@@ -1,0 +1,99 @@
+#include "slam/trajectory_eval.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+// A 4 m x 3 m rectangle walked at 0.5 m/s, one pose per second, looking along the path.
+std::vector<StampedPose> Rectangle() {
+  std::vector<StampedPose> poses;
+  const Eigen::Vector3d corners[] = {{0, 0, 0}, {4, 0, 0}, {4, 3, 0}, {0, 3, 0}, {0, 0, 0}};
+  TimestampNs t = 0;
+  for (int side = 0; side < 4; ++side) {
+    const Eigen::Vector3d step =
+        (corners[side + 1] - corners[side]) / ((corners[side + 1] - corners[side]).norm() / 0.5);
+    const int steps =
+        static_cast<int>(std::lround((corners[side + 1] - corners[side]).norm() / 0.5));
+    for (int i = 0; i < steps; ++i) {
+      StampedPose pose;
+      pose.timestamp_ns = t;
+      pose.world_from_cam.translation() = corners[side] + i * step;
+      pose.world_from_cam.linear() =
+          Eigen::AngleAxisd(side * M_PI / 2, Eigen::Vector3d::UnitZ()).matrix();
+      poses.push_back(pose);
+      t += 1'000'000'000;
+    }
+  }
+  return poses;
+}
+
+TEST(TrajectoryEval, RigidlyMovedCopyHasNoError) {
+  const std::vector<StampedPose> gt = Rectangle();
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.linear() = Eigen::AngleAxisd(1.0, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  offset.translation() = Eigen::Vector3d(10, -3, 2);
+  std::vector<StampedPose> est = gt;
+  for (StampedPose& pose : est) pose.world_from_cam = offset * pose.world_from_cam;
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+  EXPECT_EQ(error.matched_poses, static_cast<int>(gt.size()));
+  EXPECT_LT(error.ate_rmse_m, 1e-9);
+  EXPECT_LT(error.rpe_trans_per_m, 1e-9);
+  EXPECT_LT(error.rpe_rot_deg_per_m, 1e-6);
+  EXPECT_TRUE((error.gt_from_est * offset).matrix().isIdentity(1e-9));
+}
+
+TEST(TrajectoryEval, KnownOffsetsGiveKnownAte) {
+  const std::vector<StampedPose> gt = Rectangle();
+  // Alternate +-5 cm along z: the alignment cannot remove it, every error is 5 cm.
+  std::vector<StampedPose> est = gt;
+  for (size_t i = 0; i < est.size(); ++i) {
+    est[i].world_from_cam.translation().z() += (i % 2 == 0 ? 0.05 : -0.05);
+  }
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+  EXPECT_NEAR(error.ate_rmse_m, 0.05, 1e-3);
+  EXPECT_NEAR(error.ate_max_m, 0.05, 1e-3);
+  EXPECT_NEAR(error.ate_median_m, 0.05, 1e-3);
+  // Over 1 m (two steps) both ends carry the same offset: no relative error.
+  EXPECT_LT(error.rpe_trans_per_m, 1e-9);
+}
+
+TEST(TrajectoryEval, KnownOffsetsGiveKnownRpe) {
+  const std::vector<StampedPose> gt = Rectangle();
+  // Offsets +5, +5, -5, -5 cm repeating: poses two steps (1 m, 2 s) apart always differ by 10 cm.
+  std::vector<StampedPose> est = gt;
+  for (size_t i = 0; i < est.size(); ++i) {
+    est[i].world_from_cam.translation().z() += (i % 4 < 2 ? 0.05 : -0.05);
+  }
+  const TrajectoryEvalOptions options;
+  const TrajectoryError error = EvaluateTrajectory(gt, est, options);
+  EXPECT_NEAR(error.rpe_trans_per_m, 0.1, 1e-9);
+  EXPECT_GT(error.rpe_pairs_distance, 20);
+}
+
+TEST(TrajectoryEval, DriftShowsInRpePerMetre) {
+  const std::vector<StampedPose> gt = Rectangle();
+  // A scale drift of 2%: every metre walked is estimated as 1.02 m.
+  std::vector<StampedPose> est = gt;
+  for (StampedPose& pose : est) pose.world_from_cam.translation() *= 1.02;
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+  EXPECT_NEAR(error.rpe_trans_per_m, 0.02, 2e-3);
+  EXPECT_GT(error.rpe_pairs_distance, 10);
+  EXPECT_NEAR(error.rpe_trans_per_s, 0.02 * 0.5, 2e-3);
+}
+
+TEST(TrajectoryEval, MatchesByTimestampAndRefusesDisjointClocks) {
+  const std::vector<StampedPose> gt = Rectangle();
+  std::vector<StampedPose> est = gt;
+  for (StampedPose& pose : est) pose.timestamp_ns += 5'000'000;  // 5 ms late: still matched
+  EXPECT_EQ(EvaluateTrajectory(gt, est).matched_poses, static_cast<int>(gt.size()));
+  for (StampedPose& pose : est) pose.timestamp_ns += 1'000'000'000'000;
+  EXPECT_THROW(EvaluateTrajectory(gt, est), Error);
+}
+
+}  // namespace
+}  // namespace sightmap
