@@ -1,0 +1,133 @@
+#include "store/label_files.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <map>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+// Parses three leading numbers separated by spaces, tabs, commas or semicolons.
+bool ParsePoint(const std::string& line, Eigen::Vector3d* point) {
+  const char* cursor = line.c_str();
+  for (int i = 0; i < 3; ++i) {
+    while (*cursor == ' ' || *cursor == '\t' || *cursor == ',' || *cursor == ';') ++cursor;
+    char* end = nullptr;
+    errno = 0;
+    const double value = std::strtod(cursor, &end);
+    if (end == cursor || errno == ERANGE || !std::isfinite(value)) return false;
+    // The number must end at a separator, so "12abc" is not a coordinate.
+    if (*end != '\0' && *end != ' ' && *end != '\t' && *end != ',' && *end != ';' && *end != '\r') {
+      return false;
+    }
+    (*point)[i] = value;
+    cursor = end;
+  }
+  return true;
+}
+
+bool IsPointListFile(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension == ".txt" || extension == ".asc" || extension == ".xyz" || extension == ".csv";
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> ReadPointList(const std::string& path) {
+  std::ifstream in(path);
+  SIGHTMAP_CHECK(in.is_open(), "cannot read point list " << path << ": check that it exists");
+  std::vector<Eigen::Vector3d> points;
+  std::string line;
+  while (std::getline(in, line)) {
+    Eigen::Vector3d point;
+    if (ParsePoint(line, &point)) points.push_back(point);
+  }
+  SIGHTMAP_CHECK(!points.empty(), "point list " << path
+                                                << " holds no point: expected one 'x y z' or "
+                                                   "'x,y,z' per line");
+  return points;
+}
+
+void WritePointList(const std::string& path, const std::vector<Eigen::Vector3d>& points) {
+  std::ofstream out(path);
+  SIGHTMAP_CHECK(out.is_open(), "cannot write " << path << ": check that its folder is writable");
+  out << std::fixed << std::setprecision(6);
+  for (const Eigen::Vector3d& p : points) out << p.x() << " " << p.y() << " " << p.z() << "\n";
+  out.flush();
+  SIGHTMAP_CHECK(out.good(), "cannot write " << path << ": is the disk full?");
+}
+
+std::string LabelFileName(const std::string& label_name) {
+  std::string stem = label_name;
+  for (char& c : stem) {
+    if (c == '/' || c == '\\' || c == '\0') c = '_';
+  }
+  if (stem == "." || stem == "..") stem = "_" + stem;
+  return stem + ".txt";
+}
+
+int ExportLabels(const Model& model, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  SIGHTMAP_CHECK(!ec, "cannot create " << dir << ": " << ec.message());
+  const std::vector<LabelRecord> labels = model.Labels();
+  std::map<std::string, std::string> written;  // file name -> label, to refuse collisions
+  for (const LabelRecord& label : labels) {
+    const std::string name = LabelFileName(label.name);
+    SIGHTMAP_CHECK(written.emplace(name, label.name).second,
+                   "labels '" << written[name] << "' and '" << label.name << "' would both be "
+                              << name << ": rename one of them");
+    std::vector<Eigen::Vector3d> points;
+    for (const LabelPoint& point : label.points) points.push_back(point.world);
+    WritePointList((std::filesystem::path(dir) / name).string(), points);
+  }
+  return static_cast<int>(labels.size());
+}
+
+int ImportLabels(Model& model, const std::string& dir, const std::string& type) {
+  std::error_code ec;
+  SIGHTMAP_CHECK(std::filesystem::is_directory(dir, ec),
+                 "cannot import labels from " << dir << ": not a folder");
+  std::vector<std::filesystem::path> files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.is_regular_file() && IsPointListFile(entry.path())) files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  // Read every file before writing any label, so a bad file changes nothing.
+  std::vector<LabelRecord> labels;
+  for (const std::filesystem::path& file : files) {
+    LabelRecord label;
+    label.name = file.stem().string();
+    label.type = type;
+    for (const Eigen::Vector3d& world : ReadPointList(file.string())) {
+      LabelPoint point;
+      point.world = world;
+      point.source = LabelPointSource::kImportedFile;
+      point.file = file.filename().string();
+      label.points.push_back(point);
+    }
+    labels.push_back(std::move(label));
+  }
+  for (LabelRecord& label : labels) {
+    if (std::optional<LabelRecord> existing = model.FindLabel(label.name)) {
+      label.id = existing->id;
+      label.type = existing->type;
+      model.UpdateLabel(label);
+    } else {
+      model.AddLabel(label);
+    }
+  }
+  return static_cast<int>(labels.size());
+}
+
+}  // namespace sightmap

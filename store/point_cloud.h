@@ -1,0 +1,53 @@
+// The model's point cloud as a PLY file: every keyframe's depth back-projected with its
+// intrinsics and optimised world_from_cam, voxel downsampled, optionally cleaned of outliers.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "store/model.h"
+
+namespace sightmap {
+
+struct PlyExportOptions {
+  // Back-project every pixel_step-th pixel along u and v (16x fewer points at 4) [px].
+  int pixel_step = 4;
+  // Depth outside [min_depth_m, max_depth_m] is dropped: Kinect-class depth is noisy far away [m].
+  double min_depth_m = 0.3;
+  double max_depth_m = 4.0;
+  // Voxel grid leaf size [m]; 0 keeps every back-projected point.
+  double voxel_size_m = 0.02;
+  // Statistical outlier removal: drop points whose mean distance to their `outlier_neighbours`
+  // nearest neighbours is more than `outlier_stddev` standard deviations above the average.
+  bool remove_outliers = false;
+  int outlier_neighbours = 20;
+  double outlier_stddev = 2.0;
+
+  bool Check(std::string* error) const;
+};
+
+struct PlyExportStats {
+  int64_t keyframes = 0;
+  int64_t back_projected_points = 0;
+  int64_t written_points = 0;
+};
+
+struct ColoredPoint {
+  Eigen::Vector3f position = Eigen::Vector3f::Zero();  // world [m]
+  uint8_t red = 0;
+  uint8_t green = 0;
+  uint8_t blue = 0;
+};
+
+// Writes binary little-endian PLY with x y z (float) red green blue (uchar) per vertex; throws
+// Error when the model has no keyframes or the file cannot be written.
+PlyExportStats ExportPly(const Model& model, const std::string& path,
+                         const PlyExportOptions& options = {});
+
+// Reads a PLY with x y z and red green blue back (as PCL reads it), for tests and tools.
+std::vector<ColoredPoint> ReadPly(const std::string& path);
+
+}  // namespace sightmap
