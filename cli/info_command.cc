@@ -1,0 +1,81 @@
+// sightmap info MODEL [--json]: what a model holds. Scripts read the --json keys; they are stable.
+#include <iomanip>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/command_util.h"
+#include "cli/commands.h"
+#include "store/model.h"
+
+namespace sightmap::cli {
+
+int RunInfo(int argc, char** argv) {
+  CLI::App app("Report what a model holds: sessions, keyframes, links by type, labels, size.",
+               "sightmap info");
+  std::string path;
+  bool json = false;
+  app.add_option("MODEL", path, "the model's SQLite file")->required();
+  app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
+  if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+
+  ModelOptions options;
+  options.read_only = true;
+  const Model model = Model::Open(path, options);
+  const ModelSummary summary = model.Summary();
+  const std::vector<LabelRecord> labels = model.Labels();
+
+  if (json) {
+    nlohmann::json out;
+    out["schema_version"] = summary.schema_version;
+    out["sessions"] = summary.sessions;
+    out["keyframes"] = summary.keyframes;
+    out["loop_closures"] = summary.loop_closures;
+    out["segments"] = summary.segments;
+    out["labels"] = summary.labels;
+    out["size_bytes"] = summary.size_bytes;
+    out["links"] = {{"odometry", summary.odometry_links},
+                    {"loop", summary.loop_closures},
+                    {"relocalisation", summary.relocalisation_links},
+                    {"user", summary.user_links}};
+    if (summary.has_bounding_box) {
+      out["bounding_box"] = {
+          {"min", {summary.bbox_min.x(), summary.bbox_min.y(), summary.bbox_min.z()}},
+          {"max", {summary.bbox_max.x(), summary.bbox_max.y(), summary.bbox_max.z()}}};
+    } else {
+      out["bounding_box"] = nullptr;
+    }
+    nlohmann::json names = nlohmann::json::array();
+    for (const LabelRecord& label : labels) names.push_back(label.name);
+    out["label_names"] = names;
+    std::cout << out.dump(2) << "\n";
+    return kExitSuccess;
+  }
+
+  std::cout << "model          " << path << " (schema " << summary.schema_version << ", "
+            << std::fixed << std::setprecision(1) << summary.size_bytes / 1e6 << " MB)\n";
+  std::cout << "sessions       " << summary.sessions << "\n";
+  for (const SessionRecord& session : model.Sessions()) {
+    std::cout << "  #" << session.id.value() << " " << SessionEndName(session.end_state) << "  "
+              << (session.source.empty() ? "(no source)" : session.source);
+    if (!session.device_name.empty()) std::cout << "  " << session.device_name;
+    std::cout << "\n";
+  }
+  std::cout << "keyframes      " << summary.keyframes << " in " << summary.segments
+            << " segment(s)\n";
+  std::cout << "links          " << summary.odometry_links << " odometry, " << summary.loop_closures
+            << " loop closure, " << summary.relocalisation_links << " relocalisation, "
+            << summary.user_links << " user\n";
+  std::cout << "labels         " << summary.labels;
+  for (size_t i = 0; i < labels.size(); ++i) std::cout << (i ? ", " : "  ") << labels[i].name;
+  std::cout << "\n";
+  if (summary.has_bounding_box) {
+    std::cout << std::setprecision(2) << "bounding box   [" << summary.bbox_min.x() << ", "
+              << summary.bbox_min.y() << ", " << summary.bbox_min.z() << "] .. ["
+              << summary.bbox_max.x() << ", " << summary.bbox_max.y() << ", "
+              << summary.bbox_max.z() << "] m\n";
+  }
+  return kExitSuccess;
+}
+
+}  // namespace sightmap::cli
