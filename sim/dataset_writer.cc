@@ -1,0 +1,188 @@
+#include "sim/dataset_writer.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "capture/calibration.h"
+#include "core/check.h"
+
+namespace sightmap::sim {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string TimestampText(TimestampNs ns) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.6f", static_cast<double>(ns) * 1e-9);
+  return text;
+}
+
+void WriteImage(const fs::path& path, const cv::Mat& image, const std::vector<int>& params = {}) {
+  SIGHTMAP_CHECK(cv::imwrite(path.string(), image, params),
+                 "cannot write " << path.string()
+                                 << ": check that the folder is writable and the "
+                                    "disk is not full");
+}
+
+json PoseJson(const Eigen::Isometry3d& world_from_cam) {
+  const Eigen::Quaterniond q(world_from_cam.linear());
+  const Eigen::Vector3d t = world_from_cam.translation();
+  return {{"position", {t.x(), t.y(), t.z()}}, {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+}
+
+json IntrinsicsJson(const Intrinsics& k) {
+  return {{"width", k.width}, {"height", k.height}, {"fx", k.fx},
+          {"fy", k.fy},       {"cx", k.cx},         {"cy", k.cy}};
+}
+
+std::ofstream OpenText(const fs::path& path) {
+  std::ofstream out(path);
+  SIGHTMAP_CHECK(out.good(), "cannot write " << path.string());
+  return out;
+}
+
+}  // namespace
+
+bool GenerateOptions::Check(std::string* error) const {
+  if (out_dir.empty()) {
+    *error = "out_dir is required";
+    return false;
+  }
+  if (queries < 0) {
+    *error = "queries must be >= 0";
+    return false;
+  }
+  return simulator.Check(error) && query.Check(error);
+}
+
+GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* progress) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const auto start = std::chrono::steady_clock::now();
+  const fs::path dir = options.out_dir;
+  std::error_code ec;
+  fs::create_directories(dir / "rgb", ec);
+  fs::create_directories(dir / "depth", ec);
+  fs::create_directories(dir / "queries", ec);
+  SIGHTMAP_CHECK(!ec && fs::is_directory(dir / "rgb"),
+                 "cannot create " << (dir / "rgb").string() << ": " << ec.message());
+
+  Simulator simulator(options.simulator);
+  const SimulatorOptions& so = options.simulator;
+  std::ofstream rgb_list = OpenText(dir / "rgb.txt");
+  std::ofstream depth_list = OpenText(dir / "depth.txt");
+  std::ofstream groundtruth = OpenText(dir / "groundtruth.txt");
+  const std::string header = std::string("# sightmap synthetic building: scene ") + so.scene +
+                             ", trajectory " + ToString(so.trajectory) + ", session " +
+                             std::to_string(so.session) + ", seed " + std::to_string(so.seed);
+  rgb_list << "# color images\n" << header << "\n# timestamp filename\n";
+  depth_list << "# depth maps (16-bit PNG, 5000 per metre)\n"
+             << header << "\n# timestamp filename\n";
+  groundtruth << "# ground truth trajectory (world_from_cam)\n"
+              << header << "\n# timestamp tx ty tz qx qy qz qw\n";
+  groundtruth << std::fixed << std::setprecision(6);
+
+  auto last_report = start;
+  GenerateSummary summary;
+  for (int64_t i = 0; i < simulator.num_frames(); ++i) {
+    const RgbdFrame frame = simulator.RenderFrame(i);
+    const std::string stamp = TimestampText(frame.timestamp_ns);
+    WriteImage(dir / "rgb" / (stamp + ".png"), frame.color);
+    cv::Mat depth_tum;
+    frame.depth.convertTo(depth_tum, CV_16U, 5.0);  // mm -> 1/5000 m
+    WriteImage(dir / "depth" / (stamp + ".png"), depth_tum);
+    rgb_list << stamp << " rgb/" << stamp << ".png\n";
+    depth_list << stamp << " depth/" << stamp << ".png\n";
+    const Eigen::Isometry3d& pose = *frame.world_from_cam_gt;
+    const Eigen::Quaterniond q(pose.linear());
+    groundtruth << stamp << " " << pose.translation().x() << " " << pose.translation().y() << " "
+                << pose.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " "
+                << q.w() << "\n";
+    ++summary.frames;
+    const auto now = std::chrono::steady_clock::now();
+    if (progress != nullptr && now - last_report > std::chrono::seconds(3)) {
+      last_report = now;
+      *progress << "sim: frame " << (i + 1) << "/" << simulator.num_frames() << "\n" << std::flush;
+    }
+  }
+  SIGHTMAP_CHECK(rgb_list.good() && depth_list.good() && groundtruth.good(),
+                 "cannot write the TUM lists in " << dir.string());
+
+  RgbdCalibration calibration;
+  calibration.color = so.camera;
+  calibration.depth = so.camera;
+  calibration.color_from_depth = Eigen::Isometry3d::Identity();
+  WriteCalibrationFile((dir / "calibration.json").string(), calibration);
+
+  const Scene& scene = simulator.scene();
+  json appliances = json::array();
+  for (const Appliance& a : scene.appliances) {
+    json points = json::array();
+    for (const Eigen::Vector3d& p : a.points) points.push_back({p.x(), p.y(), p.z()});
+    appliances.push_back({{"id", a.id}, {"name", a.name}, {"type", a.type}, {"points", points}});
+  }
+  OpenText(dir / "appliances.json")
+      << json{{"scene", scene.name}, {"appliances", appliances}}.dump(1) << "\n";
+
+  if (progress != nullptr && options.queries > 0) {
+    *progress << "sim: rendering " << options.queries << " phone photos\n" << std::flush;
+  }
+  const std::vector<QueryPhoto> photos = simulator.MakeQueries(options.queries, options.query);
+  json queries = json::array();
+  for (const QueryPhoto& photo : photos) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%04d.jpg", photo.index);
+    WriteImage(dir / "queries" / name, photo.image, {cv::IMWRITE_JPEG_QUALITY, 92});
+    json types = json::object();
+    json details = json::array();
+    for (const ApplianceVisibility& v : photo.visibility) {
+      const std::string& appliance_name =
+          scene.appliances[static_cast<size_t>(v.appliance_id - 1)].name;
+      types[appliance_name] = ToString(v.type);
+      details.push_back({{"id", v.appliance_id},
+                         {"name", appliance_name},
+                         {"type", ToString(v.type)},
+                         {"footprint_px", v.footprint_px},
+                         {"in_image_px", v.in_image_px},
+                         {"visible_px", v.visible_px}});
+    }
+    queries.push_back(
+        {{"image", std::string("queries/") + name},
+         {"intrinsics", IntrinsicsJson(photo.intrinsics)},
+         {"world_from_cam", PoseJson(photo.world_from_cam)},
+         {"target", scene.appliances[static_cast<size_t>(photo.target_appliance - 1)].name},
+         {"with_occluder", photo.with_occluder},
+         {"types", types},
+         {"visibility", details}});
+  }
+  const VisibilityThresholds& t = options.query.thresholds;
+  OpenText(dir / "queries" / "queries.json")
+      << json{{"thresholds",
+               {{"id_buffer_downscale", t.id_buffer_downscale},
+                {"min_pixels", t.min_pixels},
+                {"occluded_below", t.occluded_below},
+                {"visible_from", t.visible_from}}},
+              {"queries", queries}}
+             .dump(1)
+      << "\n";
+
+  // The whole walk at 2 Hz, not just the written frames (sparse at --fps 1).
+  std::vector<Eigen::Isometry3d> walk;
+  const double duration_s =
+      static_cast<double>(simulator.TimestampOf(simulator.num_frames())) * 1e-9;
+  for (double t = 0.0; t <= duration_s; t += 0.5)
+    walk.push_back(simulator.trajectory().WorldFromCam(t));
+  WriteImage(dir / "overview.png", DrawOverview(scene, walk, photos));
+  summary.queries = static_cast<int>(photos.size());
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.frames_per_second = summary.seconds > 0 ? summary.frames / summary.seconds : 0.0;
+  return summary;
+}
+
+}  // namespace sightmap::sim

@@ -1,0 +1,314 @@
+#!/usr/bin/env python3
+"""Writes sim/office_scene.json, the default `office` scene embedded in sightmap.
+
+Three rooms of 10 x 8 m (80 m^2) north of a 2.4 m corridor, x east, y north, z up, metres.
+Run from the repository root after editing: python3 sim/tools/make_office_scene.py
+"""
+import json
+
+H = 2.8   # ceiling height
+T = 0.12  # wall thickness
+boxes, appliances = [], []
+
+
+def box(name, c, s, material, yaw=0.0, group=None):
+    b = {"name": name, "center": [round(v, 4) for v in c], "size": [round(v, 4) for v in s],
+         "material": material}
+    if yaw:
+        b["yaw_deg"] = yaw
+    if group:
+        b["group"] = group
+    return b
+
+
+def add(name, c, s, material, yaw=0.0, group=None):
+    boxes.append(box(name, c, s, material, yaw, group))
+
+
+def wall_x(name, x0, x1, y, material, doors=()):
+    """A wall along x at y, with door gaps (x_start, x_end), lintel above each door."""
+    cuts = [x0] + [v for d in doors for v in d] + [x1]
+    for i in range(0, len(cuts), 2):
+        a, b = cuts[i], cuts[i + 1]
+        add(f"{name}_{i//2}", [(a + b) / 2, y, H / 2], [b - a, T, H], material)
+    for j, (a, b) in enumerate(doors):
+        add(f"{name}_lintel{j}", [(a + b) / 2, y, (2.1 + H) / 2], [b - a, T, H - 2.1], material)
+
+
+def wall_y(name, y0, y1, x, material, doors=()):
+    cuts = [y0] + [v for d in doors for v in d] + [y1]
+    for i in range(0, len(cuts), 2):
+        a, b = cuts[i], cuts[i + 1]
+        add(f"{name}_{i//2}", [x, (a + b) / 2, H / 2], [T, b - a, H], material)
+    for j, (a, b) in enumerate(doors):
+        add(f"{name}_lintel{j}", [x, (a + b) / 2, (2.1 + H) / 2], [T, b - a, H - 2.1], material)
+
+
+def appliance(name, kind, points, parts):
+    appliances.append({"name": name, "type": kind, "points": [[round(v, 4) for v in p] for p in points],
+                       "boxes": parts})
+
+
+# Facing: yaw_deg rotates a box's local axes; wall items are thin along the wall normal.
+def poster(name, x, y, z, w, h, texture, normal):
+    """A framed poster on a wall; `normal` is 'n','s','e','w' = the direction it faces."""
+    d = 0.02
+    if normal in "ns":
+        off = d / 2 + T / 2
+        yy = y + (off if normal == "n" else -off)
+        add(name + "_frame", [x, yy, z], [w + 0.06, d, h + 0.06], "frame")
+        add(name, [x, yy + (0.006 if normal == "n" else -0.006), z], [w, d, h], texture,
+            yaw=0 if normal == "s" else 180)
+    else:
+        off = d / 2 + T / 2
+        xx = x + (off if normal == "e" else -off)
+        add(name + "_frame", [xx, y, z], [d, w + 0.06, h + 0.06], "frame")
+        add(name, [xx + (0.006 if normal == "e" else -0.006), y, z], [d, w, h], texture,
+            yaw=0 if normal == "e" else 180)
+
+
+def monitor(name, x, y, facing_yaw):
+    """A 24" monitor standing on a desk top at z = 0.74, screen facing yaw (deg, 0 = +x)."""
+    import math
+    fx, fy = math.cos(math.radians(facing_yaw)), math.sin(math.radians(facing_yaw))
+    parts = [box(name + "_stand", [x - 0.08 * fx, y - 0.08 * fy, 0.74 + 0.12], [0.05, 0.08, 0.24], "plastic_dark", facing_yaw),
+             box(name + "_foot", [x - 0.05 * fx, y - 0.05 * fy, 0.75], [0.2, 0.25, 0.02], "plastic_dark", facing_yaw),
+             box(name + "_body", [x, y, 0.74 + 0.38], [0.05, 0.56, 0.34], "plastic_dark", facing_yaw),
+             box(name + "_screen", [x + 0.027 * fx, y + 0.027 * fy, 0.74 + 0.385], [0.005, 0.52, 0.3], "screen_desktop", facing_yaw)]
+    appliance(name, "monitor", [[x + 0.03 * fx, y + 0.03 * fy, 0.74 + 0.38]], parts)
+
+
+def desk(name, x, y, sx, sy):
+    add(name + "_top", [x, y, 0.72], [sx, sy, 0.04], "wood")
+    for i, (dx, dy) in enumerate([(-1, -1), (1, -1), (-1, 1), (1, 1)]):
+        add(f"{name}_leg{i}", [x + dx * (sx / 2 - 0.05), y + dy * (sy / 2 - 0.05), 0.35], [0.05, 0.05, 0.7], "metal")
+
+
+def chair(name, x, y, yaw):
+    """An office chair; group = moved together between sessions. Back towards -x of the chair."""
+    import math
+    bx, by = -math.cos(math.radians(yaw)) * 0.22, -math.sin(math.radians(yaw)) * 0.22
+    add(name + "_base", [x, y, 0.06], [0.55, 0.55, 0.06], "plastic_dark", yaw, name)
+    add(name + "_pole", [x, y, 0.28], [0.06, 0.06, 0.4], "metal", yaw, name)
+    add(name + "_seat", [x, y, 0.5], [0.48, 0.48, 0.08], "fabric_blue", yaw, name)
+    add(name + "_back", [x + bx, y + by, 0.82], [0.06, 0.46, 0.52], "fabric_blue", yaw, name)
+
+
+def bookshelf(name, x, y, yaw, texture):
+    """0.9 m wide, 0.35 deep, 1.9 high; local +x is the open (textured) front."""
+    import math
+    fx, fy = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+    add(name + "_case", [x, y, 0.95], [0.35, 0.9, 1.9], "wood_dark", yaw)
+    add(name + "_books", [x + 0.176 * fx, y + 0.176 * fy, 0.95], [0.005, 0.84, 1.82], texture, yaw)
+
+
+def ceiling_light(name, x, y):
+    appliance(name, "ceiling_light", [[x, y, H - 0.03]],
+              [box(name + "_frame", [x, y, H - 0.015], [0.64, 0.64, 0.03], "metal"),
+               box(name + "_panel", [x, y, H - 0.035], [0.6, 0.6, 0.012], "light_panel")])
+
+
+def switch(name, x, y, normal):
+    dx = {"e": 0.07, "w": -0.07}.get(normal, 0.0)
+    dy = {"n": 0.07, "s": -0.07}.get(normal, 0.0)
+    size = [0.02, 0.08, 0.12] if normal in "ew" else [0.08, 0.02, 0.12]
+    appliance(name, "light_switch", [[x + dx, y + dy, 1.2]],
+              [box(name, [x + dx, y + dy, 1.2], size, "switch_plate")])
+
+
+def thermostat(name, x, y, normal):
+    dx = {"e": 0.08, "w": -0.08}.get(normal, 0.0)
+    dy = {"n": 0.08, "s": -0.08}.get(normal, 0.0)
+    size = [0.04, 0.12, 0.12] if normal in "ew" else [0.12, 0.04, 0.12]
+    appliance(name, "thermostat", [[x + dx, y + dy, 1.5]],
+              [box(name, [x + dx, y + dy, 1.5], size, "thermostat_face", 0 if normal in "ew" else 90)])
+
+
+# ---- shell ----
+X0, X1, YC, Y1 = 0.0, 30.0, 2.4, 10.4
+add("floor_corridor", [15, YC / 2, -0.05], [30.2, YC, 0.1], "lino")
+add("floor_rooms", [15, (YC + Y1) / 2, -0.05], [30.2, Y1 - YC, 0.1], "carpet")
+add("ceiling", [15, Y1 / 2, H + 0.05], [30.2, Y1 + 0.2, 0.1], "ceiling")
+wall_x("wall_south", X0, X1, 0.0, "wall_corridor")
+wall_x("wall_rooms_south", X0, X1, YC, "wall_corridor", doors=[(4.0, 5.2), (14.0, 15.2), (24.0, 25.2)])
+wall_x("wall_north", X0, X1, Y1, "wall_white")
+wall_y("wall_west", 0.0, Y1, X0, "wall_white")
+wall_y("wall_east", 0.0, Y1, X1, "wall_white")
+wall_y("wall_ab", YC, Y1, 10.0, "wall_white", doors=[(8.2, 9.4)])
+wall_y("wall_bc", YC, Y1, 20.0, "wall_white", doors=[(8.2, 9.4)])
+# Windows (glass: no depth) on the north wall, the view outside is a photograph.
+for i, x in enumerate([2.5, 7.5, 12.5, 17.5, 22.5, 27.5]):
+    add(f"window_{i}", [x, Y1 - T / 2 - 0.01, 1.6], [1.8, 0.01, 1.3], "window")
+    add(f"window_{i}_sill", [x, Y1 - T / 2 - 0.08, 0.93], [1.9, 0.16, 0.04], "wall_white")
+
+# ---- room A: lab (x 0..10) ----
+desk("a_desk1", 0.5, 4.4, 0.8, 1.6)
+desk("a_desk2", 0.5, 6.6, 0.8, 1.6)
+monitor("monitor_1", 0.35, 4.4, 0)
+monitor("monitor_2", 0.35, 6.6, 0)
+chair("a_chair1", 1.35, 4.4, 180)
+chair("a_chair2", 1.35, 6.6, 180)
+appliance("desk_lamp_a", "lamp", [[0.45, 5.3, 1.25]],
+          [box("desk_lamp_a_base", [0.4, 5.35, 0.76], [0.16, 0.16, 0.03], "metal"),
+           box("desk_lamp_a_arm", [0.4, 5.35, 1.0], [0.025, 0.025, 0.45], "metal"),
+           box("desk_lamp_a_shade", [0.5, 5.3, 1.22], [0.22, 0.18, 0.14], "lamp_shade_red")])
+bookshelf("a_shelf1", 3.0, Y1 - T / 2 - 0.18, -90, "books1")
+bookshelf("a_shelf2", 3.95, Y1 - T / 2 - 0.18, -90, "books2")
+add("a_cabinet", [9.7, 5.0, 0.5], [0.5, 1.2, 1.0], "wood", 0)
+add("a_table", [5.5, 6.0, 0.72], [1.6, 0.9, 0.04], "wood")
+add("a_table_leg", [5.5, 6.0, 0.35], [0.1, 0.1, 0.7], "metal")
+add("a_plant_pot", [8.8, 9.6, 0.25], [0.4, 0.4, 0.5], "pot")
+add("a_plant", [8.8, 9.6, 0.9], [0.6, 0.6, 0.8], "leaves")
+poster("a_poster_graf", 9.94 - 0.0, 3.8, 1.55, 1.0, 0.8, "poster_graf", "w")
+poster("a_poster_starry", 9.94, 6.8, 1.55, 1.0, 0.8, "poster_starry", "w")
+poster("a_poster_leuven", 6.5, YC, 1.5, 1.2, 0.9, "poster_leuven", "n")
+add("a_whiteboard", [0.06 + T / 2, 8.6, 1.45], [0.02, 1.8, 1.1], "whiteboard")
+switch("switch_a", 3.7, YC, "n")
+thermostat("thermostat_a", 0.0, 3.2, "e")
+ceiling_light("ceiling_light_1", 3.0, 5.0)
+ceiling_light("ceiling_light_2", 7.0, 7.8)
+
+add("a_cabinet2", [6.5, YC + T / 2 + 0.3, 0.45], [1.2, 0.5, 0.9], "wood_dark")
+add("a_desk3_top", [5.5, 9.9, 0.72], [1.6, 0.8, 0.04], "wood")
+add("a_desk3_side", [5.5, 9.9, 0.35], [1.5, 0.7, 0.7], "wood_dark")
+chair("a_chair3", 5.5, 9.1, 90)
+
+# ---- room B: meeting room (x 10..20) ----
+add("b_table", [15.0, 6.4, 0.72], [3.0, 1.2, 0.05], "wood")
+add("b_table_leg1", [14.0, 6.4, 0.35], [0.12, 0.8, 0.7], "metal")
+add("b_table_leg2", [16.0, 6.4, 0.35], [0.12, 0.8, 0.7], "metal")
+for i, x in enumerate([14.0, 15.0, 16.0]):
+    chair(f"b_chair_s{i}", x, 5.3, 90)
+    chair(f"b_chair_n{i}", x, 7.5, -90)
+appliance("projector", "projector", [[15.0, 6.4, 2.52]],
+          [box("projector_rod", [15.0, 6.4, 2.68], [0.04, 0.04, 0.24], "metal"),
+           box("projector_body", [15.0, 6.4, 2.52], [0.32, 0.26, 0.1], "plastic_light"),
+           box("projector_lens", [15.0, 6.54, 2.52], [0.07, 0.02, 0.07], "plastic_dark")])
+appliance("projection_screen", "screen", [[15.0, Y1 - 0.1, 1.65]],
+          [box("screen_case", [15.0, Y1 - T / 2 - 0.05, 2.5], [2.3, 0.1, 0.1], "plastic_light"),
+           box("screen_cloth", [15.0, Y1 - T / 2 - 0.03, 1.7], [2.1, 0.01, 1.5], "projection")])
+appliance("tv", "tv", [[19.9 - 0.05, 5.0, 1.4]],
+          [box("tv_frame", [20 - T / 2 - 0.04, 5.0, 1.4], [0.06, 1.25, 0.74], "plastic_dark"),
+           box("tv_screen", [20 - T / 2 - 0.072, 5.0, 1.4], [0.005, 1.17, 0.66], "screen_tv")])
+add("b_sideboard", [19.6, 5.0, 0.4], [0.5, 1.8, 0.8], "wood_dark")
+bookshelf("b_shelf1", 10.24, 7.2, 0, "books2")
+add("b_flipchart", [11.2, 9.8, 0.95], [0.7, 0.05, 1.0], "whiteboard", 0)
+add("b_cabinet", [17.5, YC + T / 2 + 0.25, 0.45], [1.6, 0.5, 0.9], "wood")
+poster("b_poster_aero", 10.0, 5.0, 1.55, 1.1, 0.8, "poster_aero", "e")
+poster("b_poster_building", 17.5, YC, 1.5, 1.2, 0.85, "poster_building", "n")
+poster("b_poster_fruits", 11.6, YC, 1.5, 0.8, 0.75, "poster_fruits", "n")
+switch("switch_b", 13.7, YC, "n")
+ceiling_light("ceiling_light_3", 13.0, 5.4)
+ceiling_light("ceiling_light_4", 17.0, 7.4)
+
+# ---- room C: office (x 20..30) ----
+desk("c_desk1", 29.5, 4.4, 0.8, 1.6)
+desk("c_desk2", 29.5, 6.6, 0.8, 1.6)
+monitor("monitor_3", 29.65, 4.4, 180)
+monitor("monitor_4", 29.65, 6.6, 180)
+chair("c_chair1", 28.65, 4.4, 0)
+chair("c_chair2", 28.65, 6.6, 0)
+add("c_printer_cabinet", [22.0, 3.0, 0.35], [0.7, 0.55, 0.7], "plastic_light")
+appliance("printer", "printer", [[22.0, 3.0, 0.9]],
+          [box("printer_body", [22.0, 3.0, 0.88], [0.55, 0.48, 0.36], "printer_front"),
+           box("printer_tray", [22.0, 3.3, 0.84], [0.4, 0.15, 0.02], "plastic_dark")])
+appliance("floor_lamp", "lamp", [[27.0, 9.6, 1.6]],
+          [box("floor_lamp_base", [27.0, 9.6, 0.02], [0.35, 0.35, 0.04], "metal"),
+           box("floor_lamp_pole", [27.0, 9.6, 0.8], [0.03, 0.03, 1.55], "metal"),
+           box("floor_lamp_shade", [27.0, 9.6, 1.6], [0.42, 0.42, 0.32], "lamp_shade")])
+add("c_sofa_seat", [23.5, 9.7, 0.22], [2.0, 0.8, 0.44], "fabric_grey")
+add("c_sofa_back", [23.5, 10.2, 0.6], [2.0, 0.2, 0.5], "fabric_grey")
+add("c_coffee_table", [23.5, 8.5, 0.4], [1.1, 0.6, 0.04], "wood")
+add("c_coffee_leg", [23.5, 8.5, 0.2], [0.8, 0.4, 0.38], "wood_dark")
+bookshelf("c_shelf1", 20.06 + 0.18, 6.0, 0, "books3")
+bookshelf("c_shelf2", 20.06 + 0.18, 6.95, 0, "books1")
+add("c_cabinet", [26.5, YC + T / 2 + 0.25, 0.6], [1.4, 0.5, 1.2], "plastic_light")
+bookshelf("c_shelf3", 29.76, 9.7, 180, "books2")
+poster("c_poster_baboon", 27.0, YC, 1.5, 0.8, 0.8, "poster_baboon", "n")
+poster("c_poster_home", 20.0, 4.0, 1.55, 1.0, 0.75, "poster_home", "e")
+poster("c_poster_butterfly", 30.0, 8.6, 1.55, 0.9, 0.65, "poster_butterfly", "w")
+switch("switch_c", 25.7, YC, "n")
+ceiling_light("ceiling_light_5", 23.0, 5.0)
+ceiling_light("ceiling_light_6", 27.0, 7.8)
+
+# ---- corridor ----
+poster("k_poster_messi", 3.0, 0.0, 1.5, 1.1, 0.7, "poster_messi", "n")
+poster("k_poster_fish", 9.0, 0.0, 1.5, 0.8, 0.6, "poster_fish", "n")
+poster("k_poster_smarties", 15.5, 0.0, 1.5, 0.8, 0.7, "poster_smarties", "n")
+poster("k_poster_whale", 21.0, 0.0, 1.5, 1.0, 0.66, "poster_whale", "n")
+poster("k_poster_graf3", 27.0, 0.0, 1.5, 1.0, 0.8, "poster_graf3", "n")
+poster("k_notice_board", 12.0, 0.0, 1.45, 1.2, 0.9, "notice_board", "n")
+add("k_bench", [6.5, 0.35, 0.22], [1.6, 0.45, 0.44], "wood_dark")
+thermostat("thermostat_corridor", 18.5, 0.0, "n")
+
+scene = {
+    "name": "office",
+    "description": "Three 10 x 8 m rooms (lab, meeting room, office) north of a 30 m corridor; "
+                   "x east, y north, z up, metres.",
+    "ceiling_height_m": H,
+    "textures": {
+        "graf": "graf1.png", "graf3": "graf3.png", "starry": "starry_night.jpg", "leuven": "leuvenA.jpg",
+        "aero": "aero1.jpg", "building": "building.jpg", "fruits": "fruits.jpg", "baboon": "baboon.jpg",
+        "home": "home.jpg", "butterfly": "butterfly.jpg", "messi": "messi5.jpg", "fish": "HappyFish.jpg",
+        "smarties": "smarties.png", "whale": "rubberwhale1.png", "box_scene": "box_in_scene.png",
+        "stuff": "stuff.jpg", "board": "board.jpg", "leuvenB": "leuvenB.jpg", "notes": "notes.png",
+        "pic3": "pic3.png", "aero3": "aero3.jpg", "ela": "ela_original.jpg", "text": "text_defocus.jpg",
+    },
+    "materials": {
+        "wall_white": {"color": [0.86, 0.85, 0.81]},
+        "wall_corridor": {"color": [0.78, 0.80, 0.74]},
+        "ceiling": {"color": [0.93, 0.93, 0.92]},
+        "carpet": {"texture": "baboon", "scale_m": 0.5, "color": [0.36, 0.36, 0.42]},
+        "lino": {"texture": "ela", "scale_m": 2.5, "color": [0.60, 0.58, 0.52]},
+        "wood": {"texture": "board", "scale_m": 1.2, "color": [0.85, 0.68, 0.48]},
+        "wood_dark": {"texture": "board", "scale_m": 1.2, "color": [0.55, 0.40, 0.28]},
+        "metal": {"color": [0.62, 0.63, 0.65]},
+        "plastic_dark": {"color": [0.12, 0.12, 0.13]},
+        "plastic_light": {"color": [0.82, 0.82, 0.80]},
+        "fabric_blue": {"color": [0.20, 0.27, 0.42]},
+        "fabric_grey": {"texture": "baboon", "scale_m": 0.4, "color": [0.45, 0.45, 0.5]},
+        "frame": {"color": [0.15, 0.13, 0.12]},
+        "pot": {"color": [0.55, 0.33, 0.22]},
+        "leaves": {"texture": "stuff", "scale_m": 0.6, "color": [0.35, 0.6, 0.3]},
+        "whiteboard": {"texture": "text", "color": [1.0, 1.0, 1.0]},
+        "notice_board": {"texture": "box_scene", "color": [0.95, 0.9, 0.8]},
+        "window": {"texture": "building", "color": [0.9, 0.95, 1.0], "no_depth": True, "unlit": True},
+        "screen_desktop": {"texture": "aero3", "color": [0.85, 0.85, 0.9], "no_depth": True, "unlit": True},
+        "screen_tv": {"texture": "leuvenB", "color": [0.9, 0.9, 0.9], "no_depth": True, "unlit": True},
+        "projection": {"color": [0.95, 0.95, 0.95]},
+        "light_panel": {"color": [1.0, 1.0, 0.97], "unlit": True},
+        "lamp_shade": {"color": [0.95, 0.88, 0.7], "unlit": True},
+        "lamp_shade_red": {"color": [0.75, 0.15, 0.12]},
+        "switch_plate": {"color": [0.97, 0.97, 0.95]},
+        "thermostat_face": {"texture": "notes", "color": [0.9, 0.92, 0.95]},
+        "printer_front": {"texture": "box_scene", "color": [0.8, 0.8, 0.8]},
+        "books1": {"texture": "stuff", "color": [1, 1, 1]},
+        "books2": {"texture": "box_scene", "color": [1, 0.95, 0.85]},
+        "books3": {"texture": "fruits", "color": [0.9, 0.9, 0.9]},
+        "poster_graf": {"texture": "graf"}, "poster_graf3": {"texture": "graf3"},
+        "poster_starry": {"texture": "starry"}, "poster_leuven": {"texture": "leuven"},
+        "poster_aero": {"texture": "aero"}, "poster_building": {"texture": "building"},
+        "poster_fruits": {"texture": "fruits"}, "poster_baboon": {"texture": "baboon"},
+        "poster_home": {"texture": "home"}, "poster_butterfly": {"texture": "butterfly"},
+        "poster_messi": {"texture": "messi"}, "poster_fish": {"texture": "fish"},
+        "poster_smarties": {"texture": "smarties"}, "poster_whale": {"texture": "whale"},
+    },
+    "rooms": [
+        {"name": "corridor", "min": [0.0, 0.0], "max": [30.0, YC]},
+        {"name": "lab", "min": [0.0, YC], "max": [10.0, Y1]},
+        {"name": "meeting_room", "min": [10.0, YC], "max": [20.0, Y1]},
+        {"name": "office", "min": [20.0, YC], "max": [30.0, Y1]},
+    ],
+    # A closed walk (metres, floor plan) through every room; the walker loops it.
+    "tour": [[2.0, 1.2], [4.6, 1.3], [4.6, 3.2], [3.2, 4.2], [2.4, 6.2], [3.2, 8.5], [5.5, 8.7],
+             [7.8, 7.8], [8.4, 5.5], [7.6, 3.8], [6.3, 4.8], [7.0, 7.2], [8.8, 8.8], [10.0, 8.8],
+             [11.4, 8.4], [12.0, 6.0], [12.3, 4.2], [14.6, 3.7], [17.4, 4.0], [18.3, 6.4],
+             [18.2, 8.6], [20.0, 8.8], [21.6, 8.4], [21.6, 6.2], [22.6, 4.3], [25.0, 3.8],
+             [27.3, 4.2], [27.3, 6.8], [25.8, 8.0], [24.6, 6.5], [24.6, 3.6], [24.6, 1.3],
+             [19.0, 1.2], [14.0, 1.1], [8.0, 1.2]],
+    "boxes": boxes,
+    "appliances": appliances,
+}
+with open("sim/office_scene.json", "w") as f:
+    json.dump(scene, f, indent=1)
+print(len(boxes), "boxes,", len(appliances), "appliances")

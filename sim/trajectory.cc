@@ -1,0 +1,231 @@
+#include "sim/trajectory.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "core/check.h"
+#include "sim/random.h"
+
+namespace sightmap::sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double WrapAngle(double a) {
+  while (a > kPi) a -= 2 * kPi;
+  while (a < -kPi) a += 2 * kPi;
+  return a;
+}
+
+double SmoothStep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3 - 2 * x);
+}
+
+// Centripetal Catmull-Rom between p1 and p2 (alpha = 0.5 avoids loops and cusps at sharp turns).
+Eigen::Vector2d CatmullRom(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1,
+                           const Eigen::Vector2d& p2, const Eigen::Vector2d& p3, double t) {
+  auto knot = [](double ti, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return ti + std::sqrt(std::max((b - a).norm(), 1e-6));
+  };
+  const double t0 = 0.0, t1 = knot(t0, p0, p1), t2 = knot(t1, p1, p2), t3 = knot(t2, p2, p3);
+  const double tt = t1 + t * (t2 - t1);
+  const Eigen::Vector2d a1 = (t1 - tt) / (t1 - t0) * p0 + (tt - t0) / (t1 - t0) * p1;
+  const Eigen::Vector2d a2 = (t2 - tt) / (t2 - t1) * p1 + (tt - t1) / (t2 - t1) * p2;
+  const Eigen::Vector2d a3 = (t3 - tt) / (t3 - t2) * p2 + (tt - t2) / (t3 - t2) * p3;
+  const Eigen::Vector2d b1 = (t2 - tt) / (t2 - t0) * a1 + (tt - t0) / (t2 - t0) * a2;
+  const Eigen::Vector2d b2 = (t3 - tt) / (t3 - t1) * a2 + (tt - t1) / (t3 - t1) * a3;
+  return (t2 - tt) / (t2 - t1) * b1 + (tt - t1) / (t2 - t1) * b2;
+}
+
+}  // namespace
+
+TrajectoryKind ParseTrajectoryKind(const std::string& name) {
+  if (name == "handheld") return TrajectoryKind::kHandheld;
+  if (name == "robot") return TrajectoryKind::kRobot;
+  SIGHTMAP_THROW(InvalidArgument, "unknown trajectory '" << name << "': use handheld or robot");
+}
+
+const char* ToString(TrajectoryKind kind) {
+  return kind == TrajectoryKind::kRobot ? "robot" : "handheld";
+}
+
+bool TrajectoryOptions::Check(std::string* error) const {
+  if (speed_mps < 0.0 || speed_mps > 3.0) {
+    *error = "speed_mps must be in [0, 3] (0 = the kind's default)";
+    return false;
+  }
+  if (session < 1) {
+    *error = "session must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+Eigen::Matrix3d WorldFromCamRotation(double yaw, double pitch, double roll) {
+  const Eigen::Vector3d forward(std::cos(yaw), std::sin(yaw), 0.0);
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ());
+  const Eigen::Vector3d down = forward.cross(right);
+  Eigen::Matrix3d level;
+  level << right, down, forward;
+  // Pitch turns about the camera x axis (positive = looking up), roll about its z axis.
+  return level * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()).toRotationMatrix() *
+         Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
+    : options_(options), scene_(scene) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const std::vector<Eigen::Vector2d>& tour = scene.tour;
+  const size_t n = tour.size();
+  SIGHTMAP_CHECK(n >= 3, "the scene's tour needs at least 3 points");
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d& p0 = tour[(i + n - 1) % n];
+    const Eigen::Vector2d& p1 = tour[i];
+    const Eigen::Vector2d& p2 = tour[(i + 1) % n];
+    const Eigen::Vector2d& p3 = tour[(i + 2) % n];
+    const int steps = std::max(2, static_cast<int>((p2 - p1).norm() / 0.02));
+    for (int j = 0; j < steps; ++j) {
+      polyline_.push_back(CatmullRom(p0, p1, p2, p3, static_cast<double>(j) / steps));
+    }
+  }
+  polyline_.push_back(polyline_.front());
+  arc_.assign(polyline_.size(), 0.0);
+  for (size_t i = 1; i < polyline_.size(); ++i) {
+    arc_[i] = arc_[i - 1] + (polyline_[i] - polyline_[i - 1]).norm();
+  }
+  lap_length_m_ = arc_.back();
+  speed_mps_ = options.speed_mps > 0.0 ? options.speed_mps
+                                       : (options.kind == TrajectoryKind::kRobot ? 0.4 : 0.5);
+  // Session N starts at tour point 7 * (N - 1): another door, another room.
+  const size_t start_point = (7 * static_cast<size_t>(options.session - 1)) % n;
+  double start = 0.0;
+  for (size_t i = 0; i < start_point; ++i) start += (tour[(i + 1) % n] - tour[i]).norm();
+  start_s_m_ = lap_length_m_ * start / [&] {
+    double total = 0.0;
+    for (size_t i = 0; i < n; ++i) total += (tour[(i + 1) % n] - tour[i]).norm();
+    return total;
+  }();
+  std::mt19937_64 rng(MixSeed(options.seed, 0x7a11'0000ULL + options.session));
+  for (double& phase : phases_) phase = UniformReal(rng, 0.0, 2 * kPi);
+  for (const Appliance& appliance : scene.appliances) {
+    for (const Eigen::Vector3d& p : appliance.points) look_targets_.push_back(p);
+  }
+}
+
+Eigen::Vector2d Trajectory::PositionAt(double s_m) const {
+  double s = std::fmod(s_m, lap_length_m_);
+  if (s < 0) s += lap_length_m_;
+  const auto it = std::upper_bound(arc_.begin(), arc_.end(), s);
+  const size_t i = std::clamp<size_t>(static_cast<size_t>(it - arc_.begin()), 1, arc_.size() - 1);
+  const double seg = arc_[i] - arc_[i - 1];
+  const double a = seg > 0 ? (s - arc_[i - 1]) / seg : 0.0;
+  return (1 - a) * polyline_[i - 1] + a * polyline_[i];
+}
+
+double Trajectory::DistanceAt(double t_s) const {
+  double s = start_s_m_ + speed_mps_ * t_s;
+  if (options_.kind == TrajectoryKind::kHandheld) {
+    // +-10% pace change over ~25 s (integral of the speed modulation).
+    const double omega = 2 * kPi / 25.0;
+    s += 0.1 * speed_mps_ / omega * (std::sin(omega * t_s + phases_[0]) - std::sin(phases_[0]));
+  }
+  return s;
+}
+
+namespace {
+constexpr double kWindowS = 8.0;  // look-target window [s]
+
+// 0 at the window's edges, 1 over its middle: turns ease in and out.
+double WindowWeight(double t_s) {
+  const double phase = t_s / kWindowS - std::floor(t_s / kWindowS);
+  return SmoothStep((phase - 0.05) / 0.2) * (1.0 - SmoothStep((phase - 0.75) / 0.2));
+}
+}  // namespace
+
+std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_height_m) const {
+  const double window_index = std::floor(t_s / kWindowS);
+  const double middle = (window_index + 0.5) * kWindowS;
+  const double s = DistanceAt(middle);
+  const Eigen::Vector2d anchor = PositionAt(s);
+  const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
+  const double heading = std::atan2(ahead.y(), ahead.x());
+  const bool appliance_window = static_cast<int64_t>(window_index) % 2 == 0;
+  if (appliance_window) {
+    double best = 4.0;
+    std::optional<Eigen::Vector3d> target;
+    for (const Eigen::Vector3d& p : look_targets_) {
+      const double d = (p.head<2>() - anchor).norm();
+      const Room* room = scene_.RoomAt(p.head<2>());
+      if (d < best && d > 1.0 && room != nullptr && room == scene_.RoomAt(anchor)) {
+        best = d;
+        target = p;
+      }
+    }
+    if (target) return target;
+  }
+  // The wall (or furniture) in a horizontal direction within 110 deg of the heading whose distance
+  // is closest to 2.2 m, between 1.2 and 3.5 m.
+  const Eigen::Vector3d eye(anchor.x(), anchor.y(), eye_height_m);
+  double best_score = 1e9;
+  std::optional<Eigen::Vector3d> target;
+  for (int i = -11; i <= 11; ++i) {
+    const double yaw = heading + i * (110.0 / 11.0) * kPi / 180.0;
+    const Eigen::Vector3d dir(std::cos(yaw), std::sin(yaw), 0.0);
+    const auto hit = scene_.Raycast(eye, dir, 3.5);
+    if (!hit || hit->first < 1.2) continue;
+    const double score = std::abs(hit->first - 2.2) + 0.2 * std::abs(i) / 11.0;
+    if (score < best_score) {
+      best_score = score;
+      target = eye + hit->first * dir;
+    }
+  }
+  return target;
+}
+
+Eigen::Isometry3d Trajectory::WorldFromCam(double t_s) const {
+  const double s = DistanceAt(t_s);
+  const Eigen::Vector2d position = PositionAt(s);
+  // Heading along the path, looking ahead and behind to smooth the spline's corners.
+  const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
+  const double path_yaw = std::atan2(ahead.y(), ahead.x());
+  const double w = WindowWeight(t_s);
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  if (options_.kind == TrajectoryKind::kRobot) {
+    double yaw = path_yaw;
+    if (const auto target = LookTarget(t_s, 0.75)) {
+      const Eigen::Vector2d to = target->head<2>() - position;
+      yaw += w * WrapAngle(std::atan2(to.y(), to.x()) - yaw);
+    }
+    world_from_cam.linear() = WorldFromCamRotation(yaw, 0.0, 0.0);
+    world_from_cam.translation() = Eigen::Vector3d(position.x(), position.y(), 0.75);
+    return world_from_cam;
+  }
+  const double* ph = phases_;
+  const double step_hz = 1.8;
+  double height = 1.55 + 0.08 * std::sin(2 * kPi * t_s / 40.0 + ph[1]) +
+                  0.025 * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  const Eigen::Vector2d left(-std::sin(path_yaw), std::cos(path_yaw));
+  const Eigen::Vector2d swayed = position + 0.02 * std::sin(kPi * step_hz * t_s + ph[3]) * left;
+  // A small sweep over the walls: two incommensurate periods so the pattern does not repeat.
+  double yaw = path_yaw + 0.25 * std::sin(2 * kPi * t_s / 13.0 + ph[4]) +
+               0.12 * std::sin(2 * kPi * t_s / 5.3 + ph[5]);
+  double pitch = -0.12 + 0.1 * std::sin(2 * kPi * t_s / 9.0 + ph[6]);
+  const double roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
+                      0.02 * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  if (const auto target = LookTarget(t_s, height)) {
+    const Eigen::Vector2d to = target->head<2>() - swayed;
+    const double target_yaw = std::atan2(to.y(), to.x());
+    const double target_pitch = std::atan2(target->z() - height, std::max(to.norm(), 0.3));
+    yaw += w * WrapAngle(target_yaw - yaw);
+    pitch += w * (target_pitch - 0.1 - pitch);  // aim a little low: people look down at things
+  }
+  pitch = std::clamp(pitch, -0.26, 0.26);  // +-15 deg
+  height = std::clamp(height, 1.4, 1.7);
+  world_from_cam.linear() = WorldFromCamRotation(yaw, pitch, roll);
+  world_from_cam.translation() = Eigen::Vector3d(swayed.x(), swayed.y(), height);
+  return world_from_cam;
+}
+
+}  // namespace sightmap::sim
