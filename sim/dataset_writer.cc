@@ -176,8 +176,9 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
   std::vector<Eigen::Isometry3d> walk;
   const double duration_s =
       static_cast<double>(simulator.TimestampOf(simulator.num_frames())) * 1e-9;
-  for (double t = 0.0; t <= duration_s; t += 0.5)
-    walk.push_back(simulator.trajectory().WorldFromCam(t));
+  for (double time_s = 0.0; time_s <= duration_s; time_s += 0.5) {
+    walk.push_back(simulator.trajectory().WorldFromCam(time_s));
+  }
   WriteImage(dir / "overview.png", DrawOverview(scene, walk, photos));
   summary.queries = static_cast<int>(photos.size());
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -140,7 +140,7 @@ constexpr double kWindowS = 8.0;  // look-target window [s]
 // 0 at the window's edges, 1 over its middle: turns ease in and out.
 double WindowWeight(double t_s) {
   const double phase = t_s / kWindowS - std::floor(t_s / kWindowS);
-  return SmoothStep((phase - 0.05) / 0.2) * (1.0 - SmoothStep((phase - 0.75) / 0.2));
+  return SmoothStep((phase - 0.03) / 0.15) * (1.0 - SmoothStep((phase - 0.82) / 0.15));
 }
 }  // namespace
 
@@ -175,7 +175,10 @@ std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_hei
     const Eigen::Vector3d dir(std::cos(yaw), std::sin(yaw), 0.0);
     const auto hit = scene_.Raycast(eye, dir, 3.5);
     if (!hit || hit->first < 1.2) continue;
-    const double score = std::abs(hit->first - 2.2) + 0.2 * std::abs(i) / 11.0;
+    // Prefer furniture and posters to bare walls: people look at things.
+    const bool bare_wall = hit->second.rfind("wall", 0) == 0;
+    const double score =
+        std::abs(hit->first - 2.2) + 0.2 * std::abs(i) / 11.0 + (bare_wall ? 1.0 : 0.0);
     if (score < best_score) {
       best_score = score;
       target = eye + hit->first * dir;

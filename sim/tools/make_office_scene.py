@@ -222,7 +222,7 @@ add("c_coffee_table", [23.5, 8.5, 0.4], [1.1, 0.6, 0.04], "wood")
 add("c_coffee_leg", [23.5, 8.5, 0.2], [0.8, 0.4, 0.38], "wood_dark")
 bookshelf("c_shelf1", 20.06 + 0.18, 6.0, 0, "books3")
 bookshelf("c_shelf2", 20.06 + 0.18, 6.95, 0, "books1")
-add("c_cabinet", [26.5, YC + T / 2 + 0.25, 0.6], [1.4, 0.5, 1.2], "plastic_light")
+add("c_cabinet", [29.0, YC + T / 2 + 0.25, 0.6], [1.4, 0.5, 1.2], "plastic_light")
 bookshelf("c_shelf3", 29.76, 9.7, 180, "books2")
 poster("c_poster_baboon", 27.0, YC, 1.5, 0.8, 0.8, "poster_baboon", "n")
 poster("c_poster_home", 20.0, 4.0, 1.55, 1.0, 0.75, "poster_home", "e")
@@ -241,6 +241,35 @@ poster("k_notice_board", 12.0, 0.0, 1.45, 1.2, 0.9, "notice_board", "n")
 add("k_bench", [6.5, 0.35, 0.22], [1.6, 0.45, 0.44], "wood_dark")
 thermostat("thermostat_corridor", 18.5, 0.0, "n")
 
+# ---- more wall decoration and desk clutter: offices are busy ----
+extra_posters = [
+    ("a_poster_s1", 1.8, YC, 1.55, 0.9, 0.7, "poster_aloe", "n"),
+    ("a_poster_s2", 8.8, YC, 1.55, 0.8, 0.8, "poster_apple", "n"),
+    ("a_poster_w1", 0.0, 5.5, 1.8, 0.7, 0.5, "poster_suzanne", "e"),
+    ("a_poster_n1", 5.5, Y1, 1.65, 1.0, 0.7, "poster_squirrel", "s"),
+    ("b_poster_s1", 19.2, YC, 1.55, 0.7, 0.9, "poster_orange", "n"),
+    ("b_poster_w1", 10.0, 3.4, 1.55, 0.9, 0.7, "poster_blox", "e"),
+    ("b_poster_e1", 20.0, 3.3, 1.55, 0.9, 0.7, "poster_cards", "w"),
+    ("b_poster_e2", 20.0, 7.0, 1.55, 0.9, 0.7, "poster_plate", "w"),
+    ("c_poster_n1", 25.0, Y1, 1.6, 1.1, 0.8, "poster_sudoku", "s"),
+    ("c_poster_e1", 30.0, 5.5, 1.85, 0.8, 0.5, "poster_linux", "w"),
+    ("c_poster_s1", 23.2, YC, 1.6, 0.8, 0.6, "poster_pic5", "n"),
+    ("k_poster_n1", 1.5, YC, 1.5, 0.9, 0.7, "poster_starry", "s"),
+    ("k_poster_n2", 8.0, YC, 1.5, 1.0, 0.75, "poster_pic1", "s"),
+    ("k_poster_n3", 11.2, YC, 1.5, 0.8, 0.8, "poster_suzanne", "s"),
+    ("k_poster_n4", 18.0, YC, 1.5, 1.1, 0.8, "poster_aloe", "s"),
+    ("k_poster_n5", 21.3, YC, 1.5, 0.9, 0.7, "poster_orange", "s"),
+    ("k_poster_n6", 28.0, YC, 1.5, 1.0, 0.75, "poster_blox", "s"),
+]
+for args in extra_posters:
+    poster(*args)
+for name, x, y, sign in [("a_desk1", 0.5, 4.4, 1), ("a_desk2", 0.5, 6.6, 1),
+                         ("c_desk1", 29.5, 4.4, -1), ("c_desk2", 29.5, 6.6, -1)]:
+    add(name + "_keyboard", [x + sign * 0.2, y, 0.755], [0.16, 0.45, 0.03], "plastic_dark")
+    add(name + "_books", [x, y + 0.6, 0.84], [0.25, 0.3, 0.2], "books2")
+    add(name + "_papers", [x + sign * 0.1, y - 0.55, 0.745], [0.3, 0.22, 0.01], "papers")
+    add(name + "_drawers", [x, y - 0.45, 0.35], [0.6, 0.45, 0.65], "plastic_light")
+
 scene = {
     "name": "office",
     "description": "Three 10 x 8 m rooms (lab, meeting room, office) north of a 30 m corridor; "
@@ -253,6 +282,9 @@ scene = {
         "smarties": "smarties.png", "whale": "rubberwhale1.png", "box_scene": "box_in_scene.png",
         "stuff": "stuff.jpg", "board": "board.jpg", "leuvenB": "leuvenB.jpg", "notes": "notes.png",
         "pic3": "pic3.png", "aero3": "aero3.jpg", "ela": "ela_original.jpg", "text": "text_defocus.jpg",
+        "aloe": "aloeL.jpg", "apple": "apple.jpg", "orange": "orange.jpg", "squirrel": "squirrel_cls.jpg",
+        "suzanne": "Blender_Suzanne1.jpg", "blox": "blox.jpg", "cards": "cards.png", "sudoku": "sudoku.png",
+        "linux": "LinuxLogo.jpg", "plate": "licenseplate_motion.jpg", "pic1": "pic1.png", "pic5": "pic5.png",
     },
     "materials": {
         "wall_white": {"color": [0.86, 0.85, 0.81]},
@@ -292,6 +324,13 @@ scene = {
         "poster_home": {"texture": "home"}, "poster_butterfly": {"texture": "butterfly"},
         "poster_messi": {"texture": "messi"}, "poster_fish": {"texture": "fish"},
         "poster_smarties": {"texture": "smarties"}, "poster_whale": {"texture": "whale"},
+        "poster_aloe": {"texture": "aloe"}, "poster_apple": {"texture": "apple"},
+        "poster_orange": {"texture": "orange"}, "poster_squirrel": {"texture": "squirrel"},
+        "poster_suzanne": {"texture": "suzanne"}, "poster_blox": {"texture": "blox"},
+        "poster_cards": {"texture": "cards"}, "poster_sudoku": {"texture": "sudoku"},
+        "poster_linux": {"texture": "linux"}, "poster_plate": {"texture": "plate"},
+        "poster_pic1": {"texture": "pic1"}, "poster_pic5": {"texture": "pic5"},
+        "papers": {"texture": "text", "color": [1, 1, 1]},
     },
     "rooms": [
         {"name": "corridor", "min": [0.0, 0.0], "max": [30.0, YC]},
