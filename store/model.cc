@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -108,6 +109,23 @@ Statement& BindRowAsBlob(Statement& statement, int index, const std::vector<Row>
 std::string FileDescription(const std::string& path) { return "'" + path + "'"; }
 
 bool IsMemoryPath(const std::string& path) { return path == ":memory:" || path.empty(); }
+
+// For a file: URI, every byte outside the unreserved set and '/' is escaped.
+std::string PercentEncode(const std::string& path) {
+  static const char kHex[] = "0123456789ABCDEF";
+  std::string out;
+  for (const char c : path) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (std::isalnum(byte) || c == '/' || c == '-' || c == '_' || c == '.' || c == '~') {
+      out += c;
+    } else {
+      out += '%';
+      out += kHex[byte >> 4];
+      out += kHex[byte & 15];
+    }
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -306,45 +324,69 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
                    what << " is not a file: pass the model's .db file");
   }
 
-  int flags = SQLITE_OPEN_NOMUTEX;
-  flags |= options.read_only ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
-  const int open_rc =
-      sqlite3_open_v2(memory ? ":memory:" : path.c_str(), &impl->db, flags, nullptr);
-  if (open_rc != SQLITE_OK) {
-    const std::string detail = impl->db ? sqlite3_errmsg(impl->db) : sqlite3_errstr(open_rc);
-    SIGHTMAP_THROW(Error, "cannot open model " << what << ": " << detail
-                                               << "; check the path and its permissions");
-  }
-  sqlite3* db = impl->db;
-  sqlite3_extended_result_codes(db, 1);
-  SIGHTMAP_SQLITE3_CALL(db, sqlite3_busy_timeout(db, options.busy_timeout_ms));
-
-  // SQLite silently falls back to read-only when the OS refuses writes; say so now rather than at
-  // the first keyframe.
-  if (!options.read_only && sqlite3_db_readonly(db, "main") == 1) {
-    SIGHTMAP_THROW(Error, "model " << what
-                                   << " is read-only: make it writable (chmod u+w) or copy it "
-                                      "to a writable folder");
-  }
-
-  // The first read decides whether this is SQLite at all.
+  // Returns the first read's result code: it decides whether this is SQLite at all.
   int64_t num_objects = 0;
-  {
+  auto connect = [&](const std::string& name, int flags) {
+    if (impl->db) sqlite3_close_v2(impl->db);
+    impl->db = nullptr;
+    const int open_rc =
+        sqlite3_open_v2(name.c_str(), &impl->db, flags | SQLITE_OPEN_NOMUTEX, nullptr);
+    if (open_rc != SQLITE_OK) {
+      const std::string detail = impl->db ? sqlite3_errmsg(impl->db) : sqlite3_errstr(open_rc);
+      SIGHTMAP_THROW(Error, "cannot open model " << what << ": " << detail
+                                                 << "; check the path and its permissions");
+    }
+    sqlite3_extended_result_codes(impl->db, 1);
+    SIGHTMAP_SQLITE3_CALL(impl->db, sqlite3_busy_timeout(impl->db, options.busy_timeout_ms));
     sqlite3_stmt* probe = nullptr;
-    int rc = sqlite3_prepare_v2(db, "SELECT count(*) FROM sqlite_master", -1, &probe, nullptr);
+    int rc =
+        sqlite3_prepare_v2(impl->db, "SELECT count(*) FROM sqlite_master", -1, &probe, nullptr);
     if (rc == SQLITE_OK) {
       rc = sqlite3_step(probe);
       if (rc == SQLITE_ROW) num_objects = sqlite3_column_int64(probe, 0);
     }
     sqlite3_finalize(probe);
-    if ((rc & 0xff) == SQLITE_NOTADB) {
-      SIGHTMAP_THROW(Error, what << " is not a sightmap model (not a SQLite database): pass the "
-                                    ".db file that sightmap wrote");
+    return rc == SQLITE_ROW ? SQLITE_OK : sqlite3_extended_errcode(impl->db);
+  };
+
+  int rc = SQLITE_OK;
+  if (memory) {
+    rc = connect(":memory:", SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+  } else if (!options.read_only) {
+    rc = connect(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+    // SQLite silently falls back to read-only when the OS refuses writes; say so now rather than
+    // at the first keyframe.
+    if (sqlite3_db_readonly(impl->db, "main") == 1) {
+      SIGHTMAP_THROW(Error, "model " << what
+                                     << " is read-only: make it writable (chmod u+w) or copy it "
+                                        "to a writable folder");
     }
-    if (rc != SQLITE_ROW) {
-      store_internal::ThrowSqliteError(db, sqlite3_extended_errcode(db), "probe", __FILE__,
-                                       __LINE__);
+  } else {
+    rc = connect(path, SQLITE_OPEN_READONLY);
+    // A WAL model in a folder we cannot write (a shared or archived model) cannot create its
+    // shared-memory file. With no WAL left behind, nobody is writing it and the main file is the
+    // whole model, so it can be read as immutable.
+    const int primary = rc & 0xff;
+    if (primary == SQLITE_READONLY || primary == SQLITE_CANTOPEN) {
+      std::error_code wal_error;
+      const auto wal_size = std::filesystem::file_size(path + "-wal", wal_error);
+      SIGHTMAP_CHECK(wal_error || wal_size == 0,
+                     "cannot read model " << what
+                                          << ": its folder is not writable and it has an "
+                                             "unmerged -wal file; copy the model with its -wal "
+                                             "file to a writable folder");
+      rc = connect(
+          "file:" + PercentEncode(std::filesystem::absolute(path).string()) + "?immutable=1",
+          SQLITE_OPEN_READONLY | SQLITE_OPEN_URI);
     }
+  }
+  sqlite3* db = impl->db;
+  if ((rc & 0xff) == SQLITE_NOTADB) {
+    SIGHTMAP_THROW(Error, what << " is not a sightmap model (not a SQLite database): pass the "
+                                  ".db file that sightmap wrote");
+  }
+  if (rc != SQLITE_OK) {
+    store_internal::ThrowSqliteError(db, rc, "open", __FILE__, __LINE__);
   }
 
   auto read_application_id = [db]() {

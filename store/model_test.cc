@@ -416,6 +416,31 @@ TEST(Model, ReadOnlyFileGivesOneLineError) {
   EXPECT_EQ(CountLines(outcome.message), 0);
 }
 
+TEST(Model, ModelInAReadOnlyFolderCanStillBeRead) {
+  const std::string dir = testing::MakeTempDir("store_readonly_folder");
+  const std::string path = dir + "/model.db";
+  {
+    Model model = Model::Open(path);
+    model.AddKeyframe(MakeSyntheticKeyframe(model.BeginSession({}), 0, SmallKeyframes()));
+  }
+  ASSERT_FALSE(std::filesystem::exists(path + "-wal"));  // merged on close
+  ASSERT_EQ(chmod(path.c_str(), 0444), 0);
+  ASSERT_EQ(chmod(dir.c_str(), 0555), 0);
+  // As in ReadOnlyFileGivesOneLineError: without root, the folder really is read-only.
+  const testing::ChildOutcome outcome = testing::RunInChild([&] {
+    if (geteuid() == 0) {
+      SIGHTMAP_CHECK(setgid(65534) == 0 && setuid(65534) == 0, "cannot drop root for the test");
+    }
+    ModelOptions read_only;
+    read_only.read_only = true;
+    const Model model = Model::Open(path, read_only);
+    SIGHTMAP_CHECK(model.NumKeyframes() == 1 && model.LoadDepth(model.Keyframes()[0].id).rows == 48,
+                   "the read-only model does not read back");
+  });
+  chmod(dir.c_str(), 0755);
+  EXPECT_EQ(outcome.exit_code, 0) << outcome.message;
+}
+
 TEST(Model, OptionsAreChecked) {
   ModelOptions options;
   std::string error;
