@@ -167,6 +167,9 @@ Scene ParseScene(const std::string& json_text, const std::string& origin) {
                      "scene " << origin << ": material '" << key << "' uses texture '"
                               << material.texture << "' which \"textures\" lacks");
       material.scale_m = value.value("scale_m", 0.0f);
+      material.contrast = value.value("contrast", 1.0f);
+      SIGHTMAP_CHECK(material.contrast > 0.0f && material.contrast <= 1.0f,
+                     "scene " << origin << ": material '" << key << "' needs contrast in (0, 1]");
       material.no_depth = value.value("no_depth", false);
       material.unlit = value.value("unlit", false);
       scene.materials[key] = material;
@@ -258,10 +261,10 @@ std::string TextureDirectory() {
 }
 
 void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
-  std::map<std::string, int> handles;
   const std::filesystem::path scene_dir = std::filesystem::path(scene.source).has_parent_path()
                                               ? std::filesystem::path(scene.source).parent_path()
                                               : std::filesystem::path(".");
+  std::map<std::string, cv::Mat> images;
   for (const auto& [key, file] : scene.texture_files) {
     std::filesystem::path path = file;
     if (path.is_relative()) {
@@ -278,13 +281,27 @@ void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
     // 512 px is sharper than any poster gets in a 640x480 frame, and keeps uploads quick.
     const double scale = 512.0 / std::max(image.cols, image.rows);
     if (scale < 1.0) cv::resize(image, image, cv::Size(), scale, scale, cv::INTER_AREA);
-    handles[key] = renderer->AddTexture(image);
+    images[key] = image;
   }
+  // One GL texture per (image, contrast) pair in use.
+  std::map<std::pair<std::string, float>, int> handles;
+  auto handle_of = [&](const SceneMaterial& m) {
+    const auto key = std::make_pair(m.texture, m.contrast);
+    auto it = handles.find(key);
+    if (it != handles.end()) return it->second;
+    cv::Mat image = images.at(m.texture);
+    if (m.contrast < 1.0f) {
+      const cv::Scalar mean = cv::mean(image);
+      image.convertTo(image, -1, m.contrast, 0.0);
+      cv::add(image, mean * (1.0 - m.contrast), image);
+    }
+    return handles[key] = renderer->AddTexture(image);
+  };
   auto add_box = [&](const SceneBox& box, int id) {
     const SceneMaterial& m = scene.materials.at(box.material);
     Material material;
     material.color_rgb = m.color_rgb;
-    material.texture = m.texture.empty() ? -1 : handles.at(m.texture);
+    material.texture = m.texture.empty() ? -1 : handle_of(m);
     material.texture_scale_m = m.scale_m;
     material.no_depth = m.no_depth;
     material.unlit = m.unlit;

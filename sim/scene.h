@@ -9,6 +9,8 @@
 //    "materials": {"wall": {"color": [r, g, b],        // [0, 1]
 //                           "texture": "graf",         // optional, a key of "textures"
 //                           "scale_m": 1.0,            // metres per texture repeat; 0 = stretch
+//                           "contrast": 1.0,           // texture contrast kept, (0, 1]: faint
+//                                                      // paint and plaster on walls
 //                           "no_depth": false,         // glass / glossy screens: no IR return
 //                           "unlit": false}},          // emissive (lights, screens)
 //    "boxes": [{"name": "...", "center": [x, y, z], "size": [sx, sy, sz], "yaw_deg": 0,
@@ -36,6 +38,7 @@ struct SceneMaterial {
   Eigen::Vector3f color_rgb = Eigen::Vector3f(0.8f, 0.8f, 0.8f);
   std::string texture;  // a key of Scene::texture_files, empty = plain colour
   float scale_m = 0.0f;
+  float contrast = 1.0f;  // the texture blended towards its mean colour, (0, 1]
   bool no_depth = false;
   bool unlit = false;
 };

@@ -70,6 +70,11 @@ void Print(const char* name, const FrameStatistics& s) {
               100 * FrameStatistics::Min(s.valid_depth), 100 * FrameStatistics::Max(s.valid_depth),
               FrameStatistics::Mean(s.keypoints), FrameStatistics::Min(s.keypoints),
               FrameStatistics::Max(s.keypoints));
+  std::printf("%-28s per frame: ", "");
+  for (size_t i = 0; i < s.keypoints.size(); ++i) {
+    std::printf("%.0f%%/%.0f ", 100 * s.valid_depth[i], s.keypoints[i]);
+  }
+  std::printf("\n");
 }
 
 TEST(SimStatistics, SimulatedFramesMatchTheRealRecordings) {

@@ -258,7 +258,7 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
     bool found = false;
     bool occluded = false;
     // Rejection sampling: a free spot in the appliance's room with the wanted line of sight.
-    for (int attempt = 0; attempt < 400 && !found; ++attempt) {
+    for (int attempt = 0; attempt < 1500 && !found; ++attempt) {
       const double angle = UniformReal(rng, -kPi, kPi);
       const double distance = UniformReal(rng, options.min_distance_m, options.max_distance_m);
       const double height = UniformReal(rng, options.min_height_m, options.max_height_m);
@@ -271,7 +271,7 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
       const bool blocked = hit.has_value();
       const bool by_wall = blocked && hit->second.rfind("wall", 0) == 0;
       if (by_wall) continue;  // a photo through a wall is not a photo of the appliance
-      if (want_occluder && attempt < 300 && !blocked) continue;
+      if (want_occluder && attempt < 1200 && !blocked) continue;
       if (!want_occluder && blocked) continue;
       position = p;
       occluded = blocked;

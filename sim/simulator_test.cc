@@ -118,7 +118,8 @@ TEST(Simulator, TrajectoriesStayInTheirEnvelopeVisitEveryRoomAndLoop) {
         ASSERT_LE(std::abs(pitch), 15.0 * kPi / 180.0 + 1e-9);
         ASSERT_LE(std::abs(roll), 5.0 * kPi / 180.0 + 1e-9);
       }
-      ASSERT_TRUE(scene.IsFree(p, 0.05)) << "camera inside an object at t=" << t;
+      ASSERT_TRUE(scene.IsFree(p, 0.05))
+          << "camera inside an object at t=" << t << ": " << p.transpose();
       if (const Room* room = scene.RoomAt(p.head<2>())) rooms.insert(room->name);
       // A loop: back within 0.5 m of a place visited more than 60 s earlier.
       const size_t frames_60s = 60 * 30;

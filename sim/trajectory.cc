@@ -110,7 +110,10 @@ Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
   std::mt19937_64 rng(MixSeed(options.seed, 0x7a11'0000ULL + options.session));
   for (double& phase : phases_) phase = UniformReal(rng, 0.0, 2 * kPi);
   for (const Appliance& appliance : scene.appliances) {
-    for (const Eigen::Vector3d& p : appliance.points) look_targets_.push_back(p);
+    // Ceiling fixtures are mapped in passing, not stared at.
+    for (const Eigen::Vector3d& p : appliance.points) {
+      if (p.z() < 2.2) look_targets_.push_back(p);
+    }
   }
 }
 
@@ -135,12 +138,12 @@ double Trajectory::DistanceAt(double t_s) const {
 }
 
 namespace {
-constexpr double kWindowS = 8.0;  // look-target window [s]
+constexpr double kWindowS = 10.0;  // look-target window [s]
 
 // 0 at the window's edges, 1 over its middle: turns ease in and out.
 double WindowWeight(double t_s) {
   const double phase = t_s / kWindowS - std::floor(t_s / kWindowS);
-  return SmoothStep((phase - 0.03) / 0.15) * (1.0 - SmoothStep((phase - 0.82) / 0.15));
+  return SmoothStep((phase - 0.02) / 0.25) * (1.0 - SmoothStep((phase - 0.73) / 0.25));
 }
 }  // namespace
 
@@ -166,7 +169,7 @@ std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_hei
     if (target) return target;
   }
   // The wall (or furniture) in a horizontal direction within 110 deg of the heading whose distance
-  // is closest to 2.2 m, between 1.2 and 3.5 m.
+  // is closest to 2.2 m, between 0.9 and 3.5 m.
   const Eigen::Vector3d eye(anchor.x(), anchor.y(), eye_height_m);
   double best_score = 1e9;
   std::optional<Eigen::Vector3d> target;
@@ -174,9 +177,9 @@ std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_hei
     const double yaw = heading + i * (110.0 / 11.0) * kPi / 180.0;
     const Eigen::Vector3d dir(std::cos(yaw), std::sin(yaw), 0.0);
     const auto hit = scene_.Raycast(eye, dir, 3.5);
-    if (!hit || hit->first < 1.2) continue;
+    if (!hit || hit->first < 0.9) continue;
     // Prefer furniture and posters to bare walls: people look at things.
-    const bool bare_wall = hit->second.rfind("wall", 0) == 0;
+    const bool bare_wall = hit->second.rfind("wall", 0) == 0 || hit->second.rfind("window", 0) == 0;
     const double score =
         std::abs(hit->first - 2.2) + 0.2 * std::abs(i) / 11.0 + (bare_wall ? 1.0 : 0.0);
     if (score < best_score) {

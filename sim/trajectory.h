@@ -4,9 +4,9 @@
 // Catmull-Rom spline and walked at constant speed, lap after lap, so every place is revisited
 // (loop closures). Session N starts at another tour point.
 //  - handheld: 0.5 m/s with a slow +-10% pace change; head height drifting in [1.45, 1.65] m plus a
-//    2.5 cm bob at the step frequency (1.8 Hz) and a 2 cm sideways sway at half of it; in 8 s
+//    2.5 cm bob at the step frequency (1.8 Hz) and a 2 cm sideways sway at half of it; in 10 s
 //    windows the operator turns (easing in and out) to look at a nearby appliance or, in the other
-//    windows, at the wall 1.2-3.5 m away that is nearest 2.2 m (where the sensor measures well),
+//    windows, at the wall 0.9-3.5 m away that is nearest 2.2 m (where the sensor measures well),
 //    with a small left-right sweep on top; pitch stays within +-15 deg, roll within +-5 deg.
 //  - robot: 0.4 m/s, camera at 0.75 m, level (no pitch or roll), heading along the smoothed path
 //    and turning smoothly towards the same wall and appliance targets (a pan-tilt head).

@@ -261,6 +261,14 @@ extra_posters = [
     ("k_poster_n5", 21.3, YC, 1.5, 0.9, 0.7, "poster_orange", "s"),
     ("k_poster_n6", 28.0, YC, 1.5, 1.0, 0.75, "poster_blox", "s"),
 ]
+# The corridor: a notice or picture every ~2.5 m on both walls, as corridors have.
+corridor_textures = ["poster_graf", "poster_leuven", "poster_fruits", "poster_home", "poster_butterfly",
+                     "poster_cards", "poster_sudoku", "poster_plate", "poster_pic5", "poster_squirrel",
+                     "poster_apple", "poster_baboon"]
+for i, x in enumerate([0.8, 5.9, 13.4, 16.5, 19.8, 23.2, 25.6, 29.2]):
+    extra_posters.append((f"k_notice_s{i}", x, 0.0, 1.45, 0.7, 0.9, corridor_textures[i % 12], "n"))
+for i, x in enumerate([3.0, 6.6, 9.8, 12.8, 16.3, 20.1, 26.6]):
+    extra_posters.append((f"k_notice_n{i}", x, YC, 1.45, 0.7, 0.9, corridor_textures[(i + 5) % 12], "s"))
 for args in extra_posters:
     poster(*args)
 for name, x, y, sign in [("a_desk1", 0.5, 4.4, 1), ("a_desk2", 0.5, 6.6, 1),
@@ -269,6 +277,13 @@ for name, x, y, sign in [("a_desk1", 0.5, 4.4, 1), ("a_desk2", 0.5, 6.6, 1),
     add(name + "_books", [x, y + 0.6, 0.84], [0.25, 0.3, 0.2], "books2")
     add(name + "_papers", [x + sign * 0.1, y - 0.55, 0.745], [0.3, 0.22, 0.01], "papers")
     add(name + "_drawers", [x, y - 0.45, 0.35], [0.6, 0.45, 0.65], "plastic_light")
+
+# Tall things people stand behind: plants and a desk partition.
+add("a_plant_tall_pot", [1.6, 5.5, 0.2], [0.4, 0.4, 0.4], "pot")
+add("a_plant_tall", [1.6, 5.5, 1.1], [0.6, 0.6, 1.4], "leaves")
+add("b_plant_tall_pot", [18.8, 3.2, 0.2], [0.4, 0.4, 0.4], "pot")
+add("b_plant_tall", [18.8, 3.2, 1.1], [0.6, 0.6, 1.4], "leaves")
+add("c_partition", [28.9, 5.5, 0.8], [0.8, 0.05, 1.5], "fabric_grey")
 
 scene = {
     "name": "office",
@@ -287,11 +302,12 @@ scene = {
         "linux": "LinuxLogo.jpg", "plate": "licenseplate_motion.jpg", "pic1": "pic1.png", "pic5": "pic5.png",
     },
     "materials": {
-        "wall_white": {"color": [0.86, 0.85, 0.81]},
-        "wall_corridor": {"color": [0.78, 0.80, 0.74]},
+        # Paint and plaster: a photograph at a few percent contrast, so walls stay low-texture.
+        "wall_white": {"texture": "ela", "scale_m": 2.0, "contrast": 0.35, "color": [0.92, 0.91, 0.87]},
+        "wall_corridor": {"texture": "aloe", "scale_m": 2.5, "contrast": 0.35, "color": [0.84, 0.86, 0.80]},
         "ceiling": {"color": [0.93, 0.93, 0.92]},
-        "carpet": {"texture": "baboon", "scale_m": 0.5, "color": [0.36, 0.36, 0.42]},
-        "lino": {"texture": "ela", "scale_m": 2.5, "color": [0.60, 0.58, 0.52]},
+        "carpet": {"texture": "baboon", "scale_m": 0.5, "contrast": 0.6, "color": [0.36, 0.36, 0.42]},
+        "lino": {"texture": "baboon", "scale_m": 0.6, "contrast": 0.5, "color": [0.55, 0.53, 0.50]},
         "wood": {"texture": "board", "scale_m": 1.2, "color": [0.85, 0.68, 0.48]},
         "wood_dark": {"texture": "board", "scale_m": 1.2, "color": [0.55, 0.40, 0.28]},
         "metal": {"color": [0.62, 0.63, 0.65]},
@@ -340,7 +356,7 @@ scene = {
     ],
     # A closed walk (metres, floor plan) through every room; the walker loops it.
     "tour": [[2.0, 1.2], [4.6, 1.3], [4.6, 3.2], [3.2, 4.2], [2.4, 6.2], [3.2, 8.5], [5.5, 8.7],
-             [7.8, 7.8], [8.4, 5.5], [7.6, 3.8], [6.3, 4.8], [7.0, 7.2], [8.8, 8.8], [10.0, 8.8],
+             [7.8, 7.8], [8.4, 5.5], [7.6, 3.8], [6.8, 4.6], [7.4, 7.2], [8.8, 8.8], [10.0, 8.8],
              [11.4, 8.4], [12.0, 6.0], [12.3, 4.2], [14.6, 3.7], [17.4, 4.0], [18.3, 6.4],
              [18.2, 8.6], [20.0, 8.8], [21.6, 8.4], [21.6, 6.2], [22.6, 4.3], [25.0, 3.8],
              [27.3, 4.2], [27.3, 6.8], [25.8, 8.0], [24.6, 6.5], [24.6, 3.6], [24.6, 1.3],
