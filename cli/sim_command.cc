@@ -48,7 +48,7 @@ int RunSim(int argc, char** argv) {
       ->check(CLI::Range(0.01, 120.0))
       ->capture_default_str();
   generate->add_option("--query-size", query_size, "phone photo size WxH")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
   options.simulator.trajectory = sim::ParseTrajectoryKind(trajectory);
   char x = 0;
