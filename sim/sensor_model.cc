@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "sim/random.h"
 
 namespace sightmap::sim {
 
@@ -52,7 +54,6 @@ cv::Mat SimulateDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, cons
                  "SimulateDepth needs CV_32F depth and a CV_8U mask of the same size");
   const int w = depth_m.cols;
   const int h = depth_m.rows;
-  cv::RNG rng(seed);
   cv::Mat keep(h, w, CV_8U, cv::Scalar(255));
 
   // 1. Projector shadow, row by row: a pixel is shadowed when a pixel to its emitter side maps
@@ -78,68 +79,68 @@ cv::Mat SimulateDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, cons
     }
   }
 
-  // 2.-3. No-return surfaces, discontinuities and grazing angles.
+  // 2.-5. Per row, in parallel; each row draws from its own random stream so the result does not
+  //       depend on the number of threads.
   const double cos_start = std::cos(options.grazing_start_deg * M_PI / 180.0);
   const double cos_max = std::cos(options.grazing_max_deg * M_PI / 180.0);
-  for (int v = 0; v < h; ++v) {
-    const float* z = depth_m.ptr<float>(v);
-    const uint8_t* no_depth = no_depth_mask.ptr<uint8_t>(v);
-    uint8_t* kp = keep.ptr<uint8_t>(v);
-    for (int u = 0; u < w; ++u) {
-      if (z[u] <= 0.0f || no_depth[u]) {
-        kp[u] = 0;
-        continue;
-      }
-      if (u == 0 || v == 0 || u == w - 1 || v == h - 1) continue;
-      const float zl = z[u - 1], zr = z[u + 1];
-      const float zu = depth_m.ptr<float>(v - 1)[u], zd = depth_m.ptr<float>(v + 1)[u];
-      const float jump = options.discontinuity_relative * z[u];
-      const bool discontinuity = std::abs(zl - z[u]) > jump || std::abs(zr - z[u]) > jump ||
-                                 std::abs(zu - z[u]) > jump || std::abs(zd - z[u]) > jump;
-      if (discontinuity) {
-        if (rng.uniform(0.0, 1.0) < options.discontinuity_dropout) kp[u] = 0;
-        continue;
-      }
-      // Surface normal from the back-projected neighbours, against the viewing ray.
-      const Eigen::Vector3d pl = k.Unproject(u - 1, v, zl), pr = k.Unproject(u + 1, v, zr);
-      const Eigen::Vector3d pu = k.Unproject(u, v - 1, zu), pd = k.Unproject(u, v + 1, zd);
-      const Eigen::Vector3d normal = (pr - pl).cross(pd - pu);
-      const Eigen::Vector3d ray = k.Unproject(u, v, 1.0);
-      const double norm = normal.norm() * ray.norm();
-      if (norm <= 0.0) continue;
-      const double cos_incidence = std::abs(normal.dot(ray)) / norm;
-      if (cos_incidence < cos_max) {
-        kp[u] = 0;
-      } else if (cos_incidence < cos_start) {
-        const double p = (cos_start - cos_incidence) / (cos_start - cos_max);
-        if (rng.uniform(0.0, 1.0) < p) kp[u] = 0;
-      }
-    }
-  }
-
-  // 4.-5. Noise and quantisation in disparity, range, border, millimetres.
-  cv::Mat out(h, w, CV_16U, cv::Scalar(0));
   const double fb = options.focal_baseline_px_m;
   const double step = options.disparity_step_px;
-  for (int v = options.border_top_px; v < h - options.border_bottom_px; ++v) {
-    const float* z = depth_m.ptr<float>(v);
-    const uint8_t* kp = keep.ptr<uint8_t>(v);
-    uint16_t* o = out.ptr<uint16_t>(v);
-    for (int u = options.border_left_px; u < w - options.border_right_px; ++u) {
-      if (!kp[u]) continue;
-      const double z0 = z[u];
-      const double sigma = options.DepthStdDev(z0);
-      const double delta = options.DepthStep(z0);
-      // Quantisation contributes delta^2 / 12 of the variance; the Gaussian part the rest.
-      const double gauss_sigma = std::sqrt(std::max(sigma * sigma - delta * delta / 12.0, 0.0));
-      double disparity = fb / z0 + rng.gaussian(gauss_sigma * fb / (z0 * z0));
-      if (step > 0.0) disparity = std::round(disparity / step) * step;
-      if (disparity <= 0.0) continue;
-      const double zm = fb / disparity;
-      if (zm < options.min_depth_m || zm > options.max_depth_m) continue;
-      o[u] = static_cast<uint16_t>(std::lround(zm * 1000.0));
+  cv::Mat out(h, w, CV_16U, cv::Scalar(0));
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+    for (int v = rows.start; v < rows.end; ++v) {
+      cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
+      const float* z = depth_m.ptr<float>(v);
+      const uint8_t* no_depth = no_depth_mask.ptr<uint8_t>(v);
+      uint8_t* kp = keep.ptr<uint8_t>(v);
+      uint16_t* o = out.ptr<uint16_t>(v);
+      const bool row_in_border = v < options.border_top_px || v >= h - options.border_bottom_px;
+      const double y = (v - k.cy) / k.fy;  // ray (x, y, 1) through the pixel
+      for (int u = 0; u < w; ++u) {
+        if (z[u] <= 0.0f || no_depth[u] || !kp[u]) continue;
+        if (row_in_border || u < options.border_left_px || u >= w - options.border_right_px) {
+          continue;
+        }
+        if (u > 0 && v > 0 && u < w - 1 && v < h - 1) {
+          const float zl = z[u - 1], zr = z[u + 1];
+          const float zu = depth_m.ptr<float>(v - 1)[u], zd = depth_m.ptr<float>(v + 1)[u];
+          const float jump = static_cast<float>(options.discontinuity_relative) * z[u];
+          const bool discontinuity = std::abs(zl - z[u]) > jump || std::abs(zr - z[u]) > jump ||
+                                     std::abs(zu - z[u]) > jump || std::abs(zd - z[u]) > jump;
+          if (discontinuity) {
+            if (rng.uniform(0.0, 1.0) < options.discontinuity_dropout) continue;
+          } else {
+            // Surface normal from the back-projected neighbours, against the viewing ray.
+            const double x = (u - k.cx) / k.fx;
+            const double dx = 1.0 / k.fx, dy = 1.0 / k.fy;
+            const Eigen::Vector3d horizontal((x + dx) * zr - (x - dx) * zl, y * (zr - zl), zr - zl);
+            const Eigen::Vector3d vertical(x * (zd - zu), (y + dy) * zd - (y - dy) * zu, zd - zu);
+            const Eigen::Vector3d normal = horizontal.cross(vertical);
+            const Eigen::Vector3d ray(x, y, 1.0);
+            const double norm = normal.norm() * ray.norm();
+            if (norm > 0.0) {
+              const double cos_incidence = std::abs(normal.dot(ray)) / norm;
+              if (cos_incidence < cos_max) continue;
+              if (cos_incidence < cos_start &&
+                  rng.uniform(0.0, 1.0) < (cos_start - cos_incidence) / (cos_start - cos_max)) {
+                continue;
+              }
+            }
+          }
+        }
+        // Noise in disparity; quantisation contributes delta^2 / 12 of the variance.
+        const double z0 = z[u];
+        const double sigma = options.DepthStdDev(z0);
+        const double delta = options.DepthStep(z0);
+        const double gauss_sigma = std::sqrt(std::max(sigma * sigma - delta * delta / 12.0, 0.0));
+        double disparity = fb / z0 + rng.gaussian(gauss_sigma * fb / (z0 * z0));
+        if (step > 0.0) disparity = std::round(disparity / step) * step;
+        if (disparity <= 0.0) continue;
+        const double zm = fb / disparity;
+        if (zm < options.min_depth_m || zm > options.max_depth_m) continue;
+        o[u] = static_cast<uint16_t>(std::lround(zm * 1000.0));
+      }
     }
-  }
+  });
   return out;
 }
 
@@ -147,8 +148,7 @@ cv::Mat SimulateColor(const cv::Mat& bgr, double gain, const Eigen::Vector2d& bl
                       const ColorSensorOptions& options, uint64_t seed) {
   SIGHTMAP_CHECK_OPTIONS(options);
   SIGHTMAP_CHECK(bgr.type() == CV_8UC3, "SimulateColor needs an 8-bit BGR image");
-  cv::Mat image;
-  bgr.convertTo(image, CV_32FC3, gain);
+  cv::Mat image = bgr.clone();
   if (options.defocus_sigma_px > 0.0) {
     cv::GaussianBlur(image, image, cv::Size(0, 0), options.defocus_sigma_px);
   }
@@ -168,16 +168,27 @@ cv::Mat SimulateColor(const cv::Mat& bgr, double gain, const Eigen::Vector2d& bl
     kernel /= cv::sum(kernel)[0];
     cv::filter2D(image, image, -1, kernel, cv::Point(-1, -1), 0, cv::BORDER_REFLECT);
   }
-  cv::Mat noise(image.size(), CV_32FC3);
-  cv::RNG rng(seed);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.0);
-  cv::Mat level = cv::max(image, cv::Scalar::all(0.0));
-  cv::Mat sigma;
-  cv::sqrt(level, sigma);
-  sigma = sigma * options.shot_noise + cv::Scalar::all(options.read_noise);
-  image += noise.mul(sigma);
-  cv::Mat out;
-  image.convertTo(out, CV_8UC3);  // saturates
+  // Exposure gain, then read noise plus shot noise, per row with its own random stream.
+  cv::Mat out(image.size(), CV_8UC3);
+  const float read = static_cast<float>(options.read_noise);
+  const float shot = static_cast<float>(options.shot_noise);
+  const float g = static_cast<float>(gain);
+  cv::parallel_for_(cv::Range(0, image.rows), [&](const cv::Range& rows) {
+    std::vector<float> noise(static_cast<size_t>(image.cols) * 3);
+    for (int v = rows.start; v < rows.end; ++v) {
+      cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
+      cv::Mat noise_row(1, image.cols * 3, CV_32F, noise.data());
+      rng.fill(noise_row, cv::RNG::NORMAL, 0.0, 1.0);
+      const uint8_t* in = image.ptr<uint8_t>(v);
+      uint8_t* o = out.ptr<uint8_t>(v);
+      for (int i = 0; i < image.cols * 3; ++i) {
+        const float level = g * in[i];
+        const float value =
+            level + noise[static_cast<size_t>(i)] * (read + shot * std::sqrt(level));
+        o[i] = cv::saturate_cast<uint8_t>(value);
+      }
+    }
+  });
   return out;
 }
 
