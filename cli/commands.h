@@ -6,5 +6,8 @@ namespace sightmap::cli {
 
 int RunDevices(int argc, char** argv);
 int RunProbe(int argc, char** argv);
+int RunInfo(int argc, char** argv);
+int RunExport(int argc, char** argv);
+int RunSim(int argc, char** argv);
 
 }  // namespace sightmap::cli

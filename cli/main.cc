@@ -8,6 +8,7 @@
 #include "cli/commands.h"
 #include "cli/version.h"
 #include "core/check.h"
+#include "sim/sim_source.h"
 
 namespace {
 
@@ -22,6 +23,12 @@ constexpr Command kCommands[] = {
      "list attached RGB-D sensors, whether you may open them and whether OpenNI2 sees them"},
     {"probe", sightmap::cli::RunProbe,
      "read a SOURCE to its end and report its streams, intrinsics and frame counts"},
+    {"info", sightmap::cli::RunInfo,
+     "report what a MODEL holds: sessions, keyframes, links, labels, size"},
+    {"export", sightmap::cli::RunExport,
+     "write a MODEL's point cloud (PLY), trajectory (TUM) and labels (point lists)"},
+    {"sim", sightmap::cli::RunSim,
+     "the synthetic building: 'sim generate' writes a ground-truth walk and phone photos"},
 };
 
 void PrintUsage(std::ostream& out) {
@@ -42,6 +49,7 @@ void PrintUsage(std::ostream& out) {
 int main(int argc, char** argv) {
   using sightmap::cli::kExitFailure;
   using sightmap::cli::kExitUsage;
+  sightmap::sim::RegisterSimSource();  // makes sim:NAME sources open the simulator
   if (argc < 2) {
     PrintUsage(std::cerr);
     return kExitUsage;

@@ -11,6 +11,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "store/label_files.h"
+#include "store/model.h"
+#include "store/point_cloud.h"
+#include "store/synthetic_model.h"
+#include "store/trajectory.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
@@ -165,6 +170,138 @@ TEST(Cli, DevicesExitsZeroWithoutASensor) {
   if (report.at("sensors").empty()) {
     EXPECT_NE(text.out.find("no RGB-D sensor found"), std::string::npos) << text.out;
   }
+}
+
+// A small model as mapping would leave it: two sessions, four keyframes in two segments joined by
+// nothing, one loop closure inside the first, two labels.
+std::string MakeSmallModel(const std::string& name) {
+  const std::string path = testing::MakeTempDir(name) + "/model.db";
+  Model model = Model::Open(path);
+  SyntheticKeyframeOptions options;
+  options.width = 160;
+  options.height = 120;
+  options.num_features = 20;
+  std::vector<KeyframeId> ids;
+  for (int session_index = 0; session_index < 2; ++session_index) {
+    const SessionId session = model.BeginSession({});
+    for (int i = 0; i < 2; ++i) {
+      KeyframeRecord keyframe = MakeSyntheticKeyframe(session, session_index * 2 + i, options);
+      if (i > 0) {
+        LinkRecord odometry;
+        odometry.from = ids.back();
+        keyframe.links.push_back(odometry);
+      }
+      ids.push_back(model.AddKeyframe(keyframe));
+    }
+    model.EndSession(session, SessionEnd::kFinished, 1);
+  }
+  LinkRecord loop;
+  loop.from = ids[1];
+  loop.to = ids[0];
+  loop.type = LinkType::kLoopClosure;
+  model.AddLink(loop);
+  for (const char* name_of_label : {"lamp", "projector"}) {
+    LabelRecord label;
+    label.name = name_of_label;
+    LabelPoint point;
+    point.world = Eigen::Vector3d(1.0, 0.5, 2.0);
+    label.points.push_back(point);
+    model.AddLabel(label);
+  }
+  return path;
+}
+
+TEST(Cli, InfoJsonKeysOfASmallModel) {
+  const std::string path = MakeSmallModel("cli_info");
+  const CommandResult run = Sightmap("info " + path + " --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json info = nlohmann::json::parse(run.out);
+  EXPECT_EQ(info.at("sessions"), 2);
+  EXPECT_EQ(info.at("keyframes"), 4);
+  EXPECT_EQ(info.at("loop_closures"), 1);
+  EXPECT_EQ(info.at("segments"), 2);
+  EXPECT_EQ(info.at("labels"), 2);
+  EXPECT_EQ(info.at("schema_version"), Model::LatestSchemaVersion());
+  EXPECT_GT(info.at("size_bytes").get<int64_t>(), 10000);
+  EXPECT_EQ(info.at("links").at("odometry"), 2);
+  EXPECT_NEAR(info.at("bounding_box").at("max")[0].get<double>(), 1.0, 1e-9);
+  const CommandResult text = Sightmap("info " + path);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("keyframes      4 in 2 segment(s)"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("lamp, projector"), std::string::npos) << text.out;
+}
+
+TEST(Cli, ExportWritesPlyTrajectoryAndLabels) {
+  const std::string path = MakeSmallModel("cli_export");
+  const std::string out = testing::MakeTempDir("cli_export_out");
+  const CommandResult run =
+      Sightmap("export " + path + " --ply " + out + "/cloud.ply --voxel 0.05" + " --trajectory " +
+               out + "/poses.txt --labels " + out + "/labels");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(run.err.empty()) << run.err;
+  const std::vector<ColoredPoint> cloud = ReadPly(out + "/cloud.ply");
+  EXPECT_GT(cloud.size(), 100u);
+  EXPECT_NE(run.out.find(std::to_string(cloud.size()) + " points from 4 keyframes"),
+            std::string::npos)
+      << run.out;
+  const std::vector<StampedPose> poses = ReadTumTrajectory(out + "/poses.txt");
+  ASSERT_EQ(poses.size(), 4u);
+  EXPECT_EQ(poses[3].timestamp_ns, 3000000000);
+  EXPECT_NEAR(poses[3].world_from_cam.translation().x(), 0.3, 1e-9);
+  EXPECT_EQ(ReadPointList(out + "/labels/projector.txt").size(), 1u);
+  EXPECT_TRUE(std::ifstream(out + "/labels/lamp.txt").good());
+  // A coarser voxel gives fewer points.
+  ASSERT_EQ(Sightmap("export " + path + " --ply " + out + "/coarse.ply --voxel 0.2").exit_code, 0);
+  EXPECT_LT(ReadPly(out + "/coarse.ply").size(), cloud.size());
+}
+
+TEST(Cli, BadModelFilesExitOneWithOneLine) {
+  const std::string dir = testing::MakeTempDir("cli_bad_models");
+  ExpectOneLineError(Sightmap("info " + dir + "/missing.db"), 1, "does not exist");
+  std::ofstream(dir + "/notes.txt") << std::string(2000, 'x');
+  ExpectOneLineError(Sightmap("info " + dir + "/notes.txt --json"), 1, "not a SQLite database");
+  ExpectOneLineError(Sightmap("export " + dir + "/notes.txt --ply " + dir + "/x.ply"), 1,
+                     "not a SQLite database");
+  const std::string model = MakeSmallModel("cli_bad_models_ok");
+  ExpectOneLineError(Sightmap("export " + model + " --ply " + dir + "/no/such/dir/x.ply"), 1,
+                     "cannot write");
+  ExpectOneLineError(Sightmap("export " + model), 2, "nothing to export");
+  ExpectOneLineError(Sightmap("info"), 2, "MODEL");
+}
+
+// sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,
+// the same bytes for the same arguments.
+TEST(Cli, SimGenerateWritesATumFolderThatProbesBackIdentically) {
+  const std::string dir = testing::MakeTempDir("cli_sim");
+  const std::string args =
+      "sim generate --scene office --trajectory robot --session 2 --seed 7 --frames 3 --fps 1 "
+      "--queries 2 --query-size 320x240 --out ";
+  const CommandResult first = Sightmap(args + dir + "/a");
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  ASSERT_EQ(Sightmap(args + dir + "/b").exit_code, 0);
+  const CommandResult probe = Sightmap("probe tum:" + dir + "/a --json");
+  ASSERT_EQ(probe.exit_code, 0) << probe.err;
+  const nlohmann::json info = nlohmann::json::parse(probe.out);
+  EXPECT_EQ(info["rgbd_frames"], 3);
+  EXPECT_EQ(info["has_ground_truth"], true);
+  EXPECT_EQ(info["frame_width"], 640);
+  EXPECT_EQ(info["fx"], 525.0);
+  EXPECT_NEAR(info["duration_s"].get<double>(), 2.0, 1e-6);
+  for (const char* file : {"rgb/1.000000.png", "depth/2.000000.png", "groundtruth.txt",
+                           "queries/queries.json", "queries/0001.jpg", "overview.png"}) {
+    const std::string a = Slurp(dir + "/a/" + file);
+    EXPECT_FALSE(a.empty()) << file;
+    EXPECT_TRUE(a == Slurp(dir + "/b/" + file)) << file << " differs between identical runs";
+  }
+  const nlohmann::json queries = nlohmann::json::parse(Slurp(dir + "/a/queries/queries.json"));
+  const nlohmann::json appliances = nlohmann::json::parse(Slurp(dir + "/a/appliances.json"));
+  ASSERT_EQ(queries["queries"].size(), 2u);
+  EXPECT_EQ(queries["queries"][0]["intrinsics"]["width"], 320);
+  EXPECT_EQ(queries["queries"][0]["types"].size(), appliances["appliances"].size());
+  EXPECT_GE(appliances["appliances"].size(), 20u);
+  ExpectOneLineError(Sightmap("sim generate --frames 2"), 2, "--out");
+  ExpectOneLineError(Sightmap("sim generate --scene " + dir + "/none.json --out " + dir + "/c"), 1,
+                     "cannot read scene file");
 }
 
 }  // namespace
