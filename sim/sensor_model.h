@@ -58,8 +58,8 @@ struct DepthSensorOptions {
 };
 
 struct ColorSensorOptions {
-  double read_noise = 1.5;        // noise floor [8-bit levels, 1 sigma]
-  double shot_noise = 0.22;       // sigma = shot_noise * sqrt(level) on top of the floor
+  double read_noise = 2.5;        // noise floor [8-bit levels, 1 sigma]
+  double shot_noise = 0.35;       // sigma = shot_noise * sqrt(level) on top of the floor
   double exposure_s = 0.008;      // exposure time used for motion blur [s]
   double max_blur_px = 12.0;      // longest blur streak [px]
   double defocus_sigma_px = 0.0;  // optics softness, Gaussian sigma [px]; 0 = none

@@ -83,7 +83,7 @@ TEST(SimStatistics, SimulatedFramesMatchTheRealRecordings) {
   const FrameStatistics kinect = FromSource(oni, 12, 1);
   const FrameStatistics threedmatch = FromSource("3dmatch:" + lounge, 12, 1);
   const FrameStatistics handheld = FromSimulator(TrajectoryKind::kHandheld, 12);
-  const FrameStatistics robot = FromSimulator(TrajectoryKind::kRobot, 8);
+  const FrameStatistics robot = FromSimulator(TrajectoryKind::kRobot, 12);
   std::printf("\n%-28s %s\n", "source", "per-frame statistics: mean (min-max)");
   Print("real: kinect-12f.oni", kinect);
   Print("real: 3dmatch-lounge seq-01", threedmatch);

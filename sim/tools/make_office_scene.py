@@ -303,8 +303,8 @@ scene = {
     },
     "materials": {
         # Paint and plaster: a photograph at a few percent contrast, so walls stay low-texture.
-        "wall_white": {"texture": "ela", "scale_m": 2.0, "contrast": 0.35, "color": [0.92, 0.91, 0.87]},
-        "wall_corridor": {"texture": "aloe", "scale_m": 2.5, "contrast": 0.35, "color": [0.84, 0.86, 0.80]},
+        "wall_white": {"texture": "ela", "scale_m": 2.0, "contrast": 0.2, "color": [0.92, 0.91, 0.87]},
+        "wall_corridor": {"texture": "aloe", "scale_m": 2.5, "contrast": 0.2, "color": [0.84, 0.86, 0.80]},
         "ceiling": {"color": [0.93, 0.93, 0.92]},
         "carpet": {"texture": "baboon", "scale_m": 0.5, "contrast": 0.6, "color": [0.36, 0.36, 0.42]},
         "lino": {"texture": "baboon", "scale_m": 0.6, "contrast": 0.5, "color": [0.55, 0.53, 0.50]},
