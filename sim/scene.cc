@@ -293,7 +293,8 @@ void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
     if (m.contrast < 1.0f) {
       const cv::Scalar mean = cv::mean(image);
       image.convertTo(image, -1, m.contrast, 0.0);
-      cv::add(image, mean * (1.0 - m.contrast), image);
+      // Centred on a light grey, so paint stays the material's colour and only the detail remains.
+      cv::add(image, cv::Scalar::all(230.0) - mean * m.contrast, image);
     }
     return handles[key] = renderer->AddTexture(image);
   };
