@@ -12,6 +12,12 @@ namespace sightmap {
 // Nanoseconds since the start of the stream (recordings) or the epoch (live devices).
 using TimestampNs = int64_t;
 
+// A camera pose at a time: one line of a TUM trajectory, one pose of an estimate.
+struct StampedPose {
+  TimestampNs timestamp_ns = 0;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+};
+
 struct RgbdFrame {
   // Position in the source's stream of paired frames, 0-based.
   int64_t index = 0;

@@ -11,11 +11,6 @@
 
 namespace sightmap {
 
-struct StampedPose {
-  TimestampNs timestamp_ns = 0;
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
-};
-
 struct TrajectoryEvalOptions {
   // An estimated pose is matched to the nearest ground-truth pose no further apart than this [ns].
   int64_t max_time_difference_ns = 20'000'000;

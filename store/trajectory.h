@@ -12,11 +12,6 @@
 
 namespace sightmap {
 
-struct StampedPose {
-  TimestampNs timestamp_ns = 0;
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
-};
-
 // Timestamps are written with nanosecond digits and parsed without going through a double, so a
 // round trip is exact.
 void WriteTumTrajectory(const std::string& path, const std::vector<StampedPose>& poses);
