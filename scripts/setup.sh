@@ -14,6 +14,9 @@ packages=(
   libsqlite3-dev                            # the model (store/)
   libpcl-dev                                # PLY export: voxel filter, outlier removal, PLY I/O
   libosmesa6-dev                            # off-screen rendering (render/, the simulator)
+  libceres-dev                              # pose-graph optimisation (slam/)
+  libglfw3-dev                              # the live preview window (render/)
+  xvfb xauth                                # a virtual display for the preview's tests
   opencv-doc                                # real photographs the simulator textures its scene with
   libgtest-dev libbenchmark-dev             # tests and benchmarks
 )
