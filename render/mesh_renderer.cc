@@ -1,14 +1,12 @@
 #include "render/mesh_renderer.h"
 
-#include <GL/gl.h>
-#include <GL/glext.h>
-
 #include <algorithm>
 #include <cmath>
 
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "render/gl_api.h"
 
 namespace sightmap {
 namespace {
@@ -121,38 +119,39 @@ struct MeshRenderer::Impl {
   RenderOptions options;
   std::vector<TriangleMesh> meshes;
   std::vector<GLuint> textures;
+  const GlApi& gl = OsMesaGl();
 
   void Prepare(const Intrinsics& k, const Eigen::Isometry3d& world_from_cam,
                const Eigen::Vector3f& clear_rgb) {
     std::string error;
     SIGHTMAP_CHECK(k.Check(&error), "cannot render with invalid intrinsics: " << error);
     context.Resize(k.width, k.height);
-    glViewport(0, 0, k.width, k.height);
-    glClearColor(clear_rgb.x(), clear_rgb.y(), clear_rgb.z(), 1.0f);
-    glClearDepth(1.0);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
-    glDisable(GL_DITHER);
-    glDisable(GL_BLEND);
-    glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl.Viewport(0, 0, k.width, k.height);
+    gl.ClearColor(clear_rgb.x(), clear_rgb.y(), clear_rgb.z(), 1.0f);
+    gl.ClearDepth(1.0);
+    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    gl.Enable(GL_DEPTH_TEST);
+    gl.DepthFunc(GL_LESS);
+    gl.Disable(GL_CULL_FACE);
+    gl.Disable(GL_DITHER);
+    gl.Disable(GL_BLEND);
+    gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
 
     const Eigen::Matrix4d projection = GlProjection(k, options.near_m, options.far_m);
-    glMatrixMode(GL_PROJECTION);
-    glLoadMatrixd(projection.data());  // Eigen is column-major like GL
+    gl.MatrixMode(GL_PROJECTION);
+    gl.LoadMatrixd(projection.data());  // Eigen is column-major like GL
     const Eigen::Matrix4d gl_eye_from_world = GlEyeFromCam() * world_from_cam.inverse().matrix();
-    glMatrixMode(GL_MODELVIEW);
-    glLoadMatrixd(gl_eye_from_world.data());
+    gl.MatrixMode(GL_MODELVIEW);
+    gl.LoadMatrixd(gl_eye_from_world.data());
   }
 
   void Draw(const TriangleMesh& mesh) {
     if (mesh.positions.empty()) return;
-    glEnableClientState(GL_VERTEX_ARRAY);
-    glVertexPointer(3, GL_FLOAT, sizeof(Eigen::Vector3f), mesh.positions.data());
-    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.positions.size()));
-    glDisableClientState(GL_VERTEX_ARRAY);
+    gl.EnableClientState(GL_VERTEX_ARRAY);
+    gl.VertexPointer(3, GL_FLOAT, sizeof(Eigen::Vector3f), mesh.positions.data());
+    gl.DrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.positions.size()));
+    gl.DisableClientState(GL_VERTEX_ARRAY);
   }
 
   // Converts a window depth in [0, 1] to the distance along the optical axis [m].
@@ -172,8 +171,9 @@ MeshRenderer::MeshRenderer(const RenderOptions& options) {
 
 MeshRenderer::~MeshRenderer() {
   if (impl_ && !impl_->textures.empty()) {
+    const GlApi& gl = impl_->gl;
     impl_->context.MakeCurrent();
-    glDeleteTextures(static_cast<GLsizei>(impl_->textures.size()), impl_->textures.data());
+    gl.DeleteTextures(static_cast<GLsizei>(impl_->textures.size()), impl_->textures.data());
   }
 }
 
@@ -188,19 +188,20 @@ int MeshRenderer::AddTexture(const cv::Mat& image) {
     bgr = image.isContinuous() ? image : image.clone();
   }
   impl_->context.MakeCurrent();
+  const GlApi& gl = impl_->gl;
   GLuint name = 0;
-  glGenTextures(1, &name);
-  glBindTexture(GL_TEXTURE_2D, name);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl.GenTextures(1, &name);
+  gl.BindTexture(GL_TEXTURE_2D, name);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   // Mipmaps keep distant posters from aliasing into noise that real optics would blur away.
-  glTexParameteri(GL_TEXTURE_2D, GL_GENERATE_MIPMAP, GL_TRUE);
-  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, bgr.cols, bgr.rows, 0, GL_BGR, GL_UNSIGNED_BYTE,
-               bgr.data);
-  SIGHTMAP_CHECK(glGetError() == GL_NO_ERROR,
+  gl.TexParameteri(GL_TEXTURE_2D, GL_GENERATE_MIPMAP, GL_TRUE);
+  gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, bgr.cols, bgr.rows, 0, GL_BGR, GL_UNSIGNED_BYTE,
+                bgr.data);
+  SIGHTMAP_CHECK(gl.GetError() == GL_NO_ERROR,
                  "OpenGL rejected a " << bgr.cols << "x" << bgr.rows << " texture");
   impl_->textures.push_back(name);
   return static_cast<int>(impl_->textures.size()) - 1;
@@ -229,16 +230,17 @@ OffscreenContext& MeshRenderer::context() { return impl_->context; }
 RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
                                   const Eigen::Isometry3d& world_from_cam) {
   Impl& impl = *impl_;
+  const GlApi& gl = impl.gl;
   const RenderOptions& options = impl.options;
   impl.Prepare(intrinsics, world_from_cam, options.background_rgb);
 
   // Lights are given in world coordinates: set them with the world-to-eye modelview loaded.
-  glEnable(GL_NORMALIZE);
-  glShadeModel(GL_SMOOTH);
+  gl.Enable(GL_NORMALIZE);
+  gl.ShadeModel(GL_SMOOTH);
   const GLfloat ambient[4] = {options.ambient, options.ambient, options.ambient, 1.0f};
-  glLightModelfv(GL_LIGHT_MODEL_AMBIENT, ambient);
-  glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
-  for (int i = 0; i < 8; ++i) glDisable(GL_LIGHT0 + i);
+  gl.LightModelfv(GL_LIGHT_MODEL_AMBIENT, ambient);
+  gl.LightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
+  for (int i = 0; i < 8; ++i) gl.Disable(GL_LIGHT0 + i);
   for (size_t i = 0; i < options.lights.size(); ++i) {
     const DirectionalLight& light = options.lights[i];
     const Eigen::Vector3f d = light.direction_to_light.normalized();
@@ -246,60 +248,60 @@ RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
     const GLfloat diffuse[4] = {light.intensity, light.intensity, light.intensity, 1.0f};
     const GLfloat zero[4] = {0, 0, 0, 1};
     const GLenum id = GL_LIGHT0 + static_cast<GLenum>(i);
-    glLightfv(id, GL_POSITION, position);
-    glLightfv(id, GL_DIFFUSE, diffuse);
-    glLightfv(id, GL_AMBIENT, zero);
-    glLightfv(id, GL_SPECULAR, zero);
-    glEnable(id);
+    gl.Lightfv(id, GL_POSITION, position);
+    gl.Lightfv(id, GL_DIFFUSE, diffuse);
+    gl.Lightfv(id, GL_AMBIENT, zero);
+    gl.Lightfv(id, GL_SPECULAR, zero);
+    gl.Enable(id);
   }
   const GLfloat zero[4] = {0, 0, 0, 1};
-  glMaterialfv(GL_FRONT_AND_BACK, GL_SPECULAR, zero);
-  glMaterialfv(GL_FRONT_AND_BACK, GL_EMISSION, zero);
-  glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
-  glEnable(GL_COLOR_MATERIAL);
-  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+  gl.Materialfv(GL_FRONT_AND_BACK, GL_SPECULAR, zero);
+  gl.Materialfv(GL_FRONT_AND_BACK, GL_EMISSION, zero);
+  gl.ColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
+  gl.Enable(GL_COLOR_MATERIAL);
+  gl.TexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
 
-  glEnableClientState(GL_VERTEX_ARRAY);
-  glEnableClientState(GL_NORMAL_ARRAY);
+  gl.EnableClientState(GL_VERTEX_ARRAY);
+  gl.EnableClientState(GL_NORMAL_ARRAY);
   for (const TriangleMesh& mesh : impl.meshes) {
     if (mesh.positions.empty()) continue;
     const Material& m = mesh.material;
     // Alpha carries the no-depth flag to the read-back (blending is off, so it is stored as is).
     const float alpha = m.no_depth ? 0.0f : 1.0f;
-    glColor4f(m.color_rgb.x(), m.color_rgb.y(), m.color_rgb.z(), alpha);
+    gl.Color4f(m.color_rgb.x(), m.color_rgb.y(), m.color_rgb.z(), alpha);
     if (m.unlit) {
-      glDisable(GL_LIGHTING);
+      gl.Disable(GL_LIGHTING);
     } else {
-      glEnable(GL_LIGHTING);
+      gl.Enable(GL_LIGHTING);
     }
     if (m.texture >= 0) {
-      glEnable(GL_TEXTURE_2D);
-      glBindTexture(GL_TEXTURE_2D, impl.textures[static_cast<size_t>(m.texture)]);
-      glEnableClientState(GL_TEXTURE_COORD_ARRAY);
-      glTexCoordPointer(2, GL_FLOAT, sizeof(Eigen::Vector2f), mesh.uvs.data());
+      gl.Enable(GL_TEXTURE_2D);
+      gl.BindTexture(GL_TEXTURE_2D, impl.textures[static_cast<size_t>(m.texture)]);
+      gl.EnableClientState(GL_TEXTURE_COORD_ARRAY);
+      gl.TexCoordPointer(2, GL_FLOAT, sizeof(Eigen::Vector2f), mesh.uvs.data());
     } else {
-      glDisable(GL_TEXTURE_2D);
-      glDisableClientState(GL_TEXTURE_COORD_ARRAY);
+      gl.Disable(GL_TEXTURE_2D);
+      gl.DisableClientState(GL_TEXTURE_COORD_ARRAY);
     }
-    glVertexPointer(3, GL_FLOAT, sizeof(Eigen::Vector3f), mesh.positions.data());
-    glNormalPointer(GL_FLOAT, sizeof(Eigen::Vector3f), mesh.normals.data());
-    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.positions.size()));
+    gl.VertexPointer(3, GL_FLOAT, sizeof(Eigen::Vector3f), mesh.positions.data());
+    gl.NormalPointer(GL_FLOAT, sizeof(Eigen::Vector3f), mesh.normals.data());
+    gl.DrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.positions.size()));
   }
-  glDisableClientState(GL_TEXTURE_COORD_ARRAY);
-  glDisableClientState(GL_NORMAL_ARRAY);
-  glDisableClientState(GL_VERTEX_ARRAY);
-  glDisable(GL_TEXTURE_2D);
-  glDisable(GL_LIGHTING);
-  glDisable(GL_COLOR_MATERIAL);
-  glFinish();
+  gl.DisableClientState(GL_TEXTURE_COORD_ARRAY);
+  gl.DisableClientState(GL_NORMAL_ARRAY);
+  gl.DisableClientState(GL_VERTEX_ARRAY);
+  gl.Disable(GL_TEXTURE_2D);
+  gl.Disable(GL_LIGHTING);
+  gl.Disable(GL_COLOR_MATERIAL);
+  gl.Finish();
 
   const int w = intrinsics.width;
   const int h = intrinsics.height;
   cv::Mat bgra(h, w, CV_8UC4);
-  glReadPixels(0, 0, w, h, GL_BGRA, GL_UNSIGNED_BYTE, bgra.data);
+  gl.ReadPixels(0, 0, w, h, GL_BGRA, GL_UNSIGNED_BYTE, bgra.data);
   cv::Mat window_depth(h, w, CV_32F);
-  glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, window_depth.data);
-  SIGHTMAP_CHECK(glGetError() == GL_NO_ERROR, "OpenGL failed to read back the rendered image");
+  gl.ReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, window_depth.data);
+  SIGHTMAP_CHECK(gl.GetError() == GL_NO_ERROR, "OpenGL failed to read back the rendered image");
 
   // GL rows start at the bottom.
   cv::flip(bgra, bgra, 0);
@@ -326,23 +328,24 @@ RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
 cv::Mat MeshRenderer::RenderIds(const Intrinsics& intrinsics,
                                 const Eigen::Isometry3d& world_from_cam, int only_id) {
   Impl& impl = *impl_;
+  const GlApi& gl = impl.gl;
   impl.Prepare(intrinsics, world_from_cam, Eigen::Vector3f::Zero());
-  glDisable(GL_LIGHTING);
-  glDisable(GL_TEXTURE_2D);
-  glShadeModel(GL_FLAT);
+  gl.Disable(GL_LIGHTING);
+  gl.Disable(GL_TEXTURE_2D);
+  gl.ShadeModel(GL_FLAT);
   for (const TriangleMesh& mesh : impl.meshes) {
     if (only_id > 0 && mesh.id != only_id) continue;
     // The ID as exact 8-bit channels: 24 bits in RGB.
-    glColor4ub(static_cast<GLubyte>(mesh.id & 0xff), static_cast<GLubyte>((mesh.id >> 8) & 0xff),
-               static_cast<GLubyte>((mesh.id >> 16) & 0xff), 255);
+    gl.Color4ub(static_cast<GLubyte>(mesh.id & 0xff), static_cast<GLubyte>((mesh.id >> 8) & 0xff),
+                static_cast<GLubyte>((mesh.id >> 16) & 0xff), 255);
     impl.Draw(mesh);
   }
-  glFinish();
+  gl.Finish();
   const int w = intrinsics.width;
   const int h = intrinsics.height;
   cv::Mat rgba(h, w, CV_8UC4);
-  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data);
-  SIGHTMAP_CHECK(glGetError() == GL_NO_ERROR, "OpenGL failed to read back the ID buffer");
+  gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data);
+  SIGHTMAP_CHECK(gl.GetError() == GL_NO_ERROR, "OpenGL failed to read back the ID buffer");
   cv::flip(rgba, rgba, 0);
   cv::Mat ids(h, w, CV_32S);
   for (int v = 0; v < h; ++v) {

@@ -1,11 +1,11 @@
 #include "render/offscreen_context.h"
 
-#include <GL/gl.h>
 #include <GL/osmesa.h>
 
 #include <vector>
 
 #include "core/check.h"
+#include "render/gl_api.h"
 
 namespace sightmap {
 
@@ -49,16 +49,18 @@ void OffscreenContext::Resize(int width, int height) {
   MakeCurrent();
 }
 
+GlProc OffscreenContext::ProcAddress(const char* name) { return OSMesaGetProcAddress(name); }
+
 int OffscreenContext::width() const { return impl_->width; }
 int OffscreenContext::height() const { return impl_->height; }
 
 std::string OffscreenContext::GlVersion() const {
-  const auto* text = glGetString(GL_VERSION);
+  const auto* text = OsMesaGl().GetString(GL_VERSION);
   return text == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(text));
 }
 
 std::string OffscreenContext::GlRenderer() const {
-  const auto* text = glGetString(GL_RENDERER);
+  const auto* text = OsMesaGl().GetString(GL_RENDERER);
   return text == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(text));
 }
 

@@ -11,6 +11,8 @@
 #include <memory>
 #include <string>
 
+#include "render/gl_proc.h"
+
 namespace sightmap {
 
 class OffscreenContext {
@@ -27,6 +29,9 @@ class OffscreenContext {
   // Reallocates the buffer at another size [px] (a no-op when it is unchanged) and makes the
   // context current.
   void Resize(int width, int height);
+
+  // The OSMesa entry point `name` (for GlProcLoader users such as MapRenderer); any thread.
+  static GlProc ProcAddress(const char* name);
 
   int width() const;
   int height() const;
