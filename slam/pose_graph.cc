@@ -1,0 +1,362 @@
+#include "slam/pose_graph.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <numeric>
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+#include <Eigen/Eigenvalues>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+bool IsRigid(const Eigen::Isometry3d& transform) {
+  if (!transform.matrix().allFinite()) return false;
+  const Eigen::Matrix3d rotation = transform.linear();
+  return (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <
+             1e-6 &&
+         rotation.determinant() > 0.0;
+}
+
+// The edge error r = (t, w) with E = Exp(r) * M (see pose_graph.h), for the poses a = from and
+// b = to given as unit quaternions (Eigen's x, y, z, w order) and positions in the world.
+template <typename T>
+Eigen::Matrix<T, 6, 1> EdgeError(const T* q_a_data, const T* p_a_data, const T* q_b_data,
+                                 const T* p_b_data, const Eigen::Quaterniond& q_measured,
+                                 const Eigen::Vector3d& p_measured) {
+  const Eigen::Map<const Eigen::Quaternion<T>> q_a(q_a_data);
+  const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(p_a_data);
+  const Eigen::Map<const Eigen::Quaternion<T>> q_b(q_b_data);
+  const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_b(p_b_data);
+  const Eigen::Quaternion<T> q_a_inverse = q_a.conjugate();
+  const Eigen::Quaternion<T> q_ab = q_a_inverse * q_b;
+  const Eigen::Matrix<T, 3, 1> p_ab = q_a_inverse * (p_b - p_a);
+  // R(w) = R_E R_M^T and t = t_E - R(w) t_M.
+  const Eigen::Quaternion<T> q_delta = q_ab * q_measured.conjugate().template cast<T>();
+  Eigen::Matrix<T, 6, 1> error;
+  error.template head<3>() = p_ab - q_delta * p_measured.template cast<T>();
+  const T q_delta_wxyz[4] = {q_delta.w(), q_delta.x(), q_delta.y(), q_delta.z()};
+  ceres::QuaternionToAngleAxis(q_delta_wxyz, error.data() + 3);
+  return error;
+}
+
+class EdgeCost {
+ public:
+  EdgeCost(const Eigen::Isometry3d& from_from_to, const Matrix6d& sqrt_information)
+      : q_measured_(from_from_to.linear()),
+        p_measured_(from_from_to.translation()),
+        sqrt_information_(sqrt_information) {
+    q_measured_.normalize();
+  }
+
+  template <typename T>
+  bool operator()(const T* q_a, const T* p_a, const T* q_b, const T* p_b, T* residuals) const {
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> whitened(residuals);
+    whitened = sqrt_information_.template cast<T>() *
+               EdgeError(q_a, p_a, q_b, p_b, q_measured_, p_measured_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Isometry3d& from_from_to,
+                                     const Matrix6d& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<EdgeCost, 6, 4, 3, 4, 3>(
+        new EdgeCost(from_from_to, sqrt_information));
+  }
+
+ private:
+  Eigen::Quaterniond q_measured_;
+  Eigen::Vector3d p_measured_;
+  Matrix6d sqrt_information_;
+};
+
+// S with S^T S = W for a symmetric positive semi-definite W (eigenvalues within rounding of zero
+// count as zero), so that |S r|^2 = r^T W r.
+Matrix6d SqrtInformation(const Matrix6d& information) {
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(information);
+  const Vector6d root = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  return root.asDiagonal() * eigen.eigenvectors().transpose();
+}
+
+// Quaternion (x, y, z, w) and position of one pose, as Ceres' parameter blocks.
+struct PoseParameters {
+  double q[4];
+  double p[3];
+
+  void Set(const Eigen::Isometry3d& world_from_cam) {
+    Eigen::Map<Eigen::Quaterniond> rotation(q);
+    Eigen::Map<Eigen::Vector3d> position(p);
+    rotation = Eigen::Quaterniond(world_from_cam.linear()).normalized();
+    position = world_from_cam.translation();
+  }
+  Eigen::Isometry3d Get() const {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = Eigen::Map<const Eigen::Quaterniond>(q).normalized().toRotationMatrix();
+    pose.translation() = Eigen::Map<const Eigen::Vector3d>(p);
+    return pose;
+  }
+};
+
+double Chi2(const PoseGraphEdge& edge, const PoseParameters& from, const PoseParameters& to) {
+  const Vector6d error = EdgeError(from.q, from.p, to.q, to.p,
+                                   Eigen::Quaterniond(edge.from_from_to.linear()).normalized(),
+                                   edge.from_from_to.translation());
+  return error.dot(edge.information * error);
+}
+
+// Disjoint sets over pose indices.
+class Components {
+ public:
+  explicit Components(size_t size) : parent_(size) {
+    std::iota(parent_.begin(), parent_.end(), size_t{0});
+  }
+  size_t Find(size_t i) {
+    while (parent_[i] != i) {
+      parent_[i] = parent_[parent_[i]];
+      i = parent_[i];
+    }
+    return i;
+  }
+  void Join(size_t a, size_t b) { parent_[Find(a)] = Find(b); }
+
+ private:
+  std::vector<size_t> parent_;
+};
+
+ceres::LinearSolverType SparseSolver() {
+  for (const auto library :
+       {ceres::SUITE_SPARSE, ceres::EIGEN_SPARSE, ceres::ACCELERATE_SPARSE, ceres::CX_SPARSE}) {
+    if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(library)) {
+      return ceres::SPARSE_NORMAL_CHOLESKY;
+    }
+  }
+  return ceres::CGNR;  // no sparse factorisation compiled in: iterative, still sparse
+}
+
+}  // namespace
+
+bool PoseGraphOptions::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    if (error) *error = what;
+    return false;
+  };
+  if (max_iterations <= 0) return fail("max_iterations must be positive");
+  if (!(max_solver_time_s > 0.0)) return fail("max_solver_time_s must be positive");
+  if (num_threads <= 0) return fail("num_threads must be positive");
+  if (!(loop_loss_scale > 0.0) || !std::isfinite(loop_loss_scale)) {
+    return fail("loop_loss_scale must be positive and finite");
+  }
+  // Infinity is allowed: it turns the rejection of loop edges off.
+  if (!(max_loop_chi2 > 0.0)) return fail("max_loop_chi2 must be positive");
+  return true;
+}
+
+void PoseGraph::AddPose(int64_t id, const Eigen::Isometry3d& world_from_cam) {
+  SIGHTMAP_CHECK(IsRigid(world_from_cam), "pose " << id << " is not a finite rigid transform");
+  const bool inserted = nodes_.emplace(id, Node{world_from_cam, false}).second;
+  SIGHTMAP_CHECK(inserted, "pose " << id << " is already in the pose graph");
+}
+
+void PoseGraph::SetPose(int64_t id, const Eigen::Isometry3d& world_from_cam) {
+  const auto node = nodes_.find(id);
+  SIGHTMAP_CHECK(node != nodes_.end(), "pose " << id << " is not in the pose graph");
+  SIGHTMAP_CHECK(IsRigid(world_from_cam), "pose " << id << " is not a finite rigid transform");
+  node->second.world_from_cam = world_from_cam;
+}
+
+size_t PoseGraph::AddEdge(const PoseGraphEdge& edge) {
+  SIGHTMAP_CHECK(HasPose(edge.from) && HasPose(edge.to),
+                 "edge " << edge.from << " -> " << edge.to << " joins an unknown pose");
+  SIGHTMAP_CHECK(edge.from != edge.to,
+                 "edge " << edge.from << " -> " << edge.to << " joins a pose to itself");
+  SIGHTMAP_CHECK(IsRigid(edge.from_from_to), "edge " << edge.from << " -> " << edge.to
+                                                     << " measures no finite rigid transform");
+  const Matrix6d& information = edge.information;
+  SIGHTMAP_CHECK(information.allFinite(),
+                 "edge " << edge.from << " -> " << edge.to << " has a non-finite information");
+  const double scale = std::max(1.0, information.cwiseAbs().maxCoeff());
+  SIGHTMAP_CHECK((information - information.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale,
+                 "edge " << edge.from << " -> " << edge.to << " has a non-symmetric information");
+  const double smallest = Eigen::SelfAdjointEigenSolver<Matrix6d>(information).eigenvalues()(0);
+  SIGHTMAP_CHECK(smallest >= -1e-9 * scale,
+                 "edge " << edge.from << " -> " << edge.to
+                         << " has an information that is not positive semi-definite (eigenvalue "
+                         << smallest << ")");
+  edges_.push_back(edge);
+  active_.push_back(true);
+  return edges_.size() - 1;
+}
+
+void PoseGraph::SetFixed(int64_t id, bool fixed) {
+  const auto node = nodes_.find(id);
+  SIGHTMAP_CHECK(node != nodes_.end(), "pose " << id << " is not in the pose graph");
+  node->second.fixed = fixed;
+}
+
+bool PoseGraph::IsFixed(int64_t id) const {
+  const auto node = nodes_.find(id);
+  SIGHTMAP_CHECK(node != nodes_.end(), "pose " << id << " is not in the pose graph");
+  return node->second.fixed;
+}
+
+void PoseGraph::SetEdgeActive(size_t index, bool active) {
+  SIGHTMAP_CHECK(index < edges_.size(), "edge index " << index << " is out of range");
+  active_[index] = active;
+}
+
+bool PoseGraph::EdgeActive(size_t index) const {
+  SIGHTMAP_CHECK(index < edges_.size(), "edge index " << index << " is out of range");
+  return active_[index];
+}
+
+const Eigen::Isometry3d& PoseGraph::Pose(int64_t id) const {
+  const auto node = nodes_.find(id);
+  SIGHTMAP_CHECK(node != nodes_.end(), "pose " << id << " is not in the pose graph");
+  return node->second.world_from_cam;
+}
+
+bool PoseGraph::HasPose(int64_t id) const { return nodes_.count(id) > 0; }
+
+double PoseGraph::EdgeChi2(size_t index) const {
+  SIGHTMAP_CHECK(index < edges_.size(), "edge index " << index << " is out of range");
+  const PoseGraphEdge& edge = edges_[index];
+  PoseParameters from, to;
+  from.Set(Pose(edge.from));
+  to.Set(Pose(edge.to));
+  return Chi2(edge, from, to);
+}
+
+PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const auto start = std::chrono::steady_clock::now();
+  PoseGraphSummary summary;
+  summary.edge_chi2.assign(edges_.size(), 0.0);
+
+  // Poses by index (in id order) and edges as index pairs.
+  std::vector<Node*> nodes;
+  std::map<int64_t, size_t> index_of;
+  for (auto& [id, node] : nodes_) {
+    index_of[id] = nodes.size();
+    nodes.push_back(&node);
+  }
+  std::vector<std::pair<size_t, size_t>> ends(edges_.size());
+  std::vector<Matrix6d> sqrt_information(edges_.size());
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    ends[e] = {index_of.at(edges_[e].from), index_of.at(edges_[e].to)};
+    sqrt_information[e] = SqrtInformation(edges_[e].information);
+  }
+  std::vector<PoseParameters> initial(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) initial[i].Set(nodes[i]->world_from_cam);
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = SparseSolver();
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.max_solver_time_in_seconds = options.max_solver_time_s;
+  solver_options.num_threads = options.num_threads;
+  solver_options.logging_type = ceres::SILENT;
+  // Tighter than Ceres' defaults (1e-6, 1e-10, 1e-8): near the optimum LM converges
+  // quadratically on a pose graph, so the last digits cost an iteration or two.
+  solver_options.function_tolerance = 1e-10;
+  solver_options.gradient_tolerance = 1e-12;
+  solver_options.parameter_tolerance = 1e-10;
+
+  ceres::EigenQuaternionManifold quaternion_manifold;
+  ceres::CauchyLoss loop_loss(options.loop_loss_scale);
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+
+  std::vector<PoseParameters> parameters = initial;
+  std::vector<bool> moved(nodes.size(), false);  // free in the last solve
+  while (true) {
+    // Each solve starts from the poses Optimize() was given, so the answer after switching an
+    // edge off does not depend on where that edge had pulled the poses.
+    parameters = initial;
+    ceres::Problem problem(problem_options);
+    moved.assign(nodes.size(), false);
+    std::vector<bool> in_problem(nodes.size(), false);
+    Components components(nodes.size());
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      if (!active_[e]) continue;
+      const auto [a, b] = ends[e];
+      problem.AddResidualBlock(EdgeCost::Create(edges_[e].from_from_to, sqrt_information[e]),
+                               edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : nullptr,
+                               parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
+      in_problem[a] = in_problem[b] = true;
+      // An edge without information does not tie its poses together.
+      if (!edges_[e].information.isZero()) components.Join(a, b);
+    }
+    if (problem.NumResidualBlocks() == 0) break;
+
+    // Gauge: every component holds its fixed poses, or else its lowest id (first in id order).
+    std::vector<bool> component_held(nodes.size(), false);
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      if (in_problem[i] && nodes[i]->fixed) component_held[components.Find(i)] = true;
+    }
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      if (!in_problem[i]) continue;
+      problem.SetManifold(parameters[i].q, &quaternion_manifold);
+      bool hold = nodes[i]->fixed;
+      if (!component_held[components.Find(i)]) {
+        component_held[components.Find(i)] = true;
+        hold = true;
+      }
+      if (hold) {
+        problem.SetParameterBlockConstant(parameters[i].q);
+        problem.SetParameterBlockConstant(parameters[i].p);
+      }
+      moved[i] = !hold;
+    }
+
+    ceres::Solver::Summary solver_summary;
+    ceres::Solve(solver_options, &problem, &solver_summary);
+    if (summary.solves == 0) summary.initial_cost = solver_summary.initial_cost;
+    ++summary.solves;
+    summary.iterations += static_cast<int>(solver_summary.iterations.size());
+    summary.final_cost = solver_summary.final_cost;
+    summary.converged = solver_summary.termination_type == ceres::CONVERGENCE;
+    if (!solver_summary.IsSolutionUsable()) {
+      summary.usable = false;
+      moved.assign(nodes.size(), false);
+      parameters = initial;
+      break;
+    }
+
+    // Switch off the worst inconsistent loop edge, if any, and solve again. Only the worst: a
+    // false loop also raises the error of the correct loops near it.
+    size_t worst = edges_.size();
+    double worst_chi2 = options.max_loop_chi2;
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      if (!active_[e] || edges_[e].type != PoseGraphEdgeType::kLoop) continue;
+      const double chi2 = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
+      if (chi2 > worst_chi2) {
+        worst = e;
+        worst_chi2 = chi2;
+      }
+    }
+    if (worst == edges_.size()) break;
+    active_[worst] = false;
+    summary.rejected_edges.push_back(worst);
+  }
+
+  // Poses that did not take part keep their exact input (no round trip through a quaternion).
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    if (moved[i]) nodes[i]->world_from_cam = parameters[i].Get();
+  }
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    if (active_[e]) {
+      summary.edge_chi2[e] = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
+    }
+  }
+  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace sightmap

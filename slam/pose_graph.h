@@ -1,0 +1,129 @@
+// An SE(3) pose graph: camera poses joined by relative-pose measurements (odometry between
+// consecutive keyframes, loop closures and relocalisations between distant ones), optimised by
+// Ceres (Levenberg-Marquardt, sparse Cholesky) over quaternion + translation parameters, as in
+// Ceres' examples/slam/pose_graph_3d. Ceres stays in pose_graph.cc.
+//
+// Residual of an edge (from, to, from_from_to = M, information = W). With the estimate
+// E = world_from_from^-1 * world_from_to, the error is the 6-vector r = (t, w) for which
+//   E = Exp(r) * M,  Exp(t, w) = [R(w) | t]  (R(w): the rotation of angle |w| about w / |w|),
+// i.e. r = (t_E - R(w) t_M, AngleAxis(R_E R_M^T)): translation first, then a rotation applied
+// on the left. That is the parameterisation RegistrationResult::information is computed in
+// (slam/registration.h), so a registration's target_from_source and information are an edge's
+// from_from_to and information with from = target and to = source. The cost of the edge is
+// r^T W r (the chi-square of a 6-dof error when W is the inverse covariance); Ceres is given
+// S r with S^T S = W.
+//
+// Loop-closure edges (kLoop) get a Cauchy loss, and after each solve the loop edge with the
+// largest chi-square above PoseGraphOptions::max_loop_chi2 is switched off and the graph solved
+// again from the poses it had when Optimize() was called, until every active loop edge passes.
+// Odometry edges are trusted and never switched off. Switched-off edges stay off in later calls
+// (they are not re-checked: an edge that flips in and out would make the map jump) until the
+// caller turns them back on with SetEdgeActive().
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace sightmap {
+
+struct PoseGraphOptions {
+  // Bounds of each solve; Optimize() solves once plus once per switched-off edge.
+  int max_iterations = 100;
+  double max_solver_time_s = 0.5;  // per solve [s]
+  int num_threads = 1;
+
+  // Scale a of the Cauchy loss on loop edges, in units of the whitened residual |S r| (sigmas):
+  // an edge with chi-square s is weighted by 1 / (1 + s / a^2). With a^2 = 22.46 a consistent
+  // loop (s ~ 6 on average) keeps ~80% of its weight, while a false one (s in the thousands)
+  // pulls with a force that falls as 1 / |S r| and cannot bend the map far before it is
+  // switched off by the test below.
+  double loop_loss_scale = 4.74;
+
+  // After a solve, an active loop edge whose chi-square r^T W r exceeds this is inconsistent
+  // with the rest of the graph. 22.46 is the 99.9% quantile of the chi-square distribution with
+  // 6 degrees of freedom: with honest informations a correct loop is switched off once in a
+  // thousand, while a false loop tens of cm / degrees off scores in the thousands. Informations
+  // that are overconfident (e.g. a registration's point-count information, which ignores
+  // correlated depth errors) should be scaled down by the caller, not this threshold raised.
+  double max_loop_chi2 = 22.46;
+
+  bool Check(std::string* error) const;
+};
+
+enum class PoseGraphEdgeType { kOdometry, kLoop };
+
+struct PoseGraphEdge {
+  int64_t from = 0;  // pose ids
+  int64_t to = 0;
+  // Measured pose of `to` in `from`'s frame: world_from_from^-1 * world_from_to.
+  Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
+  // Inverse covariance of the error r = (translation x, y, z, left rotation x, y, z) defined in
+  // the header comment; symmetric positive semi-definite.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
+  PoseGraphEdgeType type = PoseGraphEdgeType::kOdometry;
+};
+
+struct PoseGraphSummary {
+  // The last solve converged (false also when it hit max_iterations or max_solver_time_s; the
+  // poses are then the best found, still usable).
+  bool converged = false;
+  bool usable = true;  // false when Ceres failed: the poses were left as they were
+  int solves = 0;      // 1 + one per switched-off edge (0 when there was nothing to solve)
+  int iterations = 0;  // summed over the solves
+  // Ceres' cost 0.5 * sum rho(r^T W r) at the start of the first solve and the end of the last
+  // one (the first may still include edges that were switched off later).
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  double time_s = 0.0;  // wall time of the whole call
+  // Indices (into PoseGraph::Edges()) of the loop edges switched off by this call, in order.
+  std::vector<size_t> rejected_edges;
+  // Chi-square of each edge with the final poses (0 for inactive edges), by edge index.
+  std::vector<double> edge_chi2;
+};
+
+class PoseGraph {
+ public:
+  // Throws sightmap::Error on a duplicate id or a pose that is not a finite rigid transform.
+  void AddPose(int64_t id, const Eigen::Isometry3d& world_from_cam);
+  // Replaces the estimate of a known pose (throws when the id is unknown).
+  void SetPose(int64_t id, const Eigen::Isometry3d& world_from_cam);
+  // Returns the edge's index. Throws when an end is unknown, both ends are the same pose, the
+  // measurement is not a finite rigid transform, or the information is not a finite symmetric
+  // positive semi-definite matrix.
+  size_t AddEdge(const PoseGraphEdge& edge);
+  // Holds a pose still (the gauge). A connected component without a fixed pose holds its lowest
+  // id, so Optimize() never has free gauge directions, whatever is fixed.
+  void SetFixed(int64_t id, bool fixed = true);
+  bool IsFixed(int64_t id) const;
+  // Turns a switched-off edge back on (or any edge off).
+  void SetEdgeActive(size_t index, bool active);
+
+  // Moves the poses to the least-squares estimate of the active edges. Poses without an active
+  // edge do not move. Throws InvalidArgument on invalid options.
+  PoseGraphSummary Optimize(const PoseGraphOptions& options = PoseGraphOptions());
+
+  const Eigen::Isometry3d& Pose(int64_t id) const;  // throws when the id is unknown
+  bool HasPose(int64_t id) const;
+  size_t NumPoses() const { return nodes_.size(); }
+  const std::vector<PoseGraphEdge>& Edges() const { return edges_; }
+  bool EdgeActive(size_t index) const;  // throws when the index is out of range
+  // r^T W r of an edge at the current poses, whether active or not.
+  double EdgeChi2(size_t index) const;
+
+ private:
+  struct Node {
+    Eigen::Isometry3d world_from_cam;
+    bool fixed = false;
+  };
+  std::map<int64_t, Node> nodes_;  // by id: references stay valid, components find lowest ids
+  std::vector<PoseGraphEdge> edges_;
+  std::vector<bool> active_;
+};
+
+}  // namespace sightmap
