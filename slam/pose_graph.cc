@@ -293,7 +293,10 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options) {
       // An edge without information does not tie its poses together.
       if (!edges_[e].information.isZero()) components.Join(a, b);
     }
-    if (problem.NumResidualBlocks() == 0) break;
+    if (problem.NumResidualBlocks() == 0) {
+      summary.converged = true;  // nothing to move
+      break;
+    }
 
     // Gauge: every component holds its fixed poses, or else its lowest id (first in id order).
     std::vector<bool> component_held(nodes.size(), false);

@@ -42,7 +42,8 @@ struct PoseGraphOptions {
   // an edge with chi-square s is weighted by 1 / (1 + s / a^2). With a^2 = 22.46 a consistent
   // loop (s ~ 6 on average) keeps ~80% of its weight, while a false one (s in the thousands)
   // pulls with a force that falls as 1 / |S r| and cannot bend the map far before it is
-  // switched off by the test below.
+  // switched off by the test below (4.74 = sqrt(22.46), the default max_loop_chi2). A correct
+  // loop still closes from far away (one lap of 40 noisy steps: chi-square 2967 at the start).
   double loop_loss_scale = 4.74;
 
   // After a solve, an active loop edge whose chi-square r^T W r exceeds this is inconsistent
@@ -50,7 +51,10 @@ struct PoseGraphOptions {
   // 6 degrees of freedom: with honest informations a correct loop is switched off once in a
   // thousand, while a false loop tens of cm / degrees off scores in the thousands. Informations
   // that are overconfident (e.g. a registration's point-count information, which ignores
-  // correlated depth errors) should be scaled down by the caller, not this threshold raised.
+  // correlated depth errors) should be scaled down by the caller, not this threshold raised:
+  // odometry claiming sigmas 10x smaller than its noise leaves a correct loop at chi-square ~240
+  // even in plain least squares, and it is switched off (pose_graph_test,
+  // OverconfidentOdometryLosesTheLoop). Infinity turns the switch-off off.
   double max_loop_chi2 = 22.46;
 
   bool Check(std::string* error) const;
@@ -70,8 +74,8 @@ struct PoseGraphEdge {
 };
 
 struct PoseGraphSummary {
-  // The last solve converged (false also when it hit max_iterations or max_solver_time_s; the
-  // poses are then the best found, still usable).
+  // The last solve converged, or there was no active edge to solve for (false when it hit
+  // max_iterations or max_solver_time_s: the poses are then the best found, still usable).
   bool converged = false;
   bool usable = true;  // false when Ceres failed: the poses were left as they were
   int solves = 0;      // 1 + one per switched-off edge (0 when there was nothing to solve)

@@ -154,6 +154,39 @@ TEST(PoseGraph, LoopClosureRemovesOdometryDrift) {
   EXPECT_LT(worst_closure, 0.005);
 }
 
+// Odometry that claims to be more precise than it is makes a correct loop inconsistent: its
+// chi-square at the plain least-squares optimum exceeds max_loop_chi2 and it is switched off.
+// Honest (1x) and mildly optimistic (3x) informations keep it.
+TEST(PoseGraph, OverconfidentOdometryLosesTheLoop) {
+  for (double factor : {1.0, 3.0, 10.0, 30.0}) {
+    synthetic::CircleOptions options;
+    options.poses_per_lap = 40;
+    options.odometry_sigma_m = 0.01;
+    options.odometry_sigma_rad = 0.01;
+    options.odometry_overconfidence = factor;
+    options.close_last_onto_first = true;
+    options.seed = 3;
+    synthetic::Scene scene = synthetic::MakeCircleScene(options);
+    // Plain least squares (no loss, no switch-off): the loop's chi-square at the optimum.
+    PoseGraph plain = scene.graph;
+    PoseGraphOptions plain_options;
+    plain_options.loop_loss_scale = 1e9;
+    plain_options.max_loop_chi2 = std::numeric_limits<double>::infinity();
+    plain.Optimize(plain_options);
+    const double plain_chi2 = plain.EdgeChi2(scene.loop_edges[0]);
+    const double before = PositionRmse(scene.graph, scene.truth);
+    const double chi2_before = scene.graph.EdgeChi2(scene.loop_edges[0]);
+    const PoseGraphSummary summary = scene.graph.Optimize();
+    std::cout << "[ figures  ] odometry " << factor << "x overconfident: loop chi2 " << chi2_before
+              << " at the start, " << plain_chi2 << " at the least-squares optimum, "
+              << (summary.rejected_edges.empty() ? "kept" : "switched off") << ", RMSE " << before
+              << " -> " << PositionRmse(scene.graph, scene.truth) << " m\n";
+    const bool consistent = plain_chi2 < PoseGraphOptions().max_loop_chi2;
+    EXPECT_EQ(consistent, factor < 5.0) << factor;
+    EXPECT_EQ(summary.rejected_edges.empty(), consistent) << factor;
+  }
+}
+
 // Two laps (2 x 40 poses) with five correct loops between the laps, then two false loops: a
 // subtle one, 10 -> 30 measured 35 cm and 7 degrees off the truth, and a gross one claiming
 // that pose 25, on the far side of the 6 m circle, is 30 cm in front of pose 5.

@@ -40,6 +40,8 @@ struct CircleOptions {
   double radius_m = 3.0;
   double odometry_sigma_m = 0.01;
   double odometry_sigma_rad = 0.005;
+  // The odometry edges claim sigmas this many times smaller than the noise they carry.
+  double odometry_overconfidence = 1.0;
   // A loop edge joins pose i and i + poses_per_lap for every loop_every-th i (0: none).
   int loop_every = 0;
   double loop_sigma_m = 0.01;
@@ -88,7 +90,8 @@ inline Scene MakeCircleScene(const CircleOptions& options) {
     edge.to = i + 1;
     edge.from_from_to = noise(options.odometry_sigma_m, options.odometry_sigma_rad) *
                         scene.truth[i].inverse() * scene.truth[i + 1];
-    edge.information = Information(options.odometry_sigma_m, options.odometry_sigma_rad);
+    edge.information = Information(options.odometry_sigma_m / options.odometry_overconfidence,
+                                   options.odometry_sigma_rad / options.odometry_overconfidence);
     reckoned = reckoned * edge.from_from_to;
     scene.graph.AddPose(i + 1, reckoned);
     scene.graph.AddEdge(edge);
