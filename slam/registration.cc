@@ -1,6 +1,7 @@
 #include "slam/registration.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -94,12 +95,14 @@ struct DenseAgreement {
 };
 
 // Moves every stride-th measured pixel of `from` into the `to` camera and compares depths there.
+// `camera` is the depth images' camera (scaled when they are smaller than the colour camera) and
+// `stride` is in their pixels.
 DenseAgreement CompareDepth(const cv::Mat& from_depth, const cv::Mat& to_depth,
                             const Eigen::Isometry3d& to_from_from, const Intrinsics& camera,
-                            const RegistrationOptions& options) {
+                            int stride, const RegistrationOptions& options) {
   DenseAgreement agreement;
-  for (int v = 0; v < from_depth.rows; v += options.verify_stride_px) {
-    for (int u = 0; u < from_depth.cols; u += options.verify_stride_px) {
+  for (int v = 0; v < from_depth.rows; v += stride) {
+    for (int u = 0; u < from_depth.cols; u += stride) {
       const uint16_t z_mm = from_depth.at<uint16_t>(v, u);
       if (z_mm == 0) continue;
       const Eigen::Vector3d point = to_from_from * camera.Unproject(u, v, z_mm * 1e-3);
@@ -231,9 +234,16 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
                                 const Intrinsics& camera, const RegistrationOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
+  using Clock = std::chrono::steady_clock;
+  const auto seconds_since = [](Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+  };
   RegistrationResult result;
+  auto stage_start = Clock::now();
   const std::vector<cv::DMatch> matches =
       MatchDescriptors(source.descriptors, target.descriptors, options.matching);
+  result.times.matching_s = seconds_since(stage_start);
+  stage_start = Clock::now();
   result.matches = static_cast<int>(matches.size());
   const std::vector<Correspondence> pairs = MakeCorrespondences(source, target, matches, options);
   result.correspondences = static_cast<int>(pairs.size());
@@ -296,6 +306,7 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
     result.information += pair.weight * jacobian.transpose() * jacobian;
   }
   result.rmse_m = std::sqrt(squared / best_inliers.size());
+  result.times.ransac_s = seconds_since(stage_start);
 
   if (result.inliers < options.min_inliers) {
     result.failure = "too few inliers after refinement (" + std::to_string(result.inliers) + ")";
@@ -309,15 +320,24 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
   }
 
   if (!source_depth_mm.empty() && !target_depth_mm.empty()) {
+    stage_start = Clock::now();
     SIGHTMAP_CHECK(source_depth_mm.type() == CV_16UC1 && target_depth_mm.type() == CV_16UC1 &&
-                       source_depth_mm.cols == camera.width &&
-                       source_depth_mm.rows == camera.height &&
+                       source_depth_mm.cols > 0 && camera.width % source_depth_mm.cols == 0 &&
+                       camera.height % source_depth_mm.rows == 0 &&
+                       camera.width / source_depth_mm.cols ==
+                           camera.height / source_depth_mm.rows &&
                        target_depth_mm.size() == source_depth_mm.size(),
-                   "registration needs 16-bit depth images of the camera's size");
+                   "registration needs 16-bit depth images of the camera's size, or that size "
+                   "divided by a whole factor");
+    const int factor = camera.width / source_depth_mm.cols;
+    const Intrinsics depth_camera =
+        factor == 1 ? camera : camera.Scaled(source_depth_mm.cols, source_depth_mm.rows);
+    const int stride = std::max(1, options.verify_stride_px / factor);
     const DenseAgreement forward =
-        CompareDepth(source_depth_mm, target_depth_mm, best, camera, options);
-    const DenseAgreement backward =
-        CompareDepth(target_depth_mm, source_depth_mm, best.inverse(), camera, options);
+        CompareDepth(source_depth_mm, target_depth_mm, best, depth_camera, stride, options);
+    const DenseAgreement backward = CompareDepth(target_depth_mm, source_depth_mm,
+                                                 best.inverse(), depth_camera, stride, options);
+    result.times.verification_s = seconds_since(stage_start);
     result.overlap_samples = std::min(forward.samples, backward.samples);
     auto fraction = [](int part, int whole) {
       return whole > 0 ? static_cast<double>(part) / whole : 0.0;

@@ -62,6 +62,13 @@ struct RegistrationOptions {
   bool Check(std::string* error) const;
 };
 
+// Where the time of one registration went [s].
+struct RegistrationTimes {
+  double matching_s = 0.0;
+  double ransac_s = 0.0;  // RANSAC and refinement
+  double verification_s = 0.0;
+};
+
 struct RegistrationResult {
   bool success = false;
   std::string failure;  // why it was refused, when !success
@@ -78,10 +85,12 @@ struct RegistrationResult {
   // Information (inverse covariance) of target_from_source, parameters ordered as translation
   // (x, y, z) then a small rotation (x, y, z) applied on the left, as in Ceres' pose_graph_3d.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+  RegistrationTimes times;
 };
 
-// Registers `source` to `target`. Depth images (16-bit mm, registered, the size of the camera)
-// enable the dense verification; `camera` is shared by both frames. Refusal is a result, not an
+// Registers `source` to `target`. Depth images (16-bit mm, registered, the size of the camera or
+// that size divided by a whole factor, e.g. 160x120 nearest-neighbour samples of 640x480 kept per
+// keyframe) enable the dense verification; `camera` is shared by both frames. Refusal is a result, not an
 // exception; exceptions are for invalid options or inputs.
 RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
