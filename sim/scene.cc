@@ -298,6 +298,10 @@ void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
     }
     return handles[key] = renderer->AddTexture(image);
   };
+  // Boxes sharing a material and an appliance ID go into one mesh: a furnished floor has a
+  // thousand boxes (books, radiator ribs, notes) but a few dozen materials, and the renderer
+  // pays per mesh (state changes and a draw call each).
+  std::map<std::pair<int, std::string>, TriangleMesh> merged;
   auto add_box = [&](const SceneBox& box, int id) {
     const SceneMaterial& m = scene.materials.at(box.material);
     Material material;
@@ -306,13 +310,20 @@ void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
     material.texture_scale_m = m.scale_m;
     material.no_depth = m.no_depth;
     material.unlit = m.unlit;
-    renderer->AddMesh(MakeBox(box.center.cast<float>(), box.size.cast<float>(),
-                              static_cast<float>(box.yaw_rad), material, id));
+    const TriangleMesh mesh = MakeBox(box.center.cast<float>(), box.size.cast<float>(),
+                                      static_cast<float>(box.yaw_rad), material, id);
+    auto [it, inserted] = merged.try_emplace({id, box.material}, mesh);
+    if (inserted) return;
+    TriangleMesh& all = it->second;
+    all.positions.insert(all.positions.end(), mesh.positions.begin(), mesh.positions.end());
+    all.normals.insert(all.normals.end(), mesh.normals.begin(), mesh.normals.end());
+    all.uvs.insert(all.uvs.end(), mesh.uvs.begin(), mesh.uvs.end());
   };
   for (const SceneBox& box : scene.boxes) add_box(box, 0);
   for (const Appliance& appliance : scene.appliances) {
     for (const SceneBox& box : appliance.boxes) add_box(box, appliance.id);
   }
+  for (auto& [key, mesh] : merged) renderer->AddMesh(std::move(mesh));
 }
 
 }  // namespace sightmap::sim

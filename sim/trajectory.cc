@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "core/check.h"
 #include "sim/random.h"
@@ -75,7 +78,7 @@ Eigen::Matrix3d WorldFromCamRotation(double yaw, double pitch, double roll) {
 }
 
 Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
-    : options_(options), scene_(scene) {
+    : options_(options), scene_(scene), look_cache_(std::make_shared<LookCache>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
   const std::vector<Eigen::Vector2d>& tour = scene.tour;
   const size_t n = tour.size();
@@ -148,13 +151,53 @@ double WindowWeight(double t_s) {
 }  // namespace
 
 std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_height_m) const {
-  const double window_index = std::floor(t_s / kWindowS);
-  const double middle = (window_index + 0.5) * kWindowS;
+  const int64_t window = static_cast<int64_t>(std::floor(t_s / kWindowS));
+  const auto key = std::make_pair(window, static_cast<int>(std::lround(eye_height_m * 100)));
+  {
+    const std::lock_guard<std::mutex> lock(look_cache_->mutex);
+    const auto it = look_cache_->targets.find(key);
+    if (it != look_cache_->targets.end()) return it->second;
+  }
+  const std::optional<Eigen::Vector3d> target = ChooseLookTarget(window, eye_height_m);
+  const std::lock_guard<std::mutex> lock(look_cache_->mutex);
+  look_cache_->targets[key] = target;
+  return target;
+}
+
+double Trajectory::ViewScore(const Eigen::Vector3d& eye, double yaw) const {
+  // Nine rays across the colour camera's 62 deg, level and 14 deg down: each ending on a surface
+  // the sensor measures (0.8-4.3 m) counts 0.5, and each distinct piece of furniture, poster or
+  // appliance they meet (not bare walls and windows) counts 1 more: people look at things.
+  double score = 0.0;
+  std::vector<std::string> things;
+  for (const double down : {0.0, 0.25}) {
+    for (int k = -4; k <= 4; ++k) {
+      const double a = yaw + k * 0.12;
+      const Eigen::Vector3d dir(std::cos(a) * std::cos(down), std::sin(a) * std::cos(down),
+                                -std::sin(down));
+      const auto hit = scene_.Raycast(eye, dir, 4.3);
+      if (!hit || hit->first < 0.8) continue;
+      score += 0.5;
+      const std::string& name = hit->second;
+      const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
+                        name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0;
+      if (!bare && std::find(things.begin(), things.end(), name) == things.end()) {
+        things.push_back(name);
+        score += 1.0;
+      }
+    }
+  }
+  return score;
+}
+
+std::optional<Eigen::Vector3d> Trajectory::ChooseLookTarget(int64_t window_index,
+                                                            double eye_height_m) const {
+  const double middle = (static_cast<double>(window_index) + 0.5) * kWindowS;
   const double s = DistanceAt(middle);
   const Eigen::Vector2d anchor = PositionAt(s);
   const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
   const double heading = std::atan2(ahead.y(), ahead.x());
-  const bool appliance_window = static_cast<int64_t>(window_index) % 2 == 0;
+  const bool appliance_window = window_index % 2 == 0;
   if (appliance_window) {
     double best = 4.0;
     std::optional<Eigen::Vector3d> target;
@@ -168,21 +211,20 @@ std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_hei
     }
     if (target) return target;
   }
-  // The wall (or furniture) in a horizontal direction within 110 deg of the heading whose distance
-  // is closest to 2.2 m, between 0.9 and 3.5 m.
+  // In a horizontal direction within 110 deg of the heading, the view the sensor maps best (most
+  // of it within range, things rather than bare walls: people and mapping robots look at things),
+  // its centre 1.6-3.8 m away and preferably about 3 m.
   const Eigen::Vector3d eye(anchor.x(), anchor.y(), eye_height_m);
-  double best_score = 1e9;
+  double best_score = -1e9;
   std::optional<Eigen::Vector3d> target;
   for (int i = -11; i <= 11; ++i) {
     const double yaw = heading + i * (110.0 / 11.0) * kPi / 180.0;
     const Eigen::Vector3d dir(std::cos(yaw), std::sin(yaw), 0.0);
-    const auto hit = scene_.Raycast(eye, dir, 3.5);
-    if (!hit || hit->first < 0.9) continue;
-    // Prefer furniture and posters to bare walls: people look at things.
-    const bool bare_wall = hit->second.rfind("wall", 0) == 0 || hit->second.rfind("window", 0) == 0;
+    const auto hit = scene_.Raycast(eye, dir, 3.8);
+    if (!hit || hit->first < 1.6) continue;
     const double score =
-        std::abs(hit->first - 2.2) + 0.2 * std::abs(i) / 11.0 + (bare_wall ? 1.0 : 0.0);
-    if (score < best_score) {
+        ViewScore(eye, yaw) - std::abs(hit->first - 3.0) - 0.2 * std::abs(i) / 11.0;
+    if (score > best_score) {
       best_score = score;
       target = eye + hit->first * dir;
     }
@@ -199,11 +241,19 @@ Eigen::Isometry3d Trajectory::WorldFromCam(double t_s) const {
   const double w = WindowWeight(t_s);
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   if (options_.kind == TrajectoryKind::kRobot) {
-    double yaw = path_yaw;
-    if (const auto target = LookTarget(t_s, 0.75)) {
+    // The pan-tilt head keeps the camera on one target per window and pans to the next one over
+    // the window's last quarter, rather than facing down the path between targets: at 0.75 m a
+    // Kinect looking down a corridor or a 10 m room sees mostly beyond its 4.5 m range.
+    auto yaw_towards = [&](const std::optional<Eigen::Vector3d>& target) {
+      if (!target) return path_yaw;
       const Eigen::Vector2d to = target->head<2>() - position;
-      yaw += w * WrapAngle(std::atan2(to.y(), to.x()) - yaw);
-    }
+      return to.norm() < 0.3 ? path_yaw : std::atan2(to.y(), to.x());
+    };
+    const double phase = t_s / kWindowS - std::floor(t_s / kWindowS);
+    const double pan = SmoothStep((phase - 0.75) / 0.25);
+    const double yaw_now = yaw_towards(LookTarget(t_s, 0.75));
+    const double yaw_next = yaw_towards(LookTarget(t_s + kWindowS, 0.75));
+    const double yaw = yaw_now + pan * WrapAngle(yaw_next - yaw_now);
     world_from_cam.linear() = WorldFromCamRotation(yaw, 0.0, 0.0);
     world_from_cam.translation() = Eigen::Vector3d(position.x(), position.y(), 0.75);
     return world_from_cam;
@@ -220,7 +270,8 @@ Eigen::Isometry3d Trajectory::WorldFromCam(double t_s) const {
   double pitch = -0.12 + 0.1 * std::sin(2 * kPi * t_s / 9.0 + ph[6]);
   const double roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
                       0.02 * std::sin(2 * kPi * step_hz * t_s + ph[2]);
-  if (const auto target = LookTarget(t_s, height)) {
+  // Targets are chosen once per window at the walk's mean eye height.
+  if (const auto target = LookTarget(t_s, 1.55)) {
     const Eigen::Vector2d to = target->head<2>() - swayed;
     const double target_yaw = std::atan2(to.y(), to.x());
     const double target_pitch = std::atan2(target->z() - height, std::max(to.norm(), 0.3));

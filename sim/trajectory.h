@@ -6,13 +6,19 @@
 //  - handheld: 0.5 m/s with a slow +-10% pace change; head height drifting in [1.45, 1.65] m plus a
 //    2.5 cm bob at the step frequency (1.8 Hz) and a 2 cm sideways sway at half of it; in 10 s
 //    windows the operator turns (easing in and out) to look at a nearby appliance or, in the other
-//    windows, at the wall 0.9-3.5 m away that is nearest 2.2 m (where the sensor measures well),
+//    windows, in the direction the sensor maps best (most of the view within its range, on
+//    furniture and posters rather than bare walls; the centre 1.6-3.8 m away, preferably 3 m),
 //    with a small left-right sweep on top; pitch stays within +-15 deg, roll within +-5 deg.
-//  - robot: 0.4 m/s, camera at 0.75 m, level (no pitch or roll), heading along the smoothed path
-//    and turning smoothly towards the same wall and appliance targets (a pan-tilt head).
+//  - robot: 0.4 m/s, camera at 0.75 m, level (no pitch or roll), driving along the smoothed path
+//    while its pan-tilt head keeps the camera on the same wall and appliance targets, one per
+//    window, panning smoothly to the next over the window's last quarter (facing down a corridor
+//    or a 10 m room at 0.75 m, a Kinect sees mostly beyond its 4.5 m range).
 #pragma once
 
 #include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -57,11 +63,20 @@ class Trajectory {
   double speed_mps_ = 0.5;
   double start_s_m_ = 0.0;
   double phases_[8] = {};
-  // What the operator turns to look at during the window containing t (nullopt: nothing).
+  // What the operator turns to look at during the window containing t (nullopt: nothing);
+  // chosen once per window and eye height, then cached.
   std::optional<Eigen::Vector3d> LookTarget(double t_s, double eye_height_m) const;
+  std::optional<Eigen::Vector3d> ChooseLookTarget(int64_t window_index, double eye_height_m) const;
+  // How much of a view towards `yaw` (from `eye`) the sensor measures and how many things it shows.
+  double ViewScore(const Eigen::Vector3d& eye, double yaw) const;
 
   Scene scene_;                                // for the lines of sight to walls
   std::vector<Eigen::Vector3d> look_targets_;  // appliance points
+  struct LookCache {
+    std::mutex mutex;
+    std::map<std::pair<int64_t, int>, std::optional<Eigen::Vector3d>> targets;
+  };
+  std::shared_ptr<LookCache> look_cache_;  // shared by copies: the targets are deterministic
 };
 
 // Camera orientation from heading (yaw about world z from +x), pitch (up positive) and roll

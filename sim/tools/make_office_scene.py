@@ -5,6 +5,10 @@ Three rooms of 10 x 8 m (80 m^2) north of a 2.4 m corridor, x east, y north, z u
 Run from the repository root after editing: python3 sim/tools/make_office_scene.py
 """
 import json
+import math
+import random
+
+rng = random.Random(4)  # furniture details (book sizes, notes) are fixed by this seed
 
 H = 2.8   # ceiling height
 T = 0.12  # wall thickness
@@ -25,23 +29,54 @@ def add(name, c, s, material, yaw=0.0, group=None):
     boxes.append(box(name, c, s, material, yaw, group))
 
 
-def wall_x(name, x0, x1, y, material, doors=()):
-    """A wall along x at y, with door gaps (x_start, x_end), lintel above each door."""
+SK_H, SK_D = 0.08, 0.015  # skirting board height and depth
+
+
+def wall_x(name, x0, x1, y, material, doors=(), faces=(-1, 1), door_opens=1):
+    """A wall along x at y, with door gaps (x_start, x_end), lintel above each door, skirting
+    boards on the faces in `faces` (-1 = south, +1 = north), a frame round each door and the open
+    door leaf turned back against the wall on the `door_opens` side."""
     cuts = [x0] + [v for d in doors for v in d] + [x1]
     for i in range(0, len(cuts), 2):
         a, b = cuts[i], cuts[i + 1]
         add(f"{name}_{i//2}", [(a + b) / 2, y, H / 2], [b - a, T, H], material)
+        for f in faces:
+            add(f"skirting_{name}_{i//2}_{'n' if f > 0 else 's'}",
+                [(a + b) / 2, y + f * (T + SK_D) / 2, SK_H / 2], [b - a, SK_D, SK_H], "skirting")
     for j, (a, b) in enumerate(doors):
         add(f"{name}_lintel{j}", [(a + b) / 2, y, (2.1 + H) / 2], [b - a, T, H - 2.1], material)
+        door_frame(f"{name}_door{j}", [(a + b) / 2, y], b - a, "x")
+        # The leaf hinged at x = b, swung open through 90 degrees to lie along the wall.
+        add(f"{name}_door{j}_leaf", [b + 0.04 + (b - a) / 2, y + door_opens * (T / 2 + 0.1), 1.03],
+            [b - a - 0.04, 0.04, 2.04], "door")
+        add(f"{name}_door{j}_handle", [b + (b - a) - 0.08, y + door_opens * (T / 2 + 0.15), 1.0],
+            [0.12, 0.03, 0.03], "metal")
 
 
-def wall_y(name, y0, y1, x, material, doors=()):
+def wall_y(name, y0, y1, x, material, doors=(), faces=(-1, 1)):
     cuts = [y0] + [v for d in doors for v in d] + [y1]
     for i in range(0, len(cuts), 2):
         a, b = cuts[i], cuts[i + 1]
         add(f"{name}_{i//2}", [x, (a + b) / 2, H / 2], [T, b - a, H], material)
+        for f in faces:
+            add(f"skirting_{name}_{i//2}_{'e' if f > 0 else 'w'}",
+                [x + f * (T + SK_D) / 2, (a + b) / 2, SK_H / 2], [SK_D, b - a, SK_H], "skirting")
     for j, (a, b) in enumerate(doors):
         add(f"{name}_lintel{j}", [x, (a + b) / 2, (2.1 + H) / 2], [T, b - a, H - 2.1], material)
+        door_frame(f"{name}_door{j}", [x, (a + b) / 2], b - a, "y")
+
+
+def door_frame(name, c, width, along):
+    """Jambs and head of a door frame (architrave) standing 2 cm proud of both wall faces."""
+    fw, fd = 0.06, T + 0.04
+    for k, side in enumerate((-1, 1)):
+        off = side * (width / 2 + fw / 2 - 0.02)
+        if along == "x":
+            add(f"{name}_jamb{k}", [c[0] + off, c[1], 1.05], [fw, fd, 2.1], "door_frame")
+        else:
+            add(f"{name}_jamb{k}", [c[0], c[1] + off, 1.05], [fd, fw, 2.1], "door_frame")
+    size = [width + 2 * fw, fd, fw] if along == "x" else [fd, width + 2 * fw, fw]
+    add(f"{name}_head", [c[0], c[1], 2.1 + fw / 2 - 0.02], size, "door_frame")
 
 
 def appliance(name, kind, points, parts):
@@ -94,12 +129,102 @@ def chair(name, x, y, yaw):
     add(name + "_back", [x + bx, y + by, 0.82], [0.06, 0.46, 0.52], "fabric_blue", yaw, name)
 
 
-def bookshelf(name, x, y, yaw, texture):
-    """0.9 m wide, 0.35 deep, 1.9 high; local +x is the open (textured) front."""
-    import math
+BOOK_MATERIALS = ["book_red", "book_blue", "book_green", "book_cream", "book_black", "book_ochre"]
+
+
+def bookshelf(name, x, y, yaw, texture=None, height=1.9, width=0.9):
+    """A case 0.35 deep, open (local +x) front with shelf boards and rows of books of varied
+    height, width and colour, leaning and gapped as real shelves are; `texture` is unused (kept so
+    every shelf call reads the same)."""
     fx, fy = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
-    add(name + "_case", [x, y, 0.95], [0.35, 0.9, 1.9], "wood_dark", yaw)
-    add(name + "_books", [x + 0.176 * fx, y + 0.176 * fy, 0.95], [0.005, 0.84, 1.82], texture, yaw)
+    lx, ly = -fy, fx  # local +y along the front
+
+    def at(u, v, z):  # local (u forward, v along) -> world
+        return [x + u * fx + v * lx, y + u * fy + v * ly, z]
+
+    add(name + "_case", [x, y, height / 2], [0.35, width, height], "wood_dark", yaw)
+    rows = max(2, int(round(height / 0.38)))
+    pitch = (height - 0.06) / rows
+    for r in range(rows):
+        z0 = 0.04 + r * pitch
+        add(f"{name}_board{r}", at(0.178, 0, z0 - 0.01), [0.01, width - 0.02, 0.025], "wood", yaw)
+        v = -width / 2 + 0.04 + rng.uniform(0.0, 0.08)
+        g = 0
+        while True:
+            w = rng.uniform(0.08, 0.2)  # a run of books of one series
+            if v + w > width / 2 - 0.04:
+                break
+            h = min(pitch - 0.04, rng.uniform(0.18, 0.31))
+            add(f"{name}_books{r}_{g}", at(0.178 + rng.uniform(0.002, 0.02), v + w / 2, z0 + h / 2),
+                [0.012, w, h], rng.choice(BOOK_MATERIALS), yaw)
+            v += w + (rng.uniform(0.03, 0.12) if rng.random() < 0.25 else 0.004)
+            g += 1
+
+
+def pinboard(name, x, y, z, w, h, normal):
+    """A cork board with notes, a timetable and photos pinned on it, on a wall facing `normal`."""
+    nx, ny = {"n": (0, 1), "s": (0, -1), "e": (1, 0), "w": (-1, 0)}[normal]
+    along_x = normal in "ns"
+    base = T / 2 + 0.012
+
+    def put(part, u, v, sw, sh, d, material):  # u along the wall, v up, d proud of the wall
+        cx = x + (u if along_x else 0) + nx * (base + d)
+        cy = y + (0 if along_x else u) + ny * (base + d)
+        size = [sw, 0.008, sh] if along_x else [0.008, sw, sh]
+        add(f"{name}_{part}", [cx, cy, z + v], size, material,
+            yaw=(180 if normal in "nw" else 0))
+    put("cork", 0, 0, w, h, 0.0, "cork")
+    notes = ["note_text", "note_sudoku", "note_notes", "note_yellow", "note_photo", "note_text2"]
+    for k in range(int(w * h * 16)):
+        sw, sh = rng.uniform(0.12, 0.24), rng.uniform(0.1, 0.3)
+        u = rng.uniform(-w / 2 + sw / 2 + 0.03, w / 2 - sw / 2 - 0.03)
+        v = rng.uniform(-h / 2 + sh / 2 + 0.03, h / 2 - sh / 2 - 0.03)
+        put(f"note{k}", u, v, sw, sh, 0.006 + 0.002 * k, rng.choice(notes))
+
+
+def radiator(name, x, y, length, normal):
+    """A panel radiator under a window: a back panel and vertical convector ribs."""
+    ny = 1 if normal == "n" else -1
+    yy = y + ny * (T / 2 + 0.05)
+    add(name + "_panel", [x, yy, 0.45], [length, 0.06, 0.55], "radiator")
+    n = int(length / 0.06)
+    for k in range(n):
+        add(f"{name}_rib{k}", [x - length / 2 + (k + 0.5) * length / n, yy + ny * 0.035, 0.45],
+            [0.025, 0.015, 0.55], "radiator_rib")
+    add(name + "_valve", [x + length / 2 + 0.04, yy, 0.25], [0.04, 0.04, 0.1], "metal")
+
+
+def socket(name, x, y, z, normal):
+    """A double socket or a data outlet plate on a wall."""
+    if normal in "ns":
+        add(name, [x, y + (1 if normal == "n" else -1) * (T / 2 + 0.008), z], [0.15, 0.016, 0.08],
+            "switch_plate")
+    else:
+        add(name, [x + (1 if normal == "e" else -1) * (T / 2 + 0.008), y, z], [0.016, 0.15, 0.08],
+            "switch_plate")
+
+
+def filing_cabinet(name, x, y, yaw, drawers=4, width=0.47, depth=0.62):
+    """A steel filing cabinet; local +x faces the room, drawer fronts with handles and labels."""
+    fx, fy = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+    h = 0.33 * drawers
+    add(name + "_body", [x, y, h / 2], [depth, width, h], "cabinet_grey", yaw)
+    for k in range(drawers):
+        z = 0.33 * k + 0.165
+        u = depth / 2 + 0.006
+        add(f"{name}_front{k}", [x + u * fx, y + u * fy, z], [0.012, width - 0.03, 0.3], "cabinet_grey", yaw)
+        add(f"{name}_handle{k}", [x + (u + 0.015) * fx, y + (u + 0.015) * fy, z + 0.06],
+            [0.02, 0.16, 0.025], "metal", yaw)
+        add(f"{name}_label{k}", [x + (u + 0.007) * fx, y + (u + 0.007) * fy, z + 0.1],
+            [0.004, 0.08, 0.04], "note_text", yaw)
+
+
+def desk_clutter(name, x, y, z):
+    """A mug, a phone, a pen pot, a stack of folders: what stands on a working desk."""
+    add(name + "_mug", [x + 0.15, y - 0.3, z + 0.05], [0.08, 0.08, 0.1], rng.choice(["mug_white", "book_red"]))
+    add(name + "_phone", [x - 0.1, y + 0.25, z + 0.04], [0.18, 0.2, 0.07], "plastic_dark", 15)
+    add(name + "_penpot", [x + 0.1, y + 0.3, z + 0.06], [0.07, 0.07, 0.12], "metal")
+    add(name + "_folders", [x - 0.05, y - 0.25, z + 0.06], [0.3, 0.24, 0.12], rng.choice(BOOK_MATERIALS))
 
 
 def ceiling_light(name, x, y):
@@ -129,11 +254,11 @@ X0, X1, YC, Y1 = 0.0, 30.0, 2.4, 10.4
 add("floor_corridor", [15, YC / 2, -0.05], [30.2, YC, 0.1], "lino")
 add("floor_rooms", [15, (YC + Y1) / 2, -0.05], [30.2, Y1 - YC, 0.1], "carpet")
 add("ceiling", [15, Y1 / 2, H + 0.05], [30.2, Y1 + 0.2, 0.1], "ceiling")
-wall_x("wall_south", X0, X1, 0.0, "wall_corridor")
+wall_x("wall_south", X0, X1, 0.0, "wall_corridor", faces=(1,))
 wall_x("wall_rooms_south", X0, X1, YC, "wall_corridor", doors=[(4.0, 5.2), (14.0, 15.2), (24.0, 25.2)])
-wall_x("wall_north", X0, X1, Y1, "wall_white")
-wall_y("wall_west", 0.0, Y1, X0, "wall_white")
-wall_y("wall_east", 0.0, Y1, X1, "wall_white")
+wall_x("wall_north", X0, X1, Y1, "wall_white", faces=(-1,))
+wall_y("wall_west", 0.0, Y1, X0, "wall_white", faces=(1,))
+wall_y("wall_east", 0.0, Y1, X1, "wall_white", faces=(-1,))
 wall_y("wall_ab", YC, Y1, 10.0, "wall_white", doors=[(8.2, 9.4)])
 wall_y("wall_bc", YC, Y1, 20.0, "wall_white", doors=[(8.2, 9.4)])
 # Windows (glass: no depth) on the north wall, the view outside is a photograph.
@@ -285,6 +410,80 @@ add("b_plant_tall_pot", [18.8, 3.2, 0.2], [0.4, 0.4, 0.4], "pot")
 add("b_plant_tall", [18.8, 3.2, 1.1], [0.6, 0.6, 1.4], "leaves")
 add("c_partition", [28.9, 5.5, 0.8], [0.8, 0.05, 1.5], "fabric_grey")
 
+
+# ---- fittings and furniture a working office has (added after the first measurements: bare
+# walls and rooms seen end to end gave too few features and too much beyond the sensor's range) ----
+TOUR = [[2.0, 1.2], [4.6, 1.3], [4.6, 3.2], [3.2, 4.2], [2.4, 6.2], [3.2, 8.5], [5.5, 8.7],
+        [7.8, 7.8], [8.4, 5.5], [7.6, 3.8], [6.8, 4.6], [7.4, 7.2], [8.8, 8.8], [10.0, 8.8],
+        [11.4, 8.4], [12.0, 6.0], [12.3, 4.2], [14.6, 3.7], [17.4, 4.0], [18.3, 6.4],
+        [18.2, 8.6], [20.0, 8.8], [21.6, 8.4], [21.6, 6.2], [22.6, 4.3], [25.0, 3.8],
+        [27.3, 4.2], [27.3, 6.8], [25.8, 8.0], [24.6, 6.5], [24.6, 3.6], [24.6, 1.3],
+        [19.0, 1.2], [14.0, 1.1], [8.0, 1.2]]
+
+
+def clear_of_tour(first_box, margin=0.45):
+    """Every box added since `first_box` keeps `margin` metres from the walk (floor plan)."""
+    for b in boxes[first_box:]:
+        r = 0.5 * math.hypot(b["size"][0], b["size"][1])
+        for i in range(len(TOUR)):
+            (ax, ay), (bx, by) = TOUR[i], TOUR[(i + 1) % len(TOUR)]
+            dx, dy = bx - ax, by - ay
+            t = max(0.0, min(1.0, ((b["center"][0] - ax) * dx + (b["center"][1] - ay) * dy) / (dx * dx + dy * dy)))
+            d = math.hypot(ax + t * dx - b["center"][0], ay + t * dy - b["center"][1])
+            assert d > r + margin, f"{b['name']} is {d - r:.2f} m from the walk"
+
+
+first = len(boxes)
+W_IN = T / 2  # wall face offset from the wall's centre line
+# Radiators under the windows that have nothing in front of them.
+radiator("a_radiator1", 7.5, Y1, 1.6, "s")
+radiator("a_radiator0", 2.0, Y1, 0.7, "s")
+radiator("b_radiator0", 12.5, Y1, 1.6, "s")
+radiator("b_radiator1", 17.5, Y1, 1.6, "s")
+radiator("c_radiator1", 28.0, Y1, 0.8, "s")
+# Pinboards with notes.
+pinboard("a_pinboard", 9.3, Y1, 1.5, 0.9, 0.7, "s")
+pinboard("b_pinboard", 16.2, YC, 1.45, 0.8, 0.6, "n")
+pinboard("c_pinboard", 20.0, 4.95, 1.5, 0.7, 0.6, "e")
+pinboard("k_pinboard0", 7.2, 0.0, 1.45, 1.0, 0.7, "n")
+pinboard("k_pinboard1", 23.0, YC, 1.5, 0.9, 0.6, "s")
+# Shelves and cabinets along the walls.
+bookshelf("a_shelf3", 1.0, Y1 - T / 2 - 0.18, -90)
+filing_cabinet("a_filing1", 10 - W_IN - 0.32, 2.95, 180, drawers=3)
+filing_cabinet("a_filing2", 10 - W_IN - 0.32, 3.45, 180, drawers=3)
+bookshelf("a_shelf_low", 5.3, 4.6, -90, height=1.1, width=1.2)
+bookshelf("b_shelf2", 10 + W_IN + 0.18, 6.2, 0)
+filing_cabinet("c_filing1", 26.4, YC + W_IN + 0.32, 90, drawers=3)
+filing_cabinet("c_filing2", 26.9, YC + W_IN + 0.32, 90, drawers=3)
+# An island of two desks with a screen between them in the office.
+add("c_island_top", [26.0, 5.5, 0.72], [1.2, 1.0, 0.04], "wood")
+add("c_island_panel", [26.0, 5.5, 0.36], [1.1, 0.04, 0.68], "wood_dark")
+add("c_island_screen", [26.0, 5.5, 1.05], [1.2, 0.04, 0.62], "fabric_grey")
+desk_clutter("c_island_s", 26.0, 5.2, 0.74)
+add("c_island_laptop", [25.8, 5.75, 0.755], [0.34, 0.24, 0.02], "plastic_dark")
+# Things on the desks.
+for name, x, y in [("a_desk1", 0.5, 4.4), ("a_desk2", 0.5, 6.6), ("c_desk1", 29.5, 4.4),
+                   ("c_desk2", 29.5, 6.6)]:
+    desk_clutter(name, x, y, 0.74)
+desk_clutter("a_desk3", 5.5, 9.9, 0.74)
+desk_clutter("a_table", 5.5, 6.0, 0.74)
+# Sockets by the floor and the desks.
+for i, (x, y, n) in enumerate([(2.0, YC, "n"), (7.0, YC, "n"), (12.0, YC, "n"), (18.0, YC, "n"),
+                               (22.0, YC, "n"), (28.0, YC, "n"), (0.0, 5.5, "e"), (30.0, 5.5, "w"),
+                               (10.0, 4.5, "w"), (10.0, 4.5, "e"), (20.0, 6.0, "e"), (20.0, 5.2, "w"),
+                               (4.0, 0.0, "n"), (11.0, 0.0, "n"), (17.0, 0.0, "n"), (26.0, 0.0, "n")]):
+    socket(f"socket_{i}", x, y, 0.3, n)
+# The corridor: a fire extinguisher, a coat rack, a water cooler, a recycling bin.
+add("k_extinguisher", [14.6, 0.13, 0.45], [0.16, 0.16, 0.55], "book_red")
+add("k_extinguisher_sign", [14.6, 0.07, 1.1], [0.2, 0.01, 0.2], "note_yellow")
+add("k_coat_rack", [1.0, 0.3, 0.9], [0.5, 0.06, 1.8], "metal")
+add("k_coats", [1.0, 0.3, 1.35], [0.45, 0.25, 0.7], "fabric_blue")
+add("k_water_cooler", [21.8, 0.25, 0.55], [0.3, 0.3, 1.1], "plastic_light")
+add("k_water_bottle", [21.8, 0.25, 1.25], [0.26, 0.26, 0.3], "book_blue")
+add("k_bins", [16.9, 0.25, 0.35], [0.7, 0.35, 0.7], "cabinet_grey")
+add("k_bins_labels", [16.9, 0.07, 0.55], [0.6, 0.01, 0.1], "note_text")
+clear_of_tour(first)
+
 scene = {
     "name": "office",
     "description": "Three 10 x 8 m rooms (lab, meeting room, office) north of a 30 m corridor; "
@@ -300,6 +499,7 @@ scene = {
         "aloe": "aloeL.jpg", "apple": "apple.jpg", "orange": "orange.jpg", "squirrel": "squirrel_cls.jpg",
         "suzanne": "Blender_Suzanne1.jpg", "blox": "blox.jpg", "cards": "cards.png", "sudoku": "sudoku.png",
         "linux": "LinuxLogo.jpg", "plate": "licenseplate_motion.jpg", "pic1": "pic1.png", "pic5": "pic5.png",
+        "box": "box.png", "textN": "imageTextN.png", "chicky": "chicky_512.png",
     },
     "materials": {
         # Paint and plaster: a photograph at a few percent contrast, so walls stay low-texture.
@@ -308,8 +508,30 @@ scene = {
         "ceiling": {"color": [0.93, 0.93, 0.92]},
         "carpet": {"texture": "baboon", "scale_m": 0.5, "contrast": 0.6, "color": [0.36, 0.36, 0.42]},
         "lino": {"texture": "baboon", "scale_m": 0.6, "contrast": 0.5, "color": [0.55, 0.53, 0.50]},
-        "wood": {"texture": "board", "scale_m": 1.2, "color": [0.85, 0.68, 0.48]},
-        "wood_dark": {"texture": "board", "scale_m": 1.2, "color": [0.55, 0.40, 0.28]},
+        # stuff.jpg is a photograph of a light wooden table top: grain, a pen, a ball.
+        "wood": {"texture": "stuff", "scale_m": 0.6, "color": [0.95, 0.8, 0.62]},
+        "wood_dark": {"texture": "stuff", "scale_m": 0.6, "color": [0.6, 0.45, 0.32]},
+        "door": {"texture": "stuff", "scale_m": 2.0, "color": [0.85, 0.7, 0.52]},
+        "door_frame": {"color": [0.94, 0.94, 0.92]},
+        "skirting": {"color": [0.3, 0.27, 0.24]},
+        "radiator": {"color": [0.95, 0.95, 0.94]},
+        "radiator_rib": {"color": [0.8, 0.8, 0.8]},
+        "cabinet_grey": {"color": [0.6, 0.62, 0.64]},
+        "cork": {"texture": "baboon", "scale_m": 0.12, "contrast": 0.5, "color": [0.75, 0.55, 0.35]},
+        "note_text": {"texture": "textN", "color": [1, 1, 1]},
+        "note_text2": {"texture": "text", "color": [1, 1, 0.9]},
+        "note_sudoku": {"texture": "sudoku", "color": [1, 1, 1]},
+        "note_notes": {"texture": "notes", "color": [1, 1, 1]},
+        "note_yellow": {"texture": "textN", "color": [1, 0.95, 0.45]},
+        "note_photo": {"texture": "chicky", "color": [1, 1, 1]},
+        "mug_white": {"color": [0.96, 0.96, 0.95]},
+        # Book spines: a printed cookie box and a page of text, tinted.
+        "book_red": {"texture": "box", "color": [0.8, 0.25, 0.2]},
+        "book_blue": {"texture": "textN", "color": [0.3, 0.4, 0.75]},
+        "book_green": {"texture": "box", "color": [0.3, 0.6, 0.35]},
+        "book_cream": {"texture": "textN", "color": [0.95, 0.9, 0.75]},
+        "book_black": {"texture": "box", "color": [0.35, 0.33, 0.33]},
+        "book_ochre": {"texture": "box", "color": [0.85, 0.65, 0.25]},
         "metal": {"color": [0.62, 0.63, 0.65]},
         "plastic_dark": {"color": [0.12, 0.12, 0.13]},
         "plastic_light": {"color": [0.82, 0.82, 0.80]},
