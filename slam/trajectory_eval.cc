@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <tuple>
 
 #include "core/check.h"
 #include "slam/rigid_alignment.h"
@@ -15,6 +18,10 @@ struct MatchedPose {
   Eigen::Isometry3d est;
 };
 
+// One-to-one association, as TUM's associate.py: every (estimate, ground truth) pair within
+// `max_difference_ns` is a candidate, and the closest pairs are taken first, so no ground-truth
+// pose is matched twice (an estimate denser than the ground truth would otherwise compare the
+// same ground-truth pose with estimates taken at different times).
 std::vector<MatchedPose> MatchByTimestamp(std::vector<StampedPose> ground_truth,
                                           const std::vector<StampedPose>& estimate,
                                           int64_t max_difference_ns) {
@@ -22,21 +29,40 @@ std::vector<MatchedPose> MatchByTimestamp(std::vector<StampedPose> ground_truth,
     return a.timestamp_ns < b.timestamp_ns;
   };
   std::sort(ground_truth.begin(), ground_truth.end(), earlier);
-  std::vector<MatchedPose> matched;
-  for (const StampedPose& pose : estimate) {
-    const auto after = std::lower_bound(ground_truth.begin(), ground_truth.end(), pose, earlier);
-    const StampedPose* nearest = nullptr;
-    int64_t best = max_difference_ns + 1;
-    for (auto it : {after, after == ground_truth.begin() ? after : std::prev(after)}) {
-      if (it == ground_truth.end()) continue;
-      const int64_t difference = std::llabs(it->timestamp_ns - pose.timestamp_ns);
-      if (difference < best) {
-        best = difference;
-        nearest = &*it;
+  struct Candidate {
+    int64_t difference;
+    size_t est;
+    size_t gt;
+  };
+  std::vector<Candidate> candidates;
+  for (size_t e = 0; e < estimate.size(); ++e) {
+    const TimestampNs t = estimate[e].timestamp_ns;
+    StampedPose lowest;
+    lowest.timestamp_ns = t < std::numeric_limits<TimestampNs>::min() + max_difference_ns
+                              ? std::numeric_limits<TimestampNs>::min()
+                              : t - max_difference_ns;
+    for (auto it = std::lower_bound(ground_truth.begin(), ground_truth.end(), lowest, earlier);
+         it != ground_truth.end(); ++it) {
+      const int64_t difference = std::llabs(it->timestamp_ns - t);
+      if (it->timestamp_ns > t && difference > max_difference_ns) break;
+      if (difference <= max_difference_ns) {
+        candidates.push_back({difference, e, static_cast<size_t>(it - ground_truth.begin())});
       }
     }
-    if (nearest)
-      matched.push_back({pose.timestamp_ns, nearest->world_from_cam, pose.world_from_cam});
+  }
+  // Ties go to the earlier estimate, then the earlier ground truth, so the result is deterministic.
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return std::tie(a.difference, a.est, a.gt) < std::tie(b.difference, b.est, b.gt);
+  });
+  std::vector<bool> est_used(estimate.size(), false);
+  std::vector<bool> gt_used(ground_truth.size(), false);
+  std::vector<MatchedPose> matched;
+  for (const Candidate& candidate : candidates) {
+    if (est_used[candidate.est] || gt_used[candidate.gt]) continue;
+    est_used[candidate.est] = gt_used[candidate.gt] = true;
+    matched.push_back({estimate[candidate.est].timestamp_ns,
+                       ground_truth[candidate.gt].world_from_cam,
+                       estimate[candidate.est].world_from_cam});
   }
   std::sort(matched.begin(), matched.end(), [](const MatchedPose& a, const MatchedPose& b) {
     return a.timestamp_ns < b.timestamp_ns;
@@ -115,8 +141,14 @@ TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
   }
   result.ate_rmse_m = std::sqrt(squared / errors.size());
   result.ate_mean_m /= errors.size();
-  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
-  result.ate_median_m = errors[errors.size() / 2];
+  // The median of an even count is the mean of the two middle errors.
+  const size_t middle = errors.size() / 2;
+  std::nth_element(errors.begin(), errors.begin() + middle, errors.end());
+  result.ate_median_m = errors[middle];
+  if (errors.size() % 2 == 0) {
+    result.ate_median_m =
+        0.5 * (result.ate_median_m + *std::max_element(errors.begin(), errors.begin() + middle));
+  }
 
   // Distance travelled along the ground truth, for the per-metre RPE.
   std::vector<double> travelled(poses.size(), 0.0);

@@ -12,7 +12,8 @@
 namespace sightmap {
 
 struct TrajectoryEvalOptions {
-  // An estimated pose is matched to the nearest ground-truth pose no further apart than this [ns].
+  // Estimated and ground-truth poses are matched one-to-one, closest timestamps first, when no
+  // further apart than this [ns].
   int64_t max_time_difference_ns = 20'000'000;
   // RPE compares motions over this distance along the ground-truth path [m] ...
   double rpe_distance_m = 1.0;

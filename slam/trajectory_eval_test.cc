@@ -95,5 +95,52 @@ TEST(TrajectoryEval, MatchesByTimestampAndRefusesDisjointClocks) {
   EXPECT_THROW(EvaluateTrajectory(gt, est), Error);
 }
 
+TEST(TrajectoryEval, MedianOfAnEvenCountIsTheMeanOfTheMiddleTwo) {
+  // Two concentric squares in the z = 0 plane; the estimate moves the small square's corners by
+  // +-1 cm and the big square's by +-3 cm along z, alternating round each square. Those offsets
+  // have zero mean and no correlation with x or y, so the alignment is the identity and the errors
+  // are exactly 1, 1, 1, 1, 3, 3, 3, 3 cm: median (1 + 3) / 2 = 2 cm, not the upper middle 3 cm.
+  std::vector<StampedPose> gt;
+  std::vector<StampedPose> est;
+  const double corners[4][2] = {{1, 1}, {-1, 1}, {-1, -1}, {1, -1}};
+  for (const double size : {1.0, 2.0}) {
+    for (int i = 0; i < 4; ++i) {
+      StampedPose pose;
+      pose.timestamp_ns = static_cast<TimestampNs>(gt.size()) * 1'000'000'000;
+      pose.world_from_cam.translation() =
+          Eigen::Vector3d(size * corners[i][0], size * corners[i][1], 0.0);
+      gt.push_back(pose);
+      pose.world_from_cam.translation().z() = (i % 2 == 0 ? 1 : -1) * (size == 1.0 ? 0.01 : 0.03);
+      est.push_back(pose);
+    }
+  }
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+  EXPECT_EQ(error.matched_poses, 8);
+  EXPECT_TRUE(error.gt_from_est.matrix().isIdentity(1e-12));
+  EXPECT_NEAR(error.ate_median_m, 0.02, 1e-12);
+  EXPECT_NEAR(error.ate_mean_m, 0.02, 1e-12);
+  EXPECT_NEAR(error.ate_max_m, 0.03, 1e-12);
+  EXPECT_NEAR(error.ate_rmse_m, std::sqrt((0.01 * 0.01 + 0.03 * 0.03) / 2), 1e-12);
+}
+
+TEST(TrajectoryEval, MatchesOneToOneWhenTheEstimateIsDenser) {
+  // An estimate at twice the ground truth's rate, the extra poses 10 ms after each ground-truth
+  // time (within the 20 ms tolerance) and 5 mm further on. Before one-to-one matching each
+  // ground-truth pose was compared with both estimates, counting their 10 ms of motion as error.
+  const std::vector<StampedPose> gt = Rectangle();
+  std::vector<StampedPose> est;
+  for (const StampedPose& pose : gt) {
+    est.push_back(pose);
+    StampedPose later = pose;
+    later.timestamp_ns += 10'000'000;
+    later.world_from_cam.translation() += pose.world_from_cam.linear().col(0) * 0.005;
+    est.push_back(later);
+  }
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+  EXPECT_EQ(error.matched_poses, static_cast<int>(gt.size()));
+  EXPECT_LT(error.ate_rmse_m, 1e-9);
+  EXPECT_LT(error.rpe_trans_per_s, 1e-9);
+}
+
 }  // namespace
 }  // namespace sightmap
