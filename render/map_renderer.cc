@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <map>
+#include <random>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -109,6 +110,28 @@ Eigen::Vector3f TrackingColor(TrackingState state) {
       return {1.0f, 0.85f, 0.2f};
   }
   return {1, 1, 1};
+}
+
+// Whether a sphere (centre in the view's camera frame) may reach the view volume; conservative.
+bool SphereMayBeVisible(const ViewCamera& view, const Eigen::Vector3d& c, double r) {
+  if (c.z() + r < view.near_m || c.z() - r > view.far_m) return false;
+  const Intrinsics& k = view.intrinsics;
+  // The image rectangle in normalised (perspective) or metric (orthographic) coordinates.
+  const double left = -(k.cx + 0.5) / k.fx;
+  const double right = (k.width - 0.5 - k.cx) / k.fx;
+  const double top = -(k.cy + 0.5) / k.fy;
+  const double bottom = (k.height - 0.5 - k.cy) / k.fy;
+  if (view.orthographic) {
+    return c.x() + r >= left && c.x() - r <= right && c.y() + r >= top && c.y() - r <= bottom;
+  }
+  // Side planes through the optical centre: a point is inside when x >= left * z, etc.
+  auto outside = [&](double a, double b, double sign) {
+    // Plane sign * (x_or_y - slope * z) >= 0 with unit normal; distance of the centre.
+    const double norm = std::sqrt(1.0 + b * b);
+    return sign * (a - b * c.z()) / norm < -r;
+  };
+  return !(outside(c.x(), left, 1.0) || outside(c.x(), right, -1.0) || outside(c.y(), top, 1.0) ||
+           outside(c.y(), bottom, -1.0));
 }
 
 std::string FormatCount(double n) {
@@ -284,6 +307,8 @@ struct MapRenderer::Impl {
     GLuint buffer = 0;
     GLsizei count = 0;
     uint64_t version = 0;
+    Eigen::Vector3d centre_cam = Eigen::Vector3d::Zero();  // bounding sphere, keyframe frame
+    double radius = 0.0;
   };
 
   GlApi gl;
@@ -291,6 +316,7 @@ struct MapRenderer::Impl {
   std::map<int64_t, KeyframeBuffer> buffers;
   size_t uploads = 0;
   size_t uploaded_points = 0;
+  size_t points_drawn = 0;
   GLuint image_texture = 0;
   int framebuffer_width = 0;
   int framebuffer_height = 0;
@@ -388,6 +414,7 @@ MapRenderer::~MapRenderer() {
 const MapRenderOptions& MapRenderer::options() const { return impl_->options; }
 size_t MapRenderer::num_uploads() const { return impl_->uploads; }
 size_t MapRenderer::num_uploaded_points() const { return impl_->uploaded_points; }
+size_t MapRenderer::num_points_drawn() const { return impl_->points_drawn; }
 
 void MapRenderer::Sync(const MapScene& scene) {
   Impl& impl = *impl_;
@@ -406,13 +433,23 @@ void MapRenderer::Sync(const MapScene& scene) {
     const uint64_t version = scene.points_version(id);
     if (buffer.version == version) continue;
     if (buffer.buffer == 0) gl.GenBuffers(1, &buffer.buffer);
+    // Shuffled (reproducibly), so that any prefix is a uniform subset: the level of detail.
     std::vector<ColorVertex>& data = impl.scratch;
-    data.resize(keyframe.points_cam.size());
-    for (size_t i = 0; i < data.size(); ++i) {
+    const size_t n = keyframe.points_cam.size();
+    data.resize(n);
+    Eigen::AlignedBox3d box;
+    for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3f& p = keyframe.points_cam[i];
       const auto& c = keyframe.colors[i];
       data[i] = {p.x(), p.y(), p.z(), c[0], c[1], c[2], 255};
+      box.extend(p.cast<double>());
     }
+    std::mt19937 rng(static_cast<uint32_t>(id));
+    for (size_t i = n; i > 1; --i) {
+      std::swap(data[i - 1], data[std::uniform_int_distribution<size_t>(0, i - 1)(rng)]);
+    }
+    buffer.centre_cam = n > 0 ? Eigen::Vector3d(box.center()) : Eigen::Vector3d::Zero();
+    buffer.radius = n > 0 ? 0.5 * box.diagonal().norm() : 0.0;
     gl.BindBuffer(GL_ARRAY_BUFFER, buffer.buffer);
     gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(ColorVertex)),
                   data.data(), GL_STATIC_DRAW);
@@ -470,19 +507,38 @@ void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const V
     gl.Fogf(GL_FOG_END, static_cast<float>(view.depth_cue_m));
     gl.Fogfv(GL_FOG_COLOR, fog_color);
   }
-  gl.PointSize(options.point_size_px);
-  gl.EnableClientState(GL_VERTEX_ARRAY);
-  gl.EnableClientState(GL_COLOR_ARRAY);
+  // Keyframes whose bounding sphere meets the view volume, then the level of detail.
+  const Eigen::Isometry3d cam_from_world = view.world_from_cam.inverse();
+  std::vector<std::pair<const Impl::KeyframeBuffer*, const MapKeyframe*>> visible;
+  size_t visible_points = 0;
   for (const auto& [id, buffer] : impl.buffers) {
     const auto it = scene.keyframes().find(id);
     if (it == scene.keyframes().end() || buffer.count == 0) continue;
-    const Eigen::Matrix4d model_view = eye_from_world * it->second.world_from_cam.matrix();
+    const Eigen::Vector3d c = cam_from_world * (it->second.world_from_cam * buffer.centre_cam);
+    if (!SphereMayBeVisible(view, c, buffer.radius)) continue;
+    visible.emplace_back(&buffer, &it->second);
+    visible_points += static_cast<size_t>(buffer.count);
+  }
+  double fraction = 1.0;
+  if (options.max_points_per_pixel > 0.0 && visible_points > 0) {
+    const double budget = options.max_points_per_pixel * viewport.width * viewport.height;
+    fraction = std::min(1.0, budget / static_cast<double>(visible_points));
+  }
+  impl.points_drawn = 0;
+  gl.PointSize(options.point_size_px);
+  gl.EnableClientState(GL_VERTEX_ARRAY);
+  gl.EnableClientState(GL_COLOR_ARRAY);
+  for (const auto& [buffer, keyframe] : visible) {
+    const GLsizei count =
+        std::min(buffer->count, static_cast<GLsizei>(std::ceil(buffer->count * fraction)));
+    const Eigen::Matrix4d model_view = eye_from_world * keyframe->world_from_cam.matrix();
     gl.LoadMatrixd(model_view.data());
-    gl.BindBuffer(GL_ARRAY_BUFFER, buffer.buffer);
+    gl.BindBuffer(GL_ARRAY_BUFFER, buffer->buffer);
     gl.VertexPointer(3, GL_FLOAT, sizeof(ColorVertex), nullptr);
     gl.ColorPointer(4, GL_UNSIGNED_BYTE, sizeof(ColorVertex),
                     reinterpret_cast<const void*>(offsetof(ColorVertex, r)));
-    gl.DrawArrays(GL_POINTS, 0, buffer.count);
+    gl.DrawArrays(GL_POINTS, 0, count);
+    impl.points_drawn += static_cast<size_t>(count);
   }
   gl.BindBuffer(GL_ARRAY_BUFFER, 0);
   gl.DisableClientState(GL_COLOR_ARRAY);
@@ -555,8 +611,12 @@ void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const V
     std::vector<Eigen::Vector2f> marker = {{x, y - r}, {x + r, y}, {x, y + r},
                                            {x, y - r}, {x, y + r}, {x - r, y}};
     impl.Triangles2D(marker, Eigen::Vector4f(1.0f, 0.9f, 0.1f, 1.0f));
-    impl.Text2D(label.name, x + r + scale, y - 3.5f * scale, scale,
-                Eigen::Vector3f(1.0f, 0.95f, 0.6f));
+    // Right of the marker, or left of it when the name would leave the viewport.
+    float text_x = x + r + scale;
+    if (text_x + TextWidthPx(label.name, scale) > viewport.width) {
+      text_x = x - r - scale - TextWidthPx(label.name, scale);
+    }
+    impl.Text2D(label.name, text_x, y - 3.5f * scale, scale, Eigen::Vector3f(1.0f, 0.95f, 0.6f));
   }
   gl.Disable(GL_SCISSOR_TEST);
 }

@@ -27,6 +27,12 @@ struct MapRenderOptions {
   int width = 1280;  // progress image [px]: floor plan on the left half, camera view on the right
   int height = 720;
   float point_size_px = 2.0f;  // map points [px]
+  // Level of detail: a view draws at most this many points per pixel of its viewport (of the
+  // keyframes inside its view volume), a uniform random subset of each keyframe (points are
+  // uploaded in shuffled order, so the subset is a prefix). 0 = draw every point. The software
+  // rasterizer's cost grows with the points that reach the screen; a floor plan of 5M points
+  // has some 10 of them per pixel, which add nothing to the picture.
+  double max_points_per_pixel = 0.5;
   float trajectory_width_px = 2.0f;
   int text_scale = 2;             // screen pixels per font pixel
   double top_down_margin = 0.04;  // share of the floor-plan panel left free on each side
@@ -34,7 +40,7 @@ struct MapRenderOptions {
   // darkens points by their depth below the cut (walls bright, floor dim): floor_brightness is the
   // brightness kept at the lowest point, in [0, 1]; 1 = no depth cue.
   double top_down_cut_above_camera_m = 0.4;
-  double floor_brightness = 0.45;
+  double floor_brightness = 0.6;
   // The camera view: from follow_distance_m behind and follow_height_m above the current camera,
   // looking look_ahead_m ahead of it.
   double follow_distance_m = 3.5;
@@ -102,6 +108,8 @@ class MapRenderer {
   // Keyframe uploads and points uploaded so far (counters for tests and logs).
   size_t num_uploads() const;
   size_t num_uploaded_points() const;
+  // Points submitted to GL by the last DrawMap (after view-volume culling and level of detail).
+  size_t num_points_drawn() const;
 
   // Starts a frame: clears the whole framebuffer (width x height [px]) to the background.
   void BeginFrame(int framebuffer_width, int framebuffer_height);
