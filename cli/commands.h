@@ -9,5 +9,6 @@ int RunProbe(int argc, char** argv);
 int RunInfo(int argc, char** argv);
 int RunExport(int argc, char** argv);
 int RunSim(int argc, char** argv);
+int RunEval(int argc, char** argv);
 
 }  // namespace sightmap::cli

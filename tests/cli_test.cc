@@ -3,13 +3,16 @@
 #include <sys/wait.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "store/label_files.h"
 #include "store/model.h"
@@ -302,6 +305,191 @@ TEST(Cli, SimGenerateWritesATumFolderThatProbesBackIdentically) {
   ExpectOneLineError(Sightmap("sim generate --frames 2"), 2, "--out");
   ExpectOneLineError(Sightmap("sim generate --scene " + dir + "/none.json --out " + dir + "/c"), 1,
                      "cannot read scene file");
+}
+
+// --- sightmap eval trajectory ---------------------------------------------------------------
+
+// Writes a TUM trajectory by hand: epoch timestamps with microsecond digits, like TUM RGB-D's.
+void WriteTumByHand(const std::string& path, const std::vector<StampedPose>& poses) {
+  std::ofstream out(path);
+  out << "# timestamp tx ty tz qx qy qz qw\n";
+  for (const StampedPose& pose : poses) {
+    const Eigen::Vector3d t = pose.world_from_cam.translation();
+    const Eigen::Quaterniond q(pose.world_from_cam.rotation());
+    char line[256];
+    std::snprintf(line, sizeof(line), "%lld.%06lld %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n",
+                  static_cast<long long>(pose.timestamp_ns / 1'000'000'000),
+                  static_cast<long long>(pose.timestamp_ns % 1'000'000'000 / 1000), t.x(), t.y(),
+                  t.z(), q.x(), q.y(), q.z(), q.w());
+    out << line;
+  }
+}
+
+// 20 poses 0.5 s apart on a circle of radius 2 m at z = 0, each camera looking along the path.
+std::vector<StampedPose> CircleGroundTruth() {
+  std::vector<StampedPose> poses;
+  for (int i = 0; i < 20; ++i) {
+    const double angle = 2.0 * M_PI * i / 20.0;
+    StampedPose pose;
+    pose.timestamp_ns = 1'305'031'102'000'000'000 + int64_t{i} * 500'000'000;
+    pose.world_from_cam.translation() =
+        Eigen::Vector3d(2.0 * std::cos(angle), 2.0 * std::sin(angle), 0.0);
+    pose.world_from_cam.linear() =
+        Eigen::AngleAxisd(angle + M_PI, Eigen::Vector3d::UnitZ()).matrix();
+    poses.push_back(pose);
+  }
+  return poses;
+}
+
+Eigen::Isometry3d SomeRigidMotion() {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 3).normalized()).matrix();
+  motion.translation() = Eigen::Vector3d(5.0, -3.0, 1.2);
+  return motion;
+}
+
+TEST(Cli, EvalTrajectoryOfARigidlyMovedCopyIsZero) {
+  const std::string dir = testing::MakeTempDir("eval");
+  const std::vector<StampedPose> gt = CircleGroundTruth();
+  std::vector<StampedPose> est = gt;
+  for (StampedPose& pose : est) {
+    pose.world_from_cam = SomeRigidMotion() * pose.world_from_cam;
+    pose.timestamp_ns += 3'000'000;  // 3 ms later: still matched
+  }
+  WriteTumByHand(dir + "/gt.txt", gt);
+  WriteTumByHand(dir + "/est.txt", est);
+  const CommandResult run =
+      Sightmap("eval trajectory --gt " + dir + "/gt.txt --est " + dir + "/est.txt --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json eval = nlohmann::json::parse(run.out);
+  EXPECT_EQ(eval.at("matched_poses"), 20);
+  EXPECT_EQ(eval.at("gt_poses"), 20);
+  EXPECT_EQ(eval.at("est_poses"), 20);
+  EXPECT_LT(eval.at("ate_rmse_m").get<double>(), 1e-6);
+  EXPECT_LT(eval.at("ate_max_m").get<double>(), 1e-6);
+  EXPECT_LT(eval.at("rpe_trans_per_m").get<double>(), 1e-6);
+  EXPECT_LT(eval.at("rpe_rot_deg_per_m").get<double>(), 1e-4);
+  EXPECT_GT(eval.at("rpe_pairs_distance").get<int>(), 0);
+  for (const char* key :
+       {"ate_mean_m", "ate_median_m", "rpe_trans_per_s", "rpe_rot_deg_per_s", "rpe_pairs_time",
+        "max_time_diff_s", "rpe_distance_m", "rpe_interval_s", "gt_from_est", "plot"}) {
+    EXPECT_TRUE(eval.contains(key)) << key;
+  }
+  // The alignment found is the inverse of the motion applied.
+  const nlohmann::json& t = eval.at("gt_from_est").at("translation");
+  const Eigen::Vector3d expected = SomeRigidMotion().inverse().translation();
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(t.at(i).get<double>(), expected(i), 1e-6);
+}
+
+TEST(Cli, EvalTrajectoryWithTwoOppositePosesRaisedGivesKnownAte) {
+  // The circle's poses 0 and 10 (diametrically opposite) are raised by d = 0.5 m. The offsets do
+  // not correlate with x or y (the two poses cancel), so the best alignment has no rotation and
+  // only lowers everything by the mean offset 2d/20 = 0.05 m: those two poses keep 0.45 m of error,
+  // the other 18 get 0.05 m. RMSE = sqrt((2 * 0.45^2 + 18 * 0.05^2) / 20) = 0.15 m, mean (0.9 +
+  // 0.9) / 20 = 0.09 m, median 0.05 m, max 0.45 m. The estimate is also moved rigidly.
+  const std::string dir = testing::MakeTempDir("eval");
+  const std::vector<StampedPose> gt = CircleGroundTruth();
+  std::vector<StampedPose> est = gt;
+  est[0].world_from_cam.translation().z() += 0.5;
+  est[10].world_from_cam.translation().z() += 0.5;
+  for (StampedPose& pose : est) pose.world_from_cam = SomeRigidMotion() * pose.world_from_cam;
+  WriteTumByHand(dir + "/gt.txt", gt);
+  WriteTumByHand(dir + "/est.txt", est);
+  const std::string files = " --gt " + dir + "/gt.txt --est " + dir + "/est.txt";
+
+  const CommandResult run =
+      Sightmap("eval trajectory" + files + " --json --plot " + dir + "/plot.png");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json eval = nlohmann::json::parse(run.out);
+  EXPECT_EQ(eval.at("matched_poses"), 20);
+  EXPECT_NEAR(eval.at("ate_rmse_m").get<double>(), 0.15, 1e-6);
+  EXPECT_NEAR(eval.at("ate_mean_m").get<double>(), 0.09, 1e-6);
+  EXPECT_NEAR(eval.at("ate_median_m").get<double>(), 0.05, 1e-6);
+  EXPECT_NEAR(eval.at("ate_max_m").get<double>(), 0.45, 1e-6);
+  EXPECT_GT(eval.at("rpe_trans_per_m").get<double>(), 0.0);
+  EXPECT_EQ(eval.at("plot"), dir + "/plot.png");
+
+  // The plot decodes at the default size, and no temporary file is left beside it.
+  const cv::Mat plot = cv::imread(dir + "/plot.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(plot.empty());
+  EXPECT_EQ(plot.cols, 1000);
+  EXPECT_EQ(plot.rows, 800);
+  int files_in_dir = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    ++files_in_dir;
+    (void)entry;
+  }
+  EXPECT_EQ(files_in_dir, 3);  // gt.txt, est.txt, plot.png
+
+  // Text output: the table with units; --plot-size and options change what they say.
+  const CommandResult text = Sightmap("eval trajectory" + files + " --plot " + dir +
+                                      "/small.png --plot-size 400x300 --rpe-distance 2");
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("ATE rmse"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("0.1500"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("0.4500"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("m/m"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("deg/m"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("deg/s"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("over 2.00 m"), std::string::npos) << text.out;
+  const cv::Mat small = cv::imread(dir + "/small.png", cv::IMREAD_COLOR);
+  EXPECT_EQ(small.cols, 400);
+  EXPECT_EQ(small.rows, 300);
+}
+
+TEST(Cli, EvalTrajectoryErrorsExitWithOneLine) {
+  const std::string dir = testing::MakeTempDir("eval");
+  const std::vector<StampedPose> gt = CircleGroundTruth();
+  WriteTumByHand(dir + "/gt.txt", gt);
+  const std::string gt_arg = " --gt " + dir + "/gt.txt";
+
+  ExpectOneLineError(Sightmap("eval"), 2, "");
+  ExpectOneLineError(Sightmap("eval trajectory --est " + dir + "/gt.txt"), 2, "--gt");
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/gt.txt --plot " +
+                              dir + "/p.png --plot-size big"),
+                     2, "--plot-size");
+  ExpectOneLineError(
+      Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/gt.txt --rpe-distance 0"), 2,
+      "--rpe-distance");
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/missing.txt"), 1,
+                     "missing.txt");
+
+  // A malformed third line is named by file and line.
+  {
+    std::ofstream bad(dir + "/bad.txt");
+    bad << "# comment\n1305031102.0 0 0 0 0 0 0 1\n1305031102.5 0 0 zero 0 0 0 1\n";
+  }
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/bad.txt"), 1,
+                     "bad.txt:3");
+  {
+    std::ofstream empty(dir + "/empty.txt");
+    empty << "# nothing here\n";
+  }
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/empty.txt"), 1,
+                     "no poses");
+
+  // Another clock: nothing matches within 20 ms.
+  std::vector<StampedPose> late = gt;
+  for (StampedPose& pose : late) pose.timestamp_ns += 1'000'000'000'000;
+  WriteTumByHand(dir + "/late.txt", late);
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/late.txt"), 1,
+                     "only 0 of 20");
+  // 30 ms late does not match by default, and does with --max-time-diff 0.05.
+  for (StampedPose& pose : late)
+    pose.timestamp_ns = pose.timestamp_ns - 1'000'000'000'000 + 30'000'000;
+  WriteTumByHand(dir + "/late.txt", late);
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/late.txt"), 1,
+                     "only 0 of 20");
+  EXPECT_EQ(
+      Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/late.txt --max-time-diff 0.05")
+          .exit_code,
+      0);
+
+  // An unwritable plot path fails after evaluating, and leaves nothing behind.
+  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/gt.txt --plot " +
+                              dir + "/no/such/folder/plot.png"),
+                     1, "cannot write plot");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/no"));
 }
 
 }  // namespace

@@ -1,0 +1,223 @@
+// sightmap eval trajectory --gt FILE --est FILE [--json] [--plot PNG] [--max-time-diff S]
+// [--rpe-distance M] [--rpe-interval S] [--up AXIS] [--plot-size WxH]: ATE and RPE of an
+// estimated TUM trajectory against ground truth (ARCHITECTURE.md, "Measuring it"), and a top-down
+// plot. Scripts read the --json keys; they are stable.
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli/command_util.h"
+#include "cli/commands.h"
+#include "core/check.h"
+#include "slam/trajectory_eval.h"
+#include "slam/trajectory_plot.h"
+#include "store/trajectory.h"
+
+namespace sightmap::cli {
+namespace {
+
+std::vector<StampedPose> ReadPoses(const std::string& path, const char* what) {
+  std::vector<StampedPose> poses = ReadTumTrajectory(path);
+  SIGHTMAP_CHECK(!poses.empty(), what << " " << path
+                                      << " has no poses: expected lines 'timestamp tx ty tz qx qy "
+                                         "qz qw' (TUM trajectory format)");
+  return poses;
+}
+
+// Encodes the plot as PNG, writes it beside `path` and renames it into place, so a reader never
+// sees a half-written file and a failure leaves any previous plot untouched.
+void WritePngAtomically(const cv::Mat& image, const std::string& path) {
+  std::vector<uchar> png;
+  SIGHTMAP_CHECK(cv::imencode(".png", image, png), "cannot encode the plot as PNG");
+  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+  std::FILE* file = std::fopen(temporary.c_str(), "wb");
+  SIGHTMAP_CHECK(file != nullptr, "cannot write plot " << path << ": " << std::strerror(errno)
+                                                       << " (check that its folder exists and is "
+                                                          "writable)");
+  bool written = std::fwrite(png.data(), 1, png.size(), file) == png.size();
+  written = std::fflush(file) == 0 && written;
+  written = ::fsync(::fileno(file)) == 0 && written;
+  const int write_errno = errno;
+  written = std::fclose(file) == 0 && written;
+  if (!written) {
+    std::remove(temporary.c_str());
+    SIGHTMAP_THROW(Error, "cannot write plot "
+                              << path << ": "
+                              << (write_errno ? std::strerror(write_errno) : "write failed")
+                              << " (is the disk full?)");
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    const int rename_errno = errno;
+    std::remove(temporary.c_str());
+    SIGHTMAP_THROW(Error, "cannot write plot " << path << ": " << std::strerror(rename_errno));
+  }
+}
+
+std::string Fixed(double value, int digits) {
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(digits) << value;
+  return text.str();
+}
+
+void PrintTable(const std::string& gt_path, const std::string& est_path, size_t gt_poses,
+                size_t est_poses, const TrajectoryEvalOptions& options,
+                const TrajectoryError& error) {
+  const auto row = [](const std::string& metric, const std::string& value, const std::string& unit,
+                      const std::string& note = "") {
+    std::ostringstream line;
+    line << std::left << std::setw(22) << metric << std::right << std::setw(10) << value << "  "
+         << std::left << std::setw(6) << unit << "  " << note;
+    std::string text = line.str();
+    text.erase(text.find_last_not_of(' ') + 1);
+    std::cout << text << "\n";
+  };
+  std::cout << "ground truth   " << gt_path << " (" << gt_poses << " poses)\n";
+  std::cout << "estimate       " << est_path << " (" << est_poses << " poses)\n\n";
+  row("metric", "value", "unit");
+  row("matched poses", std::to_string(error.matched_poses), "",
+      "within " + Fixed(options.max_time_difference_ns * 1e-6, 1) + " ms");
+  row("ATE rmse", Fixed(error.ate_rmse_m, 4), "m", "after SE(3) alignment");
+  row("ATE mean", Fixed(error.ate_mean_m, 4), "m");
+  row("ATE median", Fixed(error.ate_median_m, 4), "m");
+  row("ATE max", Fixed(error.ate_max_m, 4), "m");
+  const std::string over_distance = "over " + Fixed(options.rpe_distance_m, 2) + " m, " +
+                                    std::to_string(error.rpe_pairs_distance) + " pairs";
+  const std::string over_time = "over " + Fixed(options.rpe_interval_s, 2) + " s, " +
+                                std::to_string(error.rpe_pairs_time) + " pairs";
+  if (error.rpe_pairs_distance > 0) {
+    row("RPE translation / m", Fixed(error.rpe_trans_per_m, 4), "m/m", over_distance);
+    row("RPE rotation / m", Fixed(error.rpe_rot_deg_per_m, 3), "deg/m");
+  } else {
+    row("RPE per metre", "-", "",
+        "ground truth shorter than " + Fixed(options.rpe_distance_m, 2) + " m");
+  }
+  if (error.rpe_pairs_time > 0) {
+    row("RPE translation / s", Fixed(error.rpe_trans_per_s, 4), "m/s", over_time);
+    row("RPE rotation / s", Fixed(error.rpe_rot_deg_per_s, 3), "deg/s");
+  } else {
+    row("RPE per second", "-", "",
+        "estimate shorter than " + Fixed(options.rpe_interval_s, 2) + " s");
+  }
+}
+
+}  // namespace
+
+int RunEval(int argc, char** argv) {
+  CLI::App app("Evaluate results against ground truth.", "sightmap eval");
+  app.require_subcommand(1);
+  CLI::App* trajectory = app.add_subcommand(
+      "trajectory",
+      "ATE (after SE(3) Umeyama alignment) and RPE of an estimated TUM trajectory, and a plot");
+  std::string gt_path;
+  std::string est_path;
+  std::string plot_path;
+  std::string plot_size = "1000x800";
+  std::string up = "z";
+  bool json = false;
+  bool no_error_segments = false;
+  const TrajectoryEvalOptions defaults;
+  double max_time_diff_s = defaults.max_time_difference_ns * 1e-9;
+  TrajectoryEvalOptions options;
+  trajectory
+      ->add_option("--gt", gt_path, "ground truth, TUM format (timestamp tx ty tz qx qy qz qw)")
+      ->required();
+  trajectory->add_option("--est", est_path, "estimated trajectory, TUM format")->required();
+  trajectory->add_flag("--json", json, "print one JSON object (stable keys) instead of text");
+  trajectory->add_option("--plot", plot_path,
+                         "write a top-down plot of the ground truth and aligned estimate (PNG)");
+  trajectory->add_option("--plot-size", plot_size, "plot size WxH [px]")->capture_default_str();
+  trajectory
+      ->add_option("--up", up,
+                   "the ground truth's up axis, dropped in the plot: z (default; simulator, motion "
+                   "capture) or e.g. -y for a world anchored at a camera (y down)")
+      ->check(CLI::IsMember({"x", "-x", "y", "-y", "z", "-z", "+x", "+y", "+z"}));
+  trajectory->add_flag("--no-error-segments", no_error_segments,
+                       "plot without the segments joining matched poses");
+  trajectory
+      ->add_option("--max-time-diff", max_time_diff_s,
+                   "match poses whose timestamps differ by at most this [s]")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e6));
+  trajectory
+      ->add_option("--rpe-distance", options.rpe_distance_m,
+                   "RPE per metre compares motions over this ground-truth distance [m]")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 1e6));
+  trajectory
+      ->add_option("--rpe-interval", options.rpe_interval_s,
+                   "RPE per second compares motions over this time [s]")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 1e6));
+  if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+
+  options.max_time_difference_ns = static_cast<int64_t>(std::llround(max_time_diff_s * 1e9));
+  TrajectoryPlotOptions plot;
+  plot.draw_error_segments = !no_error_segments;
+  {
+    const bool negative = up[0] == '-';
+    plot.up_sign = negative ? -1 : 1;
+    plot.up_axis = up.back() - 'x';
+  }
+  if (!plot_path.empty()) {
+    char x = 0;
+    char rest = 0;
+    if (std::sscanf(plot_size.c_str(), "%d%c%d%c", &plot.width_px, &x, &plot.height_px, &rest) !=
+            3 ||
+        x != 'x') {
+      SIGHTMAP_THROW(InvalidArgument, "--plot-size must be WxH, e.g. 1000x800, got " << plot_size);
+    }
+    SIGHTMAP_CHECK_OPTIONS(plot);
+  }
+
+  const std::vector<StampedPose> ground_truth = ReadPoses(gt_path, "ground truth");
+  const std::vector<StampedPose> estimate = ReadPoses(est_path, "estimate");
+  const TrajectoryError error = EvaluateTrajectory(ground_truth, estimate, options);
+  if (!plot_path.empty()) WritePngAtomically(DrawTrajectoryPlot(error, plot), plot_path);
+
+  if (json) {
+    const Eigen::Quaterniond rotation(error.gt_from_est.rotation());
+    const Eigen::Vector3d translation = error.gt_from_est.translation();
+    nlohmann::json out;
+    out["gt_poses"] = ground_truth.size();
+    out["est_poses"] = estimate.size();
+    out["matched_poses"] = error.matched_poses;
+    out["ate_rmse_m"] = error.ate_rmse_m;
+    out["ate_mean_m"] = error.ate_mean_m;
+    out["ate_median_m"] = error.ate_median_m;
+    out["ate_max_m"] = error.ate_max_m;
+    out["rpe_trans_per_m"] = error.rpe_trans_per_m;
+    out["rpe_rot_deg_per_m"] = error.rpe_rot_deg_per_m;
+    out["rpe_trans_per_s"] = error.rpe_trans_per_s;
+    out["rpe_rot_deg_per_s"] = error.rpe_rot_deg_per_s;
+    out["rpe_pairs_distance"] = error.rpe_pairs_distance;
+    out["rpe_pairs_time"] = error.rpe_pairs_time;
+    out["max_time_diff_s"] = options.max_time_difference_ns * 1e-9;
+    out["rpe_distance_m"] = options.rpe_distance_m;
+    out["rpe_interval_s"] = options.rpe_interval_s;
+    out["gt_from_est"] = {
+        {"translation", {translation.x(), translation.y(), translation.z()}},
+        {"quaternion_xyzw", {rotation.x(), rotation.y(), rotation.z(), rotation.w()}}};
+    out["plot"] = plot_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(plot_path);
+    std::cout << out.dump(2) << "\n";
+    return kExitSuccess;
+  }
+  PrintTable(gt_path, est_path, ground_truth.size(), estimate.size(), options, error);
+  if (!plot_path.empty()) {
+    std::cout << "\nplot           " << plot_path << " (" << plot.width_px << "x" << plot.height_px
+              << ", top view: up is " << (up[0] == '-' ? "-" : "+") << up.back() << ", dropped)\n";
+  }
+  return kExitSuccess;
+}
+
+}  // namespace sightmap::cli
