@@ -21,6 +21,23 @@ struct Correspondence {
   double weight;       // 1 / combined variance, for the refinement
 };
 
+std::vector<int> RowsWithPoints(const Features& features) {
+  std::vector<int> rows;
+  rows.reserve(features.size());
+  for (size_t i = 0; i < features.size(); ++i) {
+    if (features.has_point[i]) rows.push_back(static_cast<int>(i));
+  }
+  return rows;
+}
+
+cv::Mat SelectRows(const cv::Mat& descriptors, const std::vector<int>& rows) {
+  cv::Mat selected(static_cast<int>(rows.size()), descriptors.cols, descriptors.type());
+  for (size_t i = 0; i < rows.size(); ++i) {
+    descriptors.row(rows[i]).copyTo(selected.row(static_cast<int>(i)));
+  }
+  return selected;
+}
+
 double DepthSigma(double z, const RegistrationOptions& options) {
   return options.depth_noise_coeff * z * z;
 }
@@ -240,8 +257,17 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
   };
   RegistrationResult result;
   auto stage_start = Clock::now();
-  const std::vector<cv::DMatch> matches =
-      MatchDescriptors(source.descriptors, target.descriptors, options.matching);
+  // Only keypoints with a 3D point on both sides can take part, so only those are matched: a
+  // frame has a few hundred of them among its 1,000 keypoints, and matching cost is quadratic.
+  const std::vector<int> source_rows = RowsWithPoints(source);
+  const std::vector<int> target_rows = RowsWithPoints(target);
+  std::vector<cv::DMatch> matches =
+      MatchDescriptors(SelectRows(source.descriptors, source_rows),
+                       SelectRows(target.descriptors, target_rows), options.matching);
+  for (cv::DMatch& match : matches) {
+    match.queryIdx = source_rows[static_cast<size_t>(match.queryIdx)];
+    match.trainIdx = target_rows[static_cast<size_t>(match.trainIdx)];
+  }
   result.times.matching_s = seconds_since(stage_start);
   stage_start = Clock::now();
   result.matches = static_cast<int>(matches.size());
@@ -321,22 +347,22 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
 
   if (!source_depth_mm.empty() && !target_depth_mm.empty()) {
     stage_start = Clock::now();
-    SIGHTMAP_CHECK(source_depth_mm.type() == CV_16UC1 && target_depth_mm.type() == CV_16UC1 &&
-                       source_depth_mm.cols > 0 && camera.width % source_depth_mm.cols == 0 &&
-                       camera.height % source_depth_mm.rows == 0 &&
-                       camera.width / source_depth_mm.cols ==
-                           camera.height / source_depth_mm.rows &&
-                       target_depth_mm.size() == source_depth_mm.size(),
-                   "registration needs 16-bit depth images of the camera's size, or that size "
-                   "divided by a whole factor");
+    SIGHTMAP_CHECK(
+        source_depth_mm.type() == CV_16UC1 && target_depth_mm.type() == CV_16UC1 &&
+            source_depth_mm.cols > 0 && camera.width % source_depth_mm.cols == 0 &&
+            camera.height % source_depth_mm.rows == 0 &&
+            camera.width / source_depth_mm.cols == camera.height / source_depth_mm.rows &&
+            target_depth_mm.size() == source_depth_mm.size(),
+        "registration needs 16-bit depth images of the camera's size, or that size "
+        "divided by a whole factor");
     const int factor = camera.width / source_depth_mm.cols;
     const Intrinsics depth_camera =
         factor == 1 ? camera : camera.Scaled(source_depth_mm.cols, source_depth_mm.rows);
     const int stride = std::max(1, options.verify_stride_px / factor);
     const DenseAgreement forward =
         CompareDepth(source_depth_mm, target_depth_mm, best, depth_camera, stride, options);
-    const DenseAgreement backward = CompareDepth(target_depth_mm, source_depth_mm,
-                                                 best.inverse(), depth_camera, stride, options);
+    const DenseAgreement backward = CompareDepth(target_depth_mm, source_depth_mm, best.inverse(),
+                                                 depth_camera, stride, options);
     result.times.verification_s = seconds_since(stage_start);
     result.overlap_samples = std::min(forward.samples, backward.samples);
     auto fraction = [](int part, int whole) {

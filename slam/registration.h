@@ -74,7 +74,7 @@ struct RegistrationResult {
   std::string failure;  // why it was refused, when !success
   // Maps points of the source camera into the target camera (cam_target_from_cam_source).
   Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
-  int matches = 0;          // descriptor matches
+  int matches = 0;          // descriptor matches among keypoints with 3D points
   int correspondences = 0;  // matches with 3D points on both sides
   int inliers = 0;
   double rmse_m = 0.0;  // of the inliers after refinement
@@ -90,8 +90,8 @@ struct RegistrationResult {
 
 // Registers `source` to `target`. Depth images (16-bit mm, registered, the size of the camera or
 // that size divided by a whole factor, e.g. 160x120 nearest-neighbour samples of 640x480 kept per
-// keyframe) enable the dense verification; `camera` is shared by both frames. Refusal is a result, not an
-// exception; exceptions are for invalid options or inputs.
+// keyframe) enable the dense verification; `camera` is shared by both frames. Refusal is a result,
+// not an exception; exceptions are for invalid options or inputs.
 RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
                                 const Intrinsics& camera,

@@ -1,0 +1,387 @@
+#include "slam/mapper.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* total) {
+  total->matching_s += times.matching_s;
+  total->ransac_s += times.ransac_s;
+  total->verification_s += times.verification_s;
+}
+
+// Adds the floor to the covariance of a registration's information matrix.
+Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
+                                               const MapperOptions& options) {
+  Eigen::Matrix<double, 6, 1> floor;
+  floor.head<3>().setConstant(options.link_min_sigma_m * options.link_min_sigma_m);
+  floor.tail<3>().setConstant(options.link_min_sigma_rad * options.link_min_sigma_rad);
+  // A singular information (degenerate geometry) is lifted by a tiny ridge before inverting: the
+  // floor then dominates those directions.
+  const Eigen::Matrix<double, 6, 6> lifted =
+      information + 1e-9 * Eigen::Matrix<double, 6, 6>::Identity();
+  Eigen::Matrix<double, 6, 6> covariance = lifted.inverse();
+  covariance += floor.asDiagonal();
+  Eigen::Matrix<double, 6, 6> floored = covariance.inverse();
+  return 0.5 * (floored + floored.transpose());
+}
+
+}  // namespace
+
+const char* ToString(TrackingState state) {
+  switch (state) {
+    case TrackingState::kTracking:
+      return "tracking";
+    case TrackingState::kLost:
+      return "lost";
+    case TrackingState::kRelocalised:
+      return "relocalised";
+  }
+  return "unknown";
+}
+
+bool MapperOptions::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    if (error) *error = what;
+    return false;
+  };
+  if (!features.Check(error) || !registration.Check(error) || !vocabulary.Check(error) ||
+      !pose_graph.Check(error)) {
+    return false;
+  }
+  if (odometry_window < 1) return fail("odometry_window must be at least 1");
+  if (extra_odometry_links < 0) return fail("extra_odometry_links must not be negative");
+  if (depth_downscale < 1) return fail("depth_downscale must be at least 1");
+  if (vocabulary_training_keyframes < 1) {
+    return fail("vocabulary_training_keyframes must be at least 1");
+  }
+  if (loop_exclude_recent < 1) return fail("loop_exclude_recent must be at least 1");
+  if (loop_candidates < 0) return fail("loop_candidates must not be negative");
+  if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
+  if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
+  if (!(link_min_sigma_m > 0.0) || !(link_min_sigma_rad > 0.0)) {
+    return fail("link_min_sigma_m and link_min_sigma_rad must be positive");
+  }
+  return true;
+}
+
+Mapper::Mapper(const Intrinsics& camera, const MapperOptions& options)
+    : camera_(camera), options_(options) {
+  SIGHTMAP_CHECK_OPTIONS(options_);
+  SIGHTMAP_CHECK_OPTIONS(camera_);
+  SIGHTMAP_CHECK(camera_.width % options_.depth_downscale == 0 &&
+                     camera_.height % options_.depth_downscale == 0,
+                 "depth_downscale " << options_.depth_downscale << " does not divide the "
+                                    << camera_.width << "x" << camera_.height << " image");
+}
+
+Mapper::~Mapper() = default;
+
+void Mapper::SetVocabulary(std::shared_ptr<const Vocabulary> vocabulary) {
+  SIGHTMAP_CHECK(keyframes_.empty(), "the vocabulary must be set before the first keyframe");
+  vocabulary_ = std::move(vocabulary);
+  vocabulary_given_ = vocabulary_ != nullptr;
+}
+
+Mapper::Keyframe& Mapper::Get(int64_t id) {
+  SIGHTMAP_CHECK(id >= 0 && static_cast<size_t>(id) < keyframes_.size(), "no keyframe " << id);
+  return keyframes_[static_cast<size_t>(id)];
+}
+
+const Mapper::Keyframe& Mapper::Get(int64_t id) const {
+  SIGHTMAP_CHECK(id >= 0 && static_cast<size_t>(id) < keyframes_.size(), "no keyframe " << id);
+  return keyframes_[static_cast<size_t>(id)];
+}
+
+int Mapper::Root(int segment) const {
+  while (segment_parent_[static_cast<size_t>(segment)] != segment) {
+    segment = segment_parent_[static_cast<size_t>(segment)];
+  }
+  return segment;
+}
+
+int Mapper::NumLoopClosures() const {
+  return static_cast<int>(std::count_if(links_.begin(), links_.end(), [](const MapperLink& link) {
+    return link.active && link.type == MapperLinkType::kLoopClosure;
+  }));
+}
+
+int Mapper::NumSegments() const {
+  int roots = 0;
+  for (size_t s = 0; s < segment_parent_.size(); ++s) {
+    if (segment_parent_[s] == static_cast<int>(s)) ++roots;
+  }
+  return roots;
+}
+
+std::vector<StampedPose> Mapper::Trajectory() const {
+  std::vector<StampedPose> poses;
+  poses.reserve(keyframes_.size());
+  for (const Keyframe& keyframe : keyframes_) {
+    poses.push_back({keyframe.timestamp_ns, graph_.Pose(keyframe.id)});
+  }
+  return poses;
+}
+
+Eigen::Isometry3d Mapper::WorldFromCam(int64_t id) const {
+  Get(id);
+  return graph_.Pose(id);
+}
+
+int Mapper::SegmentOf(int64_t id) const { return Root(Get(id).segment); }
+
+const Features& Mapper::FeaturesOf(int64_t id) const { return Get(id).features; }
+
+RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& target,
+                                    MapperStageTimes* times) const {
+  RegistrationResult result = RegisterRgbd(source.features, target.features, source.depth_small,
+                                           target.depth_small, camera_, options_.registration);
+  AddRegistrationTimes(result.times, times);
+  return result;
+}
+
+void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
+  PoseGraphEdge edge;
+  edge.from = link.from;
+  edge.to = link.to;
+  edge.from_from_to = link.from_from_to;
+  edge.information = link.information;
+  edge.type = link.type == MapperLinkType::kOdometry ? PoseGraphEdgeType::kOdometry
+                                                     : PoseGraphEdgeType::kLoop;
+  graph_edge_of_link_.push_back(graph_.AddEdge(edge));
+  links_.push_back(link);
+  report->new_links.push_back(link);
+}
+
+KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
+                                   const cv::Mat& depth_mm) {
+  const Clock::time_point start = Clock::now();
+  SIGHTMAP_CHECK(
+      color.type() == CV_8UC3 && color.cols == camera_.width && color.rows == camera_.height,
+      "a keyframe's colour must be 8-bit BGR of " << camera_.width << "x" << camera_.height);
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && depth_mm.size() == color.size(),
+                 "a keyframe's depth must be 16-bit [mm] of the colour image's size");
+  KeyframeReport report;
+  Keyframe keyframe;
+  keyframe.id = static_cast<int64_t>(keyframes_.size());
+  keyframe.timestamp_ns = timestamp_ns;
+  Clock::time_point stage = Clock::now();
+  keyframe.features = ExtractFeatures(color, depth_mm, camera_, options_.features);
+  cv::resize(
+      depth_mm, keyframe.depth_small,
+      cv::Size(camera_.width / options_.depth_downscale, camera_.height / options_.depth_downscale),
+      0.0, 0.0, cv::INTER_NEAREST);
+  report.times.features_s = SecondsSince(stage);
+  report.id = keyframe.id;
+  report.features = static_cast<int>(keyframe.features.size());
+
+  // Odometry: the newest keyframes of the current segment, newest first.
+  std::vector<MapperLink> odometry;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  if (!keyframes_.empty()) {
+    const Keyframe& last = keyframes_.back();
+    const int segment_root = Root(last.segment);
+    world_from_cam = graph_.Pose(last.id);
+    for (int64_t id = last.id; id >= 0 && last.id - id < options_.odometry_window; --id) {
+      const Keyframe& target = keyframes_[static_cast<size_t>(id)];
+      if (Root(target.segment) != segment_root) break;
+      const RegistrationResult result = Register(keyframe, target, &report.times);
+      if (!result.success) {
+        if (report.odometry_failure.empty()) {
+          report.odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
+        }
+        continue;
+      }
+      MapperLink link;
+      link.from = target.id;
+      link.to = keyframe.id;
+      link.from_from_to = result.target_from_source;
+      link.information = FlooredInformation(result.information, options_);
+      link.type = MapperLinkType::kOdometry;
+      link.inliers = result.inliers;
+      if (odometry.empty()) world_from_cam = graph_.Pose(target.id) * link.from_from_to;
+      odometry.push_back(link);
+      if (static_cast<int>(odometry.size()) > options_.extra_odometry_links) break;
+    }
+    keyframe.segment = last.segment;
+    if (odometry.empty()) {
+      // Lost: a new segment, seeded where the camera was last.
+      keyframe.segment = static_cast<int>(segment_parent_.size());
+      segment_parent_.push_back(keyframe.segment);
+    } else {
+      report.odometry_failure.clear();
+    }
+  } else {
+    segment_parent_.push_back(0);
+  }
+  graph_.AddPose(keyframe.id, world_from_cam);
+  for (const MapperLink& link : odometry) AddLink(link, &report);
+  keyframes_.push_back(std::move(keyframe));
+  Keyframe& inserted = keyframes_.back();
+  // Place recognition.
+  bool relocalised = false;
+  if (!vocabulary_ &&
+      static_cast<int>(keyframes_.size()) >= options_.vocabulary_training_keyframes) {
+    TrainVocabulary(&report.times);
+  } else if (vocabulary_) {
+    relocalised = SearchPlaces(inserted, &report);
+  }
+  // Lost while this keyframe's segment is not joined to the map's first segment: the map goes
+  // on, but where this part of it lies is not known yet.
+  if (relocalised) {
+    state_ = TrackingState::kRelocalised;
+  } else if (!odometry.empty() && Root(inserted.segment) == Root(keyframes_.front().segment)) {
+    state_ = TrackingState::kTracking;
+  } else {
+    state_ = TrackingState::kLost;
+  }
+
+  report.segment = Root(inserted.segment);
+  report.state = state_;
+  report.world_from_cam = graph_.Pose(inserted.id);
+  report.times.total_s = SecondsSince(start);
+  return report;
+}
+
+KeyframeReport Mapper::AddExternalLink(const MapperLink& link) {
+  SIGHTMAP_CHECK(SegmentOf(link.from) == SegmentOf(link.to),
+                 "an external link must join keyframes of one segment");
+  KeyframeReport report;
+  report.id = link.to;
+  AddLink(link, &report);
+  Optimise(&report);
+  report.segment = SegmentOf(link.to);
+  report.state = state_;
+  report.world_from_cam = graph_.Pose(link.to);
+  return report;
+}
+
+void Mapper::TrainVocabulary(MapperStageTimes* times) {
+  const Clock::time_point start = Clock::now();
+  std::vector<cv::Mat> descriptors;
+  descriptors.reserve(keyframes_.size());
+  for (const Keyframe& keyframe : keyframes_) {
+    if (keyframe.features.descriptors.rows > 0)
+      descriptors.push_back(keyframe.features.descriptors);
+  }
+  vocabulary_ =
+      std::make_shared<const Vocabulary>(Vocabulary::Train(descriptors, options_.vocabulary));
+  // Keyframes before the vocabulary are indexed now; they looked up nothing themselves, but later
+  // keyframes find them.
+  for (Keyframe& keyframe : keyframes_) IndexKeyframe(keyframe);
+  times->place_recognition_s += SecondsSince(start);
+}
+
+void Mapper::IndexKeyframe(Keyframe& keyframe) {
+  if (keyframe.indexed) return;
+  keyframe.bow = vocabulary_->Transform(keyframe.features.descriptors);
+  index_.Add(keyframe.id, keyframe.bow);
+  keyframe.indexed = true;
+}
+
+bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
+  Clock::time_point start = Clock::now();
+  keyframe.bow = vocabulary_->Transform(keyframe.features.descriptors);
+  const int root = Root(keyframe.segment);
+  const bool other_segments = NumSegments() > 1;
+  const bool loop_allowed = keyframe.id - last_loop_keyframe_ >= options_.loop_min_spacing;
+  std::vector<PlaceCandidate> candidates;
+  double reference_score = 1.0;
+  if ((loop_allowed || other_segments) && options_.loop_candidates > 0) {
+    // DBoW2's normalisation: how similar the keyframe is to its odometry neighbour says what a
+    // high score is in this part of the building.
+    if (keyframe.id > 0) {
+      const Keyframe& previous = keyframes_[static_cast<size_t>(keyframe.id - 1)];
+      if (previous.indexed) reference_score = Vocabulary::Score(keyframe.bow, previous.bow);
+    }
+    const int64_t newest_allowed = keyframe.id - options_.loop_exclude_recent;
+    candidates = index_.Query(keyframe.bow, options_.loop_candidates, [&](int64_t id) {
+      const int candidate_root = Root(keyframes_[static_cast<size_t>(id)].segment);
+      if (candidate_root != root) return true;
+      return loop_allowed && id <= newest_allowed;
+    });
+  }
+  index_.Add(keyframe.id, keyframe.bow);
+  keyframe.indexed = true;
+  report->times.place_recognition_s += SecondsSince(start);
+
+  for (const PlaceCandidate& candidate : candidates) {
+    if (candidate.score < options_.loop_min_relative_score * reference_score) break;
+    const Keyframe& target = keyframes_[static_cast<size_t>(candidate.id)];
+    const RegistrationResult result = Register(keyframe, target, &report->times);
+    if (!result.success) continue;
+    MapperLink link;
+    link.from = target.id;
+    link.to = keyframe.id;
+    link.from_from_to = result.target_from_source;
+    link.information = FlooredInformation(result.information, options_);
+    link.inliers = result.inliers;
+    const int target_root = Root(target.segment);
+    if (target_root != root) {
+      link.type = MapperLinkType::kRelocalisation;
+      // The older segment keeps its frame; the newer one moves into it.
+      const int older = std::min(target_root, root);
+      const int newer = std::max(target_root, root);
+      JoinSegments(older, newer, link);
+    } else {
+      link.type = MapperLinkType::kLoopClosure;
+    }
+    AddLink(link, report);
+    last_loop_keyframe_ = keyframe.id;
+    Optimise(report);
+    const MapperLink& added = links_.back();
+    report->loop_closed = added.active;
+    return link.type == MapperLinkType::kRelocalisation;
+  }
+  return false;
+}
+
+void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link) {
+  // The pose `link.to` should have in the frame of `link.from`'s segment, and the rigid motion
+  // that takes the whole of its segment there.
+  const bool to_is_newer = Root(Get(link.to).segment) == newer_root;
+  Eigen::Isometry3d correction;
+  if (to_is_newer) {
+    correction = graph_.Pose(link.from) * link.from_from_to * graph_.Pose(link.to).inverse();
+  } else {
+    correction =
+        graph_.Pose(link.to) * link.from_from_to.inverse() * graph_.Pose(link.from).inverse();
+  }
+  for (const Keyframe& keyframe : keyframes_) {
+    if (Root(keyframe.segment) == newer_root) {
+      graph_.SetPose(keyframe.id, correction * graph_.Pose(keyframe.id));
+    }
+  }
+  segment_parent_[static_cast<size_t>(newer_root)] = older_root;
+}
+
+void Mapper::Optimise(KeyframeReport* report) {
+  const Clock::time_point start = Clock::now();
+  const PoseGraphSummary summary = graph_.Optimize(options_.pose_graph);
+  for (size_t edge : summary.rejected_edges) {
+    for (size_t i = 0; i < graph_edge_of_link_.size(); ++i) {
+      if (graph_edge_of_link_[i] == edge && links_[i].active) {
+        links_[i].active = false;
+        ++report->links_rejected;
+      }
+    }
+  }
+  report->optimised = true;
+  report->times.optimisation_s += SecondsSince(start);
+}
+
+}  // namespace sightmap

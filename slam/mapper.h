@@ -1,0 +1,190 @@
+// Incremental RGB-D mapping (the paper's Section 4.1.1, Figure 3): every keyframe arriving at about
+// 1 Hz is registered against the newest keyframes of its segment (odometry), looked up in the bag
+// of words for places seen before (loop closure, or relocalisation after tracking was lost),
+// verified geometrically, and the pose graph is optimised when a loop is accepted.
+//
+// The mapper knows nothing of files or SQLite: the caller feeds keyframes and reads back poses,
+// links and the vocabulary to store them. One thread calls it; it holds no threads of its own.
+//
+// Segments: when a keyframe cannot be registered to the last keyframes, the map does not stop.
+// The keyframe starts a new segment whose poses live in their own frame (seeded with the last
+// pose, since a person rarely teleports), every keyframe is kept, and each new keyframe of the
+// segment is also looked up against the other segments; the first verified link joins the
+// segments: the newer one is moved into the older one's frame and the graph optimised.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "core/rgbd_frame.h"
+#include "slam/features.h"
+#include "slam/place_index.h"
+#include "slam/pose_graph.h"
+#include "slam/registration.h"
+#include "slam/vocabulary.h"
+
+namespace sightmap {
+
+struct MapperOptions {
+  FeatureOptions features;
+  RegistrationOptions registration;
+
+  // Odometry registers a new keyframe to the newest keyframe of its segment first, then to older
+  // ones up to this many back (at 1 Hz a walker may turn away for a second and back).
+  int odometry_window = 4;
+  // Besides the first successful odometry link, register to this many more keyframes of the window
+  // for extra edges: a graph with a few short links per keyframe drifts less than a chain.
+  int extra_odometry_links = 1;
+  // Depth kept per keyframe for the dense verification, as 1/N of the image size (nearest
+  // sample, so depth edges stay sharp): 160x120 at N = 4 is 38 KB a keyframe.
+  int depth_downscale = 4;
+
+  // Place recognition. The vocabulary is trained from the session's own first keyframes unless
+  // one is given (SetVocabulary: a resumed model brings its own).
+  VocabularyOptions vocabulary;
+  int vocabulary_training_keyframes = 30;
+  // Keyframes this recent (of the same segment) are never loop candidates: they are odometry's.
+  int loop_exclude_recent = 20;
+  // Candidates registered per keyframe, best bag-of-words score first.
+  int loop_candidates = 3;
+  // A candidate's score must reach this fraction of the score between the keyframe and its
+  // odometry neighbour (DBoW2's normalised score: scores vary a lot between scenes).
+  double loop_min_relative_score = 0.3;
+  // Loops closer than this to the last accepted loop (in keyframes) are not searched: one
+  // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
+  int loop_min_spacing = 3;
+  PoseGraphOptions pose_graph;
+  // Registration's information matrix assumes independent depth errors and so claims sub-millimetre
+  // precision from a few hundred inliers; systematic errors (depth bias, calibration) do not shrink
+  // with the inlier count. This floor is added to every link's covariance so the pose graph weighs
+  // links realistically and its chi-square test of loops means something [m], [rad].
+  double link_min_sigma_m = 0.01;
+  double link_min_sigma_rad = 0.003;
+
+  bool Check(std::string* error) const;
+};
+
+enum class TrackingState { kTracking, kLost, kRelocalised };
+const char* ToString(TrackingState state);
+
+enum class MapperLinkType { kOdometry, kLoopClosure, kRelocalisation };
+
+struct MapperLink {
+  int64_t from = 0;
+  int64_t to = 0;
+  // Pose of `to` in `from`'s camera frame: world_from_from^-1 * world_from_to.
+  Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
+  MapperLinkType type = MapperLinkType::kOdometry;
+  int inliers = 0;
+  bool active = true;  // false once the pose graph rejected it as inconsistent
+};
+
+// Time of each stage for one keyframe [s].
+struct MapperStageTimes {
+  double features_s = 0.0;
+  double matching_s = 0.0;
+  double ransac_s = 0.0;  // RANSAC and refinement
+  double verification_s = 0.0;
+  double place_recognition_s = 0.0;  // bag of words, index query (and training once)
+  double optimisation_s = 0.0;
+  double total_s = 0.0;
+};
+
+struct KeyframeReport {
+  int64_t id = 0;
+  int segment = 0;
+  TrackingState state = TrackingState::kTracking;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  std::vector<MapperLink> new_links;
+  bool loop_closed = false;
+  bool optimised = false;
+  int links_rejected = 0;        // loop links the pose graph switched off in this step
+  std::string odometry_failure;  // why odometry failed, when state != kTracking
+  int features = 0;
+  MapperStageTimes times;
+};
+
+class Mapper {
+ public:
+  Mapper(const Intrinsics& camera, const MapperOptions& options = MapperOptions());
+  ~Mapper();
+  Mapper(const Mapper&) = delete;
+  Mapper& operator=(const Mapper&) = delete;
+
+  // Registers and inserts one keyframe (colour BGR 8-bit, depth 16-bit mm registered to colour,
+  // both of the camera's size). Throws InvalidArgument for images that do not fit the camera.
+  KeyframeReport AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
+                             const cv::Mat& depth_mm);
+
+  // Adds a link found elsewhere (a user's, or a test's deliberately wrong one) between two
+  // keyframes of one segment and optimises; returns what the optimisation did.
+  KeyframeReport AddExternalLink(const MapperLink& link);
+
+  // A vocabulary to use instead of training one (before the first keyframe).
+  void SetVocabulary(std::shared_ptr<const Vocabulary> vocabulary);
+  // Null until trained (after vocabulary_training_keyframes) or set.
+  std::shared_ptr<const Vocabulary> vocabulary() const { return vocabulary_; }
+
+  const Intrinsics& camera() const { return camera_; }
+  size_t NumKeyframes() const { return keyframes_.size(); }
+  int NumLoopClosures() const;  // accepted and still active
+  int NumSegments() const;      // segments not joined to another
+  TrackingState tracking_state() const { return state_; }
+
+  // Current estimates, after the latest optimisation, in keyframe order.
+  std::vector<StampedPose> Trajectory() const;
+  Eigen::Isometry3d WorldFromCam(int64_t id) const;
+  int SegmentOf(int64_t id) const;
+  const std::vector<MapperLink>& Links() const { return links_; }
+  const Features& FeaturesOf(int64_t id) const;
+
+ private:
+  struct Keyframe {
+    int64_t id = 0;
+    TimestampNs timestamp_ns = 0;
+    int segment = 0;
+    Features features;
+    cv::Mat depth_small;  // depth_downscale x smaller, nearest samples
+    bool indexed = false;
+    BowVector bow;
+  };
+
+  Keyframe& Get(int64_t id);
+  const Keyframe& Get(int64_t id) const;
+  int Root(int segment) const;
+  void AddLink(const MapperLink& link, KeyframeReport* report);
+  RegistrationResult Register(const Keyframe& source, const Keyframe& target,
+                              MapperStageTimes* times) const;
+  void TrainVocabulary(MapperStageTimes* times);
+  void IndexKeyframe(Keyframe& keyframe);
+  // Looks up `keyframe` for loop closures (same segment) or relocalisation (other segments);
+  // true when it joined two segments.
+  bool SearchPlaces(Keyframe& keyframe, KeyframeReport* report);
+  void JoinSegments(int older_root, int newer_root, const MapperLink& link);
+  void Optimise(KeyframeReport* report);
+
+  Intrinsics camera_;
+  MapperOptions options_;
+  std::vector<Keyframe> keyframes_;  // id = index
+  std::vector<MapperLink> links_;
+  std::vector<size_t> graph_edge_of_link_;  // PoseGraph edge index per link
+  PoseGraph graph_;
+  std::shared_ptr<const Vocabulary> vocabulary_;
+  PlaceIndex index_;
+  std::vector<int> segment_parent_;  // union-find over segments
+  TrackingState state_ = TrackingState::kTracking;
+  int64_t last_loop_keyframe_ = -1000000;
+  bool vocabulary_given_ = false;
+};
+
+}  // namespace sightmap

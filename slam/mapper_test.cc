@@ -1,0 +1,161 @@
+// The mapper on the synthetic building at 1 Hz, against the simulator's ground truth.
+#include "slam/mapper.h"
+
+#include <map>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/check.h"
+#include "sim/simulator.h"
+#include "slam/trajectory_eval.h"
+
+namespace sightmap {
+namespace {
+
+struct Walk {
+  Intrinsics camera;
+  std::vector<RgbdFrame> frames;
+};
+
+// The handheld walk at 1 Hz, rendered once for all tests of this file.
+const Walk& HandheldWalk() {
+  static const Walk* walk = [] {
+    sim::SimulatorOptions options;
+    options.fps = 1.0;
+    options.frames = 90;
+    sim::Simulator simulator(options);
+    auto* result = new Walk;
+    result->camera = simulator.options().camera;
+    for (int64_t i = 0; i < simulator.num_frames(); ++i) {
+      result->frames.push_back(simulator.RenderFrame(i));
+    }
+    return result;
+  }();
+  return *walk;
+}
+
+double RotationDeg(const Eigen::Isometry3d& motion) {
+  return Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
+}
+
+MapperOptions SmallVocabulary() {
+  MapperOptions options;
+  options.vocabulary_training_keyframes = 15;
+  return options;
+}
+
+TEST(Mapper, TracksTheHandheldWalkWithCentimetreAccuracy) {
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera, SmallVocabulary());
+  std::vector<StampedPose> ground_truth;
+  int lost = 0;
+  for (const RgbdFrame& frame : walk.frames) {
+    const KeyframeReport report = mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+    if (report.state == TrackingState::kLost) ++lost;
+    ground_truth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
+  }
+  ASSERT_EQ(mapper.NumKeyframes(), walk.frames.size());
+  EXPECT_EQ(lost, 0);
+  EXPECT_EQ(mapper.NumSegments(), 1);
+  ASSERT_NE(mapper.vocabulary(), nullptr);
+  const TrajectoryError error = EvaluateTrajectory(ground_truth, mapper.Trajectory());
+  std::printf("handheld, %zu keyframes: ATE rmse %.4f m, max %.4f m, %d loops\n",
+              walk.frames.size(), error.ate_rmse_m, error.ate_max_m, mapper.NumLoopClosures());
+  EXPECT_LT(error.ate_rmse_m, 0.05);
+
+  // Every accepted loop agrees with the ground truth.
+  for (const MapperLink& link : mapper.Links()) {
+    const Eigen::Isometry3d truth =
+        walk.frames[static_cast<size_t>(link.from)].world_from_cam_gt->inverse() *
+        *walk.frames[static_cast<size_t>(link.to)].world_from_cam_gt;
+    const Eigen::Isometry3d off = truth.inverse() * link.from_from_to;
+    if (!link.active) continue;
+    EXPECT_LT(off.translation().norm(), 0.10) << link.from << " -> " << link.to;
+    EXPECT_LT(RotationDeg(off), 3.0) << link.from << " -> " << link.to;
+  }
+}
+
+TEST(Mapper, RelocalisesAfterAJumpAndJoinsTheSegments) {
+  // The camera walks frames 0-49, then "teleports" back to where frame 20 was and walks on: the
+  // jump cannot be registered, so a second segment starts and is joined when the place is found.
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera, SmallVocabulary());
+  std::vector<size_t> order;
+  for (size_t i = 0; i < 50; ++i) order.push_back(i);
+  for (size_t i = 20; i < 45; ++i) order.push_back(i);
+  bool lost = false;
+  bool relocalised = false;
+  std::vector<StampedPose> ground_truth;
+  for (size_t k = 0; k < order.size(); ++k) {
+    const RgbdFrame& frame = walk.frames[order[k]];
+    // Timestamps must stay unique and increasing for the evaluation.
+    const TimestampNs t = static_cast<TimestampNs>(k) * 1'000'000'000;
+    const KeyframeReport report = mapper.AddKeyframe(t, frame.color, frame.depth);
+    if (k == 50) {
+      EXPECT_EQ(report.state, TrackingState::kLost) << "a 30-frame jump must not register";
+    }
+    lost = lost || report.state == TrackingState::kLost;
+    relocalised = relocalised || report.state == TrackingState::kRelocalised;
+    ground_truth.push_back({t, *frame.world_from_cam_gt});
+  }
+  EXPECT_TRUE(lost);
+  EXPECT_TRUE(relocalised);
+  EXPECT_EQ(mapper.NumSegments(), 1);
+  EXPECT_EQ(mapper.NumKeyframes(), order.size());
+  const TrajectoryError error = EvaluateTrajectory(ground_truth, mapper.Trajectory());
+  std::printf("after relocalisation: ATE rmse %.4f m, max %.4f m\n", error.ate_rmse_m,
+              error.ate_max_m);
+  EXPECT_LT(error.ate_rmse_m, 0.05);
+}
+
+TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
+  const Walk& walk = HandheldWalk();
+  std::vector<StampedPose> ground_truth;
+  for (const RgbdFrame& frame : walk.frames) {
+    ground_truth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
+  }
+  Mapper mapper(walk.camera, SmallVocabulary());
+  for (size_t i = 0; i < 60; ++i) {
+    const RgbdFrame& frame = walk.frames[i];
+    mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+  }
+  const std::vector<StampedPose> before = mapper.Trajectory();
+  MapperLink wrong;
+  wrong.from = 10;
+  wrong.to = 59;
+  wrong.from_from_to = Eigen::Isometry3d::Identity();  // "59 is where 10 was": it is not
+  wrong.information = mapper.Links().back().information;
+  wrong.type = MapperLinkType::kLoopClosure;
+  const double apart = (ground_truth[10].world_from_cam.inverse() * ground_truth[59].world_from_cam)
+                           .translation()
+                           .norm();
+  ASSERT_GT(apart, 0.5) << "the test needs two distant keyframes";
+  const KeyframeReport report = mapper.AddExternalLink(wrong);
+  EXPECT_EQ(report.links_rejected, 1);
+  EXPECT_FALSE(mapper.Links().back().active);
+  const std::vector<StampedPose> after = mapper.Trajectory();
+  double largest_move = 0.0;
+  for (size_t i = 0; i < after.size(); ++i) {
+    largest_move = std::max(
+        largest_move,
+        (after[i].world_from_cam.translation() - before[i].world_from_cam.translation()).norm());
+  }
+  EXPECT_LT(largest_move, 0.02);
+}
+
+TEST(Mapper, RefusesImagesThatDoNotFitTheCamera) {
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera);
+  const cv::Mat small(240, 320, CV_8UC3, cv::Scalar(0, 0, 0));
+  const cv::Mat small_depth(240, 320, CV_16UC1, cv::Scalar(0));
+  EXPECT_THROW(mapper.AddKeyframe(0, small, small_depth), Error);
+  EXPECT_THROW(mapper.AddKeyframe(0, walk.frames[0].color, small_depth), Error);
+  EXPECT_EQ(mapper.NumKeyframes(), 0u);
+  MapperOptions bad;
+  bad.odometry_window = 0;
+  EXPECT_THROW(Mapper(walk.camera, bad), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace sightmap

@@ -1,0 +1,239 @@
+// SLAM on the synthetic building at 1 Hz: throughput, latency per stage, peak memory, and the
+// accuracy figures of the SLAM issue (ATE against ground truth, every accepted loop checked
+// against ground truth, a deliberately false loop).
+//
+// Frames are rendered before mapping starts, so the figures are the mapper's alone.
+//   slam_benchmark --trajectory handheld --frames 600
+//   slam_benchmark --trajectory robot --frames 600 --false-loop
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "core/check.h"
+#include "sim/simulator.h"
+#include "slam/mapper.h"
+#include "slam/trajectory_eval.h"
+
+namespace sightmap {
+namespace {
+
+struct Frame {
+  TimestampNs timestamp_ns = 0;
+  cv::Mat color;
+  cv::Mat depth;
+  Eigen::Isometry3d world_from_cam_gt;
+};
+
+double Percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const size_t index = static_cast<size_t>(std::lround(p * (values.size() - 1)));
+  return values[index];
+}
+
+double Median(const std::vector<double>& values) { return Percentile(values, 0.5); }
+
+double PeakRssMiB() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+double RotationDeg(const Eigen::Isometry3d& motion) {
+  return Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
+}
+
+struct RunResult {
+  TrajectoryError error;
+  int keyframes = 0;
+  int loops = 0;
+  int loops_rejected = 0;
+  int false_loops = 0;
+  int segments = 0;
+  double mapping_s = 0.0;
+};
+
+RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
+              const MapperOptions& options, int false_loop_at, bool verbose) {
+  Mapper mapper(camera, options);
+  std::vector<MapperStageTimes> times;
+  RunResult run;
+  int64_t false_from = -1;
+  int64_t false_to = -1;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Frame& frame = frames[i];
+    const KeyframeReport report = mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+    times.push_back(report.times);
+    run.mapping_s += report.times.total_s;
+    run.loops_rejected += report.links_rejected;
+    if (verbose && (report.state != TrackingState::kTracking || report.loop_closed ||
+                    report.links_rejected > 0)) {
+      std::fprintf(stderr, "keyframe %lld: %s%s%s %s\n", static_cast<long long>(report.id),
+                   ToString(report.state), report.loop_closed ? ", loop closed" : "",
+                   report.links_rejected > 0 ? ", a link rejected" : "",
+                   report.odometry_failure.c_str());
+    }
+    if (static_cast<int>(i) == false_loop_at) {
+      // A wrong link between two distant keyframes: "this keyframe is where keyframe i/2 was".
+      MapperLink link;
+      false_from = static_cast<int64_t>(i / 2);
+      false_to = static_cast<int64_t>(i);
+      link.from = false_from;
+      link.to = false_to;
+      link.from_from_to = Eigen::Isometry3d::Identity();
+      link.information = mapper.Links().back().information;
+      link.type = MapperLinkType::kLoopClosure;
+      const KeyframeReport injected = mapper.AddExternalLink(link);
+      std::fprintf(stderr,
+                   "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
+                   static_cast<long long>(false_from), static_cast<long long>(false_to),
+                   (frames[i / 2].world_from_cam_gt.inverse() * frame.world_from_cam_gt)
+                       .translation()
+                       .norm(),
+                   RotationDeg(frames[i / 2].world_from_cam_gt.inverse() * frame.world_from_cam_gt),
+                   injected.links_rejected > 0 ? "rejected" : "kept");
+    }
+  }
+  run.keyframes = static_cast<int>(mapper.NumKeyframes());
+  run.segments = mapper.NumSegments();
+
+  // Every accepted loop against ground truth.
+  for (const MapperLink& link : mapper.Links()) {
+    if (link.type == MapperLinkType::kOdometry || !link.active) continue;
+    if (link.from == false_from && link.to == false_to) continue;
+    ++run.loops;
+    const Eigen::Isometry3d truth =
+        frames[static_cast<size_t>(link.from)].world_from_cam_gt.inverse() *
+        frames[static_cast<size_t>(link.to)].world_from_cam_gt;
+    const Eigen::Isometry3d error = truth.inverse() * link.from_from_to;
+    const double error_m = error.translation().norm();
+    const double error_deg = RotationDeg(error);
+    if (error_m > 0.10 || error_deg > 3.0) {
+      ++run.false_loops;
+      std::fprintf(stderr, "FALSE loop %lld -> %lld: %.3f m, %.2f deg off\n",
+                   static_cast<long long>(link.from), static_cast<long long>(link.to), error_m,
+                   error_deg);
+    }
+  }
+
+  std::vector<StampedPose> ground_truth;
+  for (const Frame& frame : frames)
+    ground_truth.push_back({frame.timestamp_ns, frame.world_from_cam_gt});
+  run.error = EvaluateTrajectory(ground_truth, mapper.Trajectory());
+
+  if (verbose) {
+    auto column = [&times](double MapperStageTimes::*field, size_t from, size_t to) {
+      std::vector<double> values;
+      for (size_t i = from; i < std::min(to, times.size()); ++i) values.push_back(times[i].*field);
+      return values;
+    };
+    const size_t n = times.size();
+    std::printf("keyframes           %d in %.1f s of mapping: %.1f keyframes/s\n", run.keyframes,
+                run.mapping_s, run.keyframes / run.mapping_s);
+    std::printf("%-20s %9s %9s %9s\n", "stage [ms]", "p50", "p95", "max");
+    const std::pair<const char*, double MapperStageTimes::*> stages[] = {
+        {"features", &MapperStageTimes::features_s},
+        {"matching", &MapperStageTimes::matching_s},
+        {"ransac+refine", &MapperStageTimes::ransac_s},
+        {"verification", &MapperStageTimes::verification_s},
+        {"place recognition", &MapperStageTimes::place_recognition_s},
+        {"optimisation", &MapperStageTimes::optimisation_s},
+        {"total", &MapperStageTimes::total_s}};
+    for (const auto& [name, field] : stages) {
+      const std::vector<double> values = column(field, 0, n);
+      std::printf("%-20s %9.2f %9.2f %9.2f\n", name, 1e3 * Percentile(values, 0.5),
+                  1e3 * Percentile(values, 0.95),
+                  1e3 * *std::max_element(values.begin(), values.end()));
+    }
+    if (n >= 300) {
+      const double early = Median(column(&MapperStageTimes::total_s, 100, 200));
+      const double late = Median(column(&MapperStageTimes::total_s, n - 100, n));
+      std::printf("median per keyframe  %.1f ms at keyframes 100-200, %.1f ms at %zu-%zu (x%.2f)\n",
+                  1e3 * early, 1e3 * late, n - 100, n, late / early);
+    }
+    std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
+    std::printf("segments            %d\n", run.segments);
+    std::printf(
+        "loops               %d accepted, %d rejected by the pose graph, %d false "
+        "(> 10 cm or > 3 deg from ground truth)\n",
+        run.loops, run.loops_rejected, run.false_loops);
+    std::printf("ATE                 rmse %.4f m, mean %.4f, median %.4f, max %.4f (%d poses)\n",
+                run.error.ate_rmse_m, run.error.ate_mean_m, run.error.ate_median_m,
+                run.error.ate_max_m, run.error.matched_poses);
+    std::printf("RPE                 %.4f m/m, %.3f deg/m\n", run.error.rpe_trans_per_m,
+                run.error.rpe_rot_deg_per_m);
+  }
+  return run;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"SLAM on the synthetic building at 1 Hz: speed and accuracy"};
+  std::string trajectory = "handheld";
+  int session = 1;
+  uint64_t seed = 1;
+  int64_t frames_wanted = 600;
+  bool false_loop = false;
+  app.add_option("--trajectory", trajectory, "handheld or robot")
+      ->check(CLI::IsMember({"handheld", "robot"}));
+  app.add_option("--session", session, "simulator session (>= 1)");
+  app.add_option("--seed", seed, "simulator seed");
+  app.add_option("--frames", frames_wanted, "keyframes (1 Hz frames of the walk)");
+  app.add_flag("--false-loop", false_loop,
+               "also run again with a wrong loop injected halfway and compare the ATE");
+  CLI11_PARSE(app, argc, argv);
+
+  sim::SimulatorOptions sim_options;
+  sim_options.trajectory =
+      trajectory == "robot" ? sim::TrajectoryKind::kRobot : sim::TrajectoryKind::kHandheld;
+  sim_options.session = session;
+  sim_options.seed = seed;
+  sim_options.fps = 1.0;
+  sim_options.frames = frames_wanted;
+  sim::Simulator simulator(sim_options);
+  std::vector<Frame> frames;
+  const auto render_start = std::chrono::steady_clock::now();
+  for (int64_t i = 0; i < simulator.num_frames(); ++i) {
+    RgbdFrame frame = simulator.RenderFrame(i);
+    frames.push_back({frame.timestamp_ns, frame.color, frame.depth, *frame.world_from_cam_gt});
+    if ((i + 1) % 100 == 0) {
+      std::fprintf(stderr, "rendered %lld of %lld frames\n", static_cast<long long>(i + 1),
+                   static_cast<long long>(simulator.num_frames()));
+    }
+  }
+  std::fprintf(
+      stderr, "rendering took %.1f s\n",
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count());
+  const Intrinsics camera = simulator.options().camera;
+  MapperOptions options;
+  std::printf("simulator office, %s, session %d, seed %llu, %zu keyframes at 1 Hz\n",
+              trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size());
+  const RunResult clean = Run(frames, camera, options, -1, true);
+  if (false_loop) {
+    const RunResult injected =
+        Run(frames, camera, options, static_cast<int>(frames.size()) * 3 / 4, false);
+    std::printf("false loop          ATE rmse %.4f m with it, %.4f m without (%+.1f%%)\n",
+                injected.error.ate_rmse_m, clean.error.ate_rmse_m,
+                100.0 * (injected.error.ate_rmse_m / clean.error.ate_rmse_m - 1.0));
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace sightmap
+
+int main(int argc, char** argv) {
+  try {
+    return sightmap::Main(argc, argv);
+  } catch (const std::exception& error) {
+    std::cerr << "error: " << error.what() << "\n";
+    return 1;
+  }
+}
