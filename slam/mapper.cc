@@ -196,7 +196,8 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
     const Keyframe& last = keyframes_.back();
     const int segment_root = Root(last.segment);
     world_from_cam = graph_.Pose(last.id);
-    for (int64_t id = last.id; id >= 0 && last.id - id < options_.odometry_window; --id) {
+    for (int64_t id = last.id;
+         !start_new_segment_ && id >= 0 && last.id - id < options_.odometry_window; --id) {
       const Keyframe& target = keyframes_[static_cast<size_t>(id)];
       if (Root(target.segment) != segment_root) break;
       const RegistrationResult result = Register(keyframe, target, &report.times);
@@ -218,7 +219,7 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
       if (static_cast<int>(odometry.size()) > options_.extra_odometry_links) break;
     }
     keyframe.segment = last.segment;
-    if (odometry.empty()) {
+    if (odometry.empty() || start_new_segment_) {
       // Lost: a new segment, seeded where the camera was last.
       keyframe.segment = static_cast<int>(segment_parent_.size());
       segment_parent_.push_back(keyframe.segment);
@@ -228,6 +229,8 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   } else {
     segment_parent_.push_back(0);
   }
+  if (start_new_segment_) report.odometry_failure = "a new segment was asked for";
+  start_new_segment_ = false;
   graph_.AddPose(keyframe.id, world_from_cam);
   for (const MapperLink& link : odometry) AddLink(link, &report);
   keyframes_.push_back(std::move(keyframe));
@@ -255,6 +258,50 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   report.world_from_cam = graph_.Pose(inserted.id);
   report.times.total_s = SecondsSince(start);
   return report;
+}
+
+int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
+                                const cv::Mat& depth_mm, const Eigen::Isometry3d& world_from_cam) {
+  const cv::Size small(camera_.width / options_.depth_downscale,
+                       camera_.height / options_.depth_downscale);
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 &&
+                     (depth_mm.size() == small ||
+                      (depth_mm.cols == camera_.width && depth_mm.rows == camera_.height)),
+                 "a restored keyframe's depth must be 16-bit [mm] of the camera's size or 1/"
+                     << options_.depth_downscale << " of it");
+  SIGHTMAP_CHECK(features.has_point.size() == features.size() &&
+                     features.points_cam.size() == features.size() &&
+                     features.descriptors.rows == static_cast<int>(features.size()),
+                 "a restored keyframe's features are inconsistent");
+  Keyframe keyframe;
+  keyframe.id = static_cast<int64_t>(keyframes_.size());
+  keyframe.timestamp_ns = timestamp_ns;
+  keyframe.features = std::move(features);
+  if (depth_mm.size() == small) {
+    keyframe.depth_small = depth_mm.clone();
+  } else {
+    cv::resize(depth_mm, keyframe.depth_small, small, 0.0, 0.0, cv::INTER_NEAREST);
+  }
+  keyframe.segment = static_cast<int>(segment_parent_.size());
+  segment_parent_.push_back(keyframe.segment);
+  graph_.AddPose(keyframe.id, world_from_cam);
+  keyframes_.push_back(std::move(keyframe));
+  if (vocabulary_) IndexKeyframe(keyframes_.back());
+  // The next new keyframe cannot be registered to a stored one by odometry: the camera was off.
+  start_new_segment_ = true;
+  return keyframes_.back().id;
+}
+
+void Mapper::RestoreLink(const MapperLink& link) {
+  const int from_root = Root(Get(link.from).segment);
+  const int to_root = Root(Get(link.to).segment);
+  KeyframeReport ignored;
+  AddLink(link, &ignored);
+  if (!link.active) graph_.SetEdgeActive(graph_edge_of_link_.back(), false);
+  if (from_root != to_root) {
+    segment_parent_[static_cast<size_t>(std::max(from_root, to_root))] =
+        std::min(from_root, to_root);
+  }
 }
 
 KeyframeReport Mapper::AddExternalLink(const MapperLink& link) {

@@ -130,6 +130,17 @@ class Mapper {
   // keyframes of one segment and optimises; returns what the optimisation did.
   KeyframeReport AddExternalLink(const MapperLink& link);
 
+  // Resuming a stored map (before the new session's first AddKeyframe): each stored keyframe with
+  // its features, depth (full size or already 1/depth_downscale) and optimised pose, in id order
+  // from 0, then the stored links. Restored keyframes are not registered again; each link joins
+  // the segments of its ends without moving poses. Returns the keyframe's mapper id.
+  int64_t RestoreKeyframe(TimestampNs timestamp_ns, Features features, const cv::Mat& depth_mm,
+                          const Eigen::Isometry3d& world_from_cam);
+  void RestoreLink(const MapperLink& link);
+  // The next keyframe starts a new segment (a new session, or a jump the caller knows of): it is
+  // relocalised against the map through place recognition instead of registered to the last one.
+  void StartNewSegment() { start_new_segment_ = true; }
+
   // A vocabulary to use instead of training one (before the first keyframe).
   void SetVocabulary(std::shared_ptr<const Vocabulary> vocabulary);
   // Null until trained (after vocabulary_training_keyframes) or set.
@@ -185,6 +196,7 @@ class Mapper {
   TrackingState state_ = TrackingState::kTracking;
   int64_t last_loop_keyframe_ = -1000000;
   bool vocabulary_given_ = false;
+  bool start_new_segment_ = false;
 };
 
 }  // namespace sightmap

@@ -144,6 +144,46 @@ TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
   EXPECT_LT(largest_move, 0.02);
 }
 
+TEST(Mapper, AResumedSessionRelocalisesIntoTheRestoredMap) {
+  // Day one maps frames 0-44; day two restores that map (as `sightmap map` does from the model)
+  // and walks frames 25-44 again: its first keyframe cannot be registered by odometry, is
+  // relocalised, and the new keyframes share the stored map's frame.
+  const Walk& walk = HandheldWalk();
+  Mapper first(walk.camera, SmallVocabulary());
+  for (size_t i = 0; i < 45; ++i) {
+    first.AddKeyframe(walk.frames[i].timestamp_ns, walk.frames[i].color, walk.frames[i].depth);
+  }
+  ASSERT_NE(first.vocabulary(), nullptr);
+  Mapper second(walk.camera, SmallVocabulary());
+  second.SetVocabulary(first.vocabulary());
+  for (size_t i = 0; i < 45; ++i) {
+    const int64_t id = second.RestoreKeyframe(
+        walk.frames[i].timestamp_ns, first.FeaturesOf(static_cast<int64_t>(i)),
+        walk.frames[i].depth, first.WorldFromCam(static_cast<int64_t>(i)));
+    EXPECT_EQ(id, static_cast<int64_t>(i));
+  }
+  for (const MapperLink& link : first.Links()) second.RestoreLink(link);
+  EXPECT_EQ(second.NumSegments(), first.NumSegments());
+  std::vector<TrackingState> states;
+  for (size_t i = 25; i < 45; ++i) {
+    const RgbdFrame& frame = walk.frames[i];
+    const KeyframeReport report =
+        second.AddKeyframe(frame.timestamp_ns + 1'000'000'000'000, frame.color, frame.depth);
+    states.push_back(report.state);
+  }
+  EXPECT_EQ(states.front(), TrackingState::kRelocalised)
+      << "the same view as a stored keyframe must relocalise at once";
+  EXPECT_EQ(second.NumSegments(), 1);
+  // The revisit lands where day one put the same frames.
+  for (size_t i = 25; i < 45; ++i) {
+    const int64_t again = static_cast<int64_t>(45 + i - 25);
+    const double apart = (second.WorldFromCam(again).translation() -
+                          second.WorldFromCam(static_cast<int64_t>(i)).translation())
+                             .norm();
+    EXPECT_LT(apart, 0.05) << "frame " << i;
+  }
+}
+
 TEST(Mapper, RefusesImagesThatDoNotFitTheCamera) {
   const Walk& walk = HandheldWalk();
   Mapper mapper(walk.camera);
