@@ -165,22 +165,23 @@ std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_hei
 }
 
 double Trajectory::ViewScore(const Eigen::Vector3d& eye, double yaw) const {
-  // Nine rays across the colour camera's 62 deg, level and 14 deg down: each ending on a surface
-  // the sensor measures (0.8-4.3 m) counts 0.5, and each distinct piece of furniture, poster or
-  // appliance they meet (not bare walls and windows) counts 1 more: people look at things.
+  // Nine rays across the colour camera's 62 deg, 11 deg up, level and 14 deg down (the image's
+  // upper, middle and lower part): each ending on a surface the sensor measures (0.8-4.3 m)
+  // counts 0.5 on furniture, posters and appliances and 0.25 on bare walls, floor and windows,
+  // and each distinct thing they meet counts 1 more: people (and a mapping robot) look at things.
   double score = 0.0;
   std::vector<std::string> things;
-  for (const double down : {0.0, 0.25}) {
+  for (const double down : {-0.2, 0.0, 0.25}) {
     for (int k = -4; k <= 4; ++k) {
       const double a = yaw + k * 0.12;
       const Eigen::Vector3d dir(std::cos(a) * std::cos(down), std::sin(a) * std::cos(down),
                                 -std::sin(down));
       const auto hit = scene_.Raycast(eye, dir, 4.3);
       if (!hit || hit->first < 0.8) continue;
-      score += 0.5;
       const std::string& name = hit->second;
       const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
                         name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0;
+      score += bare ? 0.25 : 0.5;
       if (!bare && std::find(things.begin(), things.end(), name) == things.end()) {
         things.push_back(name);
         score += 1.0;

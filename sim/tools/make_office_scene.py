@@ -175,7 +175,7 @@ def pinboard(name, x, y, z, w, h, normal):
             yaw=(180 if normal in "nw" else 0))
     put("cork", 0, 0, w, h, 0.0, "cork")
     notes = ["note_text", "note_sudoku", "note_notes", "note_yellow", "note_photo", "note_text2"]
-    for k in range(int(w * h * 16)):
+    for k in range(int(w * h * 24)):
         sw, sh = rng.uniform(0.12, 0.24), rng.uniform(0.1, 0.3)
         u = rng.uniform(-w / 2 + sw / 2 + 0.03, w / 2 - sw / 2 - 0.03)
         v = rng.uniform(-h / 2 + sh / 2 + 0.03, h / 2 - sh / 2 - 0.03)
@@ -296,7 +296,7 @@ ceiling_light("ceiling_light_2", 7.0, 7.8)
 add("a_cabinet2", [6.5, YC + T / 2 + 0.3, 0.45], [1.2, 0.5, 0.9], "wood_dark")
 add("a_desk3_top", [5.5, 9.9, 0.72], [1.6, 0.8, 0.04], "wood")
 add("a_desk3_side", [5.5, 9.9, 0.35], [1.5, 0.7, 0.7], "wood_dark")
-chair("a_chair3", 5.5, 9.1, 90)
+chair("a_chair3", 5.5, 9.3, 90)  # pushed in at the desk
 
 # ---- room B: meeting room (x 10..20) ----
 add("b_table", [15.0, 6.4, 0.72], [3.0, 1.2, 0.05], "wood")
@@ -390,10 +390,14 @@ extra_posters = [
 corridor_textures = ["poster_graf", "poster_leuven", "poster_fruits", "poster_home", "poster_butterfly",
                      "poster_cards", "poster_sudoku", "poster_plate", "poster_pic5", "poster_squirrel",
                      "poster_apple", "poster_baboon"]
+# Every other one a printed notice (text, a timetable) rather than a picture.
+notices = ["notice_text", "notice_sudoku", "notice_text2"]
 for i, x in enumerate([0.8, 5.9, 13.4, 16.5, 19.8, 23.2, 25.6, 29.2]):
-    extra_posters.append((f"k_notice_s{i}", x, 0.0, 1.45, 0.7, 0.9, corridor_textures[i % 12], "n"))
+    tex = corridor_textures[i % 12] if i % 2 else notices[(i // 2) % 3]
+    extra_posters.append((f"k_notice_s{i}", x, 0.0, 1.45, 0.7, 0.9, tex, "n"))
 for i, x in enumerate([3.0, 6.6, 9.8, 12.8, 16.3, 20.1, 26.6]):
-    extra_posters.append((f"k_notice_n{i}", x, YC, 1.45, 0.7, 0.9, corridor_textures[(i + 5) % 12], "s"))
+    tex = corridor_textures[(i + 5) % 12] if i % 2 else notices[(i // 2) % 3]
+    extra_posters.append((f"k_notice_n{i}", x, YC, 1.45, 0.7, 0.9, tex, "s"))
 for args in extra_posters:
     poster(*args)
 for name, x, y, sign in [("a_desk1", 0.5, 4.4, 1), ("a_desk2", 0.5, 6.6, 1),
@@ -482,6 +486,22 @@ add("k_water_cooler", [21.8, 0.25, 0.55], [0.3, 0.3, 1.1], "plastic_light")
 add("k_water_bottle", [21.8, 0.25, 1.25], [0.26, 0.26, 0.3], "book_blue")
 add("k_bins", [16.9, 0.25, 0.35], [0.7, 0.35, 0.7], "cabinet_grey")
 add("k_bins_labels", [16.9, 0.07, 0.55], [0.6, 0.01, 0.1], "note_text")
+# Closed doors to the stairs and the store rooms on the corridor's south side.
+for i, x in enumerate([10.4, 24.45]):
+    door_frame(f"k_door{i}", [x, 0.0], 0.9, "x")
+    add(f"k_door{i}_leaf", [x, T / 2 + 0.01, 1.03], [0.9, 0.02, 2.04], "door")
+    add(f"k_door{i}_handle", [x + 0.35, T / 2 + 0.05, 1.0], [0.12, 0.04, 0.03], "metal")
+    add(f"k_door{i}_sign", [x, T / 2 + 0.025, 1.6], [0.3, 0.01, 0.15], "note_text")
+bookshelf("c_shelf4", 20.75, YC + W_IN + 0.18, 90)
+bookshelf("a_shelf4", 7.8, YC + W_IN + 0.18, 90)
+add("c_clock", [21.2, YC + W_IN + 0.02, 2.2], [0.3, 0.03, 0.3], "note_notes")
+add("a_clock", [0.0 + W_IN + 0.02, 7.5, 2.1], [0.03, 0.3, 0.3], "note_notes")
+add("a_calendar", [0.0 + W_IN + 0.01, 7.3, 1.5], [0.01, 0.35, 0.5], "notice_sudoku")
+# By the lab door: the escape plan, a fire alarm call point and a hand sanitiser.
+poster("k_escape_plan", 8.98, YC, 1.5, 0.62, 0.44, "notice_sudoku", "s")
+add("k_call_point", [3.62, YC - W_IN - 0.03, 1.4], [0.1, 0.05, 0.1], "book_red")
+add("k_sanitiser", [3.62, YC - W_IN - 0.05, 1.05], [0.12, 0.1, 0.22], "plastic_light")
+add("k_sanitiser_label", [3.62, YC - W_IN - 0.101, 1.08], [0.08, 0.002, 0.08], "note_text")
 clear_of_tour(first)
 
 scene = {
@@ -509,16 +529,19 @@ scene = {
         "carpet": {"texture": "baboon", "scale_m": 0.5, "contrast": 0.6, "color": [0.36, 0.36, 0.42]},
         "lino": {"texture": "baboon", "scale_m": 0.6, "contrast": 0.5, "color": [0.55, 0.53, 0.50]},
         # stuff.jpg is a photograph of a light wooden table top: grain, a pen, a ball.
-        "wood": {"texture": "stuff", "scale_m": 0.6, "color": [0.95, 0.8, 0.62]},
-        "wood_dark": {"texture": "stuff", "scale_m": 0.6, "color": [0.6, 0.45, 0.32]},
+        "wood": {"texture": "stuff", "scale_m": 0.3, "color": [0.95, 0.8, 0.62]},
+        "wood_dark": {"texture": "stuff", "scale_m": 0.3, "color": [0.6, 0.45, 0.32]},
         "door": {"texture": "stuff", "scale_m": 2.0, "color": [0.85, 0.7, 0.52]},
         "door_frame": {"color": [0.94, 0.94, 0.92]},
         "skirting": {"color": [0.3, 0.27, 0.24]},
         "radiator": {"color": [0.95, 0.95, 0.94]},
         "radiator_rib": {"color": [0.8, 0.8, 0.8]},
         "cabinet_grey": {"color": [0.6, 0.62, 0.64]},
-        "cork": {"texture": "baboon", "scale_m": 0.12, "contrast": 0.5, "color": [0.75, 0.55, 0.35]},
+        "cork": {"texture": "baboon", "scale_m": 0.12, "contrast": 0.8, "color": [0.75, 0.55, 0.35]},
         "note_text": {"texture": "textN", "color": [1, 1, 1]},
+        "notice_text": {"texture": "textN", "color": [1, 1, 1]},
+        "notice_text2": {"texture": "text", "color": [0.95, 0.97, 1]},
+        "notice_sudoku": {"texture": "sudoku", "color": [1, 1, 0.92]},
         "note_text2": {"texture": "text", "color": [1, 1, 0.9]},
         "note_sudoku": {"texture": "sudoku", "color": [1, 1, 1]},
         "note_notes": {"texture": "notes", "color": [1, 1, 1]},
