@@ -77,12 +77,7 @@ void Print(const char* name, const FrameStatistics& s) {
   std::printf("\n");
 }
 
-// DISABLED until the simulator meets the real recordings (issue 4 stays open for this): measured
-// 2026-11-22, real 76.7-86.6% valid depth and 990-1000 ORB keypoints of 1000; simulated handheld
-// 81.3% / 853, robot 73.8% / 759 (valid depth now in range; views of plain walls from 1-1.5 m in
-// the corridor and a doorway still give 170-480 keypoints). Run it with
-// --gtest_also_run_disabled_tests to see the table.
-TEST(SimStatistics, DISABLED_SimulatedFramesMatchTheRealRecordings) {
+TEST(SimStatistics, SimulatedFramesMatchTheRealRecordings) {
   SIGHTMAP_REQUIRE_SHARED_DATA(oni, "oni/kinect-12f.oni");
   SIGHTMAP_REQUIRE_SHARED_DATA(lounge, "rgbd/3dmatch-lounge/seq-01");
   const FrameStatistics kinect = FromSource(oni, 12, 1);

@@ -363,7 +363,12 @@ poster("k_poster_smarties", 15.5, 0.0, 1.5, 0.8, 0.7, "poster_smarties", "n")
 poster("k_poster_whale", 21.0, 0.0, 1.5, 1.0, 0.66, "poster_whale", "n")
 poster("k_poster_graf3", 27.0, 0.0, 1.5, 1.0, 0.8, "poster_graf3", "n")
 poster("k_notice_board", 12.0, 0.0, 1.45, 1.2, 0.9, "notice_board", "n")
-add("k_bench", [6.5, 0.35, 0.22], [1.6, 0.45, 0.44], "wood_dark")
+add("k_bench", [6.5, 0.35, 0.42], [1.6, 0.45, 0.04], "wood_dark")
+add("k_bench_leg0", [5.8, 0.35, 0.2], [0.06, 0.4, 0.4], "metal")
+add("k_bench_leg1", [7.2, 0.35, 0.2], [0.06, 0.4, 0.4], "metal")
+add("k_bench_rail", [6.5, 0.35, 0.1], [1.4, 0.05, 0.04], "metal")
+add("k_bench_bag", [6.9, 0.33, 0.59], [0.32, 0.2, 0.3], "fabric_grey")
+add("k_bench_papers", [6.1, 0.35, 0.445], [0.3, 0.22, 0.01], "papers")
 thermostat("thermostat_corridor", 18.5, 0.0, "n")
 
 # ---- more wall decoration and desk clutter: offices are busy ----
@@ -497,6 +502,36 @@ bookshelf("a_shelf4", 7.8, YC + W_IN + 0.18, 90)
 add("c_clock", [21.2, YC + W_IN + 0.02, 2.2], [0.3, 0.03, 0.3], "note_notes")
 add("a_clock", [0.0 + W_IN + 0.02, 7.5, 2.1], [0.03, 0.3, 0.3], "note_notes")
 add("a_calendar", [0.0 + W_IN + 0.01, 7.3, 1.5], [0.01, 0.35, 0.5], "notice_sudoku")
+# Drawer fronts with handles on the desk pedestals.
+for name, x, y, sign in [("a_desk1", 0.5, 4.4, 1), ("a_desk2", 0.5, 6.6, 1),
+                         ("c_desk1", 29.5, 4.4, -1), ("c_desk2", 29.5, 6.6, -1)]:
+    for k, z in enumerate([0.14, 0.36, 0.56]):
+        add(f"{name}_drawer{k}", [x + sign * 0.306, y - 0.45, z], [0.012, 0.41, 0.18], "plastic_light")
+        add(f"{name}_drawer{k}_handle", [x + sign * 0.32, y - 0.45, z + 0.05], [0.02, 0.14, 0.02], "metal")
+for k, z in enumerate([0.14, 0.36, 0.56]):
+    add(f"a_desk3_drawer{k}", [6.0, 9.544, z], [0.42, 0.012, 0.18], "wood")
+    add(f"a_desk3_drawer{k}_handle", [6.0, 9.53, z + 0.05], [0.14, 0.02, 0.02], "metal")
+add("a_desk3_bin", [4.95, 9.45, 0.17], [0.25, 0.25, 0.34], "cabinet_grey")
+# The meeting room's sideboard: cupboard doors and what a meeting needs on top.
+for k, y in enumerate([4.4, 5.0, 5.6]):
+    add(f"b_sideboard_door{k}", [19.344, y, 0.42], [0.012, 0.56, 0.7], "wood")
+    add(f"b_sideboard_knob{k}", [19.33, y + 0.2, 0.6], [0.03, 0.03, 0.03], "metal")
+add("b_coffee_machine", [19.6, 4.45, 0.98], [0.3, 0.25, 0.36], "plastic_dark")
+add("b_coffee_panel", [19.44, 4.45, 1.05], [0.01, 0.18, 0.1], "note_notes")
+add("b_jug", [19.6, 4.95, 0.92], [0.12, 0.12, 0.24], "metal")
+add("b_cups", [19.6, 5.25, 0.85], [0.25, 0.18, 0.1], "mug_white")
+add("b_folders", [19.6, 5.65, 0.9], [0.3, 0.3, 0.2], "book_blue")
+# Staff lockers in the corridor: steel doors with vents, handles and name cards.
+LX, LW, LD = 4.95, 0.8, 0.38
+add("k_lockers_body", [LX, W_IN + LD / 2, 0.9], [LW, LD, 1.8], "cabinet_grey")
+for k in range(4):
+    x = LX - LW / 2 + (k + 0.5) * LW / 4
+    y = W_IN + LD + 0.006
+    add(f"k_locker{k}_door", [x, y, 0.92], [LW / 4 - 0.02, 0.012, 1.7], "locker")
+    for v in range(3):
+        add(f"k_locker{k}_vent{v}", [x, y + 0.007, 1.55 + 0.05 * v], [0.12, 0.004, 0.015], "plastic_dark")
+    add(f"k_locker{k}_handle", [x + 0.07, y + 0.02, 1.0], [0.03, 0.03, 0.1], "metal")
+    add(f"k_locker{k}_card", [x, y + 0.008, 1.3], [0.1, 0.004, 0.06], "note_text")
 # By the lab door: the escape plan, a fire alarm call point and a hand sanitiser.
 poster("k_escape_plan", 8.98, YC, 1.5, 0.62, 0.44, "notice_sudoku", "s")
 add("k_call_point", [3.62, YC - W_IN - 0.03, 1.4], [0.1, 0.05, 0.1], "book_red")
@@ -537,6 +572,7 @@ scene = {
         "radiator": {"color": [0.95, 0.95, 0.94]},
         "radiator_rib": {"color": [0.8, 0.8, 0.8]},
         "cabinet_grey": {"color": [0.6, 0.62, 0.64]},
+        "locker": {"color": [0.45, 0.55, 0.68]},
         "cork": {"texture": "baboon", "scale_m": 0.12, "contrast": 0.8, "color": [0.75, 0.55, 0.35]},
         "note_text": {"texture": "textN", "color": [1, 1, 1]},
         "notice_text": {"texture": "textN", "color": [1, 1, 1]},
