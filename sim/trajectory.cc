@@ -55,6 +55,10 @@ const char* ToString(TrajectoryKind kind) {
 }
 
 bool TrajectoryOptions::Check(std::string* error) const {
+  if (max_turn_rate_dps < 0.0 || max_turn_rate_dps > 360.0) {
+    *error = "max_turn_rate_dps must be in [0, 360] (0 = the kind's default)";
+    return false;
+  }
   if (speed_mps < 0.0 || speed_mps > 3.0) {
     *error = "speed_mps must be in [0, 3] (0 = the kind's default)";
     return false;
@@ -78,7 +82,10 @@ Eigen::Matrix3d WorldFromCamRotation(double yaw, double pitch, double roll) {
 }
 
 Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
-    : options_(options), scene_(scene), look_cache_(std::make_shared<LookCache>()) {
+    : options_(options),
+      scene_(scene),
+      look_cache_(std::make_shared<LookCache>()),
+      yaw_cache_(std::make_shared<YawCache>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
   const std::vector<Eigen::Vector2d>& tour = scene.tour;
   const size_t n = tour.size();
@@ -99,6 +106,10 @@ Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
     arc_[i] = arc_[i - 1] + (polyline_[i] - polyline_[i - 1]).norm();
   }
   lap_length_m_ = arc_.back();
+  const double turn_rate_dps = options.max_turn_rate_dps > 0.0
+                                   ? options.max_turn_rate_dps
+                                   : (options.kind == TrajectoryKind::kRobot ? 30.0 : 35.0);
+  turn_rate_rad_s_ = turn_rate_dps * kPi / 180.0;
   speed_mps_ = options.speed_mps > 0.0 ? options.speed_mps
                                        : (options.kind == TrajectoryKind::kRobot ? 0.4 : 0.5);
   // Session N starts at tour point 7 * (N - 1): another door, another room.
@@ -234,13 +245,44 @@ std::optional<Eigen::Vector3d> Trajectory::ChooseLookTarget(int64_t window_index
 }
 
 Eigen::Isometry3d Trajectory::WorldFromCam(double t_s) const {
+  const Attitude desired = DesiredAt(t_s);
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  world_from_cam.linear() = WorldFromCamRotation(LimitedYaw(t_s), desired.pitch, desired.roll);
+  world_from_cam.translation() = desired.position;
+  return world_from_cam;
+}
+
+double Trajectory::LimitedYaw(double t_s) const {
+  // The heading follows the desired one at no more than max_turn_rate: sampled on a fixed grid
+  // from t = 0 (so any frame's pose is the same whichever frames were asked for before) and
+  // interpolated. Samples are unwrapped angles, so interpolation never crosses +-pi the long way.
+  constexpr double kStepS = 1.0 / 60.0;
+  const double max_step = turn_rate_rad_s_ * kStepS;
+  const double u = std::max(t_s, 0.0) / kStepS;
+  const size_t k = static_cast<size_t>(std::floor(u));
+  const std::lock_guard<std::mutex> lock(yaw_cache_->mutex);
+  std::vector<double>& samples = yaw_cache_->samples;
+  while (samples.size() <= k + 1) {
+    const double t = static_cast<double>(samples.size()) * kStepS;
+    const double desired = DesiredAt(t).yaw;
+    if (samples.empty()) {
+      samples.push_back(desired);
+    } else {
+      const double previous = samples.back();
+      samples.push_back(previous + std::clamp(WrapAngle(desired - previous), -max_step, max_step));
+    }
+  }
+  const double a = u - static_cast<double>(k);
+  return (1.0 - a) * samples[k] + a * samples[k + 1];
+}
+
+Trajectory::Attitude Trajectory::DesiredAt(double t_s) const {
   const double s = DistanceAt(t_s);
   const Eigen::Vector2d position = PositionAt(s);
   // Heading along the path, looking ahead and behind to smooth the spline's corners.
   const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
   const double path_yaw = std::atan2(ahead.y(), ahead.x());
   const double w = WindowWeight(t_s);
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   if (options_.kind == TrajectoryKind::kRobot) {
     // The pan-tilt head keeps the camera on one target per window and pans to the next one over
     // the window's last quarter, rather than facing down the path between targets: at 0.75 m a
@@ -255,9 +297,7 @@ Eigen::Isometry3d Trajectory::WorldFromCam(double t_s) const {
     const double yaw_now = yaw_towards(LookTarget(t_s, 0.75));
     const double yaw_next = yaw_towards(LookTarget(t_s + kWindowS, 0.75));
     const double yaw = yaw_now + pan * WrapAngle(yaw_next - yaw_now);
-    world_from_cam.linear() = WorldFromCamRotation(yaw, 0.0, 0.0);
-    world_from_cam.translation() = Eigen::Vector3d(position.x(), position.y(), 0.75);
-    return world_from_cam;
+    return {Eigen::Vector3d(position.x(), position.y(), 0.75), yaw, 0.0, 0.0};
   }
   const double* ph = phases_;
   const double step_hz = 1.8;
@@ -281,9 +321,7 @@ Eigen::Isometry3d Trajectory::WorldFromCam(double t_s) const {
   }
   pitch = std::clamp(pitch, -0.26, 0.26);  // +-15 deg
   height = std::clamp(height, 1.4, 1.7);
-  world_from_cam.linear() = WorldFromCamRotation(yaw, pitch, roll);
-  world_from_cam.translation() = Eigen::Vector3d(swayed.x(), swayed.y(), height);
-  return world_from_cam;
+  return {Eigen::Vector3d(swayed.x(), swayed.y(), height), yaw, pitch, roll};
 }
 
 }  // namespace sightmap::sim

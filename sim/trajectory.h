@@ -36,7 +36,12 @@ const char* ToString(TrajectoryKind kind);
 struct TrajectoryOptions {
   TrajectoryKind kind = TrajectoryKind::kHandheld;
   double speed_mps = 0.0;  // walking speed [m/s]; 0 = 0.5 hand-held, 0.4 robot
-  int session = 1;         // >= 1; moves the start along the tour
+  // Fastest turn of the heading [deg/s]; 0 = 35 hand-held, 30 robot. A person mapping while
+  // walking turns about that fast (frames a second apart are up to ~0.5 m and 30-35 deg apart);
+  // the camera follows what the walker wants to look at no faster than this. Before this limit
+  // the walk turned up to 170 deg between two 1 Hz frames, which no registration can bridge.
+  double max_turn_rate_dps = 0.0;
+  int session = 1;  // >= 1; moves the start along the tour
   uint64_t seed = 1;
 
   bool Check(std::string* error) const;
@@ -76,7 +81,24 @@ class Trajectory {
     std::mutex mutex;
     std::map<std::pair<int64_t, int>, std::optional<Eigen::Vector3d>> targets;
   };
-  std::shared_ptr<LookCache> look_cache_;  // shared by copies: the targets are deterministic
+  std::shared_ptr<LookCache> look_cache_;
+
+  // Position and attitude the walker aims for at t; the heading actually taken is LimitedYaw.
+  struct Attitude {
+    Eigen::Vector3d position;
+    double yaw = 0.0;
+    double pitch = 0.0;
+    double roll = 0.0;
+  };
+  Attitude DesiredAt(double t_s) const;
+  double LimitedYaw(double t_s) const;
+  double turn_rate_rad_s_ = 0.0;
+  struct YawCache {
+    std::mutex mutex;
+    std::vector<double> samples;  // unwrapped heading at a fixed step from t = 0 [rad]
+  };
+  std::shared_ptr<YawCache> yaw_cache_;  // shared by copies: the headings are deterministic  //
+                                         // shared by copies: the targets are deterministic
 };
 
 // Camera orientation from heading (yaw about world z from +x), pitch (up positive) and roll
