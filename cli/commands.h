@@ -10,5 +10,6 @@ int RunInfo(int argc, char** argv);
 int RunExport(int argc, char** argv);
 int RunSim(int argc, char** argv);
 int RunEval(int argc, char** argv);
+int RunMap(int argc, char** argv);
 
 }  // namespace sightmap::cli

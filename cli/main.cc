@@ -19,6 +19,8 @@ struct Command {
 };
 
 constexpr Command kCommands[] = {
+    {"map", sightmap::cli::RunMap,
+     "map a SOURCE into a MODEL (keyframes, loops, PLY), resuming a model that has keyframes"},
     {"devices", sightmap::cli::RunDevices,
      "list attached RGB-D sensors, whether you may open them and whether OpenNI2 sees them"},
     {"probe", sightmap::cli::RunProbe,
@@ -42,7 +44,8 @@ void PrintUsage(std::ostream& out) {
     out << "  " << command.name << std::string(10 - std::strlen(command.name), ' ')
         << command.summary << "\n";
   }
-  out << "\nSOURCE is openni:// (first sensor), openni://URI, FILE.oni, tum:DIR or 3dmatch:DIR.\n"
+  out << "\nSOURCE is openni:// (first sensor), openni://URI, FILE.oni, tum:DIR, 3dmatch:DIR or\n"
+         "sim:NAME[?key=value&...] (the synthetic building).\n"
          "Exit codes: 0 success, 1 runtime failure, 2 usage error.\n";
 }
 

@@ -1,0 +1,269 @@
+// sightmap map --source SOURCE --model FILE [...]: the capture appliance end to end (issue 8). Maps
+// a sensor, recording, folder or the simulator into a model (resuming it when it holds keyframes),
+// with a status line on stderr and a summary on stdout. Ctrl-C or SIGTERM stops gracefully (exit
+// 0 with the summary); a second one exits at once, the model keeping every committed keyframe.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/command_util.h"
+#include "cli/commands.h"
+#include "core/check.h"
+#include "mapping/mapping_session.h"
+
+namespace sightmap::cli {
+namespace {
+
+// Set by the signal handler (lock-free atomics are async-signal-safe).
+std::atomic<bool> g_stop_requested{false};
+std::atomic<int> g_signals{0};
+
+extern "C" void OnStopSignal(int signal_number) {
+  if (g_signals.fetch_add(1) >= 1) {
+    // The second signal: leave now. Committed keyframes are safe in the WAL.
+    static const char kMessage[] = "\nsightmap map: second signal, exiting at once\n";
+    const ssize_t ignored = write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+    static_cast<void>(ignored);
+    _exit(128 + signal_number);
+  }
+  g_stop_requested = true;
+}
+
+// Installs the handlers for the command's lifetime and restores the previous ones.
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction action {};
+    action.sa_handler = OnStopSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &previous_int_);
+    sigaction(SIGTERM, &action, &previous_term_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &previous_int_, nullptr);
+    sigaction(SIGTERM, &previous_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction previous_int_ {};
+  struct sigaction previous_term_ {};
+};
+
+std::string Megabytes(int64_t bytes) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(1) << static_cast<double>(bytes) / 1e6 << " MB";
+  return out.str();
+}
+
+std::string TrackingText(const mapping::MappingProgress& progress) {
+  if (progress.paused) return "paused";
+  if (progress.resumed && !progress.joined_stored_map) {
+    return progress.keyframes == 0 ? "resuming" : "not yet relocalised into the stored map";
+  }
+  return ToString(progress.tracking);
+}
+
+// The status line: a progress bar when the source's length is known.
+class StatusLine {
+ public:
+  StatusLine() : tty_(isatty(STDERR_FILENO) != 0) {}
+
+  void Update(const mapping::MappingProgress& progress) {
+    std::ostringstream line;
+    if (progress.frames_total && *progress.frames_total > 0) {
+      const double done = std::clamp(
+          static_cast<double>(progress.frames_read) / static_cast<double>(*progress.frames_total),
+          0.0, 1.0);
+      constexpr int kWidth = 20;
+      const int filled = static_cast<int>(done * kWidth);
+      line << "[" << std::string(static_cast<size_t>(filled), '#')
+           << std::string(static_cast<size_t>(kWidth - filled), '.') << "] " << std::setw(3)
+           << static_cast<int>(done * 100.0) << "% ";
+    }
+    line << progress.keyframes << " keyframes (" << std::fixed << std::setprecision(2)
+         << progress.keyframes_per_s << "/s), " << TrackingText(progress) << ", " << progress.loops
+         << " loops, " << progress.dropped_frames << " dropped";
+    if (tty_) {
+      std::cerr << "\r" << line.str() << "\033[K" << std::flush;
+      shown_ = true;
+    } else if (progress.elapsed_s - last_printed_s_ >= 10.0) {
+      // Logs and pipes get a line every 10 s rather than one per keyframe.
+      std::cerr << line.str() << "\n";
+      last_printed_s_ = progress.elapsed_s;
+    }
+  }
+
+  void End() {
+    if (shown_) std::cerr << "\n";
+    shown_ = false;
+  }
+
+ private:
+  bool tty_;
+  bool shown_ = false;
+  double last_printed_s_ = 0.0;
+};
+
+nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
+  nlohmann::json json;
+  json["reason"] = ToString(summary.reason);
+  json["reason_detail"] = summary.reason_detail;
+  json["source_kind"] = summary.source_kind;
+  json["session"] = summary.session;
+  json["resumed"] = summary.resumed;
+  json["restored_keyframes"] = summary.restored_keyframes;
+  json["interrupted_sessions_marked"] = summary.interrupted_sessions_marked;
+  json["joined_stored_map"] = summary.joined_stored_map;
+  json["keyframes"] = summary.keyframes;
+  json["model_keyframes"] = summary.model_keyframes;
+  json["loops"] = summary.loops;
+  json["segments"] = summary.segments;
+  json["dropped_frames"] = summary.dropped_frames;
+  json["frames_read"] = summary.frames_read;
+  json["links_rejected_after_commit"] = summary.links_rejected_after_commit;
+  json["ate_rmse_m"] = summary.ate_rmse_m ? nlohmann::json(*summary.ate_rmse_m) : nlohmann::json();
+  json["ate_max_m"] = summary.ate_max_m ? nlohmann::json(*summary.ate_max_m) : nlohmann::json();
+  json["ate_poses"] = summary.ate_poses;
+  json["elapsed_s"] = summary.elapsed_s;
+  json["keyframes_per_s"] = summary.keyframes_per_s;
+  json["model_bytes"] = summary.model_bytes;
+  json["ply_points"] = summary.ply_points;
+  json["ply"] = summary.ply_path;
+  json["trajectory"] = summary.trajectory_path;
+  json["view"] = summary.view;
+  json["peak_rss_mib"] = summary.peak_rss_mib;
+  return json;
+}
+
+void PrintSummary(const mapping::MappingSummary& summary, const std::string& model_path,
+                  std::ostream& out) {
+  out << std::fixed << std::setprecision(1);
+  out << "map: " << summary.keyframes << " keyframes in " << summary.elapsed_s << " s ("
+      << std::setprecision(2) << summary.keyframes_per_s
+      << " keyframes/s); stopped: " << ToString(summary.reason);
+  if (!summary.reason_detail.empty()) out << " (" << summary.reason_detail << ")";
+  out << "\n";
+  out << "  model       " << model_path << ": " << summary.model_keyframes << " keyframes, session "
+      << summary.session_number << ", " << Megabytes(summary.model_bytes) << "\n";
+  if (summary.resumed) {
+    out << "  resumed     " << summary.restored_keyframes << " keyframes restored";
+    if (summary.interrupted_sessions_marked > 0) {
+      out << ", " << summary.interrupted_sessions_marked
+          << " crashed session(s) marked interrupted";
+    }
+    out << "; "
+        << (summary.joined_stored_map
+                ? "this session relocalised into the stored map"
+                : "this session did not relocalise into the stored map: its keyframes "
+                  "are kept as a separate segment")
+        << "\n";
+  }
+  out << "  loops       " << summary.loops << "\n";
+  out << "  segments    " << summary.segments << "\n";
+  out << "  dropped     " << summary.dropped_frames << " frames\n";
+  if (summary.ate_rmse_m) {
+    out << std::setprecision(3) << "  ATE         " << *summary.ate_rmse_m << " m rmse (max "
+        << *summary.ate_max_m << " m) over " << summary.ate_poses << " keyframes\n";
+  }
+  if (!summary.ply_path.empty()) {
+    out << "  PLY         " << summary.ply_path << ": " << summary.ply_points << " points\n";
+  }
+  if (!summary.trajectory_path.empty()) {
+    out << "  trajectory  " << summary.trajectory_path << "\n";
+  }
+  if (!summary.view.empty()) out << "  progress    " << summary.view << "\n";
+  out << std::setprecision(0) << "  peak RSS    " << summary.peak_rss_mib << " MiB\n";
+}
+
+}  // namespace
+
+int RunMap(int argc, char** argv) {
+  CLI::App app(
+      "Map a SOURCE into a MODEL: keyframes at --rate, registered with loop-closure checks, "
+      "written as they come; the PLY and trajectory at the end. An existing MODEL is resumed.",
+      "sightmap map");
+  mapping::MappingOptions options;
+  options.source = "openni://";
+  bool preview = false;
+  bool headless = false;
+  bool json = false;
+  app.add_option("--source", options.source,
+                 "openni:// | openni://URI | FILE.oni | tum:DIR | 3dmatch:DIR | sim:NAME[?...] "
+                 "(default: the first sensor)");
+  app.add_option("--model", options.model_path, "the model file (SQLite), created or resumed")
+      ->required();
+  app.add_option("--ply", options.ply_path, "write the point cloud here at the end");
+  app.add_option("--rate", options.sampler.rate_hz, "keyframes per second of source time [Hz]")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  auto* preview_flag = app.add_flag("--preview", preview, "show the preview window (fail without)");
+  auto* headless_flag =
+      app.add_flag("--headless", headless, "no window; progress only as --progress-png images");
+  preview_flag->excludes(headless_flag);
+  app.add_option("--progress-png", options.view.progress_png,
+                 "rewrite this PNG of the map every 10 keyframes and at the end");
+  app.add_option("--trajectory-out", options.trajectory_path,
+                 "write every keyframe's pose here at the end (TUM format)");
+  app.add_flag("--realtime", options.source_options.realtime,
+               "play a recording at its recorded pace, as a live sensor (frames the mapper cannot "
+               "keep up with are dropped)");
+  app.add_option("--start-frame", options.start_frame,
+                 "skip the source's first N frames (continue a recording or walk from frame N)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--max-keyframes", options.max_keyframes,
+                 "stop after N keyframes of this session (0: no limit)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--calib", options.source_options.calibration_file,
+                 "JSON calibration overriding intrinsics and depth-to-colour registration")
+      ->check(CLI::ExistingFile);
+  app.add_flag("--json", json, "print the summary as one JSON object (stable keys)");
+  if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+
+  options.live = options.source_options.realtime;
+  options.view.choice = preview    ? mapping::ViewChoice::kPreview
+                        : headless ? mapping::ViewChoice::kHeadless
+                                   : mapping::ViewChoice::kAuto;
+  const bool has_display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
+  // Nothing to draw into: no window and no image file.
+  if (options.view.progress_png.empty() && (headless || (!preview && !has_display))) {
+    options.show_view = false;
+  }
+
+  mapping::MappingSession session(options);
+  g_stop_requested = false;
+  g_signals = 0;
+  StopSignals signals;
+  session.SetInterruptFlag(&g_stop_requested);
+  StatusLine status;
+  session.SetProgressCallback(
+      [&status](const mapping::MappingProgress& progress) { status.Update(progress); });
+  mapping::MappingSummary summary;
+  try {
+    summary = session.Run(&std::cerr);
+  } catch (...) {
+    status.End();
+    throw;
+  }
+  status.End();
+  if (json) {
+    std::cout << SummaryJson(summary).dump(2) << std::endl;
+  } else {
+    PrintSummary(summary, options.model_path, std::cout);
+    std::cout << std::flush;
+  }
+  return kExitSuccess;
+}
+
+}  // namespace sightmap::cli

@@ -1,0 +1,69 @@
+#include "mapping/bounded_queue.h"
+
+#include <chrono>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace sightmap::mapping {
+namespace {
+
+using namespace std::chrono_literals;
+
+TEST(BoundedQueue, TryPushDropsWhenFullAndKeepsOrder) {
+  BoundedQueue<int> queue(2);
+  EXPECT_TRUE(queue.TryPush(1));
+  EXPECT_TRUE(queue.TryPush(2));
+  EXPECT_FALSE(queue.TryPush(3)) << "a live frame must not wait for room";
+  EXPECT_EQ(queue.size(), 2u);
+  EXPECT_EQ(queue.Pop(), 1);
+  EXPECT_TRUE(queue.TryPush(4));
+  EXPECT_EQ(queue.Pop(), 2);
+  EXPECT_EQ(queue.Pop(), 4);
+}
+
+TEST(BoundedQueue, PushWaitsForRoomSoAReplayLosesNothing) {
+  BoundedQueue<int> queue(1);
+  constexpr int kItems = 200;
+  std::thread producer([&] {
+    for (int i = 0; i < kItems; ++i) ASSERT_TRUE(queue.Push(i));
+    queue.Close();
+  });
+  std::vector<int> received;
+  while (std::optional<int> item = queue.Pop()) {
+    EXPECT_LE(queue.size(), 1u);
+    received.push_back(*item);
+  }
+  producer.join();
+  ASSERT_EQ(received.size(), static_cast<size_t>(kItems));
+  for (int i = 0; i < kItems; ++i) EXPECT_EQ(received[static_cast<size_t>(i)], i);
+}
+
+TEST(BoundedQueue, CloseReleasesAWaitingProducerAndConsumersDrain) {
+  BoundedQueue<int> queue(1);
+  ASSERT_TRUE(queue.Push(7));
+  bool pushed = true;
+  std::thread producer([&] { pushed = queue.Push(8); });  // waits: the queue is full
+  std::this_thread::sleep_for(50ms);
+  queue.Close();
+  producer.join();
+  EXPECT_FALSE(pushed);
+  int item = 0;
+  EXPECT_EQ(queue.Pop(&item, 10ms), BoundedQueue<int>::PopResult::kItem);
+  EXPECT_EQ(item, 7);
+  EXPECT_EQ(queue.Pop(&item, 10ms), BoundedQueue<int>::PopResult::kEnd);
+  EXPECT_FALSE(queue.TryPush(9));
+}
+
+TEST(BoundedQueue, PopTimesOutOnAnEmptyOpenQueue) {
+  BoundedQueue<int> queue(3);
+  int item = 0;
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(queue.Pop(&item, 30ms), BoundedQueue<int>::PopResult::kTimeout);
+  EXPECT_GE(std::chrono::steady_clock::now() - start, 25ms);
+  EXPECT_THROW(BoundedQueue<int>(0), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace sightmap::mapping

@@ -1,0 +1,127 @@
+#include "mapping/map_view_feed.h"
+
+#include "core/check.h"
+#include "render/map_scene.h"
+#include "render/map_view_factory.h"
+
+namespace sightmap::mapping {
+namespace {
+
+TrackingState ToRender(FeedTracking state) {
+  switch (state) {
+    case FeedTracking::kTracking:
+      return TrackingState::kTracking;
+    case FeedTracking::kLost:
+      return TrackingState::kLost;
+    case FeedTracking::kRelocalised:
+      return TrackingState::kRelocalised;
+  }
+  return TrackingState::kLost;
+}
+
+ViewMode ToRender(ViewChoice choice) {
+  switch (choice) {
+    case ViewChoice::kAuto:
+      return ViewMode::kAuto;
+    case ViewChoice::kPreview:
+      return ViewMode::kPreview;
+    case ViewChoice::kHeadless:
+      return ViewMode::kHeadless;
+  }
+  return ViewMode::kAuto;
+}
+
+}  // namespace
+
+bool MapViewFeedOptions::Check(std::string* error) const {
+  if (progress_every_n_keyframes < 1) {
+    *error = "progress_every_n_keyframes must be >= 1";
+    return false;
+  }
+  if (cloud_pixel_step < 1 || !(cloud_voxel_m > 0.0)) {
+    *error = "cloud_pixel_step must be >= 1 and cloud_voxel_m > 0";
+    return false;
+  }
+  if (!(world_up.norm() > 0.0)) {
+    *error = "world_up must not be zero";
+    return false;
+  }
+  return true;
+}
+
+struct MapViewFeed::Impl {
+  MapViewFeedOptions options;
+  std::unique_ptr<MapView> view;
+  KeyframeCloudOptions cloud;
+};
+
+std::unique_ptr<MapViewFeed> MapViewFeed::Create(const MapViewFeedOptions& options,
+                                                 std::ostream* notices) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  impl->cloud.pixel_step = options.cloud_pixel_step;
+  impl->cloud.voxel_m = options.cloud_voxel_m;
+  MapViewOptions view;
+  view.mode = ToRender(options.choice);
+  view.progress.png_path = options.progress_png;
+  view.progress.every_n_keyframes = options.progress_every_n_keyframes;
+  view.progress.world_up = options.world_up.normalized();
+  view.preview.world_up = options.world_up.normalized();
+  view.preview.title = "sightmap map";
+  impl->view = CreateMapView(view, notices);
+  return std::unique_ptr<MapViewFeed>(new MapViewFeed(std::move(impl)));
+}
+
+MapViewFeed::MapViewFeed(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+MapViewFeed::~MapViewFeed() = default;
+
+void MapViewFeed::AddKeyframe(int64_t id, int session, const Eigen::Isometry3d& world_from_cam,
+                              const cv::Mat& bgr, const cv::Mat& depth_mm,
+                              const Intrinsics& intrinsics) {
+  MapKeyframe keyframe = FromRgbd(bgr, depth_mm, intrinsics, impl_->cloud);
+  keyframe.id = id;
+  keyframe.session = std::max(1, session);
+  keyframe.world_from_cam = world_from_cam;
+  MapUpdate update;
+  update.keyframes.push_back(std::move(keyframe));
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::UpdatePoses(
+    const std::vector<std::pair<int64_t, Eigen::Isometry3d>>& world_from_cam) {
+  MapUpdate update;
+  update.poses.reserve(world_from_cam.size());
+  for (const auto& [id, pose] : world_from_cam) update.poses.push_back({id, pose});
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::AddLoop(int64_t from_id, int64_t to_id) {
+  MapUpdate update;
+  update.loops.push_back({from_id, to_id});
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::SetCamera(const Eigen::Isometry3d& world_from_cam) {
+  MapUpdate update;
+  update.camera = world_from_cam;
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::SetStatus(const FeedStatus& status) {
+  MapUpdate update;
+  update.status = MapStatus{status.keyframes, status.loops, ToRender(status.tracking),
+                            status.keyframes_per_s, status.elapsed_s};
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::SetLiveImages(const cv::Mat& bgr, const cv::Mat& depth_mm) {
+  impl_->view->SetLiveImages(bgr, depth_mm);
+}
+
+bool MapViewFeed::paused() const { return impl_->view->paused(); }
+bool MapViewFeed::stop_requested() const { return impl_->view->stop_requested(); }
+void MapViewFeed::Finish() { impl_->view->Finish(); }
+std::string MapViewFeed::description() const { return impl_->view->description(); }
+
+}  // namespace sightmap::mapping

@@ -1,0 +1,579 @@
+#include "mapping/mapping_session.h"
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/check.h"
+#include "mapping/bounded_queue.h"
+#include "mapping/feature_conversion.h"
+#include "slam/trajectory_eval.h"
+#include "store/trajectory.h"
+
+namespace sightmap::mapping {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+TimestampNs WallClockNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+double PeakRssMiB() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB on Linux
+}
+
+// A thread joined when it goes out of scope (no detached thread outlives the session).
+class ScopedThread {
+ public:
+  ScopedThread() = default;
+  template <typename Fn>
+  explicit ScopedThread(Fn fn) : thread_(std::move(fn)) {}
+  ScopedThread(ScopedThread&&) = default;
+  ScopedThread& operator=(ScopedThread&& other) {
+    Join();
+    thread_ = std::move(other.thread_);
+    return *this;
+  }
+  ~ScopedThread() { Join(); }
+  void Join() {
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  std::thread thread_;
+};
+
+LinkType ToStore(MapperLinkType type) {
+  switch (type) {
+    case MapperLinkType::kOdometry:
+      return LinkType::kOdometry;
+    case MapperLinkType::kLoopClosure:
+      return LinkType::kLoopClosure;
+    case MapperLinkType::kRelocalisation:
+      return LinkType::kRelocalisation;
+  }
+  return LinkType::kOdometry;
+}
+
+MapperLinkType FromStore(LinkType type) {
+  switch (type) {
+    case LinkType::kOdometry:
+      return MapperLinkType::kOdometry;
+    case LinkType::kRelocalisation:
+      return MapperLinkType::kRelocalisation;
+    case LinkType::kLoopClosure:
+    case LinkType::kUser:  // a user's link constrains the graph like a verified loop
+      return MapperLinkType::kLoopClosure;
+  }
+  return MapperLinkType::kLoopClosure;
+}
+
+FeedTracking ToFeed(TrackingState state) {
+  switch (state) {
+    case TrackingState::kTracking:
+      return FeedTracking::kTracking;
+    case TrackingState::kLost:
+      return FeedTracking::kLost;
+    case TrackingState::kRelocalised:
+      return FeedTracking::kRelocalised;
+  }
+  return FeedTracking::kLost;
+}
+
+// What SLAM hands the writer, in order.
+struct WriteTask {
+  enum class Kind { kKeyframe, kPoses, kVocabulary };
+  Kind kind = Kind::kKeyframe;
+  // kKeyframe: the record (links left empty) and its links with mapper ids at both ends.
+  int64_t mapper_id = -1;
+  KeyframeRecord record;
+  std::vector<MapperLink> links;
+  FeedStatus status;
+  // kPoses: every optimised pose, by mapper id.
+  std::vector<std::pair<int64_t, Eigen::Isometry3d>> poses;
+  // kVocabulary: Vocabulary::Serialize()'s bytes.
+  std::vector<uint8_t> vocabulary;
+};
+
+nlohmann::json OptionsJson(const MappingOptions& options) {
+  nlohmann::json json;
+  json["source"] = options.source;
+  json["rate_hz"] = options.sampler.rate_hz;
+  json["start_frame"] = options.start_frame;
+  json["max_keyframes"] = options.max_keyframes;
+  json["live"] = options.live;
+  json["realtime"] = options.source_options.realtime;
+  json["width"] = options.source_options.width;
+  json["height"] = options.source_options.height;
+  json["fps"] = options.source_options.fps;
+  json["calibration_file"] = options.source_options.calibration_file;
+  json["max_features"] = options.mapper.features.max_features;
+  json["odometry_window"] = options.mapper.odometry_window;
+  json["vocabulary_training_keyframes"] = options.mapper.vocabulary_training_keyframes;
+  json["loop_candidates"] = options.mapper.loop_candidates;
+  return json;
+}
+
+}  // namespace
+
+const char* ToString(StopReason reason) {
+  switch (reason) {
+    case StopReason::kSourceEnded:
+      return "the source ended";
+    case StopReason::kSignal:
+      return "interrupted (Ctrl-C or SIGTERM)";
+    case StopReason::kUserStop:
+      return "stopped from the preview window";
+    case StopReason::kSourceFailed:
+      return "the source failed";
+    case StopReason::kMaxKeyframes:
+      return "the keyframe limit was reached";
+  }
+  return "unknown";
+}
+
+bool MappingOptions::Check(std::string* error) const {
+  if (source.empty()) {
+    *error = "no source";
+    return false;
+  }
+  if (model_path.empty()) {
+    *error = "no model file";
+    return false;
+  }
+  if (start_frame < 0 || max_keyframes < 0) {
+    *error = "start_frame and max_keyframes must be >= 0";
+    return false;
+  }
+  if (frame_queue_capacity < 1 || write_queue_capacity < 1) {
+    *error = "queue capacities must be >= 1";
+    return false;
+  }
+  return source_options.Check(error) && sampler.Check(error) && mapper.Check(error) &&
+         model.Check(error) && ply.Check(error) && view.Check(error);
+}
+
+MappingSession::MappingSession(const MappingOptions& options) : options_(options) {
+  SIGHTMAP_CHECK_OPTIONS(options_);
+}
+
+void MappingSession::RequestStop(StopReason reason) {
+  int expected = -1;
+  stop_reason_.compare_exchange_strong(expected, static_cast<int>(reason));
+}
+
+MappingSummary MappingSession::Run(std::ostream* notices) {
+  MappingSummary summary;
+
+  // The source first: without one, the model is not touched.
+  std::unique_ptr<RgbdSource> source = OpenSource(options_.source, options_.source_options);
+  const SourceMetadata meta = source->metadata();
+  summary.source_kind = meta.kind;
+  const bool live = options_.live || meta.kind == "openni";
+  const Intrinsics camera = meta.intrinsics;
+
+  std::unique_ptr<MapViewFeed> view;
+  if (options_.show_view) view = MapViewFeed::Create(options_.view, notices);
+
+  Model model = Model::Open(options_.model_path, options_.model);
+  Mapper mapper(camera, options_.mapper);
+
+  // Mapper id -> store id. Filled by the restore below, then only by the writer thread.
+  std::vector<KeyframeId> store_ids;
+  std::vector<int64_t> restored_segment_members;  // one keyframe of each restored segment
+  bool vocabulary_stored = false;
+  if (model.NumKeyframes() > 0) {
+    summary.resumed = true;
+    summary.interrupted_sessions_marked = model.MarkRunningSessionsInterrupted(WallClockNs());
+    const std::vector<KeyframeInfo> stored = model.Keyframes();
+    const Intrinsics& first = stored.front().intrinsics;
+    SIGHTMAP_CHECK(first.width == camera.width && first.height == camera.height,
+                   "the model " << options_.model_path << " was mapped with a " << first.width
+                                << "x" << first.height << " camera but " << options_.source
+                                << " delivers " << camera.width << "x" << camera.height
+                                << " — map into a new model or use the same camera mode");
+    if (auto vocabulary = model.LoadVocabulary()) {
+      SIGHTMAP_CHECK(vocabulary->first == Vocabulary::kFormat,
+                     "the model's vocabulary is of format '"
+                         << vocabulary->first << "', this sightmap reads '" << Vocabulary::kFormat
+                         << "' — map into a new model");
+      mapper.SetVocabulary(
+          std::make_shared<const Vocabulary>(Vocabulary::Deserialize(vocabulary->second)));
+      vocabulary_stored = true;
+    }
+    std::map<int64_t, int64_t> mapper_id_of;  // store id -> mapper id
+    for (const KeyframeInfo& info : stored) {
+      const cv::Mat depth = model.LoadDepth(info.id);
+      const int64_t id =
+          mapper.RestoreKeyframe(info.timestamp_ns, FromStoreFeatures(model.LoadFeatures(info.id)),
+                                 depth, info.world_from_cam);
+      SIGHTMAP_CHECK(id == static_cast<int64_t>(store_ids.size()),
+                     "the mapper restored keyframe " << info.id.value() << " as " << id);
+      store_ids.push_back(info.id);
+      mapper_id_of[info.id.value()] = id;
+      if (view) {
+        view->AddKeyframe(id, static_cast<int>(info.session.value()), info.world_from_cam,
+                          model.LoadColor(info.id), depth, info.intrinsics);
+      }
+    }
+    for (const LinkRecord& record : model.Links()) {
+      MapperLink link;
+      link.from = mapper_id_of.at(record.from.value());
+      link.to = mapper_id_of.at(record.to.value());
+      link.from_from_to = record.from_from_to;
+      link.information = record.information;
+      link.type = FromStore(record.type);
+      mapper.RestoreLink(link);
+      if (view && link.type != MapperLinkType::kOdometry) view->AddLoop(link.from, link.to);
+    }
+    std::set<int> roots;
+    for (int64_t id = 0; id < static_cast<int64_t>(store_ids.size()); ++id) {
+      if (roots.insert(mapper.SegmentOf(id)).second) restored_segment_members.push_back(id);
+    }
+    mapper.StartNewSegment();
+    summary.restored_keyframes = static_cast<int64_t>(store_ids.size());
+    if (notices) {
+      *notices << "resuming " << options_.model_path << ": " << store_ids.size() << " keyframes in "
+               << roots.size() << " segment(s)"
+               << (summary.interrupted_sessions_marked > 0
+                       ? ", " + std::to_string(summary.interrupted_sessions_marked) +
+                             " crashed session(s) marked interrupted"
+                       : std::string())
+               << "\n";
+    }
+  }
+
+  SessionRecord session_record;
+  session_record.start_time_ns = WallClockNs();
+  session_record.source = options_.source;
+  session_record.device_name = meta.device_name;
+  session_record.device_serial = meta.serial;
+  session_record.intrinsics = camera;
+  session_record.options_json = OptionsJson(options_).dump();
+  summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;
+  const SessionId session = model.BeginSession(session_record);
+  summary.session = session.value();
+  const int session_number = static_cast<int>(summary.session_number);
+  if (view) summary.view = view->description();
+
+  // Shared between the stages.
+  BoundedQueue<RgbdFrame> frames(static_cast<size_t>(options_.frame_queue_capacity));
+  BoundedQueue<WriteTask> writes(static_cast<size_t>(options_.write_queue_capacity));
+  std::atomic<bool> capture_stop{false};
+  std::atomic<int64_t> frames_read{0};
+  std::atomic<int64_t> dropped{0};
+  std::atomic<bool> capture_failed{false};
+  std::string capture_error;  // written by the capture thread before it closes `frames`
+  std::atomic<bool> writer_failed{false};
+  std::exception_ptr writer_error;  // written by the writer thread before it sets writer_failed
+  std::atomic<int64_t> committed{0};
+
+  const Clock::time_point map_start = Clock::now();
+
+  ScopedThread writer([&] {
+    try {
+      while (std::optional<WriteTask> task = writes.Pop()) {
+        switch (task->kind) {
+          case WriteTask::Kind::kKeyframe: {
+            KeyframeRecord& record = task->record;
+            for (const MapperLink& link : task->links) {
+              LinkRecord stored;
+              stored.from = link.from == task->mapper_id
+                                ? KeyframeId()
+                                : store_ids.at(static_cast<size_t>(link.from));
+              stored.to = link.to == task->mapper_id ? KeyframeId()
+                                                     : store_ids.at(static_cast<size_t>(link.to));
+              stored.type = ToStore(link.type);
+              stored.from_from_to = link.from_from_to;
+              stored.information = link.information;
+              record.links.push_back(stored);
+            }
+            SIGHTMAP_CHECK(task->mapper_id == static_cast<int64_t>(store_ids.size()),
+                           "keyframe " << task->mapper_id << " reached the writer out of order");
+            store_ids.push_back(model.AddKeyframe(record));
+            ++committed;
+            if (view) {
+              view->AddKeyframe(task->mapper_id, session_number, record.world_from_cam,
+                                record.color, record.depth, record.intrinsics);
+              for (const MapperLink& link : task->links) {
+                if (link.type != MapperLinkType::kOdometry) view->AddLoop(link.from, link.to);
+              }
+              view->SetCamera(record.world_from_cam);
+              view->SetStatus(task->status);
+            }
+            break;
+          }
+          case WriteTask::Kind::kPoses: {
+            std::vector<std::pair<KeyframeId, Eigen::Isometry3d>> poses;
+            poses.reserve(task->poses.size());
+            for (const auto& [id, pose] : task->poses) {
+              if (id < static_cast<int64_t>(store_ids.size())) {
+                poses.emplace_back(store_ids[static_cast<size_t>(id)], pose);
+              }
+            }
+            model.UpdatePoses(poses);
+            if (view) view->UpdatePoses(task->poses);
+            break;
+          }
+          case WriteTask::Kind::kVocabulary:
+            model.SetVocabulary(Vocabulary::kFormat, task->vocabulary);
+            break;
+        }
+      }
+    } catch (...) {
+      writer_error = std::current_exception();
+      writer_failed = true;
+      writes.Close();
+      frames.Close();
+    }
+  });
+
+  KeyframeSampler sampler(options_.sampler);
+  ScopedThread capture([&] {
+    try {
+      Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);
+      while (!capture_stop) {
+        std::optional<RgbdFrame> frame = source->Next();
+        if (!frame) break;
+        ++frames_read;
+        if (frame->index < options_.start_frame) continue;
+        if (view && Clock::now() - last_live_image > std::chrono::milliseconds(100)) {
+          view->SetLiveImages(frame->color, frame->depth);
+          last_live_image = Clock::now();
+        }
+        if (view && view->paused()) {
+          // Live: frames pass by unused. Replay: the recording waits for the user.
+          if (live) continue;
+          while (view->paused() && !capture_stop && !view->stop_requested()) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          }
+        }
+        if (!sampler.Accept(frame->timestamp_ns)) continue;
+        if (live) {
+          if (!frames.TryPush(std::move(*frame)) && !capture_stop) ++dropped;
+        } else if (!frames.Push(std::move(*frame))) {
+          break;
+        }
+      }
+    } catch (const std::exception& e) {
+      capture_error = e.what();
+      capture_failed = true;
+    }
+    frames.Close();
+  });
+
+  // The SLAM stage, on this thread.
+  std::vector<StampedPose> ground_truth;
+  std::vector<int64_t> session_ids;
+  int64_t links_rejected_after_commit = 0;
+  bool vocabulary_sent = vocabulary_stored;
+  bool joined = false;
+  Clock::time_point last_progress = Clock::now();
+  auto make_progress = [&] {
+    MappingProgress progress;
+    progress.keyframes = static_cast<int64_t>(session_ids.size());
+    progress.model_keyframes = static_cast<int64_t>(mapper.NumKeyframes());
+    progress.loops = mapper.NumLoopClosures();
+    progress.dropped_frames = dropped;
+    progress.frames_read = frames_read;
+    if (meta.depth_frame_count) progress.frames_total = *meta.depth_frame_count;
+    progress.tracking = mapper.tracking_state();
+    progress.resumed = summary.resumed;
+    progress.joined_stored_map = joined;
+    progress.paused = view && view->paused();
+    progress.elapsed_s = SecondsSince(map_start);
+    progress.keyframes_per_s = progress.elapsed_s > 0.0
+                                   ? static_cast<double>(progress.keyframes) / progress.elapsed_s
+                                   : 0.0;
+    return progress;
+  };
+  auto stop_requested = [&] {
+    if (interrupt_flag_ && interrupt_flag_->load()) RequestStop(StopReason::kSignal);
+    if (view && view->stop_requested()) RequestStop(StopReason::kUserStop);
+    return stop_reason_.load() >= 0 || writer_failed.load();
+  };
+
+  std::exception_ptr slam_error;
+  try {
+    while (!stop_requested()) {
+      RgbdFrame frame;
+      const auto popped = frames.Pop(&frame, std::chrono::milliseconds(100));
+      if (popped == BoundedQueue<RgbdFrame>::PopResult::kEnd) break;
+      if (popped == BoundedQueue<RgbdFrame>::PopResult::kTimeout) {
+        if (progress_ && SecondsSince(last_progress) > 1.0) {
+          progress_(make_progress());
+          last_progress = Clock::now();
+        }
+        continue;
+      }
+      const KeyframeReport report =
+          mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+      session_ids.push_back(report.id);
+      if (frame.world_from_cam_gt) {
+        ground_truth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
+      }
+      if (summary.resumed && !joined) {
+        const int root = mapper.SegmentOf(report.id);
+        for (int64_t member : restored_segment_members) joined |= mapper.SegmentOf(member) == root;
+      }
+
+      WriteTask task;
+      task.kind = WriteTask::Kind::kKeyframe;
+      task.mapper_id = report.id;
+      task.record.session = session;
+      task.record.timestamp_ns = frame.timestamp_ns;
+      task.record.world_from_cam = report.world_from_cam;
+      task.record.odom_world_from_cam = report.world_from_cam;
+      task.record.intrinsics = camera;
+      task.record.color = std::move(frame.color);
+      task.record.depth = std::move(frame.depth);
+      task.record.features = ToStoreFeatures(mapper.FeaturesOf(report.id));
+      // This step's links are the newest of Links(); a loop the pose graph switched off in the
+      // same step is not stored. One switched off later was stored already (counted).
+      const std::vector<MapperLink>& links = mapper.Links();
+      int rejected_now = 0;
+      for (size_t i = links.size() - report.new_links.size(); i < links.size(); ++i) {
+        if (links[i].active) {
+          task.links.push_back(links[i]);
+        } else {
+          ++rejected_now;
+        }
+      }
+      links_rejected_after_commit += report.links_rejected - rejected_now;
+      const MappingProgress progress = make_progress();
+      task.status = FeedStatus{progress.model_keyframes, progress.loops, ToFeed(report.state),
+                               progress.keyframes_per_s, progress.elapsed_s};
+      if (!writes.Push(std::move(task))) break;  // the writer failed
+      if (report.optimised) {
+        WriteTask poses;
+        poses.kind = WriteTask::Kind::kPoses;
+        const std::vector<StampedPose> trajectory = mapper.Trajectory();
+        for (size_t id = 0; id < trajectory.size(); ++id) {
+          poses.poses.emplace_back(static_cast<int64_t>(id), trajectory[id].world_from_cam);
+        }
+        if (!writes.Push(std::move(poses))) break;
+      }
+      if (!vocabulary_sent && mapper.vocabulary()) {
+        WriteTask vocabulary;
+        vocabulary.kind = WriteTask::Kind::kVocabulary;
+        vocabulary.vocabulary = mapper.vocabulary()->Serialize();
+        if (!writes.Push(std::move(vocabulary))) break;
+        vocabulary_sent = true;
+      }
+      if (progress_) {
+        progress_(progress);
+        last_progress = Clock::now();
+      }
+      if (options_.max_keyframes > 0 &&
+          static_cast<int64_t>(session_ids.size()) >= options_.max_keyframes) {
+        RequestStop(StopReason::kMaxKeyframes);
+      }
+    }
+  } catch (...) {
+    slam_error = std::current_exception();
+  }
+
+  // Stop capturing; frames still queued are not mapped.
+  capture_stop = true;
+  frames.Close();
+  frames.Clear();
+  capture.Join();
+  // Every pose as the mapper has it now, then the writer drains and ends.
+  if (!slam_error && !writer_failed && !session_ids.empty()) {
+    WriteTask poses;
+    poses.kind = WriteTask::Kind::kPoses;
+    const std::vector<StampedPose> trajectory = mapper.Trajectory();
+    for (size_t id = 0; id < trajectory.size(); ++id) {
+      poses.poses.emplace_back(static_cast<int64_t>(id), trajectory[id].world_from_cam);
+    }
+    writes.Push(std::move(poses));
+  }
+  writes.Close();
+  writer.Join();
+
+  if (stop_reason_.load() >= 0) {
+    summary.reason = static_cast<StopReason>(stop_reason_.load());
+  } else if (capture_failed) {
+    summary.reason = StopReason::kSourceFailed;
+    summary.reason_detail = capture_error;
+  } else {
+    summary.reason = StopReason::kSourceEnded;
+  }
+  const bool failed = slam_error || writer_failed;
+  const SessionEnd end_state = failed || summary.reason == StopReason::kSourceFailed
+                                   ? SessionEnd::kInterrupted
+                                   : SessionEnd::kFinished;
+  try {
+    model.EndSession(session, end_state, WallClockNs());
+  } catch (const Error&) {
+    if (!failed) throw;  // the first failure is the one to report
+  }
+  if (view) view->Finish();
+  if (slam_error) std::rethrow_exception(slam_error);
+  if (writer_failed) std::rethrow_exception(writer_error);
+  if (summary.reason == StopReason::kSourceFailed && session_ids.empty()) {
+    SIGHTMAP_THROW(Error, capture_error);
+  }
+
+  summary.elapsed_s = SecondsSince(map_start);
+  summary.keyframes = static_cast<int64_t>(session_ids.size());
+  summary.keyframes_per_s =
+      summary.elapsed_s > 0.0 ? static_cast<double>(summary.keyframes) / summary.elapsed_s : 0.0;
+  summary.model_keyframes = model.NumKeyframes();
+  summary.loops = mapper.NumLoopClosures();
+  summary.segments = mapper.NumSegments();
+  summary.dropped_frames = dropped;
+  summary.frames_read = frames_read;
+  summary.links_rejected_after_commit = links_rejected_after_commit;
+  summary.joined_stored_map = joined;
+
+  if (ground_truth.size() >= 3 && ground_truth.size() == session_ids.size()) {
+    std::vector<StampedPose> estimate;
+    estimate.reserve(session_ids.size());
+    for (size_t i = 0; i < session_ids.size(); ++i) {
+      estimate.push_back({ground_truth[i].timestamp_ns, mapper.WorldFromCam(session_ids[i])});
+    }
+    try {
+      const TrajectoryError error = EvaluateTrajectory(ground_truth, estimate);
+      summary.ate_rmse_m = error.ate_rmse_m;
+      summary.ate_max_m = error.ate_max_m;
+      summary.ate_poses = error.matched_poses;
+    } catch (const Error&) {
+      // Too few poses to align: no ATE.
+    }
+  }
+
+  if (summary.model_keyframes > 0) {
+    if (!options_.ply_path.empty()) {
+      summary.ply_points = ExportPly(model, options_.ply_path, options_.ply).written_points;
+      summary.ply_path = options_.ply_path;
+    }
+    if (!options_.trajectory_path.empty()) {
+      WriteTumTrajectory(options_.trajectory_path, ModelTrajectory(model));
+      summary.trajectory_path = options_.trajectory_path;
+    }
+  }
+  summary.model_bytes = model.Summary().size_bytes;
+  summary.peak_rss_mib = PeakRssMiB();
+  return summary;
+}
+
+}  // namespace sightmap::mapping

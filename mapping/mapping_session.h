@@ -1,0 +1,155 @@
+// One mapping run, `sightmap map` end to end (ARCHITECTURE.md, "The product"): a source's frames,
+// sampled to keyframes, registered by the Mapper with loop-closure checks, written to the model
+// keyframe by keyframe, drawn by the preview or the progress images, and at the end the PLY, the
+// trajectory and a summary.
+//
+// Threads (each owned by the session and joined before Run returns):
+//   capture  source -> KeyframeSampler -> frame queue (bounded). A live sensor (or a recording
+//            played at its recorded pace) never waits: a keyframe the queue has no room for is
+//            dropped and counted. A recording, a folder or the simulator waits for room, so a
+//            replay drops nothing.
+//   SLAM     the calling thread: frame queue -> Mapper::AddKeyframe -> write queue (bounded,
+//            waits: keyframes are never dropped). Polls the stop conditions between keyframes.
+//   writer   write queue -> Model: each keyframe with its links in one transaction, every pose
+//            after an optimisation in one transaction (UpdatePoses), the vocabulary once
+//            trained; then the keyframe goes to the map view (which draws on its own thread and
+//            never blocks).
+//
+// Stopping (every reason ends the same way): the keyframe in hand is finished, frames still
+// queued are discarded, the writer commits what it holds and the final poses, the session is
+// ended (finished, or interrupted when the source failed), and the PLY and trajectory are
+// written from the model.
+//
+// Resuming: a model that already holds keyframes gives the Mapper its vocabulary, keyframes and
+// links; sessions left running by a crash are marked interrupted; the new session's keyframes
+// start a new segment that the Mapper relocalises into the stored map (or keeps apart, reported).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <ostream>
+#include <string>
+
+#include "capture/keyframe_sampler.h"
+#include "capture/rgbd_source.h"
+#include "mapping/map_view_feed.h"
+#include "slam/mapper.h"
+#include "store/model.h"
+#include "store/point_cloud.h"
+
+namespace sightmap::mapping {
+
+struct MappingOptions {
+  std::string source;           // SOURCE string (see capture/rgbd_source.h OpenSource)
+  std::string model_path;       // created when missing; resumed when it holds keyframes
+  std::string ply_path;         // point cloud written at the end; empty = none
+  std::string trajectory_path;  // TUM trajectory of every keyframe in the model; empty = none
+  // Frames of the source skipped before mapping starts (continue a recording from frame N).
+  int64_t start_frame = 0;
+  // Stop after this many keyframes of this session; 0 = until the source ends or a stop.
+  int64_t max_keyframes = 0;
+  // Treat the source as live (drop keyframes the mapper cannot keep up with) even when it is a
+  // recording: set with source_options.realtime so a .oni plays at its recorded pace.
+  bool live = false;
+  // Frames between capture and SLAM: small, a queued frame only adds latency [keyframes].
+  int frame_queue_capacity = 2;
+  // Keyframes and pose updates between SLAM and the writer [items].
+  int write_queue_capacity = 8;
+
+  SourceOptions source_options;
+  KeyframeSamplerOptions sampler;  // rate_hz: keyframes per second of source time [Hz]
+  MapperOptions mapper;
+  ModelOptions model;
+  PlyExportOptions ply;
+  MapViewFeedOptions view;
+  bool show_view = true;  // false: no preview and no progress images at all (tests, benchmarks)
+
+  bool Check(std::string* error) const;
+};
+
+enum class StopReason {
+  kSourceEnded,   // the recording, folder or walk ended
+  kSignal,        // Ctrl-C or SIGTERM
+  kUserStop,      // `q` or closing the preview window
+  kSourceFailed,  // the sensor stopped delivering (unplugged) or the file is damaged
+  kMaxKeyframes,  // MappingOptions::max_keyframes reached
+};
+const char* ToString(StopReason reason);
+
+// What the status line shows; passed to the progress callback after every keyframe (and about
+// once a second while waiting).
+struct MappingProgress {
+  int64_t keyframes = 0;        // this session's
+  int64_t model_keyframes = 0;  // restored + this session's
+  int64_t loops = 0;            // accepted loop closures in the map
+  int64_t dropped_frames = 0;
+  int64_t frames_read = 0;
+  std::optional<int64_t> frames_total;  // when the source's length is known
+  TrackingState tracking = TrackingState::kTracking;
+  bool resumed = false;
+  bool joined_stored_map = false;  // a resumed session relocalised into the stored map
+  bool paused = false;
+  double elapsed_s = 0.0;
+  double keyframes_per_s = 0.0;
+};
+
+struct MappingSummary {
+  StopReason reason = StopReason::kSourceEnded;
+  std::string reason_detail;   // e.g. the source's error message
+  std::string source_kind;     // "openni", "oni", "sim", ...
+  int64_t session = 0;         // SessionId of this run
+  int64_t session_number = 0;  // 1 for the model's first session
+  bool resumed = false;
+  int64_t restored_keyframes = 0;
+  int64_t interrupted_sessions_marked = 0;  // crashed sessions found and marked interrupted
+  bool joined_stored_map = false;           // resumed and relocalised into the stored map
+  int64_t keyframes = 0;                    // this session's
+  int64_t model_keyframes = 0;
+  int64_t loops = 0;     // accepted and active loop closures in the map
+  int64_t segments = 0;  // unjoined parts of the map
+  int64_t dropped_frames = 0;
+  int64_t frames_read = 0;
+  int64_t links_rejected_after_commit = 0;  // loop links switched off after being stored
+  std::optional<double> ate_rmse_m;         // this session's keyframes vs. ground truth
+  std::optional<double> ate_max_m;
+  int64_t ate_poses = 0;
+  double elapsed_s = 0.0;
+  double keyframes_per_s = 0.0;
+  int64_t model_bytes = 0;
+  int64_t ply_points = 0;
+  std::string ply_path;
+  std::string trajectory_path;
+  std::string view;  // where progress went
+  double peak_rss_mib = 0.0;
+};
+
+class MappingSession {
+ public:
+  using ProgressCallback = std::function<void(const MappingProgress&)>;
+
+  // Checks the options; opens nothing yet.
+  explicit MappingSession(const MappingOptions& options);
+
+  // Runs until the source ends or a stop is requested; returns the summary. `notices` receives
+  // one-line notices (the view's fallback, a resumed model); may be null. Throws sightmap::Error
+  // when the source or model cannot be opened, a write fails, or nothing could be mapped.
+  MappingSummary Run(std::ostream* notices = nullptr);
+
+  // Thread-safe, callable from anywhere (a signal watcher): stop gracefully.
+  void RequestStop(StopReason reason);
+  // Polled between keyframes; a non-null flag set to true acts as RequestStop(kSignal) (for a
+  // signal handler, which can only set a lock-free atomic).
+  void SetInterruptFlag(const std::atomic<bool>* flag) { interrupt_flag_ = flag; }
+  // Called on the SLAM thread after each keyframe and about once a second while waiting.
+  void SetProgressCallback(ProgressCallback callback) { progress_ = std::move(callback); }
+
+ private:
+  MappingOptions options_;
+  const std::atomic<bool>* interrupt_flag_ = nullptr;
+  ProgressCallback progress_;
+  std::atomic<int> stop_reason_{-1};  // a StopReason once requested
+};
+
+}  // namespace sightmap::mapping

@@ -1,0 +1,163 @@
+// The mapping session on the synthetic building, in process (the CLI tests run the binary): what
+// reaches the model, how each stop reason ends the session, and a failing source.
+#include "mapping/mapping_session.h"
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/check.h"
+#include "sim/sim_source.h"
+#include "store/trajectory.h"
+#include "tests/test_data.h"
+
+namespace sightmap::mapping {
+namespace {
+
+MappingOptions SimOptions(const std::string& dir, int frames) {
+  MappingOptions options;
+  options.source = "sim:office?fps=1&frames=" + std::to_string(frames);
+  options.model_path = dir + "/model.db";
+  options.trajectory_path = dir + "/trajectory.txt";
+  options.show_view = false;
+  options.model.sync_every_commit = false;
+  return options;
+}
+
+ModelOptions ReadOnly() {
+  ModelOptions options;
+  options.read_only = true;
+  return options;
+}
+
+int CountLines(const std::string& path) {
+  std::ifstream in(path);
+  int lines = 0;
+  for (std::string line; std::getline(in, line);) lines += !line.empty() && line[0] != '#';
+  return lines;
+}
+
+TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
+  sim::RegisterSimSource();
+  const std::string dir = testing::MakeTempDir("mapping-sim");
+  MappingSession session(SimOptions(dir, 12));
+  int64_t callbacks = 0;
+  session.SetProgressCallback([&](const MappingProgress& progress) {
+    ++callbacks;
+    ASSERT_TRUE(progress.frames_total.has_value());
+    EXPECT_EQ(*progress.frames_total, 12);
+  });
+  const MappingSummary summary = session.Run();
+  EXPECT_EQ(summary.reason, StopReason::kSourceEnded);
+  EXPECT_EQ(summary.keyframes, 12);
+  EXPECT_EQ(summary.frames_read, 12);
+  EXPECT_EQ(summary.dropped_frames, 0) << "a replay waits, it never drops";
+  EXPECT_GE(summary.segments, 1);
+  EXPECT_FALSE(summary.resumed);
+  EXPECT_GE(callbacks, 12);
+  // How well the mapper tracks a 1 Hz walk is slam_benchmark's business; here the ATE must exist
+  // and be computed over every keyframe.
+  ASSERT_TRUE(summary.ate_rmse_m.has_value());
+  EXPECT_EQ(summary.ate_poses, 12);
+  EXPECT_TRUE(std::isfinite(*summary.ate_rmse_m));
+
+  const Model model = Model::Open(dir + "/model.db", ReadOnly());
+  EXPECT_EQ(model.NumKeyframes(), 12);
+  const std::vector<SessionRecord> sessions = model.Sessions();
+  ASSERT_EQ(sessions.size(), 1u);
+  EXPECT_EQ(sessions[0].end_state, SessionEnd::kFinished);
+  EXPECT_EQ(sessions[0].source, "sim:office?fps=1&frames=12");
+  // Every link reached the store: the model's graph falls into the mapper's segments.
+  EXPECT_EQ(model.Summary().segments, summary.segments);
+  EXPECT_FALSE(model.Links().empty());
+  EXPECT_EQ(model.LoadFeatures(model.Keyframes().back().id).keypoints.size(),
+            static_cast<size_t>(model.Keyframes().back().num_features));
+  // The trajectory file holds the model's (final) poses.
+  const std::vector<StampedPose> written = ReadTumTrajectory(dir + "/trajectory.txt");
+  const std::vector<StampedPose> stored = ModelTrajectory(model);
+  ASSERT_EQ(written.size(), 12u);
+  ASSERT_EQ(stored.size(), 12u);
+  for (size_t i = 0; i < 12; ++i) {
+    EXPECT_EQ(written[i].timestamp_ns, stored[i].timestamp_ns);
+    EXPECT_LT(
+        (written[i].world_from_cam.translation() - stored[i].world_from_cam.translation()).norm(),
+        1e-6);
+  }
+  EXPECT_EQ(model.IntegrityCheck(), "ok");
+}
+
+TEST(MappingSession, AnInterruptFinishesTheKeyframeInHandAndEndsTheSession) {
+  sim::RegisterSimSource();
+  const std::string dir = testing::MakeTempDir("mapping-interrupt");
+  MappingOptions options = SimOptions(dir, 40);
+  options.ply_path = dir + "/model.ply";
+  MappingSession session(options);
+  std::atomic<bool> interrupt{false};
+  session.SetInterruptFlag(&interrupt);
+  session.SetProgressCallback([&](const MappingProgress& progress) {
+    if (progress.keyframes >= 3) interrupt = true;
+  });
+  const MappingSummary summary = session.Run();
+  EXPECT_EQ(summary.reason, StopReason::kSignal);
+  EXPECT_EQ(summary.keyframes, 3);
+  EXPECT_LT(summary.frames_read, 40);
+  EXPECT_GT(summary.ply_points, 1000);
+  const Model model = Model::Open(dir + "/model.db", ReadOnly());
+  EXPECT_EQ(model.NumKeyframes(), 3);
+  EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kFinished);
+  EXPECT_TRUE(std::filesystem::file_size(dir + "/model.ply") > 0);
+}
+
+// The simulator, failing like an unplugged sensor after `fail_after` frames.
+class FailingSource : public RgbdSource {
+ public:
+  FailingSource(std::unique_ptr<RgbdSource> inner, int fail_after)
+      : inner_(std::move(inner)), fail_after_(fail_after) {}
+  const SourceMetadata& metadata() const override { return inner_->metadata(); }
+  std::optional<RgbdFrame> Next() override {
+    if (delivered_++ == fail_after_) {
+      SIGHTMAP_THROW(Error, "the sensor stopped sending frames (unplugged?)");
+    }
+    return inner_->Next();
+  }
+  SourceStats stats() const override { return inner_->stats(); }
+
+ private:
+  std::unique_ptr<RgbdSource> inner_;
+  int fail_after_;
+  int delivered_ = 0;
+};
+
+TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
+  RegisterSourceOpener(SourceSpec::Kind::kSim, [](const std::string& location,
+                                                  const SourceOptions&) {
+    return std::make_unique<FailingSource>(sim::OpenSimSource(sim::ParseSimLocation(location)), 5);
+  });
+  const std::string dir = testing::MakeTempDir("mapping-unplugged");
+  MappingSession session(SimOptions(dir, 20));
+  const MappingSummary summary = session.Run();
+  sim::RegisterSimSource();
+  EXPECT_EQ(summary.reason, StopReason::kSourceFailed);
+  EXPECT_NE(summary.reason_detail.find("unplugged"), std::string::npos) << summary.reason_detail;
+  EXPECT_EQ(summary.keyframes, 5);
+  const Model model = Model::Open(dir + "/model.db", ReadOnly());
+  EXPECT_EQ(model.NumKeyframes(), 5);
+  EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kInterrupted);
+  EXPECT_EQ(CountLines(dir + "/trajectory.txt"), 5);
+}
+
+TEST(MappingSession, BadOptionsAreRefused) {
+  MappingOptions options;
+  options.source = "sim:office";
+  EXPECT_THROW(MappingSession{options}, InvalidArgument);  // no model
+  options.model_path = "x.db";
+  options.frame_queue_capacity = 0;
+  EXPECT_THROW(MappingSession{options}, InvalidArgument);
+}
+
+}  // namespace
+}  // namespace sightmap::mapping
