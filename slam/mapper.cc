@@ -243,14 +243,15 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   } else if (vocabulary_) {
     relocalised = SearchPlaces(inserted, &report);
   }
-  // Lost while this keyframe's segment is not joined to the map's first segment: the map goes
-  // on, but where this part of it lies is not known yet.
+  // Lost: this keyframe could not be registered to the last ones and starts a segment of its own
+  // (NumSegments() says how many parts of the map are not joined yet). The first keyframe of a
+  // map, and of a resumed session that is not relocalised at once, count as lost too.
   if (relocalised) {
     state_ = TrackingState::kRelocalised;
-  } else if (!odometry.empty() && Root(inserted.segment) == Root(keyframes_.front().segment)) {
+  } else if (!odometry.empty()) {
     state_ = TrackingState::kTracking;
   } else {
-    state_ = TrackingState::kLost;
+    state_ = keyframes_.size() == 1 ? TrackingState::kTracking : TrackingState::kLost;
   }
 
   report.segment = Root(inserted.segment);

@@ -10,7 +10,10 @@ namespace sightmap {
 
 struct MatchOptions {
   // A match is kept when its distance is below ratio x the second-nearest distance.
-  double ratio = 0.8;
+  // 0.9 rather than Lowe's 0.8: at 1 Hz, frames 30 deg apart with motion blur keep too few matches
+  // at 0.8 (measured on the simulator's walk: 20 of 29 consecutive pairs registered at 0.9, 18 at
+  // 0.8); RANSAC and the dense check reject what the looser test lets in.
+  double ratio = 0.9;
   // Also require the query to be the reference's nearest neighbour (cross check).
   bool mutual = true;
 
