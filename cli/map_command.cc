@@ -37,6 +37,10 @@ extern "C" void OnStopSignal(int signal_number) {
     _exit(128 + signal_number);
   }
   g_stop_requested = true;
+  static const char kMessage[] =
+      "\nsightmap map: stopping after the keyframe in hand (Ctrl-C again to exit at once)\n";
+  const ssize_t ignored = write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+  static_cast<void>(ignored);
 }
 
 // Installs the handlers for the command's lifetime and restores the previous ones.

@@ -1,0 +1,404 @@
+// End-to-end tests of `sightmap map` (issue 8): the real recordings, the simulator with progress
+// images, Ctrl-C, a SIGKILL at a random moment and the resumed session, the no-sensor error, and a
+// recording played at its recorded pace through the live-sensor path.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "store/model.h"
+#include "store/point_cloud.h"
+#include "store/trajectory.h"
+#include "tests/test_data.h"
+
+namespace sightmap {
+namespace {
+
+using namespace std::chrono_literals;
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string Slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Runs `sightmap ARGS` (through the shell, as written) with no standard input.
+CommandResult Sightmap(const std::string& args) {
+  const std::string dir = testing::MakeTempDir("run");
+  const std::string command = std::string(SIGHTMAP_BINARY) + " " + args + " > " + dir + "/out 2> " +
+                              dir + "/err < /dev/null";
+  const int status = std::system(command.c_str());
+  CommandResult run;
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  run.out = Slurp(dir + "/out");
+  run.err = Slurp(dir + "/err");
+  return run;
+}
+
+// A `sightmap` process started in the background, so a test can signal it.
+class Background {
+ public:
+  explicit Background(const std::string& args) : dir_(testing::MakeTempDir("background")) {
+    const std::string command = "exec " + std::string(SIGHTMAP_BINARY) + " " + args + " > " + dir_ +
+                                "/out 2> " + dir_ + "/err < /dev/null";
+    pid_ = fork();
+    if (pid_ == 0) {
+      execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~Background() {
+    if (pid_ > 0 && !waited_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+  Background(const Background&) = delete;
+  Background& operator=(const Background&) = delete;
+
+  pid_t pid() const { return pid_; }
+  bool Running() {
+    if (waited_) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      Finish(status);
+      return false;
+    }
+    return true;
+  }
+  void Signal(int signal_number) { kill(pid_, signal_number); }
+  std::string ErrorOutput() const { return Slurp(dir_ + "/err"); }
+  CommandResult Wait() {
+    if (!waited_) {
+      int status = 0;
+      waitpid(pid_, &status, 0);
+      Finish(status);
+    }
+    CommandResult run;
+    run.exit_code = exit_code_;
+    run.out = Slurp(dir_ + "/out");
+    run.err = Slurp(dir_ + "/err");
+    return run;
+  }
+
+ private:
+  void Finish(int status) {
+    waited_ = true;
+    exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+
+  std::string dir_;
+  pid_t pid_ = -1;
+  bool waited_ = false;
+  int exit_code_ = -1;
+};
+
+ModelOptions ReadOnly() {
+  ModelOptions options;
+  options.read_only = true;
+  return options;
+}
+
+// Committed keyframes of a model another process is writing (0 while it does not exist yet).
+int64_t CommittedKeyframes(const std::string& path) {
+  if (!std::filesystem::exists(path)) return 0;
+  try {
+    return Model::Open(path, ReadOnly()).NumKeyframes();
+  } catch (const std::exception&) {
+    return 0;  // created but the schema not committed yet
+  }
+}
+
+// Waits until the model holds `keyframes` committed keyframes; false if `process` ended first.
+bool WaitForKeyframes(Background& process, const std::string& model, int64_t keyframes) {
+  const auto deadline = std::chrono::steady_clock::now() + 240s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (CommittedKeyframes(model) >= keyframes) return true;
+    if (!process.Running()) return false;
+    std::this_thread::sleep_for(20ms);
+  }
+  return false;
+}
+
+nlohmann::json Info(const std::string& model) {
+  const CommandResult info = Sightmap("info " + model + " --json");
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  return nlohmann::json::parse(info.out);
+}
+
+// Whether two keyframes are joined by a chain of links.
+bool Connected(const std::vector<LinkRecord>& links, KeyframeId a, KeyframeId b) {
+  std::map<int64_t, int64_t> parent;
+  std::function<int64_t(int64_t)> root = [&](int64_t id) {
+    auto it = parent.find(id);
+    if (it == parent.end() || it->second == id) return id;
+    return it->second = root(it->second);
+  };
+  for (const LinkRecord& link : links) {
+    const int64_t from = root(link.from.value());
+    const int64_t to = root(link.to.value());
+    if (from != to) parent[from] = to;
+  }
+  return root(a.value()) == root(b.value());
+}
+
+int CountLines(const std::string& text) {
+  int lines = 0;
+  for (char c : text) lines += c == '\n';
+  return lines;
+}
+
+// A recording replayed as fast as the mapper reads: every frame a keyframe at --rate 30.
+void ExpectRecordingMapsEveryFrame(const std::string& recording, int frames) {
+  const std::string dir = testing::MakeTempDir("map");
+  const CommandResult run = Sightmap("map --source " + recording + " --rate 30 --model " + dir +
+                                     "/m.db --ply " + dir + "/m.ply --headless --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json summary = nlohmann::json::parse(run.out);
+  EXPECT_EQ(summary.at("keyframes"), frames);
+  EXPECT_EQ(summary.at("dropped_frames"), 0) << "a replay waits for the mapper";
+  EXPECT_EQ(summary.at("reason"), "the source ended");
+  EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), frames);
+  const Model model = Model::Open(dir + "/m.db", ReadOnly());
+  EXPECT_EQ(model.NumKeyframes(), frames);
+  ASSERT_EQ(model.Sessions().size(), 1u);
+  EXPECT_EQ(model.Sessions()[0].end_state, SessionEnd::kFinished);
+  const std::vector<ColoredPoint> cloud = ReadPly(dir + "/m.ply");
+  EXPECT_GT(cloud.size(), 1000u);
+  EXPECT_EQ(static_cast<int64_t>(cloud.size()), summary.at("ply_points").get<int64_t>());
+}
+
+TEST(Map, TheKinectRecordingGivesTwelveKeyframesAndAPly) {
+  SIGHTMAP_REQUIRE_SHARED_DATA(path, "oni/kinect-12f.oni");
+  ExpectRecordingMapsEveryFrame(path, 12);
+}
+
+TEST(Map, TheOpenNi2RecordingGivesAKeyframePerPairedFrame) {
+  SIGHTMAP_REQUIRE_SHARED_DATA(path, "oni/openni2-24f.oni");
+  // 24 depth frames, the last without a colour partner: 23 RGB-D frames (see cli_test's probe).
+  const CommandResult probe = Sightmap("probe " + path + " --json");
+  ASSERT_EQ(probe.exit_code, 0) << probe.err;
+  const int paired = nlohmann::json::parse(probe.out).at("rgbd_frames").get<int>();
+  EXPECT_EQ(paired, 23);
+  ExpectRecordingMapsEveryFrame(path, paired);
+}
+
+TEST(Map, ASimWalkWritesProgressImageTrajectoryAndAte) {
+  const std::string dir = testing::MakeTempDir("sim");
+  const CommandResult run = Sightmap("map --source 'sim:office?frames=40&fps=1' --model " + dir +
+                                     "/m.db --ply " + dir + "/m.ply --headless --progress-png " +
+                                     dir + "/p.png --trajectory-out " + dir + "/t.txt");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("map: 40 keyframes"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("ATE "), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("stopped: the source ended"), std::string::npos) << run.out;
+  const cv::Mat png = cv::imread(dir + "/p.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(png.empty());
+  EXPECT_EQ(png.cols, 1280);
+  EXPECT_EQ(png.rows, 720);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(png, mean, stddev);
+  EXPECT_GT(stddev[0] + stddev[1] + stddev[2], 10.0) << "the progress image is blank";
+  EXPECT_FALSE(std::filesystem::exists(dir + "/p.png.tmp"));
+  EXPECT_EQ(ReadTumTrajectory(dir + "/t.txt").size(), 40u);
+  EXPECT_GT(ReadPly(dir + "/m.ply").size(), 10000u);
+}
+
+TEST(Map, ASimSummaryAsJsonHasAnAte) {
+  const std::string dir = testing::MakeTempDir("sim-json");
+  const CommandResult run = Sightmap("map --source 'sim:office?frames=15&fps=1' --model " + dir +
+                                     "/m.db --headless --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json summary = nlohmann::json::parse(run.out);
+  EXPECT_EQ(summary.at("keyframes"), 15);
+  EXPECT_EQ(summary.at("source_kind"), "sim");
+  ASSERT_TRUE(summary.at("ate_rmse_m").is_number());
+  EXPECT_GE(summary.at("ate_rmse_m").get<double>(), 0.0);
+  EXPECT_EQ(summary.at("ate_poses"), 15);
+  EXPECT_EQ(summary.at("segments").get<int64_t>(), Info(dir + "/m.db").at("segments"));
+}
+
+TEST(Map, WithoutASensorTheDefaultSourceFailsWithOneLine) {
+  const CommandResult devices = Sightmap("devices --json");
+  ASSERT_EQ(devices.exit_code, 0) << devices.err;
+  if (!nlohmann::json::parse(devices.out).at("sensors").empty()) {
+    GTEST_SKIP() << "a sensor is attached";
+  }
+  const std::string dir = testing::MakeTempDir("nosensor");
+  const CommandResult run = Sightmap("map --model " + dir + "/m.db --headless");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_EQ(run.err, "error: no RGB-D sensor found — run 'sightmap devices'\n");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/m.db")) << "no source, no model";
+}
+
+TEST(Map, UsageErrors) {
+  EXPECT_EQ(Sightmap("map --source x.oni").exit_code, 2);  // no --model
+  EXPECT_EQ(Sightmap("map --model m.db --preview --headless").exit_code, 2);
+  const CommandResult missing = Sightmap("map --source /no/such.oni --model /tmp/x-never.db");
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_EQ(CountLines(missing.err), 1) << missing.err;
+}
+
+TEST(Map, CtrlCFinishesCommitsWritesThePlyAndExitsZero) {
+  const std::string dir = testing::MakeTempDir("sigint");
+  const std::string model = dir + "/m.db";
+  Background run("map --source 'sim:office?frames=300&fps=1' --model " + model + " --ply " + dir +
+                 "/m.ply --headless");
+  ASSERT_TRUE(WaitForKeyframes(run, model, 5)) << run.Wait().err;
+  run.Signal(SIGINT);
+  const auto signalled = std::chrono::steady_clock::now();
+  const CommandResult result = run.Wait();
+  const double stop_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("stopped: interrupted"), std::string::npos) << result.out;
+  EXPECT_LT(stop_s, 30.0);
+  const Model reopened = Model::Open(model, ReadOnly());
+  const int64_t keyframes = reopened.NumKeyframes();
+  EXPECT_GE(keyframes, 5);
+  EXPECT_LT(keyframes, 300);
+  EXPECT_NE(result.out.find("map: " + std::to_string(keyframes) + " keyframes"), std::string::npos)
+      << result.out;
+  ASSERT_EQ(reopened.Sessions().size(), 1u);
+  EXPECT_EQ(reopened.Sessions()[0].end_state, SessionEnd::kFinished);
+  EXPECT_GT(ReadPly(dir + "/m.ply").size(), 1000u);
+  std::printf("SIGINT after >= 5 keyframes: %lld keyframes kept, stopped in %.2f s\n",
+              static_cast<long long>(keyframes), stop_s);
+}
+
+TEST(Map, ASecondCtrlCExitsAtOnceAndTheModelStillOpens) {
+  const std::string dir = testing::MakeTempDir("sigint2");
+  const std::string model = dir + "/m.db";
+  Background run("map --source 'sim:office?frames=300&fps=1' --model " + model + " --ply " + dir +
+                 "/m.ply --headless");
+  ASSERT_TRUE(WaitForKeyframes(run, model, 10)) << run.Wait().err;
+  run.Signal(SIGINT);
+  // Signals do not queue: the second must come after the first was handled (it says so).
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (run.ErrorOutput().find("Ctrl-C again") == std::string::npos &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(1ms);
+  }
+  run.Signal(SIGINT);
+  const CommandResult result = run.Wait();
+  EXPECT_EQ(result.exit_code, 128 + SIGINT) << result.err;
+  EXPECT_NE(result.err.find("second signal"), std::string::npos) << result.err;
+  const Model reopened = Model::Open(model, ReadOnly());
+  EXPECT_EQ(reopened.IntegrityCheck(), "ok");
+  EXPECT_GE(reopened.NumKeyframes(), 10);
+}
+
+// SIGKILL at a random moment, then `map` again on the same model with the same walk from a few
+// frames before the kill: a new session, the crashed one marked interrupted, every committed
+// keyframe kept, and the resumed keyframes relocalised into the stored graph (no new segment).
+// The kill waits for the vocabulary (trained at 30 keyframes and stored with the 30th): a model
+// killed before it has no place recognition to relocalise with until the new session trains one.
+TEST(Map, AKilledRunResumesIntoTheSameGraph) {
+  const std::string dir = testing::MakeTempDir("kill");
+  const std::string model = dir + "/m.db";
+  const std::string walk = "'sim:office?frames=120&fps=1'";
+  std::mt19937 random(std::random_device{}());
+  const int extra_ms = std::uniform_int_distribution<int>(0, 2000)(random);
+  int64_t committed = 0;
+  {
+    Background run("map --source " + walk + " --model " + model + " --headless");
+    ASSERT_TRUE(WaitForKeyframes(run, model, 31)) << run.Wait().err;
+    std::this_thread::sleep_for(std::chrono::milliseconds(extra_ms));
+    run.Signal(SIGKILL);
+    EXPECT_EQ(run.Wait().exit_code, 128 + SIGKILL);
+    const Model killed = Model::Open(model, ReadOnly());
+    EXPECT_EQ(killed.IntegrityCheck(), "ok");
+    committed = killed.NumKeyframes();
+    ASSERT_EQ(killed.Sessions().size(), 1u);
+    EXPECT_EQ(killed.Sessions()[0].end_state, SessionEnd::kRunning) << "as a crash leaves it";
+    EXPECT_TRUE(killed.LoadVocabulary().has_value());
+  }
+  const int64_t segments_before = Info(model).at("segments").get<int64_t>();
+  const int64_t start = committed - 3;
+  const CommandResult resumed =
+      Sightmap("map --source " + walk + " --start-frame " + std::to_string(start) +
+               " --max-keyframes 12 --model " + model + " --headless --json");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  const nlohmann::json summary = nlohmann::json::parse(resumed.out);
+  EXPECT_EQ(summary.at("resumed"), true);
+  EXPECT_EQ(summary.at("restored_keyframes"), committed);
+  EXPECT_EQ(summary.at("interrupted_sessions_marked"), 1);
+  EXPECT_EQ(summary.at("keyframes"), 12);
+  EXPECT_EQ(summary.at("joined_stored_map"), true) << resumed.out;
+
+  const Model after = Model::Open(model, ReadOnly());
+  EXPECT_EQ(after.IntegrityCheck(), "ok");
+  EXPECT_EQ(after.NumKeyframes(), committed + 12);
+  const std::vector<SessionRecord> sessions = after.Sessions();
+  ASSERT_EQ(sessions.size(), 2u);
+  EXPECT_EQ(sessions[0].end_state, SessionEnd::kInterrupted);
+  EXPECT_EQ(sessions[1].end_state, SessionEnd::kFinished);
+  const nlohmann::json info = Info(model);
+  EXPECT_EQ(info.at("sessions"), 2);
+  EXPECT_GE(info.at("links").at("relocalisation").get<int64_t>(), 1);
+  // The resumed session's first keyframe (a revisit of frame `start`) is connected to the stored
+  // keyframe of that frame through the stored links. (The walk at 1 Hz also loses tracking now
+  // and then, so the total segment count may grow by ordinary losses; that is slam's business.)
+  const std::vector<KeyframeInfo> keyframes = after.Keyframes();
+  const KeyframeId first_resumed = keyframes[static_cast<size_t>(committed)].id;
+  const KeyframeId revisited = keyframes[static_cast<size_t>(start)].id;
+  EXPECT_TRUE(Connected(after.Links(), first_resumed, revisited))
+      << "the resumed keyframes must join the stored graph";
+  // The revisited frames land where the first session put them.
+  const double apart = (keyframes[static_cast<size_t>(start + 1)].world_from_cam.translation() -
+                        keyframes[static_cast<size_t>(committed + 1)].world_from_cam.translation())
+                           .norm();
+  EXPECT_LT(apart, 0.10);
+  std::printf(
+      "killed %d ms after keyframe 31: %lld committed; resumed from frame %lld: 12 more; "
+      "segments %lld before, %lld after\n",
+      extra_ms, static_cast<long long>(committed), static_cast<long long>(start),
+      static_cast<long long>(segments_before),
+      static_cast<long long>(info.at("segments").get<int64_t>()));
+}
+
+// A recording played at its recorded pace goes through the live-sensor path: keyframes the mapper
+// cannot take in time are dropped and counted, never queued without bound.
+TEST(Map, ARecordingAtItsRecordedPaceTakesTheLiveSensorPath) {
+  SIGHTMAP_REQUIRE_SHARED_DATA(path, "oni/kinect-12f.oni");
+  const std::string dir = testing::MakeTempDir("realtime");
+  const CommandResult run = Sightmap("map --source " + path + " --realtime --rate 30 --model " +
+                                     dir + "/m.db --headless --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json summary = nlohmann::json::parse(run.out);
+  const int64_t keyframes = summary.at("keyframes").get<int64_t>();
+  const int64_t dropped = summary.at("dropped_frames").get<int64_t>();
+  EXPECT_EQ(summary.at("source_kind"), "oni");
+  EXPECT_GE(keyframes, 1);
+  EXPECT_EQ(keyframes + dropped, 12) << "every frame is either mapped or counted as dropped";
+  EXPECT_GE(summary.at("elapsed_s").get<double>(), 0.3) << "12 frames recorded over 0.367 s";
+  EXPECT_EQ(Model::Open(dir + "/m.db", ReadOnly()).NumKeyframes(), keyframes);
+  std::printf("realtime replay of 12 frames at 30 Hz: %lld mapped, %lld dropped\n",
+              static_cast<long long>(keyframes), static_cast<long long>(dropped));
+}
+
+}  // namespace
+}  // namespace sightmap
