@@ -83,8 +83,21 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
     }
     if (static_cast<int>(i) == false_loop_at) {
       // A wrong link between two distant keyframes: "this keyframe is where keyframe i/2 was".
+      // Its ends must lie in one segment (across segments it would join them, not bend them): the
+      // earliest keyframe of this one's segment, at least 30 keyframes back.
+      int64_t from = -1;
+      for (int64_t k = 0; k + 30 <= static_cast<int64_t>(i); ++k) {
+        if (mapper.SegmentOf(k) == mapper.SegmentOf(static_cast<int64_t>(i))) {
+          from = k;
+          break;
+        }
+      }
+      if (from < 0) {
+        std::fprintf(stderr, "false loop not injected: keyframe %zu's segment is too short\n", i);
+        continue;
+      }
       MapperLink link;
-      false_from = static_cast<int64_t>(i / 2);
+      false_from = from;
       false_to = static_cast<int64_t>(i);
       link.from = false_from;
       link.to = false_to;
@@ -92,14 +105,15 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
       link.information = mapper.Links().back().information;
       link.type = MapperLinkType::kLoopClosure;
       const KeyframeReport injected = mapper.AddExternalLink(link);
-      std::fprintf(stderr,
-                   "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
-                   static_cast<long long>(false_from), static_cast<long long>(false_to),
-                   (frames[i / 2].world_from_cam_gt.inverse() * frame.world_from_cam_gt)
-                       .translation()
-                       .norm(),
-                   RotationDeg(frames[i / 2].world_from_cam_gt.inverse() * frame.world_from_cam_gt),
-                   injected.links_rejected > 0 ? "rejected" : "kept");
+      std::fprintf(
+          stderr, "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
+          static_cast<long long>(false_from), static_cast<long long>(false_to),
+          (frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() * frame.world_from_cam_gt)
+              .translation()
+              .norm(),
+          RotationDeg(frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() *
+                      frame.world_from_cam_gt),
+          injected.links_rejected > 0 ? "rejected" : "kept");
     }
   }
   run.keyframes = static_cast<int>(mapper.NumKeyframes());
