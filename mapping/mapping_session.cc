@@ -200,9 +200,10 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   std::vector<KeyframeId> store_ids;
   std::vector<int64_t> restored_segment_members;  // one keyframe of each restored segment
   bool vocabulary_stored = false;
+  // Sessions a crash left running (with or without keyframes) were interrupted.
+  summary.interrupted_sessions_marked = model.MarkRunningSessionsInterrupted(WallClockNs());
   if (model.NumKeyframes() > 0) {
     summary.resumed = true;
-    summary.interrupted_sessions_marked = model.MarkRunningSessionsInterrupted(WallClockNs());
     const std::vector<KeyframeInfo> stored = model.Keyframes();
     const Intrinsics& first = stored.front().intrinsics;
     SIGHTMAP_CHECK(first.width == camera.width && first.height == camera.height,
