@@ -102,7 +102,8 @@ class StatusLine {
     if (tty_) {
       std::cerr << "\r" << line.str() << "\033[K" << std::flush;
       shown_ = true;
-    } else if (progress.elapsed_s - last_printed_s_ >= 10.0) {
+      if (progress.finished) End();
+    } else if (progress.finished || progress.elapsed_s - last_printed_s_ >= 10.0) {
       // Logs and pipes get a line every 10 s rather than one per keyframe.
       std::cerr << line.str() << "\n";
       last_printed_s_ = progress.elapsed_s;

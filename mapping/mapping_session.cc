@@ -534,6 +534,11 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     SIGHTMAP_THROW(Error, capture_error);
   }
 
+  if (progress_) {
+    MappingProgress last = make_progress();
+    last.finished = true;
+    progress_(last);
+  }
   summary.elapsed_s = SecondsSince(map_start);
   summary.keyframes = static_cast<int64_t>(session_ids.size());
   summary.keyframes_per_s =
@@ -564,6 +569,11 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
 
   if (summary.model_keyframes > 0) {
     if (!options_.ply_path.empty()) {
+      if (notices) {
+        *notices << "writing " << options_.ply_path << " from " << summary.model_keyframes
+                 << " keyframes\n"
+                 << std::flush;
+      }
       summary.ply_points = ExportPly(model, options_.ply_path, options_.ply).written_points;
       summary.ply_path = options_.ply_path;
     }

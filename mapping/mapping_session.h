@@ -93,6 +93,7 @@ struct MappingProgress {
   bool paused = false;
   double elapsed_s = 0.0;
   double keyframes_per_s = 0.0;
+  bool finished = false;  // the last call: mapping stopped, the files are being written
 };
 
 struct MappingSummary {
@@ -142,7 +143,8 @@ class MappingSession {
   // Polled between keyframes; a non-null flag set to true acts as RequestStop(kSignal) (for a
   // signal handler, which can only set a lock-free atomic).
   void SetInterruptFlag(const std::atomic<bool>* flag) { interrupt_flag_ = flag; }
-  // Called on the SLAM thread after each keyframe and about once a second while waiting.
+  // Called on the SLAM thread after each keyframe and about once a second while waiting, and
+  // once more (finished = true) when mapping stopped, before the PLY and trajectory are written.
   void SetProgressCallback(ProgressCallback callback) { progress_ = std::move(callback); }
 
  private:
