@@ -9,6 +9,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -244,6 +245,17 @@ int RunMap(int argc, char** argv) {
   // Nothing to draw into: no window and no image file.
   if (options.view.progress_png.empty() && (headless || (!preview && !has_display))) {
     options.show_view = false;
+  }
+
+  // The output files' folders are made as needed (out/ in the README's command).
+  for (const std::string& file :
+       {options.model_path, options.ply_path, options.view.progress_png, options.trajectory_path}) {
+    const std::filesystem::path folder = std::filesystem::path(file).parent_path();
+    if (file.empty() || folder.empty()) continue;
+    std::error_code error;
+    std::filesystem::create_directories(folder, error);
+    SIGHTMAP_CHECK(!error, "cannot create the folder " << folder.string() << " for " << file << ": "
+                                                       << error.message());
   }
 
   mapping::MappingSession session(options);

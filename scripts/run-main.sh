@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job on a fresh Debian 12 machine: install what is missing, build, and map the
 # simulator's default walk (300 s hand-held at 1 Hz: 300 keyframes) headless into a fresh model in
-# out/, with its PLY, progress image and trajectory, then print the summary (25 s here).
+# out/, with its PLY, progress image and trajectory, then print the summary (25-55 s here).
 # A SOURCE given as the first argument is mapped instead (openni://, FILE.oni, tum:DIR, ...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
