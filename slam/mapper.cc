@@ -73,6 +73,9 @@ bool MapperOptions::Check(std::string* error) const {
   if (loop_candidates < 0) return fail("loop_candidates must not be negative");
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
+  if (!(join_max_disagreement_m > 0.0) || !(join_max_disagreement_rad > 0.0)) {
+    return fail("join_max_disagreement_m and join_max_disagreement_rad must be positive");
+  }
   if (!(link_min_sigma_m > 0.0) || !(link_min_sigma_rad > 0.0)) {
     return fail("link_min_sigma_m and link_min_sigma_rad must be positive");
   }
@@ -147,9 +150,11 @@ int Mapper::SegmentOf(int64_t id) const { return Root(Get(id).segment); }
 const Features& Mapper::FeaturesOf(int64_t id) const { return Get(id).features; }
 
 RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& target,
-                                    MapperStageTimes* times) const {
-  RegistrationResult result = RegisterRgbd(source.features, target.features, source.depth_small,
-                                           target.depth_small, camera_, options_.registration);
+                                    MapperStageTimes* times,
+                                    const Eigen::Isometry3d* target_from_source_prior) const {
+  RegistrationResult result =
+      RegisterRgbd(source.features, target.features, source.depth_small, target.depth_small,
+                   camera_, options_.registration, target_from_source_prior);
   AddRegistrationTimes(result.times, times);
   return result;
 }
@@ -196,11 +201,18 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
     const Keyframe& last = keyframes_.back();
     const int segment_root = Root(last.segment);
     world_from_cam = graph_.Pose(last.id);
+    // Where the camera probably is: the last motion again (a walker keeps turning and walking
+    // for a few seconds), which seeds guided matching when global matches are few.
+    Eigen::Isometry3d predicted = world_from_cam;
+    if (last.id > 0 && Root(keyframes_[static_cast<size_t>(last.id - 1)].segment) == segment_root) {
+      predicted = world_from_cam * (graph_.Pose(last.id - 1).inverse() * world_from_cam);
+    }
     for (int64_t id = last.id;
          !start_new_segment_ && id >= 0 && last.id - id < options_.odometry_window; --id) {
       const Keyframe& target = keyframes_[static_cast<size_t>(id)];
       if (Root(target.segment) != segment_root) break;
-      const RegistrationResult result = Register(keyframe, target, &report.times);
+      const Eigen::Isometry3d prior = graph_.Pose(target.id).inverse() * predicted;
+      const RegistrationResult result = Register(keyframe, target, &report.times, &prior);
       if (!result.success) {
         if (report.odometry_failure.empty()) {
           report.odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
@@ -384,7 +396,23 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
       // The older segment keeps its frame; the newer one moves into it.
       const int older = std::min(target_root, root);
       const int newer = std::max(target_root, root);
+      // Rooms with the same furniture look the same from the same spot, and across segments the
+      // pose graph has nothing to check a link against: a join waits until a second keyframe of
+      // the segment, registered elsewhere in the map, agrees on where the segment lies.
+      const Eigen::Isometry3d correction = JoinCorrection(newer, link);
+      const bool confirmed =
+          pending_join_ && pending_join_->older == older && pending_join_->newer == newer &&
+          (pending_join_->correction.inverse() * correction).translation().norm() <
+              options_.join_max_disagreement_m &&
+          Eigen::AngleAxisd((pending_join_->correction.inverse() * correction).linear()).angle() <
+              options_.join_max_disagreement_rad;
+      if (!confirmed) {
+        pending_join_ = PendingJoin{older, newer, correction, link};
+        break;
+      }
       JoinSegments(older, newer, link);
+      AddLink(pending_join_->link, report);
+      pending_join_.reset();
     } else {
       link.type = MapperLinkType::kLoopClosure;
     }
@@ -398,17 +426,17 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
   return false;
 }
 
-void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link) {
+Eigen::Isometry3d Mapper::JoinCorrection(int newer_root, const MapperLink& link) const {
   // The pose `link.to` should have in the frame of `link.from`'s segment, and the rigid motion
   // that takes the whole of its segment there.
-  const bool to_is_newer = Root(Get(link.to).segment) == newer_root;
-  Eigen::Isometry3d correction;
-  if (to_is_newer) {
-    correction = graph_.Pose(link.from) * link.from_from_to * graph_.Pose(link.to).inverse();
-  } else {
-    correction =
-        graph_.Pose(link.to) * link.from_from_to.inverse() * graph_.Pose(link.from).inverse();
+  if (Root(Get(link.to).segment) == newer_root) {
+    return graph_.Pose(link.from) * link.from_from_to * graph_.Pose(link.to).inverse();
   }
+  return graph_.Pose(link.to) * link.from_from_to.inverse() * graph_.Pose(link.from).inverse();
+}
+
+void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link) {
+  const Eigen::Isometry3d correction = JoinCorrection(newer_root, link);
   for (const Keyframe& keyframe : keyframes_) {
     if (Root(keyframe.segment) == newer_root) {
       graph_.SetPose(keyframe.id, correction * graph_.Pose(keyframe.id));

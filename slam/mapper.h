@@ -63,6 +63,10 @@ struct MapperOptions {
   // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
   int loop_min_spacing = 3;
   PoseGraphOptions pose_graph;
+  // Two relocalisations of one segment must agree this well before the segments are joined
+  // [m], [rad].
+  double join_max_disagreement_m = 0.10;
+  double join_max_disagreement_rad = 0.05;
   // Registration's information matrix assumes independent depth errors and so claims sub-millimetre
   // precision from a few hundred inliers; systematic errors (depth bias, calibration) do not shrink
   // with the inlier count. This floor is added to every link's covariance so the pose graph weighs
@@ -175,12 +179,14 @@ class Mapper {
   int Root(int segment) const;
   void AddLink(const MapperLink& link, KeyframeReport* report);
   RegistrationResult Register(const Keyframe& source, const Keyframe& target,
-                              MapperStageTimes* times) const;
+                              MapperStageTimes* times,
+                              const Eigen::Isometry3d* target_from_source_prior = nullptr) const;
   void TrainVocabulary(MapperStageTimes* times);
   void IndexKeyframe(Keyframe& keyframe);
   // Looks up `keyframe` for loop closures (same segment) or relocalisation (other segments);
   // true when it joined two segments.
   bool SearchPlaces(Keyframe& keyframe, KeyframeReport* report);
+  Eigen::Isometry3d JoinCorrection(int newer_root, const MapperLink& link) const;
   void JoinSegments(int older_root, int newer_root, const MapperLink& link);
   void Optimise(KeyframeReport* report);
 
@@ -197,6 +203,14 @@ class Mapper {
   int64_t last_loop_keyframe_ = -1000000;
   bool vocabulary_given_ = false;
   bool start_new_segment_ = false;
+  // A relocalisation waiting for a second keyframe to agree before two segments are joined.
+  struct PendingJoin {
+    int older = 0;
+    int newer = 0;
+    Eigen::Isometry3d correction;  // what the join would apply to the newer segment
+    MapperLink link;
+  };
+  std::optional<PendingJoin> pending_join_;
 };
 
 }  // namespace sightmap

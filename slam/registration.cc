@@ -218,6 +218,113 @@ Eigen::Isometry3d RefineByReprojection(const std::vector<Correspondence>& pairs,
   return pose;
 }
 
+// RANSAC with an adaptive number of iterations over 3-point samples; returns the inliers of the
+// best pose (empty when there are fewer than 3 pairs).
+std::vector<size_t> Ransac(const std::vector<Correspondence>& pairs,
+                           const RegistrationOptions& options, std::mt19937_64& rng,
+                           Eigen::Isometry3d* best) {
+  std::vector<size_t> best_inliers;
+  if (pairs.size() < 3) return best_inliers;
+  std::uniform_int_distribution<size_t> pick(0, pairs.size() - 1);
+  int needed = options.ransac_max_iterations;
+  for (int iteration = 0; iteration < needed; ++iteration) {
+    size_t idx[3] = {pick(rng), pick(rng), pick(rng)};
+    if (idx[0] == idx[1] || idx[0] == idx[2] || idx[1] == idx[2]) continue;
+    if (!SampleIsPlausible(pairs, idx, options)) continue;
+    Eigen::Isometry3d candidate;
+    if (!FitOn(pairs, {idx[0], idx[1], idx[2]}, false, &candidate)) continue;
+    std::vector<size_t> inliers = FindInliers(pairs, candidate);
+    if (inliers.size() <= best_inliers.size()) continue;
+    best_inliers = std::move(inliers);
+    *best = candidate;
+    const double ratio = static_cast<double>(best_inliers.size()) / pairs.size();
+    const double all_good = std::pow(ratio, 3.0);
+    if (all_good > 1.0 - 1e-12) break;
+    const double adaptive = std::log(1.0 - options.ransac_confidence) / std::log(1.0 - all_good);
+    needed = std::min(options.ransac_max_iterations, static_cast<int>(std::ceil(adaptive)));
+  }
+  return best_inliers;
+}
+
+int HammingDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b) {
+  return static_cast<int>(cv::norm(a.row(row_a), b.row(row_b), cv::NORM_HAMMING));
+}
+
+// Matches each source keypoint with a 3D point to the target keypoints (with 3D points) within
+// guided_radius_px of where `target_from_source` projects it, keeping the nearest descriptor when
+// it is close enough and clearly better than the runner-up there; mutual best only.
+std::vector<cv::DMatch> GuidedMatches(const Features& source, const Features& target,
+                                      const Eigen::Isometry3d& target_from_source,
+                                      const Intrinsics& camera,
+                                      const RegistrationOptions& options) {
+  std::vector<cv::DMatch> matches;
+  if (source.descriptors.type() != CV_8U || target.descriptors.type() != CV_8U) return matches;
+  const double cell = std::max(8.0, options.guided_radius_px);
+  const int cols = static_cast<int>(std::ceil(camera.width / cell)) + 1;
+  const int rows = static_cast<int>(std::ceil(camera.height / cell)) + 1;
+  std::vector<std::vector<int>> grid(static_cast<size_t>(cols * rows));
+  for (size_t t = 0; t < target.size(); ++t) {
+    if (!target.has_point[t]) continue;
+    const cv::Point2f& pt = target.keypoints[t].pt;
+    const int gx = std::clamp(static_cast<int>(pt.x / cell), 0, cols - 1);
+    const int gy = std::clamp(static_cast<int>(pt.y / cell), 0, rows - 1);
+    grid[static_cast<size_t>(gy * cols + gx)].push_back(static_cast<int>(t));
+  }
+  const double radius2 = options.guided_radius_px * options.guided_radius_px;
+  std::vector<int> best_source_for_target(target.size(), -1);
+  std::vector<int> best_distance_for_target(target.size(), 1 << 30);
+  std::vector<cv::DMatch> candidates;
+  for (size_t s = 0; s < source.size(); ++s) {
+    if (!source.has_point[s]) continue;
+    const Eigen::Vector3d in_target = target_from_source * source.points_cam[s];
+    if (in_target.z() <= 0.1) continue;
+    const Eigen::Vector2d px = camera.Project(in_target);
+    if (px.x() < -options.guided_radius_px || px.y() < -options.guided_radius_px ||
+        px.x() > camera.width + options.guided_radius_px ||
+        px.y() > camera.height + options.guided_radius_px) {
+      continue;
+    }
+    const int gx = static_cast<int>(px.x() / cell);
+    const int gy = static_cast<int>(px.y() / cell);
+    int best = -1;
+    int best_distance = 1 << 30;
+    int second_distance = 1 << 30;
+    for (int y = gy - 1; y <= gy + 1; ++y) {
+      for (int x = gx - 1; x <= gx + 1; ++x) {
+        if (x < 0 || y < 0 || x >= cols || y >= rows) continue;
+        for (int t : grid[static_cast<size_t>(y * cols + x)]) {
+          const cv::Point2f& pt = target.keypoints[static_cast<size_t>(t)].pt;
+          const double dx = pt.x - px.x();
+          const double dy = pt.y - px.y();
+          if (dx * dx + dy * dy > radius2) continue;
+          const int distance =
+              HammingDistance(source.descriptors, static_cast<int>(s), target.descriptors, t);
+          if (distance < best_distance) {
+            second_distance = best_distance;
+            best_distance = distance;
+            best = t;
+          } else if (distance < second_distance) {
+            second_distance = distance;
+          }
+        }
+      }
+    }
+    if (best < 0 || best_distance > options.guided_max_hamming) continue;
+    if (best_distance >= options.matching.ratio * second_distance) continue;
+    candidates.push_back(cv::DMatch(static_cast<int>(s), best, static_cast<float>(best_distance)));
+    if (best_distance < best_distance_for_target[static_cast<size_t>(best)]) {
+      best_distance_for_target[static_cast<size_t>(best)] = best_distance;
+      best_source_for_target[static_cast<size_t>(best)] = static_cast<int>(s);
+    }
+  }
+  for (const cv::DMatch& match : candidates) {
+    if (best_source_for_target[static_cast<size_t>(match.trainIdx)] == match.queryIdx) {
+      matches.push_back(match);
+    }
+  }
+  return matches;
+}
+
 }  // namespace
 
 bool RegistrationOptions::Check(std::string* error) const {
@@ -234,6 +341,9 @@ bool RegistrationOptions::Check(std::string* error) const {
     return fail("inlier distances and noise must be positive");
   }
   if (min_inliers < 3) return fail("min_inliers must be at least 3");
+  if (guided_radius_px < 0.0 || guided_max_hamming < 0 || guided_min_seed_inliers < 3) {
+    return fail("guided matching needs a radius >= 0, a distance >= 0 and a seed of >= 3 inliers");
+  }
   if (min_inlier_ratio < 0.0 || min_inlier_ratio > 1.0) {
     return fail("min_inlier_ratio must be in [0, 1]");
   }
@@ -249,7 +359,8 @@ bool RegistrationOptions::Check(std::string* error) const {
 
 RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
-                                const Intrinsics& camera, const RegistrationOptions& options) {
+                                const Intrinsics& camera, const RegistrationOptions& options,
+                                const Eigen::Isometry3d* prior) {
   SIGHTMAP_CHECK_OPTIONS(options);
   using Clock = std::chrono::steady_clock;
   const auto seconds_since = [](Clock::time_point start) {
@@ -268,37 +379,44 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
     match.queryIdx = source_rows[static_cast<size_t>(match.queryIdx)];
     match.trainIdx = target_rows[static_cast<size_t>(match.trainIdx)];
   }
+  result.matches = static_cast<int>(matches.size());
+  std::vector<Correspondence> pairs = MakeCorrespondences(source, target, matches, options);
   result.times.matching_s = seconds_since(stage_start);
   stage_start = Clock::now();
-  result.matches = static_cast<int>(matches.size());
-  const std::vector<Correspondence> pairs = MakeCorrespondences(source, target, matches, options);
+
+  std::mt19937_64 rng(options.ransac_seed);
+  Eigen::Isometry3d best = Eigen::Isometry3d::Identity();
+  std::vector<size_t> best_inliers = Ransac(pairs, options, rng, &best);
+
+  // Guided matching: a rough pose (from the global matches, or the caller's prior) predicts where
+  // each source point appears in the target image, and it is matched among the target keypoints
+  // near there only. Frames a second apart with motion blur and repeated texture keep few global
+  // ratio-test matches; the local search recovers many more, and RANSAC runs again on them.
+  if (options.guided_radius_px > 0.0) {
+    std::vector<Eigen::Isometry3d> seeds;
+    if (static_cast<int>(best_inliers.size()) >= options.guided_min_seed_inliers) {
+      seeds.push_back(best);
+    }
+    if (prior != nullptr) seeds.push_back(*prior);
+    for (const Eigen::Isometry3d& seed : seeds) {
+      const auto guided_start = Clock::now();
+      std::vector<Correspondence> guided = MakeCorrespondences(
+          source, target, GuidedMatches(source, target, seed, camera, options), options);
+      result.times.matching_s += seconds_since(guided_start);
+      Eigen::Isometry3d pose;
+      std::vector<size_t> inliers = Ransac(guided, options, rng, &pose);
+      if (inliers.size() > best_inliers.size()) {
+        pairs = std::move(guided);
+        best_inliers = std::move(inliers);
+        best = pose;
+        result.guided = true;
+      }
+    }
+  }
   result.correspondences = static_cast<int>(pairs.size());
   if (result.correspondences < options.min_inliers) {
     result.failure = "too few 3D correspondences (" + std::to_string(result.correspondences) + ")";
     return result;
-  }
-
-  // RANSAC with an adaptive number of iterations.
-  std::mt19937_64 rng(options.ransac_seed);
-  std::uniform_int_distribution<size_t> pick(0, pairs.size() - 1);
-  std::vector<size_t> best_inliers;
-  Eigen::Isometry3d best = Eigen::Isometry3d::Identity();
-  int needed = options.ransac_max_iterations;
-  for (int iteration = 0; iteration < needed; ++iteration) {
-    size_t idx[3] = {pick(rng), pick(rng), pick(rng)};
-    if (idx[0] == idx[1] || idx[0] == idx[2] || idx[1] == idx[2]) continue;
-    if (!SampleIsPlausible(pairs, idx, options)) continue;
-    Eigen::Isometry3d candidate;
-    if (!FitOn(pairs, {idx[0], idx[1], idx[2]}, false, &candidate)) continue;
-    std::vector<size_t> inliers = FindInliers(pairs, candidate);
-    if (inliers.size() <= best_inliers.size()) continue;
-    best_inliers = std::move(inliers);
-    best = candidate;
-    const double ratio = static_cast<double>(best_inliers.size()) / pairs.size();
-    const double all_good = std::pow(ratio, 3.0);
-    if (all_good > 1.0 - 1e-12) break;
-    const double adaptive = std::log(1.0 - options.ransac_confidence) / std::log(1.0 - all_good);
-    needed = std::min(options.ransac_max_iterations, static_cast<int>(std::ceil(adaptive)));
   }
   if (static_cast<int>(best_inliers.size()) < options.min_inliers) {
     result.inliers = static_cast<int>(best_inliers.size());

@@ -42,6 +42,14 @@ struct RegistrationOptions {
   int refine_iterations = 10;
   double huber_px = 2.0;
 
+  // Guided matching (0 radius turns it off): around where a rough pose puts each source point in
+  // the target image [px], the nearest descriptor within guided_max_hamming [bits] of 256 that
+  // passes the ratio test against its local runner-up. The rough pose comes from RANSAC on the
+  // global matches when it has guided_min_seed_inliers, and from the caller's prior.
+  double guided_radius_px = 24.0;
+  int guided_max_hamming = 64;
+  int guided_min_seed_inliers = 6;
+
   // Acceptance.
   int min_inliers = 20;
   // Inliers / correspondences with 3D points on both sides.
@@ -86,8 +94,11 @@ struct RegistrationResult {
   // (x, y, z) then a small rotation (x, y, z) applied on the left, as in Ceres' pose_graph_3d.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
   RegistrationTimes times;
+  bool guided = false;  // the pose came from guided matches
 };
 
+// `prior` (optional) is a guess of target_from_source, e.g. from the motion so far, that seeds
+// guided matching.
 // Registers `source` to `target`. Depth images (16-bit mm, registered, the size of the camera or
 // that size divided by a whole factor, e.g. 160x120 nearest-neighbour samples of 640x480 kept per
 // keyframe) enable the dense verification; `camera` is shared by both frames. Refusal is a result,
@@ -95,6 +106,7 @@ struct RegistrationResult {
 RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
                                 const Intrinsics& camera,
-                                const RegistrationOptions& options = RegistrationOptions());
+                                const RegistrationOptions& options = RegistrationOptions(),
+                                const Eigen::Isometry3d* prior = nullptr);
 
 }  // namespace sightmap
