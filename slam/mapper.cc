@@ -194,7 +194,9 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   report.id = keyframe.id;
   report.features = static_cast<int>(keyframe.features.size());
 
-  // Odometry: the newest keyframes of the current segment, newest first.
+  // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
+  // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
+  // one often registers to the keyframes before it and so continues their segment.
   std::vector<MapperLink> odometry;
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   if (!keyframes_.empty()) {
@@ -210,9 +212,15 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
     for (int64_t id = last.id;
          !start_new_segment_ && id >= 0 && last.id - id < options_.odometry_window; --id) {
       const Keyframe& target = keyframes_[static_cast<size_t>(id)];
-      if (Root(target.segment) != segment_root) break;
+      const int target_root = Root(target.segment);
+      if (!odometry.empty() &&
+          target_root != Root(keyframes_[static_cast<size_t>(odometry[0].from)].segment)) {
+        continue;  // links of one keyframe stay within one segment
+      }
+      // The prediction is in the last keyframe's segment frame: no prior for other segments.
       const Eigen::Isometry3d prior = graph_.Pose(target.id).inverse() * predicted;
-      const RegistrationResult result = Register(keyframe, target, &report.times, &prior);
+      const RegistrationResult result =
+          Register(keyframe, target, &report.times, target_root == segment_root ? &prior : nullptr);
       if (!result.success) {
         if (report.odometry_failure.empty()) {
           report.odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
@@ -230,7 +238,7 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
       odometry.push_back(link);
       if (static_cast<int>(odometry.size()) > options_.extra_odometry_links) break;
     }
-    keyframe.segment = last.segment;
+    keyframe.segment = odometry.empty() ? last.segment : Get(odometry.front().from).segment;
     if (odometry.empty() || start_new_segment_) {
       // Lost: a new segment, seeded where the camera was last.
       keyframe.segment = static_cast<int>(segment_parent_.size());
