@@ -311,7 +311,7 @@ TEST(Map, ASecondCtrlCExitsAtOnceAndTheModelStillOpens) {
   EXPECT_GE(reopened.NumKeyframes(), 10);
 }
 
-// SIGKILL at a random moment, then `map` again on the same model with the same walk from a few
+// SIGKILL at a random moment, then `map` again on the same model with the same walk from ten
 // frames before the kill: a new session, the crashed one marked interrupted, every committed
 // keyframe kept, and the resumed keyframes relocalised into the stored graph (no new segment).
 // The kill waits for the vocabulary (trained at 30 keyframes and stored with the 30th): a model
@@ -337,21 +337,23 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
     EXPECT_TRUE(killed.LoadVocabulary().has_value());
   }
   const int64_t segments_before = Info(model).at("segments").get<int64_t>();
-  const int64_t start = committed - 3;
+  // Ten revisited frames: a join needs two agreeing relocalisations, and at 1 Hz odometry between
+  // two of them may fail (a lost keyframe starts a segment of its own).
+  const int64_t start = committed - 10;
   const CommandResult resumed =
       Sightmap("map --source " + walk + " --start-frame " + std::to_string(start) +
-               " --max-keyframes 12 --model " + model + " --headless --json");
+               " --max-keyframes 15 --model " + model + " --headless --json");
   ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
   const nlohmann::json summary = nlohmann::json::parse(resumed.out);
   EXPECT_EQ(summary.at("resumed"), true);
   EXPECT_EQ(summary.at("restored_keyframes"), committed);
   EXPECT_EQ(summary.at("interrupted_sessions_marked"), 1);
-  EXPECT_EQ(summary.at("keyframes"), 12);
+  EXPECT_EQ(summary.at("keyframes"), 15);
   EXPECT_EQ(summary.at("joined_stored_map"), true) << resumed.out;
 
   const Model after = Model::Open(model, ReadOnly());
   EXPECT_EQ(after.IntegrityCheck(), "ok");
-  EXPECT_EQ(after.NumKeyframes(), committed + 12);
+  EXPECT_EQ(after.NumKeyframes(), committed + 15);
   const std::vector<SessionRecord> sessions = after.Sessions();
   ASSERT_EQ(sessions.size(), 2u);
   EXPECT_EQ(sessions[0].end_state, SessionEnd::kInterrupted);
@@ -359,25 +361,28 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
   const nlohmann::json info = Info(model);
   EXPECT_EQ(info.at("sessions"), 2);
   EXPECT_GE(info.at("links").at("relocalisation").get<int64_t>(), 1);
-  // The resumed session's first keyframe (a revisit of frame `start`) is connected to the stored
-  // keyframe of that frame through the stored links. (The walk at 1 Hz also loses tracking now
-  // and then, so the total segment count may grow by ordinary losses; that is slam's business.)
+  // Resumed keyframes revisiting frames start..committed-1 that the graph joins to the stored
+  // keyframe of the same frame (through any chain of links) must land where the first session put
+  // that frame; at least one must (at 1 Hz odometry is lost now and then, so not every revisit
+  // joins, and the total segment count may grow by ordinary losses: that is slam's business).
   const std::vector<KeyframeInfo> keyframes = after.Keyframes();
-  const KeyframeId first_resumed = keyframes[static_cast<size_t>(committed)].id;
-  const KeyframeId revisited = keyframes[static_cast<size_t>(start)].id;
-  EXPECT_TRUE(Connected(after.Links(), first_resumed, revisited))
-      << "the resumed keyframes must join the stored graph";
-  // The revisited frames land where the first session put them.
-  const double apart = (keyframes[static_cast<size_t>(start + 1)].world_from_cam.translation() -
-                        keyframes[static_cast<size_t>(committed + 1)].world_from_cam.translation())
-                           .norm();
-  EXPECT_LT(apart, 0.10);
+  const std::vector<LinkRecord> links = after.Links();
+  int joined_revisits = 0;
+  for (int64_t i = 0; i < committed - start; ++i) {
+    const KeyframeInfo& twin = keyframes[static_cast<size_t>(start + i)];
+    const KeyframeInfo& again = keyframes[static_cast<size_t>(committed + i)];
+    if (!Connected(links, twin.id, again.id)) continue;
+    ++joined_revisits;
+    EXPECT_LT((twin.world_from_cam.translation() - again.world_from_cam.translation()).norm(), 0.10)
+        << "frame " << start + i;
+  }
+  EXPECT_GE(joined_revisits, 1) << "the resumed keyframes must join the stored graph";
   std::printf(
-      "killed %d ms after keyframe 31: %lld committed; resumed from frame %lld: 12 more; "
-      "segments %lld before, %lld after\n",
+      "killed %d ms after keyframe 31: %lld committed; resumed from frame %lld: 15 more; "
+      "segments %lld before, %lld after; %d of 10 revisits joined\n",
       extra_ms, static_cast<long long>(committed), static_cast<long long>(start),
       static_cast<long long>(segments_before),
-      static_cast<long long>(info.at("segments").get<int64_t>()));
+      static_cast<long long>(info.at("segments").get<int64_t>()), joined_revisits);
 }
 
 // A recording played at its recorded pace goes through the live-sensor path: keyframes the mapper
