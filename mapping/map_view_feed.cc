@@ -7,18 +7,6 @@
 namespace sightmap::mapping {
 namespace {
 
-TrackingState ToRender(FeedTracking state) {
-  switch (state) {
-    case FeedTracking::kTracking:
-      return TrackingState::kTracking;
-    case FeedTracking::kLost:
-      return TrackingState::kLost;
-    case FeedTracking::kRelocalised:
-      return TrackingState::kRelocalised;
-  }
-  return TrackingState::kLost;
-}
-
 ViewMode ToRender(ViewChoice choice) {
   switch (choice) {
     case ViewChoice::kAuto:
@@ -110,8 +98,8 @@ void MapViewFeed::SetCamera(const Eigen::Isometry3d& world_from_cam) {
 
 void MapViewFeed::SetStatus(const FeedStatus& status) {
   MapUpdate update;
-  update.status = MapStatus{status.keyframes, status.loops, ToRender(status.tracking),
-                            status.keyframes_per_s, status.elapsed_s};
+  update.status = MapStatus{status.keyframes, status.loops, status.tracking, status.keyframes_per_s,
+                            status.elapsed_s};
   impl_->view->Submit(std::move(update));
 }
 

@@ -15,6 +15,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "core/tracking_state.h"
 
 namespace sightmap::mapping {
 
@@ -36,13 +37,10 @@ struct MapViewFeedOptions {
   bool Check(std::string* error) const;
 };
 
-// The tracking states render/ draws, mirrored here so callers need not include render/.
-enum class FeedTracking { kTracking, kLost, kRelocalised };
-
 struct FeedStatus {
   int64_t keyframes = 0;
   int64_t loops = 0;
-  FeedTracking tracking = FeedTracking::kTracking;
+  TrackingState tracking = TrackingState::kTracking;
   double keyframes_per_s = 0.0;
   double elapsed_s = 0.0;
 };

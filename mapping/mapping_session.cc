@@ -86,18 +86,6 @@ MapperLinkType FromStore(LinkType type) {
   return MapperLinkType::kLoopClosure;
 }
 
-FeedTracking ToFeed(TrackingState state) {
-  switch (state) {
-    case TrackingState::kTracking:
-      return FeedTracking::kTracking;
-    case TrackingState::kLost:
-      return FeedTracking::kLost;
-    case TrackingState::kRelocalised:
-      return FeedTracking::kRelocalised;
-  }
-  return FeedTracking::kLost;
-}
-
 // What SLAM hands the writer, in order.
 struct WriteTask {
   enum class Kind { kKeyframe, kPoses, kVocabulary };
@@ -460,7 +448,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
       }
       links_rejected_after_commit += report.links_rejected - rejected_now;
       const MappingProgress progress = make_progress();
-      task.status = FeedStatus{progress.model_keyframes, progress.loops, ToFeed(report.state),
+      task.status = FeedStatus{progress.model_keyframes, progress.loops, report.state,
                                progress.keyframes_per_s, progress.elapsed_s};
       if (!writes.Push(std::move(task))) break;  // the writer failed
       if (report.optimised) {

@@ -83,18 +83,6 @@ MapKeyframe FromRgbd(const cv::Mat& bgr, const cv::Mat& depth_mm, const Intrinsi
   return keyframe;
 }
 
-const char* ToString(TrackingState state) {
-  switch (state) {
-    case TrackingState::kTracking:
-      return "tracking";
-    case TrackingState::kLost:
-      return "lost";
-    case TrackingState::kRelocalised:
-      return "relocalised";
-  }
-  return "unknown";
-}
-
 void MapUpdate::Merge(MapUpdate&& later) {
   keyframes.insert(keyframes.end(), std::make_move_iterator(later.keyframes.begin()),
                    std::make_move_iterator(later.keyframes.end()));

@@ -20,6 +20,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "core/tracking_state.h"
 
 namespace sightmap {
 
@@ -60,9 +61,6 @@ struct ApplianceLabel {
   std::string name;
   Eigen::Vector3d world_point = Eigen::Vector3d::Zero();  // [m]
 };
-
-enum class TrackingState { kTracking, kLost, kRelocalised };
-const char* ToString(TrackingState state);  // "tracking", "lost", "relocalised"
 
 struct MapStatus {
   int64_t keyframes = 0;

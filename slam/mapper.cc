@@ -42,18 +42,6 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
 
 }  // namespace
 
-const char* ToString(TrackingState state) {
-  switch (state) {
-    case TrackingState::kTracking:
-      return "tracking";
-    case TrackingState::kLost:
-      return "lost";
-    case TrackingState::kRelocalised:
-      return "relocalised";
-  }
-  return "unknown";
-}
-
 bool MapperOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
     if (error) *error = what;

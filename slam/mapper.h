@@ -26,6 +26,7 @@
 
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
+#include "core/tracking_state.h"
 #include "slam/features.h"
 #include "slam/place_index.h"
 #include "slam/pose_graph.h"
@@ -76,9 +77,6 @@ struct MapperOptions {
 
   bool Check(std::string* error) const;
 };
-
-enum class TrackingState { kTracking, kLost, kRelocalised };
-const char* ToString(TrackingState state);
 
 enum class MapperLinkType { kOdometry, kLoopClosure, kRelocalisation };
 
