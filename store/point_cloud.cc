@@ -23,8 +23,10 @@ namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointXYZRGB>;
 
-// Downsampling as points arrive keeps memory bounded on large models; past this many points the
-// accumulated cloud is voxel filtered again.
+// Downsampling as points arrive keeps memory bounded on large models: past this many points the
+// accumulated cloud is voxel filtered again, and after that whenever it has doubled since the last
+// filtering. (Refiltering at a fixed size made a 3,000-keyframe export quadratic: once the
+// filtered floor itself held 4M points, every keyframe refiltered all of it.)
 constexpr size_t kRefilterPoints = 4'000'000;
 
 // pcl::VoxelGrid indexes voxels with 32-bit ints and returns its input unfiltered when the
@@ -86,6 +88,7 @@ PlyExportStats ExportPly(const Model& model, const std::string& path,
                                          << " has no keyframes: there is no point cloud to export");
   PlyExportStats stats;
   auto cloud = std::make_shared<Cloud>();
+  size_t refilter_at = kRefilterPoints;
   const uint16_t min_mm = static_cast<uint16_t>(std::ceil(options.min_depth_m * 1000.0));
   const double max_mm = options.max_depth_m * 1000.0;
   for (const KeyframeInfo& keyframe : keyframes) {
@@ -115,7 +118,10 @@ PlyExportStats ExportPly(const Model& model, const std::string& path,
       }
     }
     ++stats.keyframes;
-    if (cloud->size() > kRefilterPoints) cloud = VoxelFilter(cloud, options.voxel_size_m);
+    if (cloud->size() > refilter_at) {
+      cloud = VoxelFilter(cloud, options.voxel_size_m);
+      refilter_at = std::max(kRefilterPoints, 2 * cloud->size());
+    }
   }
   cloud = VoxelFilter(cloud, options.voxel_size_m);
   if (options.remove_outliers && cloud->size() > static_cast<size_t>(options.outlier_neighbours)) {
