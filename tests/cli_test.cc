@@ -19,35 +19,18 @@
 #include "store/point_cloud.h"
 #include "store/synthetic_model.h"
 #include "store/trajectory.h"
+#include "tests/command_runner.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
 namespace {
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using testing::CommandResult;
+using testing::Slurp;
 
 // Runs `sightmap ARGS` with no standard input; arguments are passed through the shell as written.
 CommandResult Sightmap(const std::string& args) {
-  const std::string dir = testing::MakeTempDir("run");
-  const std::string command = std::string(SIGHTMAP_BINARY) + " " + args + " > " + dir + "/out 2> " +
-                              dir + "/err < /dev/null";
-  const int status = std::system(command.c_str());
-  CommandResult run;
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  run.out = Slurp(dir + "/out");
-  run.err = Slurp(dir + "/err");
-  return run;
+  return testing::RunCommand(SIGHTMAP_BINARY, args);
 }
 
 int CountLines(const std::string& text) {

@@ -25,6 +25,7 @@
 #include "store/model.h"
 #include "store/point_cloud.h"
 #include "store/trajectory.h"
+#include "tests/command_runner.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
@@ -32,30 +33,12 @@ namespace {
 
 using namespace std::chrono_literals;
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
+using testing::CommandResult;
+using testing::Slurp;
 
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// Runs `sightmap ARGS` (through the shell, as written) with no standard input.
+// Runs `sightmap ARGS` with no standard input; arguments are passed through the shell as written.
 CommandResult Sightmap(const std::string& args) {
-  const std::string dir = testing::MakeTempDir("run");
-  const std::string command = std::string(SIGHTMAP_BINARY) + " " + args + " > " + dir + "/out 2> " +
-                              dir + "/err < /dev/null";
-  const int status = std::system(command.c_str());
-  CommandResult run;
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  run.out = Slurp(dir + "/out");
-  run.err = Slurp(dir + "/err");
-  return run;
+  return testing::RunCommand(SIGHTMAP_BINARY, args);
 }
 
 // A `sightmap` process started in the background, so a test can signal it.
