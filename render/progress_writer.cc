@@ -1,5 +1,10 @@
 #include "render/progress_writer.h"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <chrono>
 #include <exception>
 
@@ -10,6 +15,10 @@
 namespace sightmap {
 
 bool ProgressWriterOptions::Check(std::string* error) const {
+  if (min_interval_s < 0.0 || nice_increment < 0 || nice_increment > 19) {
+    *error = "min_interval_s must be >= 0 and nice_increment in [0, 19]";
+    return false;
+  }
   if (every_n_keyframes < 1) {
     *error = "every_n_keyframes must be at least 1";
     return false;
@@ -87,6 +96,12 @@ void ProgressWriter::RenderAndWrite(MapRenderer* renderer, const MapScene& scene
 }
 
 void ProgressWriter::Run() {
+  if (options_.nice_increment > 0) {
+    // Best effort: a failure only means rendering competes at normal priority.
+    const id_t thread = static_cast<id_t>(syscall(SYS_gettid));
+    const int current = getpriority(PRIO_PROCESS, thread);
+    (void)setpriority(PRIO_PROCESS, thread, std::min(19, current + options_.nice_increment));
+  }
   std::unique_ptr<OffscreenContext> context;
   std::unique_ptr<MapRenderer> renderer;
   try {
@@ -101,6 +116,9 @@ void ProgressWriter::Run() {
   MapScene scene(options_.world_up);
   const int64_t n = options_.every_n_keyframes;
   int64_t rendered_milestone = 0;
+  using Clock = std::chrono::steady_clock;
+  Clock::time_point last_render = Clock::now() - std::chrono::hours(1);
+  const auto min_interval = std::chrono::duration<double>(options_.min_interval_s);
   while (true) {
     // Read the flag first: whatever was submitted before Finish() is then in this Take.
     const bool finishing = finish_requested_.load();
@@ -115,13 +133,15 @@ void ProgressWriter::Run() {
         std::lock_guard<std::mutex> lock(stats_mutex_);
         stats_.keyframes = keyframes;
       }
-      if (renderer && (milestone > rendered_milestone || finishing)) {
+      const bool due = milestone > rendered_milestone && Clock::now() - last_render >= min_interval;
+      if (renderer && (due || finishing)) {
         if (milestone > rendered_milestone + 1) {
           std::lock_guard<std::mutex> lock(stats_mutex_);
           stats_.renders_skipped += milestone - rendered_milestone - 1;
         }
         rendered_milestone = milestone;
         RenderAndWrite(renderer.get(), scene);
+        last_render = Clock::now();
       }
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lock(stats_mutex_);

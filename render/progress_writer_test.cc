@@ -36,6 +36,7 @@ ProgressWriterOptions SmallOptions(const std::string& path, int every_n) {
   ProgressWriterOptions options;
   options.png_path = path;
   options.every_n_keyframes = every_n;
+  options.min_interval_s = 0.0;  // renders counted exactly; the interval has a test of its own
   options.render.width = 320;
   options.render.height = 180;
   return options;
@@ -83,6 +84,25 @@ TEST(ProgressWriter, WritesAtomicPngsEveryNKeyframesAndAtTheEnd) {
   ASSERT_EQ(image.rows, 180);
   EXPECT_GT(reads.load(), 0);
   EXPECT_EQ(bad_reads.load(), 0);
+}
+
+// Milestones closer together than min_interval_s share one render; the end always renders.
+TEST(ProgressWriter, RendersNoMoreOftenThanTheMinimumInterval) {
+  const std::string path = TempPath("interval.png");
+  ProgressWriterOptions options = SmallOptions(path, 5);
+  options.min_interval_s = 60.0;
+  ProgressWriter writer(options);
+  std::mt19937 rng(3);
+  for (int64_t i = 1; i <= 15; ++i) {
+    MapUpdate update;
+    update.keyframes.push_back(RandomKeyframe(i, 500, &rng));
+    writer.Submit(std::move(update));
+    writer.Flush();
+  }
+  EXPECT_EQ(writer.stats().renders, 1);  // keyframe 5; 10 and 15 fall within the minute
+  writer.Finish();
+  EXPECT_EQ(writer.stats().renders, 2);
+  EXPECT_EQ(writer.stats().keyframes, 15);
 }
 
 // 1,000 keyframes submitted as fast as possible: Submit never waits for a render, milestones the
