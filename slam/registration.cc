@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/check.h"
+#include "slam/hamming.h"
 #include "slam/rigid_alignment.h"
 
 namespace sightmap {
@@ -246,10 +247,6 @@ std::vector<size_t> Ransac(const std::vector<Correspondence>& pairs,
   return best_inliers;
 }
 
-int HammingDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b) {
-  return static_cast<int>(cv::norm(a.row(row_a), b.row(row_b), cv::NORM_HAMMING));
-}
-
 // Matches each source keypoint with a 3D point to the target keypoints (with 3D points) within
 // guided_radius_px of where `target_from_source` projects it, keeping the nearest descriptor when
 // it is close enough and clearly better than the runner-up there; mutual best only.
@@ -258,7 +255,11 @@ std::vector<cv::DMatch> GuidedMatches(const Features& source, const Features& ta
                                       const Intrinsics& camera,
                                       const RegistrationOptions& options) {
   std::vector<cv::DMatch> matches;
-  if (source.descriptors.type() != CV_8U || target.descriptors.type() != CV_8U) return matches;
+  // 256-bit binary descriptors (ORB) only; others keep the global matches.
+  if (source.descriptors.type() != CV_8U || target.descriptors.type() != CV_8U ||
+      source.descriptors.cols != 32 || target.descriptors.cols != 32) {
+    return matches;
+  }
   const double cell = std::max(8.0, options.guided_radius_px);
   const int cols = static_cast<int>(std::ceil(camera.width / cell)) + 1;
   const int rows = static_cast<int>(std::ceil(camera.height / cell)) + 1;
@@ -297,8 +298,8 @@ std::vector<cv::DMatch> GuidedMatches(const Features& source, const Features& ta
           const double dx = pt.x - px.x();
           const double dy = pt.y - px.y();
           if (dx * dx + dy * dy > radius2) continue;
-          const int distance =
-              HammingDistance(source.descriptors, static_cast<int>(s), target.descriptors, t);
+          const int distance = Hamming256(source.descriptors.ptr<uint8_t>(static_cast<int>(s)),
+                                          target.descriptors.ptr<uint8_t>(t));
           if (distance < best_distance) {
             second_distance = best_distance;
             best_distance = distance;

@@ -11,17 +11,13 @@
 #include <opencv2/core/check.hpp>
 
 #include "core/check.h"
+#include "slam/hamming.h"
 
 namespace sightmap {
 namespace {
 
 constexpr int kDescriptorBytes = 32;
 using Descriptor = std::array<uint64_t, 4>;
-
-inline int Hamming(const uint64_t* a, const uint64_t* b) {
-  return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
-         __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]);
-}
 
 inline Descriptor Load(const uint8_t* bytes) {
   Descriptor d;
@@ -60,7 +56,7 @@ void KMajority(const std::vector<Descriptor>& descriptors, const std::vector<uin
     const Descriptor& last = centres->back();
     double total = 0.0;
     for (size_t i = 0; i < n; ++i) {
-      nearest[i] = std::min(nearest[i], Hamming(descriptors[members[i]].data(), last.data()));
+      nearest[i] = std::min(nearest[i], Hamming256(descriptors[members[i]].data(), last.data()));
       total += static_cast<double>(nearest[i]) * nearest[i];
     }
     if (total == 0.0) break;  // every descriptor equals a centre: no more distinct clusters
@@ -83,9 +79,9 @@ void KMajority(const std::vector<Descriptor>& descriptors, const std::vector<uin
     for (size_t i = 0; i < n; ++i) {
       const uint64_t* d = descriptors[members[i]].data();
       int best = 0;
-      int best_distance = Hamming(d, (*centres)[0].data());
+      int best_distance = Hamming256(d, (*centres)[0].data());
       for (int c = 1; c < num_centres; ++c) {
-        const int distance = Hamming(d, (*centres)[c].data());
+        const int distance = Hamming256(d, (*centres)[c].data());
         if (distance < best_distance) {
           best_distance = distance;
           best = c;
@@ -348,10 +344,10 @@ int Vocabulary::WordOf(const uint8_t* descriptor32) const {
   const Node* node = &nodes_[0];
   while (node->num_children != 0) {
     const Node* best = &nodes_[node->first_child];
-    int best_distance = Hamming(d, best->descriptor);
+    int best_distance = Hamming256(d, best->descriptor);
     for (uint32_t c = 1; c < node->num_children; ++c) {
       const Node* child = &nodes_[node->first_child + c];
-      const int distance = Hamming(d, child->descriptor);
+      const int distance = Hamming256(d, child->descriptor);
       if (distance < best_distance) {
         best_distance = distance;
         best = child;
