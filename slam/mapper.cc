@@ -155,7 +155,9 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
   edge.information = link.information;
   edge.type = link.type == MapperLinkType::kOdometry ? PoseGraphEdgeType::kOdometry
                                                      : PoseGraphEdgeType::kLoop;
-  graph_edge_of_link_.push_back(graph_.AddEdge(edge));
+  // Links and graph edges are added together only here, so a link's index is its edge's index.
+  const size_t index = graph_.AddEdge(edge);
+  SIGHTMAP_CHECK(index == links_.size(), "pose graph edges and mapper links out of step");
   links_.push_back(link);
   report->new_links.push_back(link);
 }
@@ -306,7 +308,7 @@ void Mapper::RestoreLink(const MapperLink& link) {
   const int to_root = Root(Get(link.to).segment);
   KeyframeReport ignored;
   AddLink(link, &ignored);
-  if (!link.active) graph_.SetEdgeActive(graph_edge_of_link_.back(), false);
+  if (!link.active) graph_.SetEdgeActive(links_.size() - 1, false);
   if (from_root != to_root) {
     segment_parent_[static_cast<size_t>(std::max(from_root, to_root))] =
         std::min(from_root, to_root);
@@ -445,11 +447,9 @@ void Mapper::Optimise(KeyframeReport* report) {
   const Clock::time_point start = Clock::now();
   const PoseGraphSummary summary = graph_.Optimize(options_.pose_graph);
   for (size_t edge : summary.rejected_edges) {
-    for (size_t i = 0; i < graph_edge_of_link_.size(); ++i) {
-      if (graph_edge_of_link_[i] == edge && links_[i].active) {
-        links_[i].active = false;
-        ++report->links_rejected;
-      }
+    if (links_[edge].active) {
+      links_[edge].active = false;
+      ++report->links_rejected;
     }
   }
   report->optimised = true;

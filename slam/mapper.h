@@ -191,8 +191,7 @@ class Mapper {
   Intrinsics camera_;
   MapperOptions options_;
   std::vector<Keyframe> keyframes_;  // id = index
-  std::vector<MapperLink> links_;
-  std::vector<size_t> graph_edge_of_link_;  // PoseGraph edge index per link
+  std::vector<MapperLink> links_;    // links_[i] is the pose graph's edge i
   PoseGraph graph_;
   std::shared_ptr<const Vocabulary> vocabulary_;
   PlaceIndex index_;
