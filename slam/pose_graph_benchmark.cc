@@ -12,15 +12,7 @@ namespace sightmap {
 namespace {
 
 synthetic::Scene MakeScene(bool with_false_loop) {
-  synthetic::CircleOptions options;
-  options.poses_per_lap = 500;
-  options.laps = 4;
-  options.radius_m = 4.0;
-  options.odometry_sigma_m = 0.005;
-  options.odometry_sigma_rad = 0.002;
-  options.loop_every = 75;
-  options.seed = 5;
-  synthetic::Scene scene = synthetic::MakeCircleScene(options);
+  synthetic::Scene scene = synthetic::MakeCircleScene(synthetic::LargeCircleOptions());
   if (with_false_loop) {
     PoseGraphEdge edge;
     edge.from = 100;
@@ -29,6 +21,7 @@ synthetic::Scene MakeScene(bool with_false_loop) {
     // front of pose 100.
     edge.from_from_to = synthetic::ExpSe3(
         (Eigen::Matrix<double, 6, 1>() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished());
+    const synthetic::CircleOptions options = synthetic::LargeCircleOptions();
     edge.information = synthetic::Information(options.loop_sigma_m, options.loop_sigma_rad);
     edge.type = PoseGraphEdgeType::kLoop;
     scene.graph.AddEdge(edge);

@@ -361,14 +361,7 @@ TEST(PoseGraph, InvalidInputThrows) {
 // 2,000 poses (4 laps of 500 around a 4 m circle) with 20 loops and a false one: the figures
 // for the issue (pose_graph_benchmark has the steadier ones). The time is printed, not asserted.
 TEST(PoseGraph, LargeGraphFigures) {
-  synthetic::CircleOptions options;
-  options.poses_per_lap = 500;
-  options.laps = 4;
-  options.radius_m = 4.0;
-  options.odometry_sigma_m = 0.005;
-  options.odometry_sigma_rad = 0.002;
-  options.loop_every = 75;
-  options.seed = 5;
+  const synthetic::CircleOptions options = synthetic::LargeCircleOptions();
   synthetic::Scene scene = synthetic::MakeCircleScene(options);
   ASSERT_EQ(scene.loop_edges.size(), 20u);
   // Place recognition confuses pose 350 (on the far side of the circle) with a view 30 cm in front

@@ -52,6 +52,20 @@ struct CircleOptions {
   uint64_t seed = 1;
 };
 
+// The large case, shared by the test that prints its figures and the benchmark: 2,000
+// poses (4 laps of 500 around a 4 m circle) with 20 loops.
+inline CircleOptions LargeCircleOptions() {
+  CircleOptions options;
+  options.poses_per_lap = 500;
+  options.laps = 4;
+  options.radius_m = 4.0;
+  options.odometry_sigma_m = 0.005;
+  options.odometry_sigma_rad = 0.002;
+  options.loop_every = 75;
+  options.seed = 5;
+  return options;
+}
+
 struct Scene {
   std::vector<Eigen::Isometry3d> truth;  // world_from_cam by pose id
   PoseGraph graph;  // initialised by dead reckoning along the odometry, pose 0 at its truth
