@@ -16,6 +16,8 @@ packages=(
   libosmesa6-dev                            # off-screen rendering (render/, the simulator)
   libceres-dev                              # pose-graph optimisation (slam/)
   libglfw3-dev                              # the live preview window (render/)
+  libcpp-httplib-dev                        # the HTTP server phones talk to (sightmap serve)
+  libexif-dev                               # a photo's focal length from its EXIF (sightmap locate)
   xvfb xauth                                # a virtual display for the preview's tests
   opencv-doc                                # real photographs the simulator textures its scene with
   libgtest-dev libbenchmark-dev             # tests and benchmarks

@@ -1,0 +1,137 @@
+// Locating a phone photo (colour only, no depth) against the building model, and saying which
+// labelled appliances it shows: the matching phase of ARCHITECTURE.md. A Locator loads what it needs
+// from the model once (features, poses, vocabulary, labels, a coarse cloud for occlusion), then
+// answers any number of photos, from several threads at once, as `sightmap serve` does.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "slam/features.h"
+#include "store/model.h"
+
+namespace sightmap {
+
+struct LocatorOptions {
+  // Photo features: more than a keyframe's, because a 1280x960 phone photo sees more.
+  FeatureOptions features = [] {
+    FeatureOptions f;
+    f.max_features = 2000;
+    return f;
+  }();
+  // Photos whose longer side exceeds this are downscaled for features (a 2560x1920 photo's
+  // details are finer than any keyframe's) [px]; the answer's pixels are in the original image.
+  int max_image_side_px = 1280;
+  // Retrieval: keyframes taken from the inverted index, best bag-of-words score first, each
+  // verified by PnP; the best verified pose wins.
+  int retrieval_candidates = 5;
+  // Keyframes whose position lies within this distance of a candidate's and whose viewing direction
+  // differs by less than neighbour_max_angle_deg join its 2D-3D matching [m], [deg].
+  double neighbour_radius_m = 1.0;
+  double neighbour_max_angle_deg = 45.0;
+  int max_neighbours = 4;
+  // Nearest-neighbour distance ratio for photo-to-model descriptor matches.
+  double match_ratio = 0.8;
+  // PnP RANSAC (OpenCV): reprojection threshold [px, at the feature image's scale], iterations,
+  // and the inliers a pose needs to count as matched.
+  double pnp_reprojection_px = 4.0;
+  int pnp_iterations = 1000;
+  int min_inliers = 25;
+  // The paper's sanity check: the photo's viewing direction within this angle of the retrieved
+  // keyframe's [deg].
+  double max_rotation_from_keyframe_deg = 90.0;
+  // With no intrinsics known, these 35 mm-equivalent focal lengths are tried and the one with most
+  // PnP inliers is kept [mm] (phones: 24-30 mm main camera).
+  std::vector<double> focal_candidates_35mm = {22.0, 26.0, 30.0, 35.0};
+  // Occlusion: the model's surfaces are kept as a voxel cloud of this cell size [m]; an appliance
+  // point is occluded when that cloud, drawn from the photo's pose into a z-buffer of
+  // 1/occlusion_downscale of the photo, has a surface nearer than the point by more than
+  // occlusion_margin_m + occlusion_margin_ratio x its distance.
+  double occlusion_voxel_m = 0.05;
+  int occlusion_downscale = 8;
+  double occlusion_margin_m = 0.15;
+  double occlusion_margin_ratio = 0.05;
+  // An appliance is in view when at least this share of its points project inside the image in
+  // front of the camera, and visible when at least this share of those are not occluded.
+  double min_in_view_share = 0.5;
+  double min_unoccluded_share = 0.5;
+
+  bool Check(std::string* error) const;
+};
+
+// Where a photo's intrinsics came from.
+enum class IntrinsicsSource { kGiven, kCalibration, kExif, kEstimated };
+const char* ToString(IntrinsicsSource source);
+
+struct ApplianceInView {
+  std::string name;
+  std::string type;
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // centre of its visible points, photo pixels
+  double distance_m = 0.0;                          // camera to the nearest point [m]
+  bool occluded = false;  // in the view cone but hidden behind a model surface
+};
+
+// Time spent per stage [ms].
+struct LocateTimings {
+  double features_ms = 0.0;
+  double retrieval_ms = 0.0;
+  double matching_ms = 0.0;  // 2D-3D
+  double pnp_ms = 0.0;
+  double visibility_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct LocateResult {
+  bool matched = false;
+  std::string reason;  // why not, when not matched (one sentence)
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  int inliers = 0;
+  int matches = 0;        // 2D-3D matches of the winning candidate
+  KeyframeId keyframe;    // the retrieved keyframe that gave the pose
+  Intrinsics intrinsics;  // at the photo's full resolution
+  IntrinsicsSource intrinsics_source = IntrinsicsSource::kEstimated;
+  // Appliances in the view cone, nearest first; occluded ones are listed with occluded = true
+  // so a client can say "behind the wall", but they are not "in view".
+  std::vector<ApplianceInView> appliances;
+  LocateTimings timings;
+};
+
+// The answer's JSON: {"matched", "reason"?, "pose": {"world_from_cam": {"position",
+// "quaternion_xyzw"}}, "inliers", "matches", "keyframe", "intrinsics": {"fx","fy","cx","cy",
+// "width","height","source"}, "appliances": [{"name","type","pixel":[u,v],"distance_m",
+// "visible"}], "timings_ms": {...}}.
+nlohmann::json ToJson(const LocateResult& result);
+
+class Locator {
+ public:
+  // Reads the model's keyframes (features, poses, depth for the occlusion cloud), vocabulary and
+  // labels. Throws Error with one line when the model has no keyframe or no vocabulary.
+  Locator(const Model& model, const LocatorOptions& options = LocatorOptions());
+  ~Locator();
+  Locator(const Locator&) = delete;
+  Locator& operator=(const Locator&) = delete;
+
+  // Locates one photo (BGR). `intrinsics` at the photo's resolution, or nullopt to estimate them
+  // (then intrinsics_source is kEstimated). Thread-safe: concurrent calls share the loaded model.
+  LocateResult Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
+                      IntrinsicsSource source = IntrinsicsSource::kGiven) const;
+
+  // Re-reads the labels (after `label add` on a served model).
+  void ReloadLabels(const Model& model);
+
+  size_t NumKeyframes() const;
+  const LocatorOptions& options() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sightmap
