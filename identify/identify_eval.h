@@ -1,0 +1,132 @@
+// The identification metrics of the paper's Section 5 (ARCHITECTURE.md, "Measuring it"): how many
+// phone photos were matched, the 8-category table of appliance instances (ground-truth type x
+// identified or not), per-photo recall and precision with their histograms, false positives on
+// occluded instances, and per-stage timings. `sightmap eval identify` feeds it the simulator's
+// queries.json and the Locator's answers.
+//
+// Definitions (the paper's Figure 6 treats a partially visible appliance as optional):
+// - An instance is (photo, appliance) over the appliances of the photo's ground truth; the table
+//   counts the instances of matched photos only (an unmatched photo identifies nothing, and is
+//   counted by matched_ratio instead).
+// - Identified = reported by the Locator as in view and not occluded.
+// - Per-photo recall = identified visible / visible. A partially visible appliance is not in the
+//   denominator: missing it is not a miss.
+// - Per-photo precision = identified visible-or-partially-visible / identified. Identifying a
+//   partially visible appliance is not an error; identifying a not-visible or occluded one (or a
+//   name the ground truth does not know) is.
+// - A photo with no visible appliance has no recall, and one with nothing identified has no
+//   precision: such photos are left out of that share (the counts are reported beside it).
+// - recall_ge_0_8_ratio = matched photos with recall >= 0.8 / matched photos that have a recall;
+//   precision_ge_0_8_ratio likewise.
+// - occluded_false_positive_ratio = occluded instances identified / occluded instances (of
+//   matched photos).
+#pragma once
+
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "identify/locator.h"
+
+namespace sightmap {
+
+// The simulator's ground-truth classes (sim/simulator.h VisibilityType), in table order.
+enum class TruthType { kNotVisible = 0, kOccluded = 1, kPartiallyVisible = 2, kVisible = 3 };
+constexpr int kNumTruthTypes = 4;
+const char* ToString(TruthType type);  // "not_visible", "occluded", ...
+// Parses the queries.json spelling; throws Error on an unknown one.
+TruthType ParseTruthType(const std::string& text);
+
+// One phone photo and its ground truth, as queries.json holds them.
+struct QueryTruth {
+  std::string image_path;                       // resolved, readable path of the photo
+  std::optional<Intrinsics> intrinsics;         // as given by the dataset
+  std::map<std::string, TruthType> appliances;  // appliance name -> type
+};
+
+// Reads a simulator query set. `path` may be the dataset folder (holding queries/queries.json),
+// the queries/ folder itself, or the queries.json file. Throws Error naming what is missing.
+std::vector<QueryTruth> ReadQueryTruths(const std::string& path);
+
+// What the system answered for one photo.
+struct PhotoAnswer {
+  bool matched = false;
+  std::string reason;                          // why not, when not matched
+  std::vector<std::string> identified;         // names reported in view and not occluded
+  std::vector<std::string> reported_occluded;  // names reported in the view cone but occluded
+  LocateTimings timings;
+};
+PhotoAnswer ToPhotoAnswer(const LocateResult& result);
+
+struct IdentifyEvalOptions {
+  double good_share = 0.8;  // the paper's threshold for "recall / precision >= 0.8"
+  int histogram_bins = 10;  // equal bins over [0, 1) plus one bin for exactly 1.0
+
+  bool Check(std::string* error) const;
+};
+
+struct StageTiming {
+  double median_ms = 0.0;
+  double p95_ms = 0.0;
+  double mean_ms = 0.0;
+  double max_ms = 0.0;
+};
+
+struct IdentifyEvaluation {
+  int photos = 0;
+  int matched_photos = 0;
+  double matched_ratio = 0.0;
+  // categories[type][identified ? 1 : 0]: instances of matched photos.
+  std::array<std::array<int, 2>, kNumTruthTypes> categories{};
+  int unknown_identified = 0;  // identified names that the photo's ground truth does not list
+  // Per matched photo; nullopt where undefined (see the definitions above).
+  std::vector<std::optional<double>> recall;
+  std::vector<std::optional<double>> precision;
+  int recall_defined_photos = 0;
+  int precision_defined_photos = 0;
+  int recall_good_photos = 0;  // recall >= good_share
+  int precision_good_photos = 0;
+  double recall_ge_0_8_ratio = 0.0;
+  double precision_ge_0_8_ratio = 0.0;
+  // histogram_bins bins over [0, 1) then one for exactly 1.0; counts of matched photos.
+  std::vector<int> recall_histogram;
+  std::vector<int> precision_histogram;
+  int occluded_instances = 0;
+  int occluded_identified = 0;
+  double occluded_false_positive_ratio = 0.0;
+  int not_visible_identified = 0;  // the other kind of false positive
+  // Per stage over every located photo (matched or not).
+  std::map<std::string, StageTiming>
+      stages;  // features, retrieval, matching, pnp, visibility, total
+  std::map<std::string, int> unmatched_reasons;  // reason -> photos
+  IdentifyEvalOptions options;
+};
+
+// `truths` and `answers` are parallel (photo i).
+IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
+                                          const std::vector<PhotoAnswer>& answers,
+                                          const IdentifyEvalOptions& options = {});
+
+// The linear-interpolation percentile (q in [0, 1]) of `values`; 0 when empty.
+double Percentile(std::vector<double> values, double q);
+
+// Stable keys: photos, matched_photos, matched_ratio, recall_ge_0_8_ratio, precision_ge_0_8_ratio,
+// occluded_false_positive_ratio, locate_median_ms, locate_p95_ms, categories
+// ({"visible": {"identified", "not_identified"}, ...}), recall/precision histograms and counts,
+// stages_ms ({"features": {"median", "p95", "mean", "max"}, ...}) and <stage>_median_ms /
+// <stage>_p95_ms.
+nlohmann::json ToJson(const IdentifyEvaluation& evaluation);
+
+// The paper's Figures 6 and 7 made clearer, as one BGR image: each ground-truth type's instances
+// as a bar split into identified / not identified (green where that is right, red where it is an
+// error, grey where either is fine), and the recall and precision histograms of matched photos.
+cv::Mat DrawIdentifyPlot(const IdentifyEvaluation& evaluation, int width_px = 1200,
+                         int height_px = 560);
+
+}  // namespace sightmap

@@ -1,0 +1,237 @@
+#include "identify/identify_eval.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+using T = TruthType;
+
+QueryTruth Truth(std::map<std::string, TruthType> appliances) {
+  QueryTruth truth;
+  truth.appliances = std::move(appliances);
+  return truth;
+}
+
+PhotoAnswer Answer(bool matched, std::vector<std::string> identified, double total_ms,
+                   std::vector<std::string> occluded = {}) {
+  PhotoAnswer answer;
+  answer.matched = matched;
+  if (!matched) answer.reason = "too few inliers";
+  answer.identified = std::move(identified);
+  answer.reported_occluded = std::move(occluded);
+  answer.timings.total_ms = total_ms;
+  answer.timings.features_ms = total_ms / 2;
+  return answer;
+}
+
+// Six photos whose figures are computed by hand in the comments.
+struct HandMade {
+  std::vector<QueryTruth> truths;
+  std::vector<PhotoAnswer> answers;
+  HandMade() {
+    // A: recall 1/2 (tv missed), precision 2/3 (lamp, partial fan right; occluded door wrong).
+    truths.push_back(Truth({{"lamp", T::kVisible},
+                            {"tv", T::kVisible},
+                            {"fan", T::kPartiallyVisible},
+                            {"door", T::kOccluded},
+                            {"heater", T::kNotVisible}}));
+    answers.push_back(Answer(true, {"lamp", "fan", "door"}, 10));
+    // B: recall 1, precision 1; the occluded fan is reported as occluded, which is right.
+    truths.push_back(Truth({{"lamp", T::kVisible}, {"tv", T::kNotVisible}, {"fan", T::kOccluded}}));
+    answers.push_back(Answer(true, {"lamp"}, 20, {"fan"}));
+    // C: nothing visible, nothing identified: recall and precision undefined.
+    truths.push_back(Truth({{"lamp", T::kNotVisible}, {"tv", T::kNotVisible}}));
+    answers.push_back(Answer(true, {}, 30));
+    // D: recall 1/1 (the partial lamp is optional), precision 2/3 (ghost is unknown).
+    truths.push_back(Truth({{"lamp", T::kPartiallyVisible}, {"tv", T::kVisible}}));
+    answers.push_back(Answer(true, {"lamp", "tv", "ghost", "tv"}, 40));
+    // E: recall 4/5, precision 4/5: exactly at the 0.8 threshold.
+    truths.push_back(Truth({{"a1", T::kVisible},
+                            {"a2", T::kVisible},
+                            {"a3", T::kVisible},
+                            {"a4", T::kVisible},
+                            {"a5", T::kVisible},
+                            {"a6", T::kNotVisible}}));
+    answers.push_back(Answer(true, {"a1", "a2", "a3", "a4", "a6"}, 50));
+    // F: not matched; its instances are not in the table.
+    truths.push_back(Truth({{"lamp", T::kVisible}}));
+    answers.push_back(Answer(false, {}, 60));
+  }
+};
+
+TEST(IdentifyEval, HandComputedFigures) {
+  const HandMade data;
+  const IdentifyEvaluation e = EvaluateIdentification(data.truths, data.answers);
+  EXPECT_EQ(e.photos, 6);
+  EXPECT_EQ(e.matched_photos, 5);
+  EXPECT_DOUBLE_EQ(e.matched_ratio, 5.0 / 6.0);
+
+  // Table: [type][identified].
+  EXPECT_EQ(e.categories[static_cast<int>(T::kVisible)][1], 7);  // A1 B1 D1 E4
+  EXPECT_EQ(e.categories[static_cast<int>(T::kVisible)][0], 2);  // A tv, E a5
+  EXPECT_EQ(e.categories[static_cast<int>(T::kPartiallyVisible)][1], 2);
+  EXPECT_EQ(e.categories[static_cast<int>(T::kPartiallyVisible)][0], 0);
+  EXPECT_EQ(e.categories[static_cast<int>(T::kOccluded)][1], 1);
+  EXPECT_EQ(e.categories[static_cast<int>(T::kOccluded)][0], 1);
+  EXPECT_EQ(e.categories[static_cast<int>(T::kNotVisible)][1], 1);  // E a6
+  EXPECT_EQ(e.categories[static_cast<int>(T::kNotVisible)][0], 4);  // A heater, B tv, C lamp+tv
+  EXPECT_EQ(e.unknown_identified, 1);
+  EXPECT_EQ(e.not_visible_identified, 1);
+
+  ASSERT_EQ(e.recall.size(), 5u);
+  EXPECT_DOUBLE_EQ(*e.recall[0], 0.5);
+  EXPECT_DOUBLE_EQ(*e.recall[1], 1.0);
+  EXPECT_FALSE(e.recall[2].has_value());
+  EXPECT_DOUBLE_EQ(*e.recall[3], 1.0);
+  EXPECT_DOUBLE_EQ(*e.recall[4], 0.8);
+  EXPECT_DOUBLE_EQ(*e.precision[0], 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(*e.precision[1], 1.0);
+  EXPECT_FALSE(e.precision[2].has_value());
+  EXPECT_DOUBLE_EQ(*e.precision[3], 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(*e.precision[4], 0.8);
+
+  EXPECT_EQ(e.recall_defined_photos, 4);
+  EXPECT_EQ(e.recall_good_photos, 3);  // B, D, E
+  EXPECT_DOUBLE_EQ(e.recall_ge_0_8_ratio, 0.75);
+  EXPECT_EQ(e.precision_defined_photos, 4);
+  EXPECT_EQ(e.precision_good_photos, 2);  // B, E
+  EXPECT_DOUBLE_EQ(e.precision_ge_0_8_ratio, 0.5);
+
+  // 10 bins over [0, 1) and one for 1.0.
+  EXPECT_EQ(e.recall_histogram, (std::vector<int>{0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 2}));
+  EXPECT_EQ(e.precision_histogram, (std::vector<int>{0, 0, 0, 0, 0, 0, 2, 0, 1, 0, 1}));
+
+  EXPECT_EQ(e.occluded_instances, 2);
+  EXPECT_EQ(e.occluded_identified, 1);
+  EXPECT_DOUBLE_EQ(e.occluded_false_positive_ratio, 0.5);
+
+  // Timings over all six photos: 10..60 ms.
+  EXPECT_DOUBLE_EQ(e.stages.at("total").median_ms, 35.0);
+  EXPECT_DOUBLE_EQ(e.stages.at("total").p95_ms, 57.5);  // 50 + 0.75 * 10
+  EXPECT_DOUBLE_EQ(e.stages.at("total").mean_ms, 35.0);
+  EXPECT_DOUBLE_EQ(e.stages.at("total").max_ms, 60.0);
+  EXPECT_DOUBLE_EQ(e.stages.at("features").median_ms, 17.5);
+  EXPECT_EQ(e.unmatched_reasons.at("too few inliers"), 1);
+}
+
+TEST(IdentifyEval, JsonHasTheStableKeys) {
+  const HandMade data;
+  const nlohmann::json j = ToJson(EvaluateIdentification(data.truths, data.answers));
+  for (const char* key :
+       {"photos", "matched_ratio", "recall_ge_0_8_ratio", "precision_ge_0_8_ratio",
+        "occluded_false_positive_ratio", "locate_median_ms", "locate_p95_ms", "categories",
+        "stages_ms", "features_median_ms", "pnp_p95_ms", "recall_undefined_photos"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_EQ(j["photos"], 6);
+  EXPECT_DOUBLE_EQ(j["locate_median_ms"].get<double>(), 35.0);
+  EXPECT_EQ(j["categories"]["visible"]["identified"], 7);
+  EXPECT_EQ(j["categories"]["occluded"]["not_identified"], 1);
+  EXPECT_EQ(j["recall_undefined_photos"], 1);
+}
+
+TEST(IdentifyEval, NoPhotosGivesZerosNotNaN) {
+  const IdentifyEvaluation e = EvaluateIdentification({}, {});
+  EXPECT_EQ(e.photos, 0);
+  EXPECT_EQ(e.matched_ratio, 0.0);
+  EXPECT_EQ(e.recall_ge_0_8_ratio, 0.0);
+  EXPECT_EQ(e.stages.count("total"), 0u);
+  EXPECT_EQ(ToJson(e)["locate_p95_ms"], 0.0);
+  EXPECT_FALSE(DrawIdentifyPlot(e).empty());
+}
+
+TEST(IdentifyEval, MismatchedInputsThrow) {
+  EXPECT_THROW(EvaluateIdentification({QueryTruth()}, {}), Error);
+  IdentifyEvalOptions bad;
+  bad.good_share = 1.5;
+  EXPECT_THROW(EvaluateIdentification({}, {}, bad), InvalidArgument);
+}
+
+TEST(IdentifyEval, PercentileInterpolates) {
+  EXPECT_DOUBLE_EQ(Percentile({3, 1, 2}, 0.5), 2.0);
+  EXPECT_DOUBLE_EQ(Percentile({1, 2}, 0.5), 1.5);
+  EXPECT_DOUBLE_EQ(Percentile({7}, 0.95), 7.0);
+  EXPECT_DOUBLE_EQ(Percentile({}, 0.5), 0.0);
+}
+
+TEST(IdentifyEval, ToPhotoAnswerSplitsOccluded) {
+  LocateResult result;
+  result.matched = true;
+  result.appliances.push_back({"lamp", "lamp", Eigen::Vector2d(1, 2), 1.0, false});
+  result.appliances.push_back({"tv", "tv", Eigen::Vector2d(3, 4), 2.0, true});
+  result.timings.pnp_ms = 5;
+  const PhotoAnswer answer = ToPhotoAnswer(result);
+  EXPECT_EQ(answer.identified, std::vector<std::string>{"lamp"});
+  EXPECT_EQ(answer.reported_occluded, std::vector<std::string>{"tv"});
+  EXPECT_EQ(answer.timings.pnp_ms, 5);
+  result.matched = false;  // an unmatched answer identifies nothing
+  EXPECT_TRUE(ToPhotoAnswer(result).identified.empty());
+}
+
+TEST(IdentifyEval, ReadsQueriesFromTheDatasetOrQueriesFolder) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("identify_eval_test_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "queries");
+  std::ofstream(dir / "queries" / "0000.jpg") << "x";
+  std::ofstream(dir / "queries" / "queries.json") << R"({"queries": [{
+      "image": "queries/0000.jpg",
+      "intrinsics": {"width": 1280, "height": 960, "fx": 1000, "fy": 1001, "cx": 640, "cy": 480},
+      "types": {"lamp": "visible", "tv": "partially_visible", "fan": "occluded",
+                "door": "not_visible"}}]})";
+  for (const fs::path& path : {dir, dir / "queries", dir / "queries" / "queries.json"}) {
+    const std::vector<QueryTruth> truths = ReadQueryTruths(path.string());
+    ASSERT_EQ(truths.size(), 1u) << path;
+    EXPECT_TRUE(fs::equivalent(truths[0].image_path, dir / "queries" / "0000.jpg"));
+    ASSERT_TRUE(truths[0].intrinsics.has_value());
+    EXPECT_EQ(truths[0].intrinsics->width, 1280);
+    EXPECT_EQ(truths[0].intrinsics->fy, 1001);
+    EXPECT_EQ(truths[0].appliances.at("lamp"), T::kVisible);
+    EXPECT_EQ(truths[0].appliances.at("tv"), T::kPartiallyVisible);
+    EXPECT_EQ(truths[0].appliances.at("fan"), T::kOccluded);
+    EXPECT_EQ(truths[0].appliances.at("door"), T::kNotVisible);
+  }
+  try {
+    ReadQueryTruths((dir / "nowhere").string());
+    ADD_FAILURE() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no queries.json"), std::string::npos) << e.what();
+  }
+  std::ofstream(dir / "queries" / "queries.json") << R"({"queries": [{"image": "a.jpg",
+      "types": {"lamp": "sort_of"}}]})";
+  EXPECT_THROW(ReadQueryTruths(dir.string()), Error);
+  fs::remove_all(dir);
+}
+
+TEST(IdentifyEval, PlotShowsRightAndWrongColours) {
+  const HandMade data;
+  const cv::Mat plot =
+      DrawIdentifyPlot(EvaluateIdentification(data.truths, data.answers), 1200, 560);
+  ASSERT_EQ(plot.cols, 1200);
+  ASSERT_EQ(plot.rows, 560);
+  int green = 0;
+  int red = 0;
+  for (int y = 0; y < plot.rows; ++y) {
+    for (int x = 0; x < plot.cols; ++x) {
+      const cv::Vec3b p = plot.at<cv::Vec3b>(y, x);
+      green += p == cv::Vec3b(80, 170, 60) ? 1 : 0;
+      red += p == cv::Vec3b(60, 60, 210) ? 1 : 0;
+    }
+  }
+  EXPECT_GT(green, 1000);
+  EXPECT_GT(red, 1000);
+  EXPECT_THROW(DrawIdentifyPlot(EvaluateIdentification({}, {}), 100, 100), Error);
+}
+
+}  // namespace
+}  // namespace sightmap
