@@ -1,0 +1,282 @@
+#include "identify/labels.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "core/check.h"
+#include "store/label_files.h"
+
+namespace sightmap {
+namespace {
+
+std::string TypeOrDefault(const std::optional<std::string>& type) {
+  return type && !type->empty() ? *type : std::string(kDefaultLabelType);
+}
+
+// Writes `labels` (created or replacing the label of the same name). The store has no transaction
+// spanning several labels, so the caller validates everything first, and a write that still fails
+// (disk full, a locked file) is undone here by restoring what was there before.
+LabelImportReport WriteLabels(Model& model, std::vector<LabelRecord> labels,
+                              bool keep_existing_type) {
+  struct Written {
+    LabelId id;
+    std::optional<LabelRecord> before;
+  };
+  std::vector<Written> written;
+  LabelImportReport report;
+  try {
+    for (LabelRecord& label : labels) {
+      std::optional<LabelRecord> existing = model.FindLabel(label.name);
+      if (existing) {
+        label.id = existing->id;
+        if (keep_existing_type) label.type = existing->type;
+        model.UpdateLabel(label);
+        written.push_back({label.id, std::move(existing)});
+        report.replaced.push_back(label.name);
+      } else {
+        written.push_back({model.AddLabel(label), std::nullopt});
+        report.created.push_back(label.name);
+      }
+      report.points += static_cast<int>(label.points.size());
+    }
+  } catch (...) {
+    for (auto it = written.rbegin(); it != written.rend(); ++it) {
+      try {
+        if (it->before) {
+          model.UpdateLabel(*it->before);
+        } else {
+          model.DeleteLabel(it->id);
+        }
+      } catch (...) {
+        // The original error says what went wrong; a failing undo has the same cause.
+      }
+    }
+    throw;
+  }
+  std::sort(report.created.begin(), report.created.end());
+  std::sort(report.replaced.begin(), report.replaced.end());
+  return report;
+}
+
+// Refuses two labels of the same name in one import, naming where each came from.
+void CheckUniqueNames(const std::vector<LabelRecord>& labels,
+                      const std::vector<std::string>& origins) {
+  std::map<std::string, size_t> seen;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const auto [it, inserted] = seen.emplace(labels[i].name, i);
+    SIGHTMAP_CHECK(inserted, "label '" << labels[i].name << "' would come from both "
+                                       << origins[it->second] << " and " << origins[i]
+                                       << ": rename one of them");
+  }
+}
+
+Eigen::Vector3d ParseScenePoint(const nlohmann::json& value, const std::string& where) {
+  SIGHTMAP_CHECK(value.is_array() && value.size() == 3,
+                 where << " is not [x, y, z]: fix the scene file");
+  Eigen::Vector3d point;
+  for (int i = 0; i < 3; ++i) {
+    const nlohmann::json& coordinate = value[static_cast<size_t>(i)];
+    SIGHTMAP_CHECK(coordinate.is_number() && std::isfinite(coordinate.get<double>()),
+                   where << " is not three finite numbers [m]: fix the scene file");
+    point[i] = coordinate.get<double>();
+  }
+  return point;
+}
+
+}  // namespace
+
+bool PixelLabelOptions::Check(std::string* error) const {
+  auto fail = [error](const char* message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (!(max_depth_search_px >= 0.0 && max_depth_search_px <= 100.0)) {
+    return fail("max_depth_search_px must be in [0, 100] px");
+  }
+  if (!(max_depth_m > 0.0)) return fail("max_depth_m must be positive");
+  return true;
+}
+
+PixelLabelPoint LabelPointFromPixel(const Model& model, KeyframeId keyframe,
+                                    const Eigen::Vector2d& pixel,
+                                    const PixelLabelOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(keyframe.valid(), "keyframe ids start at 1: run 'sightmap info' on the model");
+  const KeyframeInfo info = model.Keyframe(keyframe);  // throws naming the model when absent
+  const Intrinsics& k = info.intrinsics;
+  const long u0 = std::isfinite(pixel.x()) ? std::lround(pixel.x()) : -1;
+  const long v0 = std::isfinite(pixel.y()) ? std::lround(pixel.y()) : -1;
+  SIGHTMAP_CHECK(u0 >= 0 && u0 < k.width && v0 >= 0 && v0 < k.height,
+                 "pixel " << pixel.x() << "," << pixel.y() << " is outside keyframe "
+                          << keyframe.value() << "'s " << k.width << "x" << k.height
+                          << " image: pick u in [0, " << k.width - 1 << "], v in [0, "
+                          << k.height - 1 << "]");
+  const cv::Mat depth = model.LoadDepth(keyframe);
+  SIGHTMAP_CHECK(depth.cols == k.width && depth.rows == k.height,
+                 "keyframe " << keyframe.value() << "'s depth image is " << depth.cols << "x"
+                             << depth.rows << ", its intrinsics " << k.width << "x" << k.height
+                             << ": the model is inconsistent, re-map it");
+
+  // The nearest pixel with a usable depth, by pixel distance; ties go to the first in scan order,
+  // so the answer does not depend on anything but the image.
+  const int radius = static_cast<int>(std::floor(options.max_depth_search_px));
+  const double max_distance2 = options.max_depth_search_px * options.max_depth_search_px;
+  const double max_depth_mm = options.max_depth_m * 1000.0;
+  int best_u = -1;
+  int best_v = -1;
+  double best_distance2 = max_distance2 + 1.0;
+  for (int v = std::max(0L, v0 - radius); v <= std::min<long>(k.height - 1, v0 + radius); ++v) {
+    const auto* row = depth.ptr<uint16_t>(v);
+    for (int u = std::max(0L, u0 - radius); u <= std::min<long>(k.width - 1, u0 + radius); ++u) {
+      const double distance2 = static_cast<double>((u - u0) * (u - u0) + (v - v0) * (v - v0));
+      if (distance2 > max_distance2 || distance2 >= best_distance2) continue;
+      if (row[u] == 0 || row[u] > max_depth_mm) continue;
+      best_u = u;
+      best_v = v;
+      best_distance2 = distance2;
+    }
+  }
+  SIGHTMAP_CHECK(best_u >= 0, "pixel " << pixel.x() << "," << pixel.y() << " of keyframe "
+                                       << keyframe.value() << " has no depth within "
+                                       << options.max_depth_search_px
+                                       << " px: click on a surface the sensor saw, or type the "
+                                          "point with --point X,Y,Z");
+
+  PixelLabelPoint result;
+  result.depth_pixel = Eigen::Vector2i(best_u, best_v);
+  result.depth_offset_px = std::sqrt(best_distance2);
+  result.depth_m = depth.at<uint16_t>(best_v, best_u) / 1000.0;  // 16-bit millimetres
+  LabelPoint& point = result.point;
+  point.source = LabelPointSource::kKeyframePixel;
+  point.keyframe = keyframe;
+  point.pixel = pixel;
+  point.cam_point = k.Unproject(pixel.x(), pixel.y(), result.depth_m);
+  point.world = info.world_from_cam * point.cam_point;
+  return result;
+}
+
+LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world) {
+  SIGHTMAP_CHECK(world.allFinite(), "a label point needs three finite coordinates [m]");
+  LabelPoint point;
+  point.source = LabelPointSource::kTyped;
+  point.world = world;
+  return point;
+}
+
+LabelRecord AddPointsToLabel(Model& model, const std::string& name,
+                             const std::vector<LabelPoint>& points,
+                             const std::optional<std::string>& type) {
+  SIGHTMAP_CHECK(!name.empty(), "a label needs a name: pass --name NAME");
+  SIGHTMAP_CHECK(!points.empty(), "label '" << name << "' needs at least one point");
+  std::optional<LabelRecord> label = model.FindLabel(name);
+  if (label) {
+    label->points.insert(label->points.end(), points.begin(), points.end());
+    if (type && !type->empty()) label->type = *type;
+    model.UpdateLabel(*label);
+  } else {
+    label.emplace();
+    label->name = name;
+    label->type = TypeOrDefault(type);
+    label->points = points;
+    model.AddLabel(*label);
+  }
+  // Read back, so the caller sees the store's world coordinates and timestamps.
+  std::optional<LabelRecord> stored = model.FindLabel(name);
+  SIGHTMAP_CHECK(stored, "label '" << name << "' was written but cannot be read back");
+  return *stored;
+}
+
+LabelImportReport ImportSceneLabels(Model& model, const std::string& path) {
+  std::ifstream in(path);
+  SIGHTMAP_CHECK(in.is_open(), "cannot read scene file " << path << ": check that it exists");
+  nlohmann::json scene;
+  try {
+    scene = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    // nlohmann's message ends with the position; keep the line to one sentence.
+    std::string detail = e.what();
+    for (char& c : detail) {
+      if (c == '\n') c = ' ';
+    }
+    SIGHTMAP_THROW(Error, "scene file " << path << " is not valid JSON (" << detail
+                                        << "): expected appliances.json from 'sightmap sim "
+                                           "generate'");
+  }
+  SIGHTMAP_CHECK(
+      scene.is_object() && scene.contains("appliances") && scene["appliances"].is_array(),
+      "scene file " << path
+                    << " has no \"appliances\" list: expected appliances.json from "
+                       "'sightmap sim generate'");
+  const nlohmann::json& appliances = scene["appliances"];
+  SIGHTMAP_CHECK(!appliances.empty(), "scene file " << path << " lists no appliance");
+
+  std::vector<LabelRecord> labels;
+  std::vector<std::string> origins;
+  for (size_t i = 0; i < appliances.size(); ++i) {
+    const nlohmann::json& appliance = appliances[i];
+    std::ostringstream where_stream;
+    where_stream << "scene file " << path << ": appliance " << i + 1;
+    const std::string where = where_stream.str();
+    SIGHTMAP_CHECK(appliance.is_object() && appliance.contains("name") &&
+                       appliance["name"].is_string() &&
+                       !appliance["name"].get<std::string>().empty(),
+                   where << " has no \"name\": fix the scene file");
+    LabelRecord label;
+    label.name = appliance["name"].get<std::string>();
+    const std::string named = where + " ('" + label.name + "')";
+    if (appliance.contains("type")) {
+      SIGHTMAP_CHECK(appliance["type"].is_string(), named << ": \"type\" must be a string");
+      label.type = appliance["type"].get<std::string>();
+    }
+    if (label.type.empty()) label.type = kDefaultLabelType;
+    SIGHTMAP_CHECK(appliance.contains("points") && appliance["points"].is_array() &&
+                       !appliance["points"].empty(),
+                   named << " has no \"points\": give at least one [x, y, z]");
+    const nlohmann::json& points = appliance["points"];
+    for (size_t j = 0; j < points.size(); ++j) {
+      LabelPoint point;
+      point.source = LabelPointSource::kImportedFile;
+      point.file = path;
+      point.world = ParseScenePoint(points[j], named + " point " + std::to_string(j + 1));
+      label.points.push_back(std::move(point));
+    }
+    labels.push_back(std::move(label));
+    origins.push_back("appliance " + std::to_string(i + 1));
+  }
+  CheckUniqueNames(labels, origins);
+  return WriteLabels(model, std::move(labels), /*keep_existing_type=*/false);
+}
+
+LabelImportReport ImportPointListLabels(Model& model, const std::vector<std::string>& paths,
+                                        const std::optional<std::string>& type) {
+  SIGHTMAP_CHECK(!paths.empty(), "no point-list file to import: pass one file per appliance");
+  std::vector<LabelRecord> labels;
+  for (const std::string& path : paths) {
+    LabelRecord label;
+    label.name = std::filesystem::path(path).stem().string();
+    SIGHTMAP_CHECK(!label.name.empty(), "cannot name a label after " << path
+                                                                     << ": its file name has no "
+                                                                        "stem");
+    label.type = TypeOrDefault(type);
+    for (const Eigen::Vector3d& world : ReadPointList(path)) {  // throws naming a bad file
+      LabelPoint point;
+      point.source = LabelPointSource::kImportedFile;
+      point.file = path;
+      point.world = world;
+      label.points.push_back(std::move(point));
+    }
+    labels.push_back(std::move(label));
+  }
+  CheckUniqueNames(labels, paths);
+  const bool keep_existing_type = !type || type->empty();
+  return WriteLabels(model, std::move(labels), keep_existing_type);
+}
+
+}  // namespace sightmap
