@@ -1,0 +1,70 @@
+#include "identify/photo_header.h"
+
+namespace sightmap {
+namespace {
+
+uint32_t BigEndian16(const uint8_t* p) { return (uint32_t{p[0]} << 8) | p[1]; }
+uint32_t BigEndian32(const uint8_t* p) { return (BigEndian16(p) << 16) | BigEndian16(p + 2); }
+
+std::optional<PhotoHeader> ReadPng(const uint8_t* data, size_t size) {
+  static constexpr uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  // Signature, then the IHDR chunk: length (13), "IHDR", width, height (big-endian).
+  if (size < 24) return std::nullopt;
+  for (int i = 0; i < 8; ++i) {
+    if (data[i] != kSignature[i]) return std::nullopt;
+  }
+  if (data[12] != 'I' || data[13] != 'H' || data[14] != 'D' || data[15] != 'R') return std::nullopt;
+  const uint32_t width = BigEndian32(data + 16);
+  const uint32_t height = BigEndian32(data + 20);
+  // PNG limits both to 2^31 - 1.
+  if (width == 0 || height == 0 || width > 0x7FFFFFFFu || height > 0x7FFFFFFFu) {
+    return std::nullopt;
+  }
+  return PhotoHeader{PhotoFormat::kPng, static_cast<int>(width), static_cast<int>(height)};
+}
+
+bool IsStartOfFrame(uint8_t marker) {
+  // SOF0-SOF15 except DHT (C4), JPG (C8) and DAC (CC), which share the range.
+  return marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
+}
+
+std::optional<PhotoHeader> ReadJpeg(const uint8_t* data, size_t size) {
+  if (size < 4 || data[0] != 0xFF || data[1] != 0xD8) return std::nullopt;
+  size_t at = 2;
+  while (at < size) {
+    if (data[at] != 0xFF) return std::nullopt;  // segments follow each other without gaps
+    // Any number of 0xFF fill bytes may precede a marker.
+    while (at < size && data[at] == 0xFF) ++at;
+    if (at >= size) return std::nullopt;
+    const uint8_t marker = data[at++];
+    // Markers without a length: TEM, RST0-7, SOI; EOI or SOS before a frame header means none.
+    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD8)) continue;
+    if (marker == 0xD9 || marker == 0xDA) return std::nullopt;
+    if (at + 2 > size) return std::nullopt;
+    const size_t length = BigEndian16(data + at);  // includes its own two bytes
+    if (length < 2) return std::nullopt;
+    if (IsStartOfFrame(marker)) {
+      // Length (2), precision (1), height (2), width (2).
+      if (length < 7 || at + 7 > size) return std::nullopt;
+      const int height = static_cast<int>(BigEndian16(data + at + 3));
+      const int width = static_cast<int>(BigEndian16(data + at + 5));
+      // A zero height means "given by a DNL marker later": rare, and not worth decoding blind.
+      if (width == 0 || height == 0) return std::nullopt;
+      return PhotoHeader{PhotoFormat::kJpeg, width, height};
+    }
+    at += length;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+const char* ToString(PhotoFormat format) { return format == PhotoFormat::kJpeg ? "jpeg" : "png"; }
+
+std::optional<PhotoHeader> ReadPhotoHeader(const uint8_t* data, size_t size) {
+  if (data == nullptr) return std::nullopt;
+  if (auto png = ReadPng(data, size)) return png;
+  return ReadJpeg(data, size);
+}
+
+}  // namespace sightmap

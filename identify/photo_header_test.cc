@@ -1,0 +1,96 @@
+#include "identify/photo_header.h"
+
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+namespace sightmap {
+namespace {
+
+std::vector<uint8_t> Encode(const std::string& extension, int width, int height,
+                            const std::vector<int>& params = {}) {
+  const cv::Mat image(height, width, CV_8UC3, cv::Scalar(20, 120, 220));
+  std::vector<uint8_t> bytes;
+  EXPECT_TRUE(cv::imencode(extension, image, bytes, params));
+  return bytes;
+}
+
+TEST(PhotoHeader, ReadsJpegAndPngSizes) {
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{37, 23}, {1280, 960}, {1, 1}}) {
+    const std::vector<uint8_t> jpeg = Encode(".jpg", w, h);
+    const auto j = ReadPhotoHeader(jpeg.data(), jpeg.size());
+    ASSERT_TRUE(j.has_value());
+    EXPECT_EQ(j->format, PhotoFormat::kJpeg);
+    EXPECT_EQ(j->width, w);
+    EXPECT_EQ(j->height, h);
+    const std::vector<uint8_t> png = Encode(".png", w, h);
+    const auto p = ReadPhotoHeader(png.data(), png.size());
+    ASSERT_TRUE(p.has_value());
+    EXPECT_EQ(p->format, PhotoFormat::kPng);
+    EXPECT_EQ(p->width, w);
+    EXPECT_EQ(p->height, h);
+    EXPECT_EQ(p->pixels(), int64_t{w} * h);
+  }
+}
+
+TEST(PhotoHeader, ProgressiveJpegAndSegmentsBeforeTheFrame) {
+  const std::vector<uint8_t> progressive =
+      Encode(".jpg", 64, 48, {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
+  const auto header = ReadPhotoHeader(progressive.data(), progressive.size());
+  ASSERT_TRUE(header.has_value());
+  EXPECT_EQ(header->width, 64);
+  // An APP1 (EXIF-like) segment of 300 bytes and fill bytes inserted after SOI.
+  std::vector<uint8_t> jpeg = Encode(".jpg", 50, 40);
+  std::vector<uint8_t> app1 = {0xFF, 0xFF, 0xFF, 0xE1, 0x01, 0x2C};
+  app1.resize(6 + 298, 0xAB);
+  jpeg.insert(jpeg.begin() + 2, app1.begin(), app1.end());
+  const auto with_app1 = ReadPhotoHeader(jpeg.data(), jpeg.size());
+  ASSERT_TRUE(with_app1.has_value());
+  EXPECT_EQ(with_app1->width, 50);
+  EXPECT_EQ(with_app1->height, 40);
+}
+
+TEST(PhotoHeader, A100MegapixelClaimIsReadWithoutDecoding) {
+  std::vector<uint8_t> jpeg = Encode(".jpg", 32, 32);
+  // Patch the frame header to 10000x10000: the bytes no longer decode, the header still reads.
+  for (size_t i = 2; i + 9 < jpeg.size(); ++i) {
+    if (jpeg[i] == 0xFF && jpeg[i + 1] == 0xC0) {
+      jpeg[i + 5] = 0x27;
+      jpeg[i + 6] = 0x10;
+      jpeg[i + 7] = 0x27;
+      jpeg[i + 8] = 0x10;
+      break;
+    }
+  }
+  const auto header = ReadPhotoHeader(jpeg.data(), jpeg.size());
+  ASSERT_TRUE(header.has_value());
+  EXPECT_EQ(header->pixels(), int64_t{100'000'000});
+}
+
+TEST(PhotoHeader, RejectsEverythingElseWithoutReadingPastTheEnd) {
+  const std::vector<uint8_t> jpeg = Encode(".jpg", 40, 30);
+  const std::vector<uint8_t> png = Encode(".png", 40, 30);
+  // Every cut before the size fields gives nullopt; ASan/valgrind would catch an over-read.
+  for (size_t n = 0; n < 24; ++n) {
+    const std::vector<uint8_t> cut_png(png.begin(), png.begin() + static_cast<long>(n));
+    EXPECT_FALSE(ReadPhotoHeader(cut_png.data(), cut_png.size()).has_value()) << n;
+  }
+  for (size_t n = 0; n < jpeg.size(); ++n) {
+    const std::vector<uint8_t> cut(jpeg.begin(), jpeg.begin() + static_cast<long>(n));
+    const auto header = ReadPhotoHeader(cut.data(), cut.size());
+    if (header) {
+      EXPECT_EQ(header->width, 40);
+    }
+  }
+  const std::string text = "{\"not\": \"an image\"}";
+  EXPECT_FALSE(ReadPhotoHeader(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+  EXPECT_FALSE(ReadPhotoHeader(nullptr, 0));
+  const uint8_t sos_first[] = {0xFF, 0xD8, 0xFF, 0xDA, 0x00, 0x08, 1, 2, 3, 4, 5, 6};
+  EXPECT_FALSE(ReadPhotoHeader(sos_first, sizeof(sos_first)));
+  const uint8_t zero_length[] = {0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x00, 0xFF, 0xC0};
+  EXPECT_FALSE(ReadPhotoHeader(zero_length, sizeof(zero_length)));
+}
+
+}  // namespace
+}  // namespace sightmap
