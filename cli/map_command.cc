@@ -234,6 +234,9 @@ int RunMap(int argc, char** argv) {
   app.add_option("--calib", options.source_options.calibration_file,
                  "JSON calibration overriding intrinsics and depth-to-colour registration")
       ->check(CLI::ExistingFile);
+  app.add_flag("--ground-truth-poses", options.ground_truth_poses,
+               "take each keyframe's pose from the source's ground truth instead of registering "
+               "it (evaluates photo localisation apart from SLAM; simulator or TUM folders)");
   app.add_flag("--json", json, "print the summary as one JSON object (stable keys)");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 

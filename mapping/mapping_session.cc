@@ -177,6 +177,13 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   summary.source_kind = meta.kind;
   const bool live = options_.live || meta.kind == "openni";
   const Intrinsics camera = meta.intrinsics;
+  // Sensors and their recordings never carry ground truth: say so before the model is touched.
+  if (options_.ground_truth_poses && (meta.kind == "openni" || meta.kind == "oni")) {
+    throw Error(
+        "--ground-truth-poses needs a source with ground truth (the simulator, or a TUM "
+        "folder with groundtruth.txt); a " +
+        meta.kind + " source has none");
+  }
 
   std::unique_ptr<MapViewFeed> view;
   if (options_.show_view) view = MapViewFeed::Create(options_.view, notices);
@@ -413,8 +420,21 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
         }
         continue;
       }
+      if (options_.ground_truth_poses && !frame.world_from_cam_gt) {
+        throw Error(
+            "--ground-truth-poses needs a source with ground truth (the simulator, or a "
+            "TUM folder with groundtruth.txt); frame at " +
+            std::to_string(frame.timestamp_ns) + " ns has none");
+      }
+      if (mapper.NumKeyframes() == 0 && options_.anchor_to_ground_truth &&
+          frame.world_from_cam_gt) {
+        mapper.SetFirstPose(*frame.world_from_cam_gt);
+      }
       const KeyframeReport report =
-          mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+          options_.ground_truth_poses
+              ? mapper.AddKeyframeAtPose(frame.timestamp_ns, frame.color, frame.depth,
+                                         *frame.world_from_cam_gt)
+              : mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
       session_ids.push_back(report.id);
       if (frame.world_from_cam_gt) {
         ground_truth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});

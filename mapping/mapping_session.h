@@ -53,6 +53,14 @@ struct MappingOptions {
   // Treat the source as live (drop keyframes the mapper cannot keep up with) even when it is a
   // recording: set with source_options.realtime so a .oni plays at its recorded pace.
   bool live = false;
+  // A source with ground truth (the simulator, a TUM folder with groundtruth.txt) places a new
+  // model's first keyframe at its true pose, so the model shares the scene's frame: the scene's
+  // appliance labels and the photos' true poses can be used as they are.
+  bool anchor_to_ground_truth = true;
+  // Keyframes take their ground-truth poses instead of being registered (no odometry, no loop
+  // search; features and place recognition as usual). Builds a model for evaluating photo
+  // localisation apart from SLAM; the source must have ground truth.
+  bool ground_truth_poses = false;
   // Frames between capture and SLAM: small, a queued frame only adds latency [keyframes].
   int frame_queue_capacity = 2;
   // Keyframes and pose updates between SLAM and the writer [items].

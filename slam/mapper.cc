@@ -162,33 +162,93 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
   report->new_links.push_back(link);
 }
 
-KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
-                                   const cv::Mat& depth_mm) {
-  const Clock::time_point start = Clock::now();
+void Mapper::SetFirstPose(const Eigen::Isometry3d& world_from_cam) {
+  SIGHTMAP_CHECK(keyframes_.empty(), "the first pose is set before the first keyframe");
+  first_world_from_cam_.setIdentity();
+  first_world_from_cam_.linear() =
+      Eigen::Quaterniond(world_from_cam.linear()).normalized().toRotationMatrix();
+  first_world_from_cam_.translation() = world_from_cam.translation();
+}
+
+Mapper::Keyframe Mapper::MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
+                                      const cv::Mat& depth_mm, KeyframeReport* report) const {
   SIGHTMAP_CHECK(
       color.type() == CV_8UC3 && color.cols == camera_.width && color.rows == camera_.height,
       "a keyframe's colour must be 8-bit BGR of " << camera_.width << "x" << camera_.height);
   SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && depth_mm.size() == color.size(),
                  "a keyframe's depth must be 16-bit [mm] of the colour image's size");
-  KeyframeReport report;
   Keyframe keyframe;
   keyframe.id = static_cast<int64_t>(keyframes_.size());
   keyframe.timestamp_ns = timestamp_ns;
-  Clock::time_point stage = Clock::now();
+  const Clock::time_point stage = Clock::now();
   keyframe.features = ExtractFeatures(color, depth_mm, camera_, options_.features);
   cv::resize(
       depth_mm, keyframe.depth_small,
       cv::Size(camera_.width / options_.depth_downscale, camera_.height / options_.depth_downscale),
       0.0, 0.0, cv::INTER_NEAREST);
-  report.times.features_s = SecondsSince(stage);
-  report.id = keyframe.id;
-  report.features = static_cast<int>(keyframe.features.size());
+  report->times.features_s = SecondsSince(stage);
+  report->id = keyframe.id;
+  report->features = static_cast<int>(keyframe.features.size());
+  return keyframe;
+}
+
+KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat& color,
+                                         const cv::Mat& depth_mm,
+                                         const Eigen::Isometry3d& world_from_cam) {
+  const Clock::time_point start = Clock::now();
+  KeyframeReport report;
+  Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
+  // Known poses come from files and float renderers: re-orthonormalise so the graph accepts them.
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::Quaterniond(world_from_cam.linear()).normalized().toRotationMatrix();
+  pose.translation() = world_from_cam.translation();
+  std::optional<MapperLink> link;
+  if (keyframes_.empty()) {
+    segment_parent_.push_back(0);
+  } else {
+    const Keyframe& last = keyframes_.back();
+    keyframe.segment = last.segment;
+    MapperLink known;
+    known.from = last.id;
+    known.to = keyframe.id;
+    known.from_from_to = graph_.Pose(last.id).inverse() * pose;
+    // Exact, so as stiff as the floor allows: an optimisation after a later link changes nothing.
+    known.information =
+        FlooredInformation(Eigen::Matrix<double, 6, 6>::Identity() * 1e12, options_);
+    known.type = MapperLinkType::kOdometry;
+    link = known;
+  }
+  start_new_segment_ = false;
+  graph_.AddPose(keyframe.id, pose);
+  if (link) AddLink(*link, &report);
+  keyframes_.push_back(std::move(keyframe));
+  if (!vocabulary_ &&
+      static_cast<int>(keyframes_.size()) >= options_.vocabulary_training_keyframes) {
+    TrainVocabulary(&report.times);
+  } else if (vocabulary_) {
+    const Clock::time_point stage = Clock::now();
+    IndexKeyframe(keyframes_.back());
+    report.times.place_recognition_s += SecondsSince(stage);
+  }
+  state_ = TrackingState::kTracking;
+  report.segment = Root(keyframes_.back().segment);
+  report.state = state_;
+  report.world_from_cam = graph_.Pose(report.id);
+  report.times.total_s = SecondsSince(start);
+  return report;
+}
+
+KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
+                                   const cv::Mat& depth_mm) {
+  const Clock::time_point start = Clock::now();
+  KeyframeReport report;
+  Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
 
   // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
   // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
   // one often registers to the keyframes before it and so continues their segment.
   std::vector<MapperLink> odometry;
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d world_from_cam = first_world_from_cam_;
   if (!keyframes_.empty()) {
     const Keyframe& last = keyframes_.back();
     const int segment_root = Root(last.segment);

@@ -127,6 +127,17 @@ class Mapper {
   // both of the camera's size). Throws InvalidArgument for images that do not fit the camera.
   KeyframeReport AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
                              const cv::Mat& depth_mm);
+  // Inserts a keyframe whose pose is known (a survey with ground truth): no registration and no
+  // loop search, one odometry link to the previous keyframe carrying the known relative pose. It
+  // still gets features and is indexed for place recognition, so the model it makes serves photo
+  // localisation exactly like a mapped one. For evaluating the matching phase apart from SLAM.
+  KeyframeReport AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat& color,
+                                   const cv::Mat& depth_mm,
+                                   const Eigen::Isometry3d& world_from_cam);
+  // Where the map's first keyframe is (before the first AddKeyframe); the identity by default. A
+  // source with ground truth anchors the map in its frame this way, so a scene's labels and
+  // photos' true poses are in the model's frame.
+  void SetFirstPose(const Eigen::Isometry3d& world_from_cam);
 
   // Adds a link found elsewhere (a user's, or a test's deliberately wrong one) between two
   // keyframes of one segment and optimises; returns what the optimisation did.
@@ -172,6 +183,9 @@ class Mapper {
     BowVector bow;
   };
 
+  // A keyframe's features and small depth (checks the images; times features_s in `report`).
+  Keyframe MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& color, const cv::Mat& depth_mm,
+                        KeyframeReport* report) const;
   Keyframe& Get(int64_t id);
   const Keyframe& Get(int64_t id) const;
   int Root(int segment) const;
@@ -200,6 +214,7 @@ class Mapper {
   int64_t last_loop_keyframe_ = -1000000;
   bool vocabulary_given_ = false;
   bool start_new_segment_ = false;
+  Eigen::Isometry3d first_world_from_cam_ = Eigen::Isometry3d::Identity();
   // A relocalisation waiting for a second keyframe to agree before two segments are joined.
   struct PendingJoin {
     int older = 0;

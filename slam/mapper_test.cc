@@ -185,6 +185,42 @@ TEST(Mapper, AResumedSessionRelocalisesIntoTheRestoredMap) {
   }
 }
 
+TEST(Mapper, KeyframesAtKnownPosesKeepThemAndAreIndexed) {
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera, SmallVocabulary());
+  for (const RgbdFrame& frame : walk.frames) {
+    const KeyframeReport report = mapper.AddKeyframeAtPose(frame.timestamp_ns, frame.color,
+                                                           frame.depth, *frame.world_from_cam_gt);
+    EXPECT_EQ(report.state, TrackingState::kTracking);
+    EXPECT_FALSE(report.loop_closed);
+  }
+  ASSERT_EQ(mapper.NumKeyframes(), walk.frames.size());
+  EXPECT_EQ(mapper.NumSegments(), 1);
+  ASSERT_NE(mapper.vocabulary(), nullptr);  // trained after 15 keyframes, as when mapping
+  for (size_t i = 0; i < walk.frames.size(); ++i) {
+    const Eigen::Isometry3d error =
+        walk.frames[i].world_from_cam_gt->inverse() * mapper.WorldFromCam(static_cast<int64_t>(i));
+    EXPECT_LT(error.translation().norm(), 1e-6) << "keyframe " << i;
+    EXPECT_LT(RotationDeg(error), 1e-4) << "keyframe " << i;
+  }
+}
+
+TEST(Mapper, TheFirstKeyframeSitsAtTheGivenPose) {
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera, SmallVocabulary());
+  const Eigen::Isometry3d& anchor = *walk.frames[0].world_from_cam_gt;
+  mapper.SetFirstPose(anchor);
+  for (size_t i = 0; i < 3; ++i) {
+    mapper.AddKeyframe(walk.frames[i].timestamp_ns, walk.frames[i].color, walk.frames[i].depth);
+  }
+  EXPECT_LT((mapper.WorldFromCam(0).translation() - anchor.translation()).norm(), 1e-9);
+  // Later keyframes are registered in that frame: near their true poses.
+  EXPECT_LT((mapper.WorldFromCam(2).translation() - walk.frames[2].world_from_cam_gt->translation())
+                .norm(),
+            0.02);
+  EXPECT_THROW(mapper.SetFirstPose(anchor), Error);
+}
+
 TEST(Mapper, RefusesImagesThatDoNotFitTheCamera) {
   const Walk& walk = HandheldWalk();
   Mapper mapper(walk.camera);
