@@ -1,6 +1,21 @@
 #include "identify/locator.h"
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
 #include <sstream>
+#include <unordered_map>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/check.h"
+#include "identify/visibility.h"
+#include "slam/place_index.h"
+#include "slam/vocabulary.h"
 
 namespace sightmap {
 
@@ -21,19 +36,32 @@ const char* ToString(IntrinsicsSource source) {
 bool LocatorOptions::Check(std::string* error) const {
   std::ostringstream why;
   if (!features.Check(error)) return false;
-  if (max_image_side_px < 320) why << "max_image_side_px must be at least 320";
-  else if (retrieval_candidates < 1) why << "retrieval_candidates must be at least 1";
+  if (max_image_side_px < 320)
+    why << "max_image_side_px must be at least 320";
+  else if (retrieval_candidates < 1)
+    why << "retrieval_candidates must be at least 1";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
     why << "neighbour_radius_m and max_neighbours must not be negative";
-  else if (!(match_ratio > 0.0 && match_ratio <= 1.0)) why << "match_ratio must be in (0, 1]";
+  else if (!(match_ratio > 0.0 && match_ratio <= 1.0))
+    why << "match_ratio must be in (0, 1]";
+  else if (same_point_m < 0.0)
+    why << "same_point_m must not be negative";
+  else if (max_descriptor_distance < 1)
+    why << "max_descriptor_distance must be positive";
   else if (!(pnp_reprojection_px > 0.0) || pnp_iterations < 1)
     why << "pnp_reprojection_px and pnp_iterations must be positive";
-  else if (min_inliers < 4) why << "min_inliers must be at least 4 (PnP needs 4 points)";
+  else if (min_inliers < 4)
+    why << "min_inliers must be at least 4 (PnP needs 4 points)";
+  else if (confident_inliers < min_inliers)
+    why << "confident_inliers must be at least min_inliers";
   else if (!(max_rotation_from_keyframe_deg > 0.0 && max_rotation_from_keyframe_deg <= 180.0))
     why << "max_rotation_from_keyframe_deg must be in (0, 180]";
-  else if (focal_candidates_35mm.empty()) why << "focal_candidates_35mm must not be empty";
-  else if (!(occlusion_voxel_m > 0.0) || occlusion_downscale < 1)
-    why << "occlusion_voxel_m and occlusion_downscale must be positive";
+  else if (focal_candidates_35mm.empty())
+    why << "focal_candidates_35mm must not be empty";
+  else if (!(occlusion_voxel_m > 0.0) || occlusion_downscale < 1 || occlusion_pixel_step < 1 ||
+           !(occlusion_max_depth_m > 0.0))
+    why << "occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step and "
+           "occlusion_max_depth_m must be positive";
   else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0)
     why << "occlusion margins must not be negative";
   else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
@@ -45,6 +73,508 @@ bool LocatorOptions::Check(std::string* error) const {
   if (why.tellp() == 0) return true;
   if (error != nullptr) *error = "LocatorOptions: " + why.str();
   return false;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+double AngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return Eigen::AngleAxisd(a.transpose() * b).angle() * 180.0 / M_PI;
+}
+
+// The diagonal definition of the 35 mm equivalent (identify/exif.h documents the same formula).
+Intrinsics FocalCandidateIntrinsics(int width, int height, double focal_35mm) {
+  Intrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = k.fy = focal_35mm * std::hypot(width, height) / std::hypot(36.0, 24.0);
+  k.cx = (width - 1) / 2.0;
+  k.cy = (height - 1) / 2.0;
+  return k;
+}
+
+cv::Matx33d CameraMatrix(const Intrinsics& k) {
+  return {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0};
+}
+
+VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
+  VisibilityOptions v;
+  v.zbuffer_downscale = options.occlusion_downscale;
+  v.margin_m = options.occlusion_margin_m;
+  v.margin_ratio = options.occlusion_margin_ratio;
+  v.min_in_view_share = options.min_in_view_share;
+  v.min_unoccluded_share = options.min_unoccluded_share;
+  return v;
+}
+
+// What PnP found for one candidate and one set of intrinsics.
+struct PoseHypothesis {
+  bool valid = false;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  Intrinsics intrinsics;  // at the feature image's scale
+  std::vector<int> inliers;
+};
+
+int CountInliers(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
+                 const cv::Matx33d& camera, const cv::Vec3d& rvec, const cv::Vec3d& tvec,
+                 double threshold_px, std::vector<int>* inliers) {
+  std::vector<cv::Point2f> projected;
+  cv::projectPoints(object, rvec, tvec, camera, cv::noArray(), projected);
+  cv::Matx33d rotation;
+  cv::Rodrigues(rvec, rotation);
+  inliers->clear();
+  const double threshold_sq = threshold_px * threshold_px;
+  for (size_t i = 0; i < object.size(); ++i) {
+    const cv::Vec3d p = rotation * cv::Vec3d(object[i].x, object[i].y, object[i].z) + tvec;
+    if (!(p[2] > 0.0)) continue;
+    const cv::Point2f d = projected[i] - image[i];
+    if (d.x * d.x + d.y * d.y <= threshold_sq) inliers->push_back(static_cast<int>(i));
+  }
+  return static_cast<int>(inliers->size());
+}
+
+template <typename T>
+std::vector<T> Subset(const std::vector<T>& values, const std::vector<int>& indices) {
+  std::vector<T> subset;
+  subset.reserve(indices.size());
+  for (int i : indices) subset.push_back(values[static_cast<size_t>(i)]);
+  return subset;
+}
+
+// RANSAC PnP, then Levenberg-Marquardt on the inliers and again on the inliers of the refined
+// pose (RANSAC's minimal-sample poses leave a few cm that the refinement removes).
+PoseHypothesis SolvePose(const std::vector<cv::Point3f>& object,
+                         const std::vector<cv::Point2f>& image, const Intrinsics& intrinsics,
+                         const LocatorOptions& options) {
+  PoseHypothesis hypothesis;
+  hypothesis.intrinsics = intrinsics;
+  if (object.size() < 4) return hypothesis;
+  const cv::Matx33d camera = CameraMatrix(intrinsics);
+  cv::Vec3d rvec;
+  cv::Vec3d tvec;
+  std::vector<int> inliers;
+  const bool found = cv::solvePnPRansac(
+      object, image, camera, cv::noArray(), rvec, tvec, false, options.pnp_iterations,
+      static_cast<float>(options.pnp_reprojection_px), 0.999, inliers, cv::SOLVEPNP_AP3P);
+  if (!found || inliers.size() < 4) return hypothesis;
+  for (int round = 0; round < 2; ++round) {
+    cv::solvePnPRefineLM(Subset(object, inliers), Subset(image, inliers), camera, cv::noArray(),
+                         rvec, tvec);
+    if (CountInliers(object, image, camera, rvec, tvec, options.pnp_reprojection_px, &inliers) <
+        4) {
+      return hypothesis;
+    }
+  }
+  cv::Matx33d rotation;
+  cv::Rodrigues(rvec, rotation);
+  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) cam_from_world.linear()(r, c) = rotation(r, c);
+    cam_from_world.translation()[r] = tvec[r];
+  }
+  hypothesis.valid = true;
+  hypothesis.world_from_cam = cam_from_world.inverse();
+  hypothesis.inliers = std::move(inliers);
+  return hypothesis;
+}
+
+// Refines the focal length with the pose on a hypothesis' inliers (principal point, aspect ratio
+// and zero distortion fixed); keeps the hypothesis when that does not gain inliers.
+void RefineFocal(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
+                 const LocatorOptions& options, PoseHypothesis* hypothesis) {
+  if (hypothesis->inliers.size() < 12) return;
+  const Intrinsics& k = hypothesis->intrinsics;
+  cv::Mat camera = cv::Mat(CameraMatrix(k)).clone();
+  cv::Mat distortion = cv::Mat::zeros(5, 1, CV_64F);
+  std::vector<std::vector<cv::Point3f>> objects = {Subset(object, hypothesis->inliers)};
+  std::vector<std::vector<cv::Point2f>> images = {Subset(image, hypothesis->inliers)};
+  std::vector<cv::Mat> rvecs;
+  std::vector<cv::Mat> tvecs;
+  const int flags = cv::CALIB_USE_INTRINSIC_GUESS | cv::CALIB_FIX_PRINCIPAL_POINT |
+                    cv::CALIB_FIX_ASPECT_RATIO | cv::CALIB_ZERO_TANGENT_DIST | cv::CALIB_FIX_K1 |
+                    cv::CALIB_FIX_K2 | cv::CALIB_FIX_K3;
+  try {
+    cv::calibrateCamera(
+        objects, images, cv::Size(k.width, k.height), camera, distortion, rvecs, tvecs, flags,
+        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 50, 1e-9));
+  } catch (const cv::Exception&) {
+    return;  // degenerate inliers: keep the candidate focal length
+  }
+  const double f = camera.at<double>(0, 0);
+  if (!(f > 0.25 * k.fx && f < 4.0 * k.fx)) return;
+  Intrinsics refined = k;
+  refined.fx = refined.fy = f;
+  PoseHypothesis again = SolvePose(object, image, refined, options);
+  if (again.valid && again.inliers.size() >= hypothesis->inliers.size()) *hypothesis = again;
+}
+
+}  // namespace
+
+struct Locator::Impl {
+  struct ModelKeyframe {
+    KeyframeId id;
+    Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+    Eigen::Vector3d view_direction = Eigen::Vector3d::UnitZ();  // camera z in the world
+    // The features that have a 3D point: their descriptors (one row each) and world points [m].
+    cv::Mat descriptors;
+    std::vector<cv::Point3f> world_points;
+    std::vector<size_t> neighbours;  // slots, nearest first
+  };
+
+  LocatorOptions options;
+  std::vector<ModelKeyframe> keyframes;
+  Vocabulary vocabulary;
+  PlaceIndex index;  // ids are slots into `keyframes`
+  OcclusionCloud cloud;
+  mutable std::mutex labels_mutex;
+  std::shared_ptr<const std::vector<LabelRecord>> labels;
+
+  std::shared_ptr<const std::vector<LabelRecord>> CurrentLabels() const {
+    std::lock_guard<std::mutex> lock(labels_mutex);
+    return labels;
+  }
+
+  void FindNeighbours();
+};
+
+void Locator::Impl::FindNeighbours() {
+  // Quadratic once at load (3,000 keyframes: 9M cheap tests); retrieval itself never scans.
+  const double cos_max = std::cos(options.neighbour_max_angle_deg * M_PI / 180.0);
+  const double radius_sq = options.neighbour_radius_m * options.neighbour_radius_m;
+  for (size_t i = 0; i < keyframes.size(); ++i) {
+    std::vector<std::pair<double, size_t>> near;
+    const Eigen::Vector3d p = keyframes[i].world_from_cam.translation();
+    for (size_t j = 0; j < keyframes.size(); ++j) {
+      if (j == i || keyframes[j].world_points.empty()) continue;
+      const double d_sq = (keyframes[j].world_from_cam.translation() - p).squaredNorm();
+      if (d_sq > radius_sq) continue;
+      if (keyframes[j].view_direction.dot(keyframes[i].view_direction) < cos_max) continue;
+      near.emplace_back(d_sq, j);
+    }
+    std::sort(near.begin(), near.end());
+    if (near.size() > static_cast<size_t>(options.max_neighbours))
+      near.resize(static_cast<size_t>(options.max_neighbours));
+    for (const auto& [d_sq, j] : near) keyframes[i].neighbours.push_back(j);
+  }
+}
+
+Locator::Locator(const Model& model, const LocatorOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  impl_->options = options;
+  const std::vector<KeyframeInfo> infos = model.Keyframes();
+  SIGHTMAP_CHECK(!infos.empty(), "the model " << model.path()
+                                              << " has no keyframes: map a building into it "
+                                                 "first ('sightmap map')");
+  const auto vocabulary = model.LoadVocabulary();
+  SIGHTMAP_CHECK(vocabulary.has_value(),
+                 "the model " << model.path()
+                              << " has no visual vocabulary: it was not written by a complete "
+                                 "'sightmap map' run; map again");
+  SIGHTMAP_CHECK(vocabulary->first == Vocabulary::kFormat, "the model's vocabulary is in format '"
+                                                               << vocabulary->first
+                                                               << "', this sightmap reads '"
+                                                               << Vocabulary::kFormat << "'");
+  impl_->vocabulary = Vocabulary::Deserialize(vocabulary->second);
+
+  OcclusionCloudBuilder cloud(options.occlusion_voxel_m);
+  impl_->keyframes.reserve(infos.size());
+  for (const KeyframeInfo& info : infos) {
+    Impl::ModelKeyframe keyframe;
+    keyframe.id = info.id;
+    keyframe.world_from_cam = info.world_from_cam;
+    keyframe.view_direction = info.world_from_cam.linear().col(2);
+    const KeyframeFeatures features = model.LoadFeatures(info.id);
+    const size_t slot = impl_->keyframes.size();
+    // Every descriptor votes in retrieval; only those with a 3D point can be matched for PnP.
+    if (features.descriptors.rows > 0 && features.descriptors.type() == CV_8U &&
+        features.descriptors.cols == 32) {
+      impl_->index.Add(static_cast<int64_t>(slot),
+                       impl_->vocabulary.Transform(features.descriptors));
+      std::vector<int> rows;
+      for (size_t i = 0; i < features.cam_points.size(); ++i) {
+        const Eigen::Vector3f& p = features.cam_points[i];
+        if (!p.allFinite()) continue;
+        rows.push_back(static_cast<int>(i));
+        const Eigen::Vector3d world = info.world_from_cam * p.cast<double>();
+        keyframe.world_points.emplace_back(static_cast<float>(world.x()),
+                                           static_cast<float>(world.y()),
+                                           static_cast<float>(world.z()));
+      }
+      keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
+      for (size_t r = 0; r < rows.size(); ++r) {
+        features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
+      }
+    }
+    if (info.depth_bytes > 0) {
+      cloud.AddDepth(model.LoadDepth(info.id), info.intrinsics, info.world_from_cam,
+                     options.occlusion_pixel_step, options.features.min_depth_m,
+                     options.occlusion_max_depth_m);
+    }
+    impl_->keyframes.push_back(std::move(keyframe));
+  }
+  SIGHTMAP_CHECK(impl_->index.size() > 0, "the model " << model.path()
+                                                       << " has no keyframe with ORB features; "
+                                                          "map it again with ORB features");
+  impl_->FindNeighbours();
+  impl_->cloud = cloud.Build();
+  ReloadLabels(model);
+}
+
+Locator::~Locator() = default;
+
+void Locator::ReloadLabels(const Model& model) {
+  auto labels = std::make_shared<const std::vector<LabelRecord>>(model.Labels());
+  std::lock_guard<std::mutex> lock(impl_->labels_mutex);
+  impl_->labels = std::move(labels);
+}
+
+size_t Locator::NumKeyframes() const { return impl_->keyframes.size(); }
+const LocatorOptions& Locator::options() const { return impl_->options; }
+size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.size(); }
+std::vector<LabelRecord> Locator::Labels() const { return *impl_->CurrentLabels(); }
+
+LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
+                             IntrinsicsSource source) const {
+  const Clock::time_point start = Clock::now();
+  const LocatorOptions& options = impl_->options;
+  LocateResult result;
+  result.intrinsics_source = intrinsics ? source : IntrinsicsSource::kEstimated;
+  auto finish = [&](std::string reason) {
+    result.matched = false;
+    result.reason = std::move(reason);
+    result.timings.total_ms = MsSince(start);
+    return result;
+  };
+  if (photo.empty()) return finish("the photo is empty.");
+  SIGHTMAP_CHECK(photo.depth() == CV_8U &&
+                     (photo.channels() == 1 || photo.channels() == 3 || photo.channels() == 4),
+                 "a photo must be 8-bit grey, BGR or BGRA");
+
+  // Intrinsics at the photo's full resolution: given ones scaled when they were for another size.
+  std::vector<Intrinsics> full_candidates;
+  if (intrinsics) {
+    Intrinsics k = *intrinsics;
+    if (k.width <= 0 || k.height <= 0) {
+      k.width = photo.cols;
+      k.height = photo.rows;
+    }
+    std::string error;
+    SIGHTMAP_CHECK(k.Check(&error), "the photo's intrinsics are not usable: " << error);
+    if (k.width != photo.cols || k.height != photo.rows) k = k.Scaled(photo.cols, photo.rows);
+    full_candidates.push_back(k);
+  } else {
+    for (double f35 : options.focal_candidates_35mm) {
+      full_candidates.push_back(FocalCandidateIntrinsics(photo.cols, photo.rows, f35));
+    }
+  }
+  result.intrinsics = full_candidates.front();
+
+  // Features, on a downscaled copy when the photo is larger than keyframes can match.
+  Clock::time_point stage = Clock::now();
+  cv::Mat grey;
+  if (photo.channels() == 3)
+    cv::cvtColor(photo, grey, cv::COLOR_BGR2GRAY);
+  else if (photo.channels() == 4)
+    cv::cvtColor(photo, grey, cv::COLOR_BGRA2GRAY);
+  else
+    grey = photo;
+  const int longer = std::max(photo.cols, photo.rows);
+  double scale = 1.0;
+  if (longer > options.max_image_side_px) {
+    scale = static_cast<double>(options.max_image_side_px) / longer;
+    cv::resize(grey, grey,
+               cv::Size(std::max(1, static_cast<int>(std::lround(photo.cols * scale))),
+                        std::max(1, static_cast<int>(std::lround(photo.rows * scale)))),
+               0.0, 0.0, cv::INTER_AREA);
+  }
+  const Features features = ExtractFeatures(
+      grey, cv::Mat(), full_candidates.front().Scaled(grey.cols, grey.rows), options.features);
+  result.photo_features = static_cast<int>(features.size());
+  result.timings.features_ms = MsSince(stage);
+  if (static_cast<int>(features.size()) < options.min_inliers) {
+    std::ostringstream why;
+    why << "the photo has only " << features.size() << " features (at least " << options.min_inliers
+        << " needed): it is blank, blurred or too dark.";
+    return finish(why.str());
+  }
+
+  // Retrieval through the inverted index.
+  stage = Clock::now();
+  const BowVector bow = impl_->vocabulary.Transform(features.descriptors);
+  const std::vector<PlaceCandidate> candidates =
+      impl_->index.Query(bow, options.retrieval_candidates);
+  result.timings.retrieval_ms = MsSince(stage);
+  if (candidates.empty()) {
+    return finish("no keyframe of the model shares a visual word with the photo.");
+  }
+
+  std::vector<cv::Point2f> photo_points(features.size());
+  for (size_t i = 0; i < features.size(); ++i) photo_points[i] = features.keypoints[i].pt;
+  std::vector<Intrinsics> feature_candidates;
+  for (const Intrinsics& k : full_candidates) {
+    feature_candidates.push_back(k.Scaled(grey.cols, grey.rows));
+  }
+
+  PoseHypothesis best;
+  size_t best_slot = 0;
+  int best_matches = 0;
+  int most_inliers_rejected = 0;  // for the reason, when nothing verifies
+  double rejected_rotation_deg = 0.0;
+  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  const double same_point_sq = options.same_point_m * options.same_point_m;
+  for (const PlaceCandidate& candidate : candidates) {
+    const size_t slot = static_cast<size_t>(candidate.id);
+    const Impl::ModelKeyframe& keyframe = impl_->keyframes[slot];
+    ++result.candidates_tried;
+
+    // 2D-3D matches against the candidate and its neighbours.
+    stage = Clock::now();
+    std::vector<size_t> group = {slot};
+    group.insert(group.end(), keyframe.neighbours.begin(), keyframe.neighbours.end());
+    std::vector<cv::Mat> blocks;
+    std::vector<cv::Point3f> model_points;
+    for (size_t s : group) {
+      const Impl::ModelKeyframe& member = impl_->keyframes[s];
+      if (member.world_points.empty()) continue;
+      blocks.push_back(member.descriptors);
+      model_points.insert(model_points.end(), member.world_points.begin(),
+                          member.world_points.end());
+    }
+    std::vector<cv::Point3f> object;
+    std::vector<cv::Point2f> image;
+    if (model_points.size() >= 2) {
+      cv::Mat model_descriptors;
+      cv::vconcat(blocks, model_descriptors);
+      std::vector<std::vector<cv::DMatch>> knn;
+      matcher.knnMatch(features.descriptors, model_descriptors, knn, 4);
+      for (const std::vector<cv::DMatch>& neighbours : knn) {
+        if (neighbours.empty()) continue;
+        const cv::DMatch& nearest = neighbours[0];
+        if (nearest.distance > options.max_descriptor_distance) continue;
+        const cv::Point3f& p = model_points[static_cast<size_t>(nearest.trainIdx)];
+        // The second-nearest that is another 3D point; the same point seen by a neighbour
+        // keyframe confirms rather than competes.
+        bool distinct = true;
+        for (size_t n = 1; n < neighbours.size(); ++n) {
+          const cv::Point3f d = model_points[static_cast<size_t>(neighbours[n].trainIdx)] - p;
+          if (d.dot(d) <= same_point_sq) continue;
+          distinct = nearest.distance < options.match_ratio * neighbours[n].distance;
+          break;
+        }
+        if (!distinct) continue;
+        object.push_back(p);
+        image.push_back(photo_points[static_cast<size_t>(nearest.queryIdx)]);
+      }
+    }
+    result.timings.matching_ms += MsSince(stage);
+
+    stage = Clock::now();
+    PoseHypothesis found;
+    for (const Intrinsics& k : feature_candidates) {
+      PoseHypothesis hypothesis = SolvePose(object, image, k, options);
+      if (hypothesis.valid && (!found.valid || hypothesis.inliers.size() > found.inliers.size())) {
+        found = std::move(hypothesis);
+      }
+    }
+    if (found.valid && !intrinsics && options.refine_estimated_focal) {
+      RefineFocal(object, image, options, &found);
+    }
+    result.timings.pnp_ms += MsSince(stage);
+    if (!found.valid) continue;
+    const int inliers = static_cast<int>(found.inliers.size());
+    const double rotation_deg =
+        AngleDeg(keyframe.world_from_cam.linear(), found.world_from_cam.linear());
+    if (inliers < options.min_inliers || rotation_deg > options.max_rotation_from_keyframe_deg) {
+      if (inliers > most_inliers_rejected) {
+        most_inliers_rejected = inliers;
+        rejected_rotation_deg = inliers >= options.min_inliers ? rotation_deg : 0.0;
+      }
+      continue;
+    }
+    if (!best.valid || found.inliers.size() > best.inliers.size()) {
+      best = std::move(found);
+      best_slot = slot;
+      best_matches = static_cast<int>(object.size());
+    }
+    if (static_cast<int>(best.inliers.size()) >= options.confident_inliers) break;
+  }
+
+  if (!best.valid) {
+    std::ostringstream why;
+    if (rejected_rotation_deg > 0.0) {
+      why << "the best pose (" << most_inliers_rejected << " inliers) turns "
+          << std::lround(rejected_rotation_deg) << " deg from its keyframe (at most "
+          << options.max_rotation_from_keyframe_deg << " allowed).";
+    } else {
+      why << "none of " << result.candidates_tried
+          << " retrieved keyframes gave a pose: " << most_inliers_rejected
+          << " PnP inliers at best, " << options.min_inliers << " needed.";
+    }
+    return finish(why.str());
+  }
+
+  result.matched = true;
+  result.world_from_cam = best.world_from_cam;
+  result.inliers = static_cast<int>(best.inliers.size());
+  result.matches = best_matches;
+  result.keyframe = impl_->keyframes[best_slot].id;
+  result.intrinsics = best.intrinsics.Scaled(photo.cols, photo.rows);
+
+  stage = Clock::now();
+  const auto labels = impl_->CurrentLabels();
+  result.appliances = AppliancesInView(*labels, &impl_->cloud, result.intrinsics,
+                                       result.world_from_cam, ToVisibilityOptions(options));
+  result.timings.visibility_ms = MsSince(stage);
+  result.timings.total_ms = MsSince(start);
+  return result;
+}
+
+nlohmann::json ToJson(const LocateResult& result) {
+  nlohmann::json out;
+  out["matched"] = result.matched;
+  if (!result.matched) out["reason"] = result.reason;
+  if (result.matched) {
+    const Eigen::Vector3d t = result.world_from_cam.translation();
+    const Eigen::Quaterniond q(result.world_from_cam.linear());
+    out["pose"] = {
+        {"world_from_cam",
+         {{"position", {t.x(), t.y(), t.z()}}, {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}}}};
+    out["keyframe"] = result.keyframe.value();
+  } else {
+    out["pose"] = nullptr;
+    out["keyframe"] = nullptr;
+  }
+  out["inliers"] = result.inliers;
+  out["matches"] = result.matches;
+  out["intrinsics"] = {{"fx", result.intrinsics.fx},
+                       {"fy", result.intrinsics.fy},
+                       {"cx", result.intrinsics.cx},
+                       {"cy", result.intrinsics.cy},
+                       {"width", result.intrinsics.width},
+                       {"height", result.intrinsics.height},
+                       {"source", ToString(result.intrinsics_source)}};
+  nlohmann::json appliances = nlohmann::json::array();
+  for (const ApplianceInView& appliance : result.appliances) {
+    appliances.push_back({{"name", appliance.name},
+                          {"type", appliance.type},
+                          {"pixel", {appliance.pixel.x(), appliance.pixel.y()}},
+                          {"distance_m", appliance.distance_m},
+                          {"visible", !appliance.occluded}});
+  }
+  out["appliances"] = appliances;
+  out["candidates_tried"] = result.candidates_tried;
+  out["photo_features"] = result.photo_features;
+  out["timings_ms"] = {
+      {"features", result.timings.features_ms},     {"retrieval", result.timings.retrieval_ms},
+      {"matching", result.timings.matching_ms},     {"pnp", result.timings.pnp_ms},
+      {"visibility", result.timings.visibility_ms}, {"total", result.timings.total_ms}};
+  return out;
 }
 
 }  // namespace sightmap

@@ -1,7 +1,7 @@
 // Locating a phone photo (colour only, no depth) against the building model, and saying which
-// labelled appliances it shows: the matching phase of ARCHITECTURE.md. A Locator loads what it needs
-// from the model once (features, poses, vocabulary, labels, a coarse cloud for occlusion), then
-// answers any number of photos, from several threads at once, as `sightmap serve` does.
+// labelled appliances it shows: the matching phase of ARCHITECTURE.md. A Locator loads what it
+// needs from the model once (features, poses, vocabulary, labels, a coarse cloud for occlusion),
+// then answers any number of photos, from several threads at once, as `sightmap serve` does.
 #pragma once
 
 #include <memory>
@@ -39,23 +39,39 @@ struct LocatorOptions {
   int max_neighbours = 4;
   // Nearest-neighbour distance ratio for photo-to-model descriptor matches.
   double match_ratio = 0.8;
+  // Neighbouring keyframes see the same 3D point with near-identical descriptors: a second-nearest
+  // model descriptor whose point lies within this distance of the nearest's is the same point, and
+  // does not count against the ratio test [m].
+  double same_point_m = 0.05;
+  // Matches farther than this Hamming distance are dropped whatever their ratio [bits of 256].
+  int max_descriptor_distance = 80;
   // PnP RANSAC (OpenCV): reprojection threshold [px, at the feature image's scale], iterations,
   // and the inliers a pose needs to count as matched.
   double pnp_reprojection_px = 4.0;
   int pnp_iterations = 1000;
   int min_inliers = 25;
+  // A verified candidate with this many inliers ends the search (the remaining candidates would
+  // cost their matching time for a pose that is already certain).
+  int confident_inliers = 80;
   // The paper's sanity check: the photo's viewing direction within this angle of the retrieved
   // keyframe's [deg].
   double max_rotation_from_keyframe_deg = 90.0;
   // With no intrinsics known, these 35 mm-equivalent focal lengths are tried and the one with most
   // PnP inliers is kept [mm] (phones: 24-30 mm main camera).
   std::vector<double> focal_candidates_35mm = {22.0, 26.0, 30.0, 35.0};
+  // Then the kept focal length is refined together with the pose on the inliers (principal point
+  // fixed at the centre, square pixels), so the answer is not limited to the candidates' grid.
+  bool refine_estimated_focal = true;
   // Occlusion: the model's surfaces are kept as a voxel cloud of this cell size [m]; an appliance
   // point is occluded when that cloud, drawn from the photo's pose into a z-buffer of
   // 1/occlusion_downscale of the photo, has a surface nearer than the point by more than
   // occlusion_margin_m + occlusion_margin_ratio x its distance.
   double occlusion_voxel_m = 0.05;
   int occlusion_downscale = 8;
+  // Every occlusion_pixel_step-th pixel of each keyframe's depth (both directions) goes into the
+  // cloud, up to occlusion_max_depth_m (farther depth is too noisy to hide anything) [px], [m].
+  int occlusion_pixel_step = 4;
+  double occlusion_max_depth_m = 5.0;
   double occlusion_margin_m = 0.15;
   double occlusion_margin_ratio = 0.05;
   // An appliance is in view when at least this share of its points project inside the image in
@@ -101,6 +117,9 @@ struct LocateResult {
   // so a client can say "behind the wall", but they are not "in view".
   std::vector<ApplianceInView> appliances;
   LocateTimings timings;
+  // Bag-of-words candidates verified by PnP, and features found on the photo.
+  int candidates_tried = 0;
+  int photo_features = 0;
 };
 
 // The answer's JSON: {"matched", "reason"?, "pose": {"world_from_cam": {"position",
@@ -128,6 +147,10 @@ class Locator {
 
   size_t NumKeyframes() const;
   const LocatorOptions& options() const;
+  // Voxels of the occlusion cloud (0 when the model stores no depth).
+  size_t NumOcclusionVoxels() const;
+  // Labels currently loaded.
+  std::vector<LabelRecord> Labels() const;
 
  private:
   struct Impl;

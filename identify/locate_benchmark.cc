@@ -1,0 +1,261 @@
+// The locate figures of issue 9, run by hand (build/identify/locate_benchmark), not by ctest:
+// - per-stage median and p95 over N session-2 phone photos (1280x960) located against a
+//   ground-truth-pose model of the office walk (session 1, 1 Hz), the model loaded once as
+//   `serve` does; matched share, pose errors, and the visibility against the ground truth;
+// - retrieval time on that model and on one 5x larger (--large-factor): the larger model holds
+//   the same keyframes' features replicated (each copy moved 100 m along x, as if another floor
+//   of the same building), because rendering thousands of keyframes takes minutes. Replicas are the
+//   worst case for an inverted index: every posting list grows by the full factor.
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "identify/locator.h"
+#include "identify/sim_model_testing.h"
+#include "sim/simulator.h"
+#include "store/model.h"
+
+namespace sightmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Stats {
+  double median = 0.0;
+  double p95 = 0.0;
+  double mean = 0.0;
+};
+
+Stats Summarise(std::vector<double> values) {
+  Stats stats;
+  if (values.empty()) return stats;
+  std::sort(values.begin(), values.end());
+  auto at = [&](double q) {
+    return values[std::min(
+        values.size() - 1,
+        static_cast<size_t>(std::ceil(q * static_cast<double>(values.size())) - 1))];
+  };
+  stats.median = values.size() % 2
+                     ? values[values.size() / 2]
+                     : 0.5 * (values[values.size() / 2 - 1] + values[values.size() / 2]);
+  stats.p95 = at(0.95);
+  double sum = 0.0;
+  for (double v : values) sum += v;
+  stats.mean = sum / static_cast<double>(values.size());
+  return stats;
+}
+
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// A model holding `factor` copies of `source`'s keyframe features (no images), the copy c moved
+// by 100 c metres along x, and its vocabulary and labels.
+void ReplicateModel(const Model& source, const std::string& path, int factor) {
+  ModelOptions options;
+  options.sync_every_commit = false;
+  Model model = Model::Open(path, options);
+  SessionRecord session;
+  session.source = "replicated";
+  const SessionId id = model.BeginSession(session);
+  const std::vector<KeyframeInfo> infos = source.Keyframes();
+  std::vector<KeyframeFeatures> features;
+  for (const KeyframeInfo& info : infos) features.push_back(source.LoadFeatures(info.id));
+  for (int copy = 0; copy < factor; ++copy) {
+    for (size_t i = 0; i < infos.size(); ++i) {
+      KeyframeRecord keyframe;
+      keyframe.session = id;
+      keyframe.timestamp_ns = infos[i].timestamp_ns + copy * int64_t{1000000000000};
+      keyframe.world_from_cam = infos[i].world_from_cam;
+      keyframe.world_from_cam.translation().x() += 100.0 * copy;
+      keyframe.odom_world_from_cam = keyframe.world_from_cam;
+      keyframe.intrinsics = infos[i].intrinsics;
+      keyframe.features = features[i];
+      model.AddKeyframe(keyframe);
+    }
+  }
+  const auto vocabulary = source.LoadVocabulary();
+  model.SetVocabulary(vocabulary->first, vocabulary->second);
+  for (const LabelRecord& label : source.Labels()) {
+    LabelRecord copy = label;
+    copy.id = LabelId();
+    model.AddLabel(copy);
+  }
+  model.EndSession(id, SessionEnd::kFinished, 0);
+}
+
+int Run(int argc, char** argv) {
+  CLI::App app("Locate timings per stage and retrieval scaling (issue 9)", "locate_benchmark");
+  int keyframes = 600;
+  int photos = 100;
+  int large_factor = 5;
+  std::string dir = (fs::temp_directory_path() / "sightmap-locate-benchmark").string();
+  bool keep = false;
+  app.add_option("--keyframes", keyframes, "1 Hz keyframes of the walk in the model");
+  app.add_option("--photos", photos, "session-2 phone photos located");
+  app.add_option("--large-factor", large_factor, "the larger model's size / the model's");
+  app.add_option("--dir", dir, "folder for the models (reused when they exist)");
+  app.add_flag("--keep", keep, "keep the models for the next run");
+  CLI11_PARSE(app, argc, argv);
+
+  fs::create_directories(dir);
+  const std::string model_path = (fs::path(dir) / ("walk-" + std::to_string(keyframes) + ".db"));
+  if (!fs::exists(model_path)) {
+    SimModelOptions options;
+    options.keyframes = keyframes;
+    std::printf("building a %d-keyframe ground-truth model of the office walk...\n", keyframes);
+    std::fflush(stdout);
+    const SimModelSummary summary = BuildSimulatorModel(model_path, options);
+    std::printf("  %d keyframes, %d labels in %.1f s\n", summary.keyframes, summary.labels,
+                summary.seconds);
+  }
+  ModelOptions read_only;
+  read_only.read_only = true;
+  const Model model = Model::Open(model_path, read_only);
+  auto start = std::chrono::steady_clock::now();
+  const Locator locator(model);
+  std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
+              locator.NumKeyframes(), locator.NumOcclusionVoxels(), Seconds(start));
+
+  sim::SimulatorOptions session2;
+  session2.session = 2;
+  session2.seed = 7;
+  session2.fps = 1.0;
+  session2.frames = 1;
+  sim::Simulator simulator(session2);
+  start = std::chrono::steady_clock::now();
+  const std::vector<sim::QueryPhoto> queries = simulator.MakeQueries(photos, sim::QueryOptions());
+  std::printf("%d session-2 photos rendered in %.1f s\n", photos, Seconds(start));
+
+  std::vector<double> features_ms, retrieval_ms, matching_ms, pnp_ms, visibility_ms, total_ms;
+  std::vector<double> position_mm, rotation_deg;
+  int matched = 0;
+  int occluded_truth = 0, occluded_fp = 0;
+  int recall_photos = 0, recall_good = 0, precision_photos = 0, precision_good = 0;
+  for (const sim::QueryPhoto& photo : queries) {
+    const LocateResult result = locator.Locate(photo.image, photo.intrinsics);
+    features_ms.push_back(result.timings.features_ms);
+    retrieval_ms.push_back(result.timings.retrieval_ms);
+    matching_ms.push_back(result.timings.matching_ms);
+    pnp_ms.push_back(result.timings.pnp_ms);
+    visibility_ms.push_back(result.timings.visibility_ms);
+    total_ms.push_back(result.timings.total_ms);
+    if (!result.matched) {
+      std::printf("  photo %3d not matched: %s\n", photo.index, result.reason.c_str());
+      continue;
+    }
+    ++matched;
+    position_mm.push_back(
+        1e3 * (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm());
+    rotation_deg.push_back(Eigen::AngleAxisd(result.world_from_cam.linear().transpose() *
+                                             photo.world_from_cam.linear())
+                               .angle() *
+                           180.0 / M_PI);
+    // The paper's per-photo recall and precision (partially visible is optional).
+    int visible = 0, found_visible = 0, reported = 0, reported_ok = 0;
+    for (const sim::ApplianceVisibility& truth : photo.visibility) {
+      const std::string& name =
+          simulator.scene().appliances[static_cast<size_t>(truth.appliance_id - 1)].name;
+      bool identified = false;
+      for (const ApplianceInView& a : result.appliances) {
+        if (a.name == name && !a.occluded) identified = true;
+      }
+      if (identified) ++reported;
+      if (truth.type == sim::VisibilityType::kVisible) {
+        ++visible;
+        if (identified) ++found_visible;
+      }
+      if (identified && (truth.type == sim::VisibilityType::kVisible ||
+                         truth.type == sim::VisibilityType::kPartiallyVisible)) {
+        ++reported_ok;
+      }
+      if (truth.type == sim::VisibilityType::kOccluded) {
+        ++occluded_truth;
+        if (identified) ++occluded_fp;
+      }
+    }
+    if (visible > 0) {
+      ++recall_photos;
+      if (found_visible >= 0.8 * visible) ++recall_good;
+    }
+    if (reported > 0) {
+      ++precision_photos;
+      if (reported_ok >= 0.8 * reported) ++precision_good;
+    }
+  }
+  auto line = [](const char* name, const std::vector<double>& values) {
+    const Stats s = Summarise(values);
+    std::printf("  %-11s median %7.1f ms  p95 %7.1f ms  mean %7.1f ms\n", name, s.median, s.p95,
+                s.mean);
+  };
+  std::printf("\nlocate, %zu photos of 1280x960 against %zu keyframes (one thread):\n",
+              queries.size(), locator.NumKeyframes());
+  line("features", features_ms);
+  line("retrieval", retrieval_ms);
+  line("matching", matching_ms);
+  line("pnp", pnp_ms);
+  line("visibility", visibility_ms);
+  line("total", total_ms);
+  const Stats pos = Summarise(position_mm);
+  const Stats rot = Summarise(rotation_deg);
+  std::printf(
+      "matched %d of %zu (%.1f%%); position error median %.1f mm p95 %.1f mm max %.1f mm; "
+      "rotation median %.2f deg p95 %.2f deg max %.2f deg\n",
+      matched, queries.size(), 100.0 * matched / static_cast<double>(queries.size()), pos.median,
+      pos.p95,
+      position_mm.empty() ? 0.0 : *std::max_element(position_mm.begin(), position_mm.end()),
+      rot.median, rot.p95,
+      rotation_deg.empty() ? 0.0 : *std::max_element(rotation_deg.begin(), rotation_deg.end()));
+  std::printf(
+      "recall >= 0.8: %d of %d photos (%.1f%%); precision >= 0.8: %d of %d (%.1f%%); "
+      "occluded reported visible: %d of %d (%.1f%%)\n",
+      recall_good, recall_photos, 100.0 * recall_good / std::max(1, recall_photos), precision_good,
+      precision_photos, 100.0 * precision_good / std::max(1, precision_photos), occluded_fp,
+      occluded_truth, 100.0 * occluded_fp / std::max(1, occluded_truth));
+
+  // Retrieval scaling.
+  if (large_factor > 1) {
+    const std::string large_path = (fs::path(dir) / ("walk-" + std::to_string(keyframes) + "-x" +
+                                                     std::to_string(large_factor) + ".db"));
+    if (!fs::exists(large_path)) {
+      start = std::chrono::steady_clock::now();
+      ReplicateModel(model, large_path, large_factor);
+      std::printf("\nreplicated model written in %.1f s\n", Seconds(start));
+    }
+    const Model large_model = Model::Open(large_path, read_only);
+    const Locator large(large_model);
+    std::vector<double> small_retrieval, large_retrieval;
+    // Interleaved, so both see the same machine load.
+    for (const sim::QueryPhoto& photo : queries) {
+      small_retrieval.push_back(locator.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
+      large_retrieval.push_back(large.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
+    }
+    const Stats a = Summarise(small_retrieval);
+    const Stats b = Summarise(large_retrieval);
+    std::printf("\nretrieval (bag of words + inverted index), %zu photos:\n", queries.size());
+    std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n",
+                locator.NumKeyframes(), a.median, a.p95, a.mean);
+    std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n",
+                large.NumKeyframes(), b.median, b.p95, b.mean);
+    std::printf("  ratio of medians %.2f, of means %.2f\n", b.median / a.median, b.mean / a.mean);
+    if (!keep) fs::remove(large_path);
+  }
+  struct rusage usage {};
+  getrusage(RUSAGE_SELF, &usage);
+  std::printf("peak RSS %.0f MiB\n", usage.ru_maxrss / 1024.0);
+  if (!keep) fs::remove(model_path);
+  return 0;
+}
+
+}  // namespace
+}  // namespace sightmap
+
+int main(int argc, char** argv) { return sightmap::Run(argc, argv); }

@@ -1,0 +1,402 @@
+// The Locator against a model built from the simulator's walk with ground-truth poses, and the
+// visibility test on hand-built scenes.
+#include "identify/locator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <thread>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/check.h"
+#include "identify/sim_model_testing.h"
+#include "identify/visibility.h"
+#include "sim/simulator.h"
+
+namespace sightmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+double PositionError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.translation() - b.translation()).norm();
+}
+
+double RotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180.0 / M_PI;
+}
+
+double Median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  return values.empty() ? 0.0 : values[values.size() / 2];
+}
+
+// One model for the whole suite: 100 s of the office walk (session 1) at 1 Hz, ground-truth
+// poses, every appliance labelled; and session-2 phone photos of the places that walk saw.
+class LocatorTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(fs::temp_directory_path() /
+                        ("sightmap-locator-test-" + std::to_string(::getpid())));
+    fs::create_directories(*dir_);
+    SimModelOptions options;
+    options.keyframes = 100;
+    summary_ = new SimModelSummary(BuildSimulatorModel((*dir_ / "model.db").string(), options));
+    model_ = new Model(Model::Open((*dir_ / "model.db").string()));
+    locator_ = new Locator(*model_);
+
+    // Session 2: other lighting, chairs moved. Photos whose camera stands within 1.5 m of a
+    // keyframe and looks within 40 deg of its direction show a place the walk saw.
+    sim::SimulatorOptions session2;
+    session2.session = 2;
+    session2.seed = 7;
+    session2.fps = 1.0;
+    session2.frames = 1;
+    sim::Simulator simulator(session2);
+    sim::QueryOptions query_options;
+    std::vector<sim::QueryPhoto> photos = simulator.MakeQueries(80, query_options);
+    seen_photos_ = new std::vector<sim::QueryPhoto>();
+    for (sim::QueryPhoto& photo : photos) {
+      bool seen = false;
+      for (const Eigen::Isometry3d& keyframe : summary_->world_from_cam) {
+        if (PositionError(keyframe, photo.world_from_cam) < 1.5 &&
+            keyframe.linear().col(2).dot(photo.world_from_cam.linear().col(2)) >
+                std::cos(40.0 * M_PI / 180.0)) {
+          seen = true;
+          break;
+        }
+      }
+      if (seen) seen_photos_->push_back(std::move(photo));
+    }
+    scene_ = new sim::Scene(simulator.scene());
+  }
+
+  static void TearDownTestSuite() {
+    delete locator_;
+    delete model_;
+    delete summary_;
+    delete seen_photos_;
+    delete scene_;
+    std::error_code ignored;
+    fs::remove_all(*dir_, ignored);
+    delete dir_;
+  }
+
+  static fs::path* dir_;
+  static SimModelSummary* summary_;
+  static Model* model_;
+  static Locator* locator_;
+  static std::vector<sim::QueryPhoto>* seen_photos_;
+  static sim::Scene* scene_;
+};
+
+fs::path* LocatorTest::dir_ = nullptr;
+SimModelSummary* LocatorTest::summary_ = nullptr;
+Model* LocatorTest::model_ = nullptr;
+Locator* LocatorTest::locator_ = nullptr;
+std::vector<sim::QueryPhoto>* LocatorTest::seen_photos_ = nullptr;
+sim::Scene* LocatorTest::scene_ = nullptr;
+
+TEST_F(LocatorTest, LoadsEveryKeyframeAndAnOcclusionCloud) {
+  EXPECT_EQ(locator_->NumKeyframes(), 100u);
+  EXPECT_GT(locator_->NumOcclusionVoxels(), 10000u);
+  EXPECT_EQ(locator_->Labels().size(), scene_->appliances.size());
+}
+
+TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
+  ASSERT_GE(seen_photos_->size(), 12u) << "too few session-2 photos of places the walk saw";
+  std::vector<double> position_errors;
+  std::vector<double> rotation_errors;
+  int matched = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult result = locator_->Locate(photo.image, photo.intrinsics);
+    if (!result.matched) {
+      std::printf("photo %d not matched: %s\n", photo.index, result.reason.c_str());
+      continue;
+    }
+    ++matched;
+    EXPECT_EQ(result.intrinsics_source, IntrinsicsSource::kGiven);
+    position_errors.push_back(PositionError(result.world_from_cam, photo.world_from_cam));
+    rotation_errors.push_back(RotationErrorDeg(result.world_from_cam, photo.world_from_cam));
+    EXPECT_LE(position_errors.back(), 0.05) << "photo " << photo.index;
+    EXPECT_LE(rotation_errors.back(), 2.0) << "photo " << photo.index;
+  }
+  std::printf(
+      "matched %d of %zu; position error median %.1f mm max %.1f mm; rotation median "
+      "%.2f deg max %.2f deg\n",
+      matched, seen_photos_->size(), 1e3 * Median(position_errors),
+      1e3 * *std::max_element(position_errors.begin(), position_errors.end()),
+      Median(rotation_errors), *std::max_element(rotation_errors.begin(), rotation_errors.end()));
+  EXPECT_GE(matched, static_cast<int>(0.9 * static_cast<double>(seen_photos_->size())));
+}
+
+TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
+  cv::Mat noise(960, 1280, CV_8UC3);
+  cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+  const Intrinsics phone = sim::QueryOptions().PhoneIntrinsics();
+  const LocateResult noisy = locator_->Locate(noise, phone);
+  EXPECT_FALSE(noisy.matched);
+  EXPECT_FALSE(noisy.reason.empty());
+  std::printf("noise: %s\n", noisy.reason.c_str());
+
+  const cv::Mat blank(960, 1280, CV_8UC3, cv::Scalar(200, 205, 210));
+  const LocateResult wall = locator_->Locate(blank, std::nullopt);
+  EXPECT_FALSE(wall.matched);
+  EXPECT_NE(wall.reason.find("features"), std::string::npos) << wall.reason;
+  EXPECT_EQ(wall.intrinsics_source, IntrinsicsSource::kEstimated);
+  EXPECT_TRUE(wall.appliances.empty());
+
+  EXPECT_FALSE(locator_->Locate(cv::Mat(), phone).matched);
+}
+
+TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
+  int tried = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    if (tried == 4) break;
+    const LocateResult given = locator_->Locate(photo.image, photo.intrinsics);
+    if (!given.matched) continue;
+    ++tried;
+    const LocateResult estimated = locator_->Locate(photo.image, std::nullopt);
+    ASSERT_TRUE(estimated.matched) << estimated.reason;
+    EXPECT_EQ(estimated.intrinsics_source, IntrinsicsSource::kEstimated);
+    const double focal_error = std::abs(estimated.intrinsics.fx / photo.intrinsics.fx - 1.0);
+    std::printf("photo %d: estimated fx %.1f, true %.1f (%.1f%%), position error %.1f mm\n",
+                photo.index, estimated.intrinsics.fx, photo.intrinsics.fx, 100 * focal_error,
+                1e3 * PositionError(estimated.world_from_cam, photo.world_from_cam));
+    EXPECT_LE(focal_error, 0.03);
+    EXPECT_LE(PositionError(estimated.world_from_cam, photo.world_from_cam), 0.15);
+    EXPECT_NEAR(estimated.intrinsics.cx, (photo.image.cols - 1) / 2.0, 1e-9);
+  }
+  EXPECT_EQ(tried, 4);
+}
+
+TEST_F(LocatorTest, LargePhotosAreDownscaledAndAnswerInTheirOwnPixels) {
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult small = locator_->Locate(photo.image, photo.intrinsics);
+    if (!small.matched || small.appliances.empty()) continue;
+    cv::Mat large;
+    cv::resize(photo.image, large, cv::Size(2560, 1920), 0, 0, cv::INTER_LINEAR);
+    const LocateResult result = locator_->Locate(large, photo.intrinsics.Scaled(2560, 1920));
+    ASSERT_TRUE(result.matched) << result.reason;
+    EXPECT_EQ(result.intrinsics.width, 2560);
+    EXPECT_LE(PositionError(result.world_from_cam, photo.world_from_cam), 0.05);
+    ASSERT_FALSE(result.appliances.empty());
+    EXPECT_NEAR(result.appliances[0].pixel.x(), 2.0 * small.appliances[0].pixel.x() + 0.5, 6.0);
+    return;
+  }
+  FAIL() << "no matched photo with an appliance in view";
+}
+
+// Against the simulator's ground truth: what is reported visible is really there, and occluded
+// instances are not reported as visible.
+TEST_F(LocatorTest, AppliancesInViewAgreeWithTheGroundTruth) {
+  int reported_visible = 0;
+  int wrongly_visible = 0;  // reported visible, truth not visible or occluded
+  int occluded_truth = 0;
+  int occluded_reported_visible = 0;
+  int visible_truth = 0;
+  int visible_found = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult result = locator_->Locate(photo.image, photo.intrinsics);
+    if (!result.matched) continue;
+    for (size_t i = 1; i < result.appliances.size(); ++i) {
+      EXPECT_LE(result.appliances[i - 1].distance_m, result.appliances[i].distance_m);
+    }
+    for (const sim::ApplianceVisibility& truth : photo.visibility) {
+      const std::string& name =
+          scene_->appliances[static_cast<size_t>(truth.appliance_id - 1)].name;
+      const auto it = std::find_if(result.appliances.begin(), result.appliances.end(),
+                                   [&](const ApplianceInView& a) { return a.name == name; });
+      const bool visible = it != result.appliances.end() && !it->occluded;
+      if (visible) ++reported_visible;
+      if (visible && (truth.type == sim::VisibilityType::kNotVisible ||
+                      truth.type == sim::VisibilityType::kOccluded)) {
+        ++wrongly_visible;
+      }
+      if (truth.type == sim::VisibilityType::kOccluded) {
+        ++occluded_truth;
+        if (visible) ++occluded_reported_visible;
+      }
+      if (truth.type == sim::VisibilityType::kVisible) {
+        ++visible_truth;
+        if (visible) ++visible_found;
+      }
+    }
+  }
+  std::printf(
+      "visible found %d of %d; reported visible %d, wrongly %d; occluded reported visible "
+      "%d of %d\n",
+      visible_found, visible_truth, reported_visible, wrongly_visible, occluded_reported_visible,
+      occluded_truth);
+  ASSERT_GT(visible_truth, 0);
+  EXPECT_GE(visible_found, 0.9 * visible_truth);
+  EXPECT_LE(wrongly_visible, 0.1 * reported_visible);
+}
+
+TEST_F(LocatorTest, JsonHasTheDocumentedKeys) {
+  const sim::QueryPhoto& photo = seen_photos_->front();
+  const nlohmann::json json = ToJson(locator_->Locate(photo.image, photo.intrinsics));
+  for (const char* key : {"matched", "pose", "inliers", "matches", "keyframe", "intrinsics",
+                          "appliances", "timings_ms"}) {
+    EXPECT_TRUE(json.contains(key)) << key;
+  }
+  ASSERT_TRUE(json["matched"].get<bool>());
+  EXPECT_EQ(json["pose"]["world_from_cam"]["position"].size(), 3u);
+  EXPECT_EQ(json["pose"]["world_from_cam"]["quaternion_xyzw"].size(), 4u);
+  for (const char* key : {"fx", "fy", "cx", "cy", "width", "height", "source"}) {
+    EXPECT_TRUE(json["intrinsics"].contains(key)) << key;
+  }
+  EXPECT_EQ(json["intrinsics"]["source"], "given");
+  for (const char* key : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
+    EXPECT_TRUE(json["timings_ms"].contains(key)) << key;
+  }
+  for (const nlohmann::json& appliance : json["appliances"]) {
+    for (const char* key : {"name", "type", "pixel", "distance_m", "visible"}) {
+      EXPECT_TRUE(appliance.contains(key)) << key;
+    }
+    EXPECT_EQ(appliance["pixel"].size(), 2u);
+  }
+
+  const nlohmann::json unmatched = ToJson(locator_->Locate(cv::Mat(), std::nullopt));
+  EXPECT_FALSE(unmatched["matched"].get<bool>());
+  EXPECT_TRUE(unmatched["reason"].is_string());
+  EXPECT_EQ(unmatched["intrinsics"]["source"], "estimated");
+}
+
+TEST_F(LocatorTest, ConcurrentCallsGiveTheSameAnswers) {
+  const sim::QueryPhoto& a = (*seen_photos_)[0];
+  const sim::QueryPhoto& b = (*seen_photos_)[1];
+  const LocateResult expected_a = locator_->Locate(a.image, a.intrinsics);
+  const LocateResult expected_b = locator_->Locate(b.image, b.intrinsics);
+  LocateResult got_a;
+  LocateResult got_b;
+  std::thread first([&] { got_a = locator_->Locate(a.image, a.intrinsics); });
+  std::thread second([&] { got_b = locator_->Locate(b.image, b.intrinsics); });
+  first.join();
+  second.join();
+  EXPECT_EQ(got_a.matched, expected_a.matched);
+  EXPECT_EQ(got_b.matched, expected_b.matched);
+  EXPECT_LE(PositionError(got_a.world_from_cam, expected_a.world_from_cam), 0.01);
+  EXPECT_LE(PositionError(got_b.world_from_cam, expected_b.world_from_cam), 0.01);
+}
+
+TEST(LocatorModelTest, AModelWithoutKeyframesIsAClearError) {
+  Model empty = Model::Open(":memory:");
+  try {
+    Locator locator(empty);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no keyframes"), std::string::npos) << e.what();
+  }
+}
+
+// Hand-built scenes: a camera at the origin looking along +z (the world frame is the camera's).
+class VisibilityTest : public ::testing::Test {
+ protected:
+  VisibilityTest() {
+    intrinsics_ = Intrinsics::FromFieldOfView(1280, 960, 65.0 * M_PI / 180.0, 0.0);
+    // A wall at z = 3 m across the whole view, sampled finer than its voxels.
+    OcclusionCloudBuilder builder(0.05);
+    for (double x = -3.0; x <= 3.0; x += 0.02) {
+      for (double y = -2.5; y <= 2.5; y += 0.02) builder.AddPoint({x, y, 3.0});
+    }
+    // A box on the floor in front of the wall: its front face at z = 2 m.
+    for (double x = 0.8; x <= 1.2; x += 0.02) {
+      for (double y = 0.6; y <= 1.0; y += 0.02) builder.AddPoint({x, y, 2.0});
+    }
+    cloud_ = builder.Build();
+  }
+
+  static LabelRecord Label(const std::string& name, const std::vector<Eigen::Vector3d>& points) {
+    LabelRecord label;
+    label.name = name;
+    label.type = "lamp";
+    for (const Eigen::Vector3d& p : points) {
+      LabelPoint point;
+      point.world = p;
+      label.points.push_back(point);
+    }
+    return label;
+  }
+
+  Intrinsics intrinsics_;
+  OcclusionCloud cloud_;
+};
+
+TEST_F(VisibilityTest, BehindTheWallIsOccludedOutsideIsNotListedInPlainViewIsVisible) {
+  const std::vector<LabelRecord> labels = {
+      Label("behind_wall", {{-0.5, 0.2, 4.5}}),       Label("in_front", {{0.5, -0.3, 1.5}}),
+      Label("on_the_wall", {{-1.0, 0.5, 3.0}}),        // sits on the wall: must not hide itself
+      Label("behind_the_box", {{1.0, 0.8, 2.6}}),      // 0.6 m behind the box's face
+      Label("outside_the_image", {{10.0, 0.0, 2.0}}),  // 78 deg to the side
+      Label("behind_the_camera", {{0.0, 0.0, -2.0}}),
+  };
+  const std::vector<ApplianceInView> result = AppliancesInView(
+      labels, &cloud_, intrinsics_, Eigen::Isometry3d::Identity(), VisibilityOptions());
+  ASSERT_EQ(result.size(), 4u);
+  // Nearest first.
+  EXPECT_EQ(result[0].name, "in_front");
+  EXPECT_EQ(result[1].name, "behind_the_box");
+  EXPECT_EQ(result[2].name, "on_the_wall");
+  EXPECT_EQ(result[3].name, "behind_wall");
+  EXPECT_FALSE(result[0].occluded);
+  EXPECT_TRUE(result[1].occluded);
+  EXPECT_FALSE(result[2].occluded);
+  EXPECT_TRUE(result[3].occluded);
+  const Eigen::Vector2d expected = intrinsics_.Project({0.5, -0.3, 1.5});
+  EXPECT_LE((result[0].pixel - expected).norm(), 1e-6);
+  EXPECT_NEAR(result[0].distance_m, Eigen::Vector3d(0.5, -0.3, 1.5).norm(), 1e-9);
+  EXPECT_EQ(result[0].type, "lamp");
+
+  // Without a cloud nothing is occluded; the view cone is the same.
+  const std::vector<ApplianceInView> bare = AppliancesInView(
+      labels, nullptr, intrinsics_, Eigen::Isometry3d::Identity(), VisibilityOptions());
+  ASSERT_EQ(bare.size(), 4u);
+  for (const ApplianceInView& appliance : bare) EXPECT_FALSE(appliance.occluded);
+}
+
+TEST_F(VisibilityTest, APoseMovesTheViewAndPixelsAreTheVisiblePointsCentre) {
+  // Turned 180 deg about y and moved behind the wall: the camera at z = 6 looks back along -z,
+  // so "behind_wall" at z = 4.5 is now in front of the wall and visible.
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  world_from_cam.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  world_from_cam.translation() = Eigen::Vector3d(0, 0, 6.0);
+  const std::vector<LabelRecord> labels = {
+      Label("two_points", {{-0.5, 0.2, 4.5}, {-0.3, 0.2, 4.5}}),
+      Label("in_front_of_origin", {{0.5, -0.3, 1.5}}),
+  };
+  const std::vector<ApplianceInView> result =
+      AppliancesInView(labels, &cloud_, intrinsics_, world_from_cam, VisibilityOptions());
+  ASSERT_EQ(result.size(), 2u);
+  EXPECT_EQ(result[0].name, "two_points");
+  EXPECT_FALSE(result[0].occluded);
+  const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
+  const Eigen::Vector2d expected =
+      0.5 * (intrinsics_.Project(cam_from_world * Eigen::Vector3d(-0.5, 0.2, 4.5)) +
+             intrinsics_.Project(cam_from_world * Eigen::Vector3d(-0.3, 0.2, 4.5)));
+  EXPECT_LE((result[0].pixel - expected).norm(), 1e-6);
+  EXPECT_TRUE(result[1].occluded);  // now behind the wall
+}
+
+TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
+  VisibilityOptions options;
+  EXPECT_TRUE(options.Check(nullptr));
+  options.zbuffer_downscale = 0;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_FALSE(error.empty());
+  LocatorOptions locator;
+  EXPECT_TRUE(locator.Check(nullptr));
+  locator.min_inliers = 3;
+  EXPECT_FALSE(locator.Check(nullptr));
+}
+
+}  // namespace
+}  // namespace sightmap

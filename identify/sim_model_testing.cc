@@ -1,0 +1,98 @@
+#include "identify/sim_model_testing.h"
+
+#include <chrono>
+#include <filesystem>
+
+#include "core/check.h"
+#include "mapping/feature_conversion.h"
+#include "store/model.h"
+
+namespace sightmap {
+
+bool SimModelOptions::Check(std::string* error) const {
+  const char* why = nullptr;
+  if (keyframes < 2)
+    why = "keyframes must be at least 2 (the vocabulary needs two images)";
+  else if (!(fps > 0.0))
+    why = "fps must be positive";
+  else if (vocabulary_keyframes < 0)
+    why = "vocabulary_keyframes must not be negative";
+  else if (!features.Check(error) || !vocabulary.Check(error))
+    return false;
+  if (why == nullptr) return true;
+  if (error != nullptr) *error = std::string("SimModelOptions: ") + why;
+  return false;
+}
+
+SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(!std::filesystem::exists(path),
+                 "BuildSimulatorModel writes a new model, and " << path << " exists");
+  const auto start = std::chrono::steady_clock::now();
+  sim::SimulatorOptions sim_options;
+  sim_options.scene = options.scene;
+  sim_options.trajectory = options.trajectory;
+  sim_options.session = options.session;
+  sim_options.seed = options.seed;
+  sim_options.fps = options.fps;
+  sim_options.frames = options.keyframes;
+  sim::Simulator simulator(sim_options);
+  const Intrinsics camera = simulator.options().camera;
+
+  ModelOptions model_options;
+  model_options.sync_every_commit = false;  // a throwaway model: speed over power-cut safety
+  Model model = Model::Open(path, model_options);
+  SessionRecord session;
+  session.source = "sim:" + options.scene + " (ground-truth poses)";
+  session.intrinsics = camera;
+  const SessionId session_id = model.BeginSession(session);
+
+  SimModelSummary summary;
+  std::vector<cv::Mat> training;
+  const int frames = static_cast<int>(std::min<int64_t>(options.keyframes, simulator.num_frames()));
+  for (int i = 0; i < frames; ++i) {
+    const RgbdFrame frame = simulator.RenderFrame(i);
+    const Eigen::Isometry3d world_from_cam = simulator.WorldFromCam(i);
+    const Features features = ExtractFeatures(frame.color, frame.depth, camera, options.features);
+    KeyframeRecord keyframe;
+    keyframe.session = session_id;
+    keyframe.timestamp_ns = frame.timestamp_ns;
+    keyframe.world_from_cam = world_from_cam;
+    keyframe.odom_world_from_cam = world_from_cam;
+    keyframe.intrinsics = camera;
+    if (options.store_images) {
+      keyframe.color = frame.color;
+      keyframe.depth = frame.depth;
+    }
+    keyframe.features = mapping::ToStoreFeatures(features);
+    model.AddKeyframe(keyframe);
+    if ((options.vocabulary_keyframes == 0 || i < options.vocabulary_keyframes) &&
+        features.descriptors.rows > 0) {
+      training.push_back(features.descriptors);
+    }
+    summary.world_from_cam.push_back(world_from_cam);
+  }
+  model.SetVocabulary(Vocabulary::kFormat,
+                      Vocabulary::Train(training, options.vocabulary).Serialize());
+  if (options.label_appliances) {
+    for (const sim::Appliance& appliance : simulator.scene().appliances) {
+      LabelRecord label;
+      label.name = appliance.name;
+      label.type = appliance.type;
+      for (const Eigen::Vector3d& point : appliance.points) {
+        LabelPoint labelled;
+        labelled.world = point;
+        labelled.source = LabelPointSource::kTyped;
+        label.points.push_back(labelled);
+      }
+      model.AddLabel(label);
+      ++summary.labels;
+    }
+  }
+  model.EndSession(session_id, SessionEnd::kFinished, 0);
+  summary.keyframes = frames;
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace sightmap

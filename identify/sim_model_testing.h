@@ -1,0 +1,50 @@
+// A model built from the simulator's walk with its GROUND-TRUTH poses (no SLAM in the loop), every
+// appliance labelled from the scene: what the Locator's tests, its benchmark and the
+// identification evaluation locate session-2 phone photos against. Test-only (sits on sim/).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "sim/simulator.h"
+#include "slam/features.h"
+#include "slam/vocabulary.h"
+
+namespace sightmap {
+
+struct SimModelOptions {
+  // The walk: scene, trajectory, session and seed as in SimulatorOptions; keyframes at fps.
+  std::string scene = "office";
+  sim::TrajectoryKind trajectory = sim::TrajectoryKind::kHandheld;
+  int session = 1;
+  uint64_t seed = 7;
+  double fps = 1.0;    // [Hz], the mapper's keyframe rate
+  int keyframes = 90;  // frames 0 .. keyframes-1 of the walk
+  // Keyframe features as the mapper extracts them.
+  FeatureOptions features;
+  // The vocabulary is trained from the first vocabulary_keyframes keyframes' descriptors (the
+  // mapper trains from its first 30); 0 = all keyframes.
+  int vocabulary_keyframes = 30;
+  VocabularyOptions vocabulary;
+  // Colour and depth stored with each keyframe (depth feeds the Locator's occlusion cloud).
+  bool store_images = true;
+  // Every scene appliance as a label (its points in the world frame).
+  bool label_appliances = true;
+
+  bool Check(std::string* error) const;
+};
+
+struct SimModelSummary {
+  int keyframes = 0;
+  int labels = 0;
+  std::vector<Eigen::Isometry3d> world_from_cam;  // ground truth, per keyframe
+  double seconds = 0.0;                           // time to build [s]
+};
+
+// Writes a new model at `path` (which must not exist yet).
+SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptions& options);
+
+}  // namespace sightmap

@@ -1,0 +1,211 @@
+#include "identify/visibility.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+#include "core/check.h"
+
+namespace sightmap {
+namespace {
+
+// 21 bits per axis: +-1,048,576 cells, i.e. +-52 km at 5 cm.
+constexpr int64_t kAxisOffset = int64_t{1} << 20;
+constexpr uint64_t kAxisMask = (uint64_t{1} << 21) - 1;
+
+uint64_t VoxelKey(const Eigen::Vector3d& p, double voxel_m) {
+  uint64_t key = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const int64_t cell = static_cast<int64_t>(std::floor(p[axis] / voxel_m)) + kAxisOffset;
+    key |= (static_cast<uint64_t>(cell) & kAxisMask) << (21 * axis);
+  }
+  return key;
+}
+
+Eigen::Vector3f VoxelCentre(uint64_t key, double voxel_m) {
+  Eigen::Vector3f centre;
+  for (int axis = 0; axis < 3; ++axis) {
+    const int64_t cell = static_cast<int64_t>((key >> (21 * axis)) & kAxisMask) - kAxisOffset;
+    centre[axis] = static_cast<float>((static_cast<double>(cell) + 0.5) * voxel_m);
+  }
+  return centre;
+}
+
+}  // namespace
+
+OcclusionCloudBuilder::OcclusionCloudBuilder(double voxel_m) : voxel_m_(voxel_m) {
+  SIGHTMAP_CHECK(voxel_m > 0.0, "the occlusion cloud's voxel size must be positive");
+}
+
+void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
+                                     const Eigen::Isometry3d& world_from_cam, int pixel_step,
+                                     double min_depth_m, double max_depth_m) {
+  if (depth_mm.empty()) return;
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1, "occlusion cloud: depth must be 16-bit [mm]");
+  SIGHTMAP_CHECK(pixel_step >= 1, "occlusion cloud: pixel step must be at least 1");
+  // Depth stored at another size than the intrinsics (never by the mapper, but cheap to allow).
+  const Intrinsics k = (depth_mm.cols == intrinsics.width && depth_mm.rows == intrinsics.height)
+                           ? intrinsics
+                           : intrinsics.Scaled(depth_mm.cols, depth_mm.rows);
+  for (int v = pixel_step / 2; v < depth_mm.rows; v += pixel_step) {
+    const uint16_t* row = depth_mm.ptr<uint16_t>(v);
+    for (int u = pixel_step / 2; u < depth_mm.cols; u += pixel_step) {
+      const double z = row[u] * 1e-3;
+      if (z < min_depth_m || z > max_depth_m) continue;
+      voxels_.insert(VoxelKey(world_from_cam * k.Unproject(u, v, z), voxel_m_));
+    }
+  }
+}
+
+void OcclusionCloudBuilder::AddPoint(const Eigen::Vector3d& world_point) {
+  voxels_.insert(VoxelKey(world_point, voxel_m_));
+}
+
+OcclusionCloud OcclusionCloudBuilder::Build() const {
+  OcclusionCloud cloud;
+  cloud.voxel_m = voxel_m_;
+  cloud.world_points.reserve(voxels_.size());
+  for (uint64_t key : voxels_) cloud.world_points.push_back(VoxelCentre(key, voxel_m_));
+  // Sorted so the same model gives the same cloud whatever the hash order (reproducible answers).
+  std::sort(cloud.world_points.begin(), cloud.world_points.end(),
+            [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+              return std::tie(a.x(), a.y(), a.z()) < std::tie(b.x(), b.y(), b.z());
+            });
+  return cloud;
+}
+
+bool VisibilityOptions::Check(std::string* error) const {
+  const char* why = nullptr;
+  if (zbuffer_downscale < 1)
+    why = "zbuffer_downscale must be at least 1";
+  else if (margin_m < 0.0 || margin_ratio < 0.0)
+    why = "occlusion margins must not be negative";
+  else if (!(near_m > 0.0))
+    why = "near_m must be positive";
+  else if (!(splat_scale > 0.0) || max_splat_radius_px < 0)
+    why = "splat_scale must be positive and max_splat_radius_px not negative";
+  else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
+           !(min_unoccluded_share > 0.0 && min_unoccluded_share <= 1.0))
+    why = "min_in_view_share and min_unoccluded_share must be in (0, 1]";
+  if (why == nullptr) return true;
+  if (error != nullptr) *error = std::string("VisibilityOptions: ") + why;
+  return false;
+}
+
+cv::Mat RenderOcclusionDepth(const OcclusionCloud& cloud, const Intrinsics& intrinsics,
+                             const Eigen::Isometry3d& world_from_cam,
+                             const VisibilityOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const float inf = std::numeric_limits<float>::infinity();
+  cv::Mat depth(intrinsics.height, intrinsics.width, CV_32FC1, cv::Scalar(inf));
+  const Eigen::Isometry3f cam_from_world = world_from_cam.inverse().cast<float>();
+  const Eigen::Matrix3f rotation = cam_from_world.linear();
+  const Eigen::Vector3f translation = cam_from_world.translation();
+  const float fx = static_cast<float>(intrinsics.fx);
+  const float fy = static_cast<float>(intrinsics.fy);
+  const float cx = static_cast<float>(intrinsics.cx);
+  const float cy = static_cast<float>(intrinsics.cy);
+  const float near = static_cast<float>(options.near_m);
+  // Half the projected voxel at unit depth [px m]: radius = half_size / z.
+  const float half_size = static_cast<float>(0.5 * options.splat_scale * cloud.voxel_m *
+                                             std::max(intrinsics.fx, intrinsics.fy));
+  const int max_radius = options.max_splat_radius_px;
+  const int w = intrinsics.width;
+  const int h = intrinsics.height;
+  for (const Eigen::Vector3f& world_point : cloud.world_points) {
+    const Eigen::Vector3f p = rotation * world_point + translation;
+    const float z = p.z();
+    if (z < near) continue;
+    const float u = fx * p.x() / z + cx;
+    const float v = fy * p.y() / z + cy;
+    const int radius = std::min(max_radius, static_cast<int>(half_size / z + 0.5f));
+    const int u0 = static_cast<int>(std::lround(u));
+    const int v0 = static_cast<int>(std::lround(v));
+    if (u0 + radius < 0 || u0 - radius >= w || v0 + radius < 0 || v0 - radius >= h) continue;
+    const int ua = std::max(0, u0 - radius);
+    const int ub = std::min(w - 1, u0 + radius);
+    const int va = std::max(0, v0 - radius);
+    const int vb = std::min(h - 1, v0 + radius);
+    for (int y = va; y <= vb; ++y) {
+      float* row = depth.ptr<float>(y);
+      for (int x = ua; x <= ub; ++x) row[x] = std::min(row[x], z);
+    }
+  }
+  return depth;
+}
+
+std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& labels,
+                                              const OcclusionCloud* cloud,
+                                              const Intrinsics& intrinsics,
+                                              const Eigen::Isometry3d& world_from_cam,
+                                              const VisibilityOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  std::vector<ApplianceInView> result;
+  if (labels.empty()) return result;
+  const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
+
+  // The z-buffer, drawn only when some label is in the view cone.
+  cv::Mat zbuffer;
+  Intrinsics small;
+  auto occluded = [&](const Eigen::Vector3d& cam_point) {
+    if (cloud == nullptr || cloud->world_points.empty()) return false;
+    if (zbuffer.empty()) {
+      const int ds = options.zbuffer_downscale;
+      small = intrinsics.Scaled(std::max(1, (intrinsics.width + ds - 1) / ds),
+                                std::max(1, (intrinsics.height + ds - 1) / ds));
+      zbuffer = RenderOcclusionDepth(*cloud, small, world_from_cam, options);
+    }
+    const Eigen::Vector2d pixel = small.Project(cam_point);
+    const int u = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, small.width - 1);
+    const int v = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, small.height - 1);
+    const double surface = zbuffer.at<float>(v, u);
+    const double z = cam_point.z();
+    return surface < z - (options.margin_m + options.margin_ratio * z);
+  };
+
+  for (const LabelRecord& label : labels) {
+    if (label.points.empty()) continue;
+    int in_view = 0;
+    int unoccluded = 0;
+    Eigen::Vector2d sum_visible = Eigen::Vector2d::Zero();
+    Eigen::Vector2d sum_in_view = Eigen::Vector2d::Zero();
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const LabelPoint& point : label.points) {
+      const Eigen::Vector3d cam_point = cam_from_world * point.world;
+      if (!(cam_point.z() > 0.0)) continue;
+      const Eigen::Vector2d pixel = intrinsics.Project(cam_point);
+      // Pixel centres at integers: the image spans [-0.5, size - 0.5).
+      if (!(pixel.x() >= -0.5 && pixel.x() < intrinsics.width - 0.5 && pixel.y() >= -0.5 &&
+            pixel.y() < intrinsics.height - 0.5)) {
+        continue;
+      }
+      ++in_view;
+      sum_in_view += pixel;
+      nearest = std::min(nearest, cam_point.norm());
+      if (!occluded(cam_point)) {
+        ++unoccluded;
+        sum_visible += pixel;
+      }
+    }
+    if (in_view == 0 ||
+        in_view < options.min_in_view_share * static_cast<double>(label.points.size())) {
+      continue;
+    }
+    ApplianceInView appliance;
+    appliance.name = label.name;
+    appliance.type = label.type;
+    appliance.distance_m = nearest;
+    appliance.occluded = unoccluded < options.min_unoccluded_share * in_view;
+    appliance.pixel =
+        appliance.occluded || unoccluded == 0 ? sum_in_view / in_view : sum_visible / unoccluded;
+    result.push_back(std::move(appliance));
+  }
+  std::stable_sort(result.begin(), result.end(),
+                   [](const ApplianceInView& a, const ApplianceInView& b) {
+                     return a.distance_m < b.distance_m;
+                   });
+  return result;
+}
+
+}  // namespace sightmap
