@@ -5,6 +5,7 @@
 // Frames are rendered before mapping starts, so the figures are the mapper's alone.
 //   slam_benchmark --trajectory handheld --frames 600
 //   slam_benchmark --trajectory robot --frames 600 --false-loop
+//   slam_benchmark --frames 150 --overlap   (what consecutive 1 Hz frames share, by ground truth)
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -19,7 +20,9 @@
 
 #include "core/check.h"
 #include "sim/simulator.h"
+#include "slam/features.h"
 #include "slam/mapper.h"
+#include "slam/registration.h"
 #include "slam/trajectory_eval.h"
 
 namespace sightmap {
@@ -188,6 +191,80 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
   return run;
 }
 
+// 3D keypoints of `a` that reappear in `b`: moved into b's camera by the true motion, a keypoint of
+// b with its own 3D point lies within `radius_px` and `max_distance_m`. Whatever the descriptors
+// do, a pair sharing fewer than the registration's minimum inliers cannot be registered from
+// features alone.
+int RepeatableKeypoints(const Features& a, const Features& b, const Eigen::Isometry3d& b_from_a,
+                        const Intrinsics& camera, double radius_px = 3.0,
+                        double max_distance_m = 0.05) {
+  int repeatable = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!a.has_point[i]) continue;
+    const Eigen::Vector3d in_b = b_from_a * a.points_cam[i];
+    if (in_b.z() < 0.1) continue;
+    const Eigen::Vector2d uv = camera.Project(in_b);
+    for (size_t j = 0; j < b.size(); ++j) {
+      if (!b.has_point[j]) continue;
+      const Eigen::Vector2d pixel(b.keypoints[j].pt.x, b.keypoints[j].pt.y);
+      if ((pixel - uv).norm() <= radius_px && (b.points_cam[j] - in_b).norm() <= max_distance_m) {
+        ++repeatable;
+        break;
+      }
+    }
+  }
+  return repeatable;
+}
+
+// Consecutive frames by ground truth: how far apart, how much they share, and whether registration
+// (the mapper's options, no prior) bridges them.
+void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
+                   const MapperOptions& options) {
+  std::vector<Features> features;
+  for (const Frame& frame : frames) {
+    features.push_back(ExtractFeatures(frame.color, frame.depth, camera, options.features));
+  }
+  std::vector<double> angles_deg, distances_m, points;
+  int unbridgeable = 0, unbridgeable_registered = 0, bridgeable_refused = 0;
+  for (size_t i = 0; i < features.size(); ++i) {
+    points.push_back(static_cast<double>(features[i].NumPoints()));
+  }
+  for (size_t i = 1; i < frames.size(); ++i) {
+    const Eigen::Isometry3d b_from_a =
+        frames[i].world_from_cam_gt.inverse() * frames[i - 1].world_from_cam_gt;
+    angles_deg.push_back(RotationDeg(b_from_a));
+    distances_m.push_back(b_from_a.translation().norm());
+    const int repeatable = RepeatableKeypoints(features[i - 1], features[i], b_from_a, camera);
+    const RegistrationResult result =
+        RegisterRgbd(features[i - 1], features[i], frames[i - 1].depth, frames[i].depth, camera,
+                     options.registration);
+    const bool bridgeable = repeatable >= options.registration.min_inliers;
+    if (!bridgeable) ++unbridgeable;
+    if (!bridgeable && result.success) ++unbridgeable_registered;
+    if (bridgeable && !result.success) ++bridgeable_refused;
+  }
+  const auto count_below = [](const std::vector<double>& values, double limit) {
+    return std::count_if(values.begin(), values.end(), [&](double v) { return v < limit; });
+  };
+  const size_t pairs = angles_deg.size();
+  std::printf("overlap of consecutive frames (ground truth)\n");
+  std::printf(
+      "  motion            p50 %.1f deg %.2f m, p95 %.1f deg %.2f m; %ld of %zu pairs over 30 "
+      "deg\n",
+      Median(angles_deg), Median(distances_m), Percentile(angles_deg, 0.95),
+      Percentile(distances_m, 0.95),
+      static_cast<long>(pairs - static_cast<size_t>(count_below(angles_deg, 30.0))), pairs);
+  std::printf("  3D keypoints      p50 %.0f per frame; %ld of %zu frames under 150, %ld under 50\n",
+              Median(points), static_cast<long>(count_below(points, 150.0)), points.size(),
+              static_cast<long>(count_below(points, 50.0)));
+  std::printf(
+      "  unbridgeable      %d of %zu pairs share fewer than %d repeatable 3D keypoints "
+      "(%d of them registered anyway)\n",
+      unbridgeable, pairs, options.registration.min_inliers, unbridgeable_registered);
+  std::printf("  refused           %d of %zu bridgeable pairs not registered\n", bridgeable_refused,
+              pairs - static_cast<size_t>(unbridgeable));
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"SLAM on the synthetic building at 1 Hz: speed and accuracy"};
   std::string trajectory = "handheld";
@@ -195,6 +272,7 @@ int Main(int argc, char** argv) {
   uint64_t seed = 1;
   int64_t frames_wanted = 600;
   bool false_loop = false;
+  bool overlap = false;
   app.add_option("--trajectory", trajectory, "handheld or robot")
       ->check(CLI::IsMember({"handheld", "robot"}));
   app.add_option("--session", session, "simulator session (>= 1)");
@@ -202,6 +280,9 @@ int Main(int argc, char** argv) {
   app.add_option("--frames", frames_wanted, "keyframes (1 Hz frames of the walk)");
   app.add_flag("--false-loop", false_loop,
                "also run again with a wrong loop injected halfway and compare the ATE");
+  app.add_flag("--overlap", overlap,
+               "first report what consecutive frames share by ground truth, and how many pairs "
+               "registration bridges");
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
@@ -229,6 +310,7 @@ int Main(int argc, char** argv) {
   MapperOptions options;
   std::printf("simulator office, %s, session %d, seed %llu, %zu keyframes at 1 Hz\n",
               trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size());
+  if (overlap) ReportOverlap(frames, camera, options);
   const RunResult clean = Run(frames, camera, options, -1, true);
   if (false_loop) {
     const RunResult injected =
