@@ -37,7 +37,8 @@ int RunInfo(int argc, char** argv) {
     out["links"] = {{"odometry", summary.odometry_links},
                     {"loop", summary.loop_closures},
                     {"relocalisation", summary.relocalisation_links},
-                    {"user", summary.user_links}};
+                    {"user", summary.user_links},
+                    {"inactive", summary.inactive_links}};
     if (summary.has_bounding_box) {
       out["bounding_box"] = {
           {"min", {summary.bbox_min.x(), summary.bbox_min.y(), summary.bbox_min.z()}},
@@ -65,7 +66,11 @@ int RunInfo(int argc, char** argv) {
             << " segment(s)\n";
   std::cout << "links          " << summary.odometry_links << " odometry, " << summary.loop_closures
             << " loop closure, " << summary.relocalisation_links << " relocalisation, "
-            << summary.user_links << " user\n";
+            << summary.user_links << " user";
+  if (summary.inactive_links > 0) {
+    std::cout << "; " << summary.inactive_links << " switched off as inconsistent";
+  }
+  std::cout << "\n";
   std::cout << "labels         " << summary.labels;
   for (size_t i = 0; i < labels.size(); ++i) std::cout << (i ? ", " : "  ") << labels[i].name;
   std::cout << "\n";

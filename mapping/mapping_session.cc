@@ -95,8 +95,9 @@ struct WriteTask {
   KeyframeRecord record;
   std::vector<MapperLink> links;
   FeedStatus status;
-  // kPoses: every optimised pose, by mapper id.
+  // kPoses: every optimised pose, by mapper id, and the stored links the optimisation switched off.
   std::vector<std::pair<int64_t, Eigen::Isometry3d>> poses;
+  std::vector<MapperLink> deactivated;
   // kVocabulary: Vocabulary::Serialize()'s bytes.
   std::vector<uint8_t> vocabulary;
 };
@@ -237,8 +238,11 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
       link.from_from_to = record.from_from_to;
       link.information = record.information;
       link.type = FromStore(record.type);
+      link.active = record.active;
       mapper.RestoreLink(link);
-      if (view && link.type != MapperLinkType::kOdometry) view->AddLoop(link.from, link.to);
+      if (view && link.active && link.type != MapperLinkType::kOdometry) {
+        view->AddLoop(link.from, link.to);
+      }
     }
     std::set<int> roots;
     for (int64_t id = 0; id < static_cast<int64_t>(store_ids.size()); ++id) {
@@ -300,6 +304,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
               stored.type = ToStore(link.type);
               stored.from_from_to = link.from_from_to;
               stored.information = link.information;
+              stored.active = link.active;
               record.links.push_back(stored);
             }
             SIGHTMAP_CHECK(task->mapper_id == static_cast<int64_t>(store_ids.size()),
@@ -310,7 +315,9 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
               view->AddKeyframe(task->mapper_id, session_number, record.world_from_cam,
                                 record.color, record.depth, record.intrinsics);
               for (const MapperLink& link : task->links) {
-                if (link.type != MapperLinkType::kOdometry) view->AddLoop(link.from, link.to);
+                if (link.active && link.type != MapperLinkType::kOdometry) {
+                  view->AddLoop(link.from, link.to);
+                }
               }
               view->SetCamera(record.world_from_cam);
               view->SetStatus(task->status);
@@ -325,7 +332,13 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
                 poses.emplace_back(store_ids[static_cast<size_t>(id)], pose);
               }
             }
-            model.UpdatePoses(poses);
+            std::vector<LinkKey> deactivated;
+            for (const MapperLink& link : task->deactivated) {
+              deactivated.push_back({store_ids.at(static_cast<size_t>(link.from)),
+                                     store_ids.at(static_cast<size_t>(link.to)),
+                                     ToStore(link.type)});
+            }
+            model.UpdateGraph(poses, deactivated);
             if (view) view->UpdatePoses(task->poses);
             break;
           }
@@ -455,18 +468,17 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
       task.record.color = std::move(frame.color);
       task.record.depth = std::move(frame.depth);
       task.record.features = ToStoreFeatures(mapper.FeaturesOf(report.id));
-      // This step's links are the newest of Links(); a loop the pose graph switched off in the
-      // same step is not stored. One switched off later was stored already (counted).
+      // This step's links are the newest of Links(), stored with their state now (a loop the pose
+      // graph switched off in this very step is stored inactive). Older links it switched off
+      // were stored active and are switched off with the poses below.
       const std::vector<MapperLink>& links = mapper.Links();
-      int rejected_now = 0;
-      for (size_t i = links.size() - report.new_links.size(); i < links.size(); ++i) {
-        if (links[i].active) {
-          task.links.push_back(links[i]);
-        } else {
-          ++rejected_now;
-        }
+      const size_t first_new = links.size() - report.new_links.size();
+      for (size_t i = first_new; i < links.size(); ++i) task.links.push_back(links[i]);
+      std::vector<MapperLink> deactivated;
+      for (size_t index : report.rejected_links) {
+        if (index < first_new) deactivated.push_back(links[index]);
       }
-      links_rejected_after_commit += report.links_rejected - rejected_now;
+      links_rejected_after_commit += static_cast<int64_t>(deactivated.size());
       const MappingProgress progress = make_progress();
       task.status = FeedStatus{progress.model_keyframes, progress.loops, report.state,
                                progress.keyframes_per_s, progress.elapsed_s};
@@ -474,6 +486,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
       if (report.optimised) {
         WriteTask poses;
         poses.kind = WriteTask::Kind::kPoses;
+        poses.deactivated = std::move(deactivated);
         const std::vector<StampedPose> trajectory = mapper.Trajectory();
         for (size_t id = 0; id < trajectory.size(); ++id) {
           poses.poses.emplace_back(static_cast<int64_t>(id), trajectory[id].world_from_cam);

@@ -510,6 +510,7 @@ void Mapper::Optimise(KeyframeReport* report) {
     if (links_[edge].active) {
       links_[edge].active = false;
       ++report->links_rejected;
+      report->rejected_links.push_back(edge);
     }
   }
   report->optimised = true;

@@ -110,8 +110,9 @@ struct KeyframeReport {
   std::vector<MapperLink> new_links;
   bool loop_closed = false;
   bool optimised = false;
-  int links_rejected = 0;        // loop links the pose graph switched off in this step
-  std::string odometry_failure;  // why odometry failed, when state != kTracking
+  int links_rejected = 0;              // loop links the pose graph switched off in this step
+  std::vector<size_t> rejected_links;  // their indices in Links()
+  std::string odometry_failure;        // why odometry failed, when state != kTracking
   int features = 0;
   MapperStageTimes times;
 };

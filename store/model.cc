@@ -191,11 +191,12 @@ struct Model::Impl {
     SIGHTMAP_CHECK(from.valid() && to.valid(), "a link needs keyframe ids at both ends");
     Statement insert(db,
                      "INSERT INTO links (from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, "
-                     "information) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+                     "information, active) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     insert.Bind(1, from.value()).Bind(2, to.value()).Bind(3, static_cast<int>(link.type));
     BindPose(insert, 4, link.from_from_to);
     // Eigen stores column-major; the 6x6 is symmetric so the order does not matter to readers.
     insert.BindBlob(11, link.information.data(), sizeof(double) * 36);
+    insert.Bind(12, link.active ? 1 : 0);
     insert.Run();
   }
 
@@ -596,8 +597,24 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
 
 void Model::UpdatePoses(
     const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam) {
+  UpdateGraph(world_from_cam, {});
+}
+
+void Model::UpdateGraph(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam,
+                        const std::vector<LinkKey>& deactivated_links) {
   impl_->CheckWritable();
   Transaction transaction(impl_->db);
+  Statement deactivate(impl_->db,
+                       "UPDATE links SET active = 0 WHERE from_id = ? AND to_id = ? AND type = ?");
+  for (const LinkKey& link : deactivated_links) {
+    deactivate.Bind(1, link.from.value()).Bind(2, link.to.value());
+    deactivate.Bind(3, static_cast<int>(link.type));
+    deactivate.Run();
+    SIGHTMAP_CHECK(sqlite3_changes(impl_->db) >= 1,
+                   "no " << LinkTypeName(link.type) << " link from keyframe " << link.from.value()
+                         << " to " << link.to.value() << " in model "
+                         << FileDescription(impl_->path) << "; nothing was changed");
+  }
   Statement update(impl_->db,
                    "UPDATE keyframes SET tx = ?, ty = ?, tz = ?, qx = ?, qy = ?, qz = ?, qw = ? "
                    "WHERE id = ?");
@@ -696,8 +713,8 @@ LinkId Model::AddLink(const LinkRecord& link) {
 
 std::vector<LinkRecord> Model::Links() const {
   Statement query(impl_->db,
-                  "SELECT id, from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, information FROM "
-                  "links ORDER BY id");
+                  "SELECT id, from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, information, "
+                  "active FROM links ORDER BY id");
   std::vector<LinkRecord> links;
   while (query.Step()) {
     LinkRecord link;
@@ -710,6 +727,7 @@ std::vector<LinkRecord> Model::Links() const {
     SIGHTMAP_CHECK(information.size() == sizeof(double) * 36,
                    "corrupt information matrix of link " << link.id.value());
     std::memcpy(link.information.data(), information.data(), information.size());
+    link.active = query.Int(12) != 0;
     links.push_back(link);
   }
   return links;
@@ -794,7 +812,8 @@ ModelSummary Model::Summary() const {
   summary.keyframes = count("SELECT count(*) FROM keyframes");
   summary.labels = count("SELECT count(*) FROM labels");
   {
-    Statement query(db, "SELECT type, count(*) FROM links GROUP BY type");
+    summary.inactive_links = count("SELECT count(*) FROM links WHERE active = 0");
+    Statement query(db, "SELECT type, count(*) FROM links WHERE active = 1 GROUP BY type");
     while (query.Step()) {
       switch (static_cast<LinkType>(query.Int(0))) {
         case LinkType::kOdometry:

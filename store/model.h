@@ -79,6 +79,16 @@ struct LinkRecord {
   LinkType type = LinkType::kOdometry;
   Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
   Matrix6d information = Matrix6d::Identity();  // over (tx, ty, tz, rx, ry, rz) [1/m^2, 1/rad^2]
+  // False once the pose graph switched it off as inconsistent with the rest (a false loop); kept
+  // so that a resumed session does not trust it again.
+  bool active = true;
+};
+
+// A link by its ends and type, for switching off a stored link whose id the caller never saw.
+struct LinkKey {
+  KeyframeId from;
+  KeyframeId to;
+  LinkType type = LinkType::kOdometry;
 };
 
 struct KeyframeRecord {
@@ -157,6 +167,8 @@ struct ModelSummary {
   int64_t loop_closures = 0;
   int64_t relocalisation_links = 0;
   int64_t user_links = 0;
+  // Links switched off by the pose graph (not counted above).
+  int64_t inactive_links = 0;
   // Connected parts of the pose graph: a new one starts when tracking was lost and not recovered.
   int64_t segments = 0;
   int64_t labels = 0;
@@ -195,6 +207,10 @@ class Model {
   KeyframeId AddKeyframe(const KeyframeRecord& keyframe);
   // A pose-graph optimisation's result: every optimised world_from_cam in one transaction.
   void UpdatePoses(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam);
+  // The same, with the links that optimisation switched off, in one transaction: the stored graph
+  // never has poses from one optimisation and link states from another.
+  void UpdateGraph(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam,
+                   const std::vector<LinkKey>& deactivated_links);
   std::vector<KeyframeInfo> Keyframes() const;  // ordered by id; no image is read
   KeyframeInfo Keyframe(KeyframeId id) const;
   int64_t NumKeyframes() const;

@@ -270,6 +270,60 @@ TEST(Model, SummaryCountsLinksSegmentsAndBoundingBox) {
   EXPECT_EQ(summary.schema_version, Model::LatestSchemaVersion());
 }
 
+TEST(Model, ALinkSwitchedOffByThePoseGraphStaysOff) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  std::vector<KeyframeId> ids;
+  for (int i = 0; i < 4; ++i) {
+    KeyframeRecord keyframe = MakeSyntheticKeyframe(session, i, SmallKeyframes());
+    if (i > 0) {
+      LinkRecord link;
+      link.from = ids.back();
+      keyframe.links.push_back(link);
+    }
+    if (i == 3) {  // a loop rejected in the step that found it is stored switched off
+      LinkRecord rejected;
+      rejected.from = ids[0];
+      rejected.type = LinkType::kLoopClosure;
+      rejected.active = false;
+      keyframe.links.push_back(rejected);
+    }
+    ids.push_back(model.AddKeyframe(keyframe));
+  }
+  LinkRecord loop;
+  loop.from = ids[3];
+  loop.to = ids[1];
+  loop.type = LinkType::kLoopClosure;
+  model.AddLink(loop);
+  EXPECT_EQ(model.Summary().loop_closures, 1);
+  EXPECT_EQ(model.Summary().inactive_links, 1);
+
+  // A later optimisation switches the loop off, in the same transaction as its poses.
+  Eigen::Isometry3d moved = Eigen::Isometry3d::Identity();
+  moved.translation() = Eigen::Vector3d(7.0, 0.0, 0.0);
+  model.UpdateGraph({{ids[2], moved}}, {{ids[3], ids[1], LinkType::kLoopClosure}});
+  int active_loops = 0;
+  for (const LinkRecord& link : model.Links()) {
+    if (link.type == LinkType::kLoopClosure) active_loops += link.active;
+    if (link.type == LinkType::kOdometry) {
+      EXPECT_TRUE(link.active);
+    }
+  }
+  EXPECT_EQ(active_loops, 0);
+  const ModelSummary summary = model.Summary();
+  EXPECT_EQ(summary.loop_closures, 0);
+  EXPECT_EQ(summary.inactive_links, 2);
+  EXPECT_EQ(summary.odometry_links, 3);
+  EXPECT_NEAR(model.Keyframe(ids[2]).world_from_cam.translation().x(), 7.0, 1e-12);
+
+  // A link the model does not hold: nothing changes, not even the poses.
+  Eigen::Isometry3d elsewhere = Eigen::Isometry3d::Identity();
+  elsewhere.translation() = Eigen::Vector3d(-3.0, 0.0, 0.0);
+  EXPECT_THROW(model.UpdateGraph({{ids[2], elsewhere}}, {{ids[0], ids[2], LinkType::kUser}}),
+               Error);
+  EXPECT_NEAR(model.Keyframe(ids[2]).world_from_cam.translation().x(), 7.0, 1e-12);
+}
+
 TEST(Model, VocabularyRoundTrip) {
   Model model = Model::Open(":memory:");
   EXPECT_FALSE(model.LoadVocabulary());
@@ -334,7 +388,8 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
   }
   Model model = Model::Open(path);
   EXPECT_EQ(model.SchemaVersion(), Model::LatestSchemaVersion());
-  model.SetVocabulary("dbow3", {9});  // the table migration 2 added
+  model.SetVocabulary("dbow3", {9});   // the table migration 2 added
+  EXPECT_TRUE(model.Links().empty());  // reads the column migration 3 added
   EXPECT_EQ(model.IntegrityCheck(), "ok");
   // The data written under schema 1 survived.
   sqlite3* db = nullptr;
@@ -342,7 +397,7 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
   sqlite3_stmt* stmt = nullptr;
   sqlite3_prepare_v2(db, "SELECT group_concat(version) FROM sightmap_schema", -1, &stmt, nullptr);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2");
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3");
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }

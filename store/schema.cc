@@ -92,6 +92,11 @@ CREATE TABLE vocabulary (
   data BLOB NOT NULL,
   updated_ns INTEGER NOT NULL);
 )sql",
+      // 3: a link the pose graph switched off as inconsistent (a false loop) is kept, marked
+      // inactive, so a resumed session restores it switched off rather than trusting it again.
+      R"sql(
+ALTER TABLE links ADD COLUMN active INTEGER NOT NULL DEFAULT 1 CHECK (active IN (0, 1));
+)sql",
   };
   return kMigrations;
 }
