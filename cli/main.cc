@@ -31,6 +31,8 @@ constexpr Command kCommands[] = {
      "write a MODEL's point cloud (PLY), trajectory (TUM) and labels (point lists)"},
     {"sim", sightmap::cli::RunSim,
      "the synthetic building: 'sim generate' writes a ground-truth walk and phone photos"},
+    {"locate", sightmap::cli::RunLocate,
+     "locate a phone PHOTO against a MODEL and list the labelled appliances in view"},
     {"eval", sightmap::cli::RunEval,
      "'eval trajectory': ATE and RPE of an estimated trajectory against ground truth, and a plot"},
 };

@@ -1,0 +1,169 @@
+// sightmap locate --model M PHOTO [--intrinsics FX,FY,CX,CY | --calib FILE] [--json]: locates one
+// phone photo against the model and lists the labelled appliances in view, nearest first. The
+// --json answer is identify/locator.h's ToJson (the same as `serve`'s POST /locate).
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "capture/calibration.h"
+#include "cli/command_util.h"
+#include "cli/commands.h"
+#include "core/check.h"
+#include "identify/exif.h"
+#include "identify/locator.h"
+#include "store/model.h"
+
+namespace sightmap::cli {
+namespace {
+
+// "FX,FY,CX,CY" [px] for an image of width x height.
+Intrinsics ParseIntrinsics(const std::string& text, int width, int height) {
+  std::vector<double> values;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) {
+    try {
+      size_t used = 0;
+      values.push_back(std::stod(item, &used));
+      if (used != item.size()) values.clear();
+    } catch (const std::exception&) {
+      values.clear();
+    }
+    if (values.empty()) break;
+  }
+  if (values.size() != 4) {
+    SIGHTMAP_THROW(InvalidArgument,
+                   "--intrinsics expects FX,FY,CX,CY in pixels (four numbers), "
+                   "got '"
+                       << text << "'");
+  }
+  Intrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = values[0];
+  k.fy = values[1];
+  k.cx = values[2];
+  k.cy = values[3];
+  std::string error;
+  if (!k.Check(&error)) SIGHTMAP_THROW(InvalidArgument, "--intrinsics: " << error);
+  return k;
+}
+
+void PrintHuman(const LocateResult& result, const std::string& photo_path) {
+  std::cout << std::fixed;
+  if (!result.matched) {
+    std::cout << "not matched    " << photo_path << ": " << result.reason << "\n";
+  } else {
+    const Eigen::Vector3d t = result.world_from_cam.translation();
+    const Eigen::Quaterniond q(result.world_from_cam.linear());
+    std::cout << "matched        " << photo_path << " (keyframe " << result.keyframe.value() << ", "
+              << result.inliers << " PnP inliers of " << result.matches << " 2D-3D matches)\n";
+    std::cout << std::setprecision(3) << "position       " << t.x() << " " << t.y() << " " << t.z()
+              << " m (world_from_cam)\n";
+    std::cout << std::setprecision(4) << "orientation    " << q.x() << " " << q.y() << " " << q.z()
+              << " " << q.w() << " (quaternion x y z w)\n";
+  }
+  const Intrinsics& k = result.intrinsics;
+  std::cout << std::setprecision(1) << "intrinsics     fx " << k.fx << " fy " << k.fy << " cx "
+            << k.cx << " cy " << k.cy << " at " << k.width << "x" << k.height << " ("
+            << ToString(result.intrinsics_source) << ")\n";
+  if (result.matched) {
+    int visible = 0;
+    for (const ApplianceInView& appliance : result.appliances) visible += !appliance.occluded;
+    std::cout << "appliances     " << visible << " in view";
+    if (visible != static_cast<int>(result.appliances.size())) {
+      std::cout << ", " << result.appliances.size() - static_cast<size_t>(visible)
+                << " hidden behind a surface";
+    }
+    std::cout << (result.appliances.empty() ? "\n" : ", nearest first:\n");
+    for (const ApplianceInView& appliance : result.appliances) {
+      std::cout << "  " << std::left << std::setw(22) << appliance.name << std::setw(14)
+                << appliance.type << std::right << std::setprecision(2) << std::setw(6)
+                << appliance.distance_m << " m  ";
+      if (appliance.occluded) {
+        std::cout << "occluded\n";
+      } else {
+        std::cout << std::setprecision(0) << "pixel (" << appliance.pixel.x() << ", "
+                  << appliance.pixel.y() << ")\n";
+      }
+    }
+  }
+  const LocateTimings& t = result.timings;
+  std::cout << std::setprecision(1) << "time           " << t.total_ms << " ms (features "
+            << t.features_ms << ", retrieval " << t.retrieval_ms << ", matching " << t.matching_ms
+            << ", PnP " << t.pnp_ms << ", visibility " << t.visibility_ms << ")\n";
+}
+
+}  // namespace
+
+int RunLocate(int argc, char** argv) {
+  CLI::App app(
+      "Locate a phone photo against a model and list the labelled appliances in view, nearest "
+      "first. Intrinsics: --intrinsics, --calib, else the photo's EXIF focal length, else "
+      "estimated.",
+      "sightmap locate");
+  std::string model_path;
+  std::string photo_path;
+  std::string intrinsics_text;
+  std::string calib_path;
+  bool json = false;
+  app.add_option("--model", model_path, "the model's SQLite file")->required();
+  app.add_option("PHOTO", photo_path, "the photo (JPEG or PNG)")->required();
+  auto* intrinsics_option = app.add_option("--intrinsics", intrinsics_text,
+                                           "FX,FY,CX,CY of the photo at its own resolution [px]");
+  app.add_option("--calib", calib_path,
+                 "calibration file (JSON, see capture/calibration.h); its colour intrinsics are "
+                 "scaled to the photo")
+      ->excludes(intrinsics_option);
+  app.add_flag("--json", json, "print the answer as one JSON object (stable keys)");
+  if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+
+  // The photo first: a typo in its name should not wait for the model to load.
+  std::error_code error;
+  SIGHTMAP_CHECK(std::filesystem::is_regular_file(photo_path, error),
+                 "cannot read photo " << photo_path << ": no such file");
+  const cv::Mat photo = cv::imread(photo_path, cv::IMREAD_COLOR);
+  SIGHTMAP_CHECK(!photo.empty(), photo_path << " is not an image sightmap can read (JPEG or PNG "
+                                               "expected)");
+
+  std::optional<Intrinsics> intrinsics;
+  IntrinsicsSource source = IntrinsicsSource::kEstimated;
+  if (!intrinsics_text.empty()) {
+    intrinsics = ParseIntrinsics(intrinsics_text, photo.cols, photo.rows);
+    source = IntrinsicsSource::kGiven;
+  } else if (!calib_path.empty()) {
+    const RgbdCalibration calibration = ReadCalibrationFile(calib_path);
+    SIGHTMAP_CHECK(calibration.color.has_value(),
+                   "calibration file " << calib_path
+                                       << " has no \"color\" block: the photo's intrinsics go "
+                                          "there");
+    intrinsics = calibration.color->Scaled(photo.cols, photo.rows);
+    source = IntrinsicsSource::kCalibration;
+  } else if (const std::optional<double> focal = ExifFocalLength35mmOfFile(photo_path)) {
+    intrinsics = IntrinsicsFromFocal35mm(photo.cols, photo.rows, *focal);
+    source = IntrinsicsSource::kExif;
+  }
+
+  ModelOptions model_options;
+  model_options.read_only = true;
+  model_options.create_if_missing = false;
+  const Model model = Model::Open(model_path, model_options);
+  const Locator locator(model);
+  const LocateResult result = locator.Locate(photo, intrinsics, source);
+  if (json) {
+    std::cout << ToJson(result).dump(2) << "\n";
+  } else {
+    PrintHuman(result, photo_path);
+  }
+  return kExitSuccess;
+}
+
+}  // namespace sightmap::cli
