@@ -29,6 +29,8 @@ constexpr Command kCommands[] = {
      "report what a MODEL holds: sessions, keyframes, links, labels, size"},
     {"export", sightmap::cli::RunExport,
      "write a MODEL's point cloud (PLY), trajectory (TUM) and labels (point lists)"},
+    {"label", sightmap::cli::RunLabel,
+     "the appliance labels of a MODEL: 'label add|import|list|remove|export'"},
     {"sim", sightmap::cli::RunSim,
      "the synthetic building: 'sim generate' writes a ground-truth walk and phone photos"},
     {"locate", sightmap::cli::RunLocate,
