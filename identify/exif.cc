@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "core/check.h"
+#include "identify/photo_header.h"
 
 namespace sightmap {
 namespace {
@@ -67,41 +68,6 @@ std::optional<double> Positive(std::optional<double> value) {
   return std::nullopt;
 }
 
-struct ImageSize {
-  int width = 0;
-  int height = 0;
-};
-
-// The frame header's (SOFn) image size, walking the JPEG's marker segments with bounds checks.
-std::optional<ImageSize> JpegFrameSize(const uint8_t* data, size_t size) {
-  size_t i = 2;  // after SOI
-  while (i + 4 <= size) {
-    if (data[i] != 0xFF) return std::nullopt;
-    const uint8_t marker = data[i + 1];
-    if (marker == 0xFF) {  // fill byte
-      ++i;
-      continue;
-    }
-    i += 2;
-    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD8)) continue;  // no length field
-    if (marker == 0xD9 || marker == 0xDA) return std::nullopt;  // EOI or scan before a frame
-    const size_t length = (static_cast<size_t>(data[i]) << 8) | data[i + 1];
-    if (length < 2 || i + length > size) return std::nullopt;
-    const bool frame_header =
-        marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
-    if (frame_header) {
-      if (length < 7) return std::nullopt;
-      ImageSize image;
-      image.height = (data[i + 3] << 8) | data[i + 4];
-      image.width = (data[i + 5] << 8) | data[i + 6];
-      if (image.width <= 0 || image.height <= 0) return std::nullopt;
-      return image;
-    }
-    i += length;
-  }
-  return std::nullopt;
-}
-
 // Millimetres per FocalPlaneResolutionUnit (EXIF: 2 inch, the default; 3 cm; 4 mm, a common
 // extension).
 std::optional<double> UnitMm(std::optional<double> unit) {
@@ -134,10 +100,10 @@ std::optional<double> DerivedFocal35mm(ExifData* exif, const uint8_t* data, size
   std::optional<double> width = Positive(TagValue(exif, EXIF_TAG_PIXEL_X_DIMENSION));
   std::optional<double> height = Positive(TagValue(exif, EXIF_TAG_PIXEL_Y_DIMENSION));
   if (!width || !height) {
-    const std::optional<ImageSize> frame = JpegFrameSize(data, size);
-    if (!frame) return std::nullopt;
-    width = frame->width;
-    height = frame->height;
+    const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size);
+    if (!header) return std::nullopt;
+    width = header->width;
+    height = header->height;
   }
   const double sensor_width_mm = *width / *x_per_unit * *unit_mm;
   const double sensor_height_mm = *height / y_per_unit * *unit_mm;
