@@ -11,6 +11,7 @@ int RunExport(int argc, char** argv);
 int RunSim(int argc, char** argv);
 int RunEval(int argc, char** argv);
 int RunMap(int argc, char** argv);
+int RunServe(int argc, char** argv);
 int RunLabel(int argc, char** argv);
 int RunLocate(int argc, char** argv);
 

@@ -19,6 +19,7 @@
 
 #include "cli/command_util.h"
 #include "cli/commands.h"
+#include "cli/eval_identify.h"
 #include "core/check.h"
 #include "slam/trajectory_eval.h"
 #include "slam/trajectory_plot.h"
@@ -159,7 +160,10 @@ int RunEval(int argc, char** argv) {
                    "RPE per second compares motions over this time [s]")
       ->capture_default_str()
       ->check(CLI::Range(1e-6, 1e6));
+  EvalIdentifyArgs identify_args;
+  CLI::App* identify = AddEvalIdentify(app, identify_args);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (identify->parsed()) return RunEvalIdentify(identify_args);
 
   options.max_time_difference_ns = static_cast<int64_t>(std::llround(max_time_diff_s * 1e9));
   TrajectoryPlotOptions plot;

@@ -36,7 +36,9 @@ constexpr Command kCommands[] = {
     {"locate", sightmap::cli::RunLocate,
      "locate a phone PHOTO against a MODEL and list the labelled appliances in view"},
     {"eval", sightmap::cli::RunEval,
-     "'eval trajectory': ATE and RPE of an estimated trajectory against ground truth, and a plot"},
+     "'eval trajectory': ATE and RPE against ground truth; 'eval identify': the paper's figures"},
+    {"serve", sightmap::cli::RunServe,
+     "answer phone photos over HTTP: POST /locate, GET /appliances, GET /health"},
 };
 
 void PrintUsage(std::ostream& out) {

@@ -1,0 +1,222 @@
+#include "cli/eval_identify.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli/command_util.h"
+#include "core/check.h"
+#include "identify/identify_eval.h"
+#include "identify/locator.h"
+#include "render/image_file.h"
+#include "store/model.h"
+
+namespace sightmap::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string Fixed(double value, int digits) {
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(digits) << value;
+  return text.str();
+}
+
+std::string Share(int part, int whole) {
+  std::ostringstream text;
+  text << std::setw(5) << part << " / " << std::left << std::setw(5) << whole << std::right << " "
+       << std::setw(6) << (whole > 0 ? Fixed(100.0 * part / whole, 1) : std::string("-")) << "%";
+  return text.str();
+}
+
+// A status line on stderr every 2 s (rewritten in place on a terminal), so a 200-photo run that
+// takes a minute shows it is alive.
+class Progress {
+ public:
+  explicit Progress(size_t total) : total_(total), tty_(::isatty(2) != 0) {}
+  void Update(size_t done, int matched, bool last) {
+    const double elapsed = SecondsSince(start_);
+    if (!last && elapsed - last_print_s_ < 2.0) return;
+    last_print_s_ = elapsed;
+    const double per_photo = done > 0 ? elapsed / static_cast<double>(done) : 0.0;
+    std::cerr << (tty_ ? "\r" : "") << "eval identify: " << done << "/" << total_ << " photos, "
+              << matched << " matched, " << Fixed(per_photo * 1e3, 0) << " ms/photo";
+    if (!last) {
+      std::cerr << ", about " << Fixed(per_photo * static_cast<double>(total_ - done), 0)
+                << " s left";
+    }
+    std::cerr << (tty_ && !last ? "   " : "\n") << std::flush;
+  }
+
+ private:
+  size_t total_;
+  bool tty_;
+  Clock::time_point start_ = Clock::now();
+  double last_print_s_ = -1e9;
+};
+
+void PrintTable(const EvalIdentifyArgs& args, size_t keyframes, const IdentifyEvaluation& e) {
+  std::cout << "model      " << args.model_path << " (" << keyframes << " keyframes)\n";
+  std::cout << "queries    " << args.queries_path << " (" << e.photos << " photos)\n\n";
+  const int recall_undefined = e.matched_photos - e.recall_defined_photos;
+  const int precision_undefined = e.matched_photos - e.precision_defined_photos;
+  const std::string good = Fixed(e.options.good_share, 1);
+  std::cout << "photos matched                 " << Share(e.matched_photos, e.photos) << "\n";
+  std::cout << "recall >= " << good << " (matched)       "
+            << Share(e.recall_good_photos, e.recall_defined_photos) << "   " << recall_undefined
+            << " with no visible appliance left out\n";
+  std::cout << "precision >= " << good << " (matched)    "
+            << Share(e.precision_good_photos, e.precision_defined_photos) << "   "
+            << precision_undefined << " with nothing identified left out\n";
+  std::cout << "occluded reported as visible   "
+            << Share(e.occluded_identified, e.occluded_instances) << "\n";
+  const int not_visible = e.categories[0][0] + e.categories[0][1];
+  std::cout << "not visible reported visible   " << Share(e.not_visible_identified, not_visible)
+            << "\n";
+  if (e.unknown_identified > 0) {
+    std::cout << "names not in the ground truth  " << e.unknown_identified << "\n";
+  }
+  std::cout << "\ninstances of matched photos (partially visible: either answer is right)\n";
+  std::cout << std::left << std::setw(20) << "ground truth" << std::right << std::setw(12)
+            << "identified" << std::setw(16) << "not identified"
+            << "\n";
+  for (int type = kNumTruthTypes - 1; type >= 0; --type) {
+    const auto& row = e.categories[static_cast<size_t>(type)];
+    std::cout << std::left << std::setw(20) << ToString(static_cast<TruthType>(type)) << std::right
+              << std::setw(12) << row[1] << std::setw(16) << row[0] << "\n";
+  }
+  std::cout << "\ntimings [ms]   median      p95     mean      max\n";
+  for (const char* stage : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
+    const auto found = e.stages.find(stage);
+    if (found == e.stages.end()) continue;
+    const StageTiming& t = found->second;
+    std::cout << std::left << std::setw(12) << stage << std::right << std::setw(9)
+              << Fixed(t.median_ms, 1) << std::setw(9) << Fixed(t.p95_ms, 1) << std::setw(9)
+              << Fixed(t.mean_ms, 1) << std::setw(9) << Fixed(t.max_ms, 1) << "\n";
+  }
+  if (!e.unmatched_reasons.empty()) {
+    std::vector<std::pair<int, std::string>> reasons;
+    for (const auto& [reason, count] : e.unmatched_reasons) reasons.emplace_back(count, reason);
+    std::sort(reasons.rbegin(), reasons.rend());
+    std::cout << "\nnot matched, by reason\n";
+    for (size_t i = 0; i < std::min<size_t>(reasons.size(), 5); ++i) {
+      std::cout << std::setw(6) << reasons[i].first << "  " << reasons[i].second << "\n";
+    }
+  }
+  if (!args.plot_path.empty()) std::cout << "\nplot       " << args.plot_path << "\n";
+}
+
+}  // namespace
+
+CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
+  CLI::App* identify = eval.add_subcommand(
+      "identify",
+      "locate every phone photo of a simulator query set and report the paper's Section 5 "
+      "figures: matched share, the 8-category table, recall/precision >= 0.8, occluded false "
+      "positives, per-stage timings");
+  identify->add_option("--model", args.model_path, "the labelled model")->required();
+  identify
+      ->add_option("--queries", args.queries_path,
+                   "the folder 'sightmap sim generate --queries N --out DIR' wrote (DIR or "
+                   "DIR/queries, holding queries.json)")
+      ->required();
+  identify->add_flag("--json", args.json, "print one JSON object (stable keys) instead of text");
+  identify->add_option("--plot", args.plot_path,
+                       "write the category table and recall/precision histograms (PNG)");
+  identify->add_option("--plot-size", args.plot_size, "plot size WxH [px]")->capture_default_str();
+  identify->add_option("--limit", args.limit, "locate only the first N photos (0: all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  return identify;
+}
+
+int RunEvalIdentify(const EvalIdentifyArgs& args) {
+  int plot_width = 0;
+  int plot_height = 0;
+  if (!args.plot_path.empty()) {
+    char x = 0;
+    char rest = 0;
+    if (std::sscanf(args.plot_size.c_str(), "%d%c%d%c", &plot_width, &x, &plot_height, &rest) !=
+            3 ||
+        x != 'x' || plot_width < 600 || plot_height < 360) {
+      SIGHTMAP_THROW(
+          InvalidArgument,
+          "--plot-size must be WxH of at least 600x360, e.g. 1200x560, got " << args.plot_size);
+    }
+  }
+  std::vector<QueryTruth> truths = ReadQueryTruths(args.queries_path);
+  SIGHTMAP_CHECK(!truths.empty(), "the query set " << args.queries_path << " holds no photo");
+  if (args.limit > 0 && static_cast<size_t>(args.limit) < truths.size()) {
+    truths.resize(static_cast<size_t>(args.limit));
+  }
+
+  std::cerr << "eval identify: loading " << args.model_path << "\n" << std::flush;
+  const Clock::time_point load_start = Clock::now();
+  ModelOptions model_options;
+  model_options.read_only = true;
+  std::unique_ptr<Locator> locator;
+  {
+    const Model model = Model::Open(args.model_path, model_options);
+    locator = std::make_unique<Locator>(model);
+  }
+  const double load_s = SecondsSince(load_start);
+
+  std::vector<PhotoAnswer> answers;
+  answers.reserve(truths.size());
+  Progress progress(truths.size());
+  int matched = 0;
+  for (const QueryTruth& truth : truths) {
+    const cv::Mat photo = cv::imread(truth.image_path, cv::IMREAD_COLOR);
+    SIGHTMAP_CHECK(!photo.empty(), "cannot read photo " << truth.image_path
+                                                        << " listed in queries.json (was the "
+                                                           "query set copied whole?)");
+    std::optional<Intrinsics> intrinsics = truth.intrinsics;
+    if (intrinsics && (intrinsics->width != photo.cols || intrinsics->height != photo.rows)) {
+      // queries.json gives them at the written size; a resized copy keeps the same camera.
+      intrinsics = intrinsics->Scaled(photo.cols, photo.rows);
+    }
+    const Clock::time_point start = Clock::now();
+    const LocateResult result = locator->Locate(
+        photo, intrinsics, intrinsics ? IntrinsicsSource::kGiven : IntrinsicsSource::kEstimated);
+    const double wall_ms = SecondsSince(start) * 1e3;
+    PhotoAnswer answer = ToPhotoAnswer(result);
+    if (answer.timings.total_ms <= 0.0) answer.timings.total_ms = wall_ms;
+    matched += answer.matched ? 1 : 0;
+    answers.push_back(std::move(answer));
+    progress.Update(answers.size(), matched, answers.size() == truths.size());
+  }
+
+  const IdentifyEvaluation evaluation = EvaluateIdentification(truths, answers);
+  if (!args.plot_path.empty()) {
+    WriteImageAtomically(args.plot_path, DrawIdentifyPlot(evaluation, plot_width, plot_height));
+  }
+  if (args.json) {
+    nlohmann::json out = ToJson(evaluation);
+    out["model"] = args.model_path;
+    out["queries"] = args.queries_path;
+    out["keyframes"] = locator->NumKeyframes();
+    out["model_load_s"] = load_s;
+    out["plot"] = args.plot_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.plot_path);
+    std::cout << out.dump(2) << "\n";
+    return kExitSuccess;
+  }
+  PrintTable(args, locator->NumKeyframes(), evaluation);
+  return kExitSuccess;
+}
+
+}  // namespace sightmap::cli

@@ -1,0 +1,28 @@
+// `sightmap eval identify --model M --queries DIR [--json] [--plot PNG] [--limit N]`: locates every
+// phone photo of a simulator query set against the model (the Locator loaded once, as `serve`
+// does) and reports the paper's Section 5 figures (identify/identify_eval.h). Kept apart from
+// eval_command.cc, which only registers the subcommand.
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace sightmap::cli {
+
+struct EvalIdentifyArgs {
+  std::string model_path;
+  std::string queries_path;
+  std::string plot_path;
+  std::string plot_size = "1200x560";
+  bool json = false;
+  int limit = 0;  // 0 = every photo
+};
+
+// Adds the `identify` subcommand to `eval`, filling `args` when parsed.
+CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args);
+
+// Runs it; returns the exit code. Throws sightmap::Error on runtime failures.
+int RunEvalIdentify(const EvalIdentifyArgs& args);
+
+}  // namespace sightmap::cli

@@ -1,0 +1,362 @@
+#include "cli/locate_server.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdlib>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/check.h"
+#include "identify/exif.h"
+#include "identify/photo_header.h"
+#include "store/model.h"
+
+// Last: httplib.h pulls in <resolv.h>, whose `_res` macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace sightmap::cli {
+namespace {
+
+constexpr const char* kJson = "application/json";
+
+// httplib's ThreadPool queues without limit; this one makes the accepting thread wait when
+// `max_pending` connections are being served or queued, so a burst waits in the kernel's listen
+// backlog instead of in memory.
+class BoundedTaskQueue : public httplib::TaskQueue {
+ public:
+  BoundedTaskQueue(size_t threads, size_t max_pending)
+      : pool_(threads), max_pending_(max_pending) {}
+
+  void enqueue(std::function<void()> fn) override {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      room_.wait(lock, [&] { return pending_ < max_pending_; });
+      ++pending_;
+    }
+    pool_.enqueue([this, fn = std::move(fn)] {
+      fn();
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        --pending_;
+      }
+      room_.notify_one();
+    });
+  }
+
+  void shutdown() override { pool_.shutdown(); }
+
+ private:
+  httplib::ThreadPool pool_;
+  const size_t max_pending_;
+  std::mutex mutex_;
+  std::condition_variable room_;
+  size_t pending_ = 0;
+};
+
+// At most `count` holders at once (C++17 has no std::counting_semaphore).
+class Slots {
+ public:
+  explicit Slots(int count) : free_(count) {}
+  class Hold {
+   public:
+    explicit Hold(Slots& slots) : slots_(slots) {
+      std::unique_lock<std::mutex> lock(slots_.mutex_);
+      slots_.freed_.wait(lock, [&] { return slots_.free_ > 0; });
+      --slots_.free_;
+    }
+    ~Hold() {
+      {
+        std::lock_guard<std::mutex> lock(slots_.mutex_);
+        ++slots_.free_;
+      }
+      slots_.freed_.notify_one();
+    }
+    Hold(const Hold&) = delete;
+    Hold& operator=(const Hold&) = delete;
+
+   private:
+    Slots& slots_;
+  };
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable freed_;
+  int free_;
+};
+
+void Reply(httplib::Response& response, int status, const nlohmann::json& body) {
+  response.status = status;
+  response.set_content(body.dump(), kJson);
+}
+
+void Refuse(httplib::Response& response, int status, const std::string& message) {
+  Reply(response, status, {{"error", message}, {"status", status}});
+}
+
+int HardwareThreads() { return std::max(1u, std::thread::hardware_concurrency()); }
+
+// fx, fy, cx, cy from the query string: all four or none. Throws InvalidArgument with the reason.
+std::optional<Intrinsics> IntrinsicsFromQuery(const httplib::Request& request, int width,
+                                              int height) {
+  const char* names[] = {"fx", "fy", "cx", "cy"};
+  int given = 0;
+  for (const char* name : names) given += request.has_param(name) ? 1 : 0;
+  if (given == 0) return std::nullopt;
+  SIGHTMAP_CHECK(given == 4, "give all of fx, fy, cx, cy (pixels of the uploaded photo) or none");
+  double values[4];
+  for (int i = 0; i < 4; ++i) {
+    const std::string text = request.get_param_value(names[i]);
+    char* end = nullptr;
+    values[i] = std::strtod(text.c_str(), &end);
+    SIGHTMAP_CHECK(!text.empty() && end == text.c_str() + text.size() && std::isfinite(values[i]),
+                   names[i] << "=" << text << " is not a number");
+  }
+  Intrinsics intrinsics;
+  intrinsics.width = width;
+  intrinsics.height = height;
+  intrinsics.fx = values[0];
+  intrinsics.fy = values[1];
+  intrinsics.cx = values[2];
+  intrinsics.cy = values[3];
+  std::string why;
+  SIGHTMAP_CHECK(intrinsics.Check(&why), "bad intrinsics: " << why);
+  return intrinsics;
+}
+
+}  // namespace
+
+bool LocateServerOptions::Check(std::string* error) const {
+  std::ostringstream why;
+  if (host.empty())
+    why << "host must not be empty";
+  else if (port < 0 || port > 65535)
+    why << "port must be in [0, 65535]";
+  else if (locate_threads < 0 || connection_threads < 0)
+    why << "threads must not be negative";
+  else if (max_queued_connections < 0)
+    why << "max_queued_connections must not be negative";
+  else if (!(max_body_mb > 0.0 && max_body_mb <= 4096.0))
+    why << "max_body_mb must be in (0, 4096]";
+  else if (!(max_megapixels > 0.0 && max_megapixels <= 1000.0))
+    why << "max_megapixels must be in (0, 1000]";
+  else if (read_timeout_s < 1 || write_timeout_s < 1 || keep_alive_timeout_s < 1)
+    why << "timeouts must be at least 1 s";
+  if (why.tellp() == 0) return true;
+  if (error != nullptr) *error = why.str();
+  return false;
+}
+
+struct LocateServer::Impl {
+  LocateServerOptions options;
+  std::string model_path;
+  std::unique_ptr<Locator> locator;
+  int locate_threads = 1;
+  std::unique_ptr<Slots> locate_slots;
+  httplib::Server server;
+  int port = -1;
+  std::atomic<bool> stop_requested{false};
+  std::atomic<int64_t> located{0};
+  std::atomic<int64_t> refused{0};
+  std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+
+  void HandleLocate(const httplib::Request& request, httplib::Response& response);
+  void HandleAppliances(httplib::Response& response) const;
+  void HandleHealth(httplib::Response& response) const;
+  void RefuseCounted(httplib::Response& response, int status, const std::string& message) {
+    ++refused;
+    Refuse(response, status, message);
+  }
+};
+
+void LocateServer::Impl::HandleLocate(const httplib::Request& request,
+                                      httplib::Response& response) {
+  const std::string& body = request.body;
+  if (body.empty()) {
+    return RefuseCounted(response, 400, "empty body: POST a JPEG or PNG photo as the request body");
+  }
+  const auto* bytes = reinterpret_cast<const uint8_t*>(body.data());
+  const std::optional<PhotoHeader> header = ReadPhotoHeader(bytes, body.size());
+  if (!header) {
+    return RefuseCounted(response, 415, "the body is not a JPEG or PNG image");
+  }
+  const double megapixels = static_cast<double>(header->pixels()) * 1e-6;
+  if (megapixels > options.max_megapixels) {
+    std::ostringstream message;
+    message << "photo too large: " << header->width << "x" << header->height << " ("
+            << std::lround(megapixels) << " megapixels), the limit is " << options.max_megapixels
+            << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
+    return RefuseCounted(response, 413, message.str());
+  }
+  std::optional<Intrinsics> intrinsics;
+  IntrinsicsSource source = IntrinsicsSource::kGiven;
+  try {
+    intrinsics = IntrinsicsFromQuery(request, header->width, header->height);
+  } catch (const Error& e) {
+    return RefuseCounted(response, 400, e.what());
+  }
+  if (!intrinsics && header->format == PhotoFormat::kJpeg) {
+    if (const std::optional<double> focal = ExifFocalLength35mm(bytes, body.size())) {
+      intrinsics = IntrinsicsFromFocal35mm(header->width, header->height, *focal);
+      source = IntrinsicsSource::kExif;
+    }
+  }
+  // Decoding inside the slot bounds the decoded images in memory as well as the CPU.
+  const Slots::Hold hold(*locate_slots);
+  const cv::Mat encoded(1, static_cast<int>(body.size()), CV_8UC1, const_cast<char*>(body.data()));
+  cv::Mat photo;
+  try {
+    photo = cv::imdecode(encoded, cv::IMREAD_COLOR);
+  } catch (const cv::Exception&) {
+    photo.release();
+  }
+  if (photo.empty()) {
+    return RefuseCounted(response, 400,
+                         std::string("the ") + ToString(header->format) +
+                             " body does not decode (truncated or corrupt?)");
+  }
+  const LocateResult result =
+      locator->Locate(photo, intrinsics, intrinsics ? source : IntrinsicsSource::kEstimated);
+  ++located;
+  nlohmann::json answer = ToJson(result);
+  answer["photo"] = {
+      {"width", photo.cols}, {"height", photo.rows}, {"format", ToString(header->format)}};
+  Reply(response, 200, answer);
+}
+
+void LocateServer::Impl::HandleAppliances(httplib::Response& response) const {
+  nlohmann::json appliances = nlohmann::json::array();
+  for (const LabelRecord& label : locator->Labels()) {
+    nlohmann::json points = nlohmann::json::array();
+    for (const LabelPoint& point : label.points) {
+      points.push_back({point.world.x(), point.world.y(), point.world.z()});
+    }
+    appliances.push_back({{"name", label.name}, {"type", label.type}, {"points", points}});
+  }
+  Reply(response, 200, {{"appliances", appliances}});
+}
+
+void LocateServer::Impl::HandleHealth(httplib::Response& response) const {
+  const double uptime_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  Reply(response, 200,
+        {{"status", "ok"},
+         {"model", model_path},
+         {"keyframes", locator->NumKeyframes()},
+         {"labels", locator->Labels().size()},
+         {"locate_threads", locate_threads},
+         {"located", located.load()},
+         {"refused", refused.load()},
+         {"uptime_s", uptime_s}});
+}
+
+LocateServer::LocateServer(const std::string& model_path, const LocateServerOptions& options,
+                           const LocatorOptions& locator_options)
+    : impl_(std::make_unique<Impl>()) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  Impl& impl = *impl_;
+  impl.options = options;
+  impl.model_path = model_path;
+  {
+    ModelOptions model_options;
+    model_options.read_only = true;
+    const Model model = Model::Open(model_path, model_options);
+    impl.locator = std::make_unique<Locator>(model, locator_options);
+  }
+  impl.locate_threads = options.locate_threads > 0 ? options.locate_threads : HardwareThreads();
+  impl.locate_slots = std::make_unique<Slots>(impl.locate_threads);
+  const int connection_threads = options.connection_threads > 0
+                                     ? options.connection_threads
+                                     : std::max(8, 4 * impl.locate_threads);
+  const size_t max_pending =
+      static_cast<size_t>(connection_threads) + static_cast<size_t>(options.max_queued_connections);
+  impl.server.new_task_queue = [connection_threads, max_pending] {
+    return new BoundedTaskQueue(static_cast<size_t>(connection_threads), max_pending);
+  };
+  impl.server.set_payload_max_length(static_cast<size_t>(options.max_body_mb * 1024 * 1024));
+  impl.server.set_read_timeout(options.read_timeout_s, 0);
+  impl.server.set_write_timeout(options.write_timeout_s, 0);
+  impl.server.set_keep_alive_timeout(options.keep_alive_timeout_s);
+
+  httplib::Server& server = impl.server;
+  server.Post("/locate", [&impl](const httplib::Request& request, httplib::Response& response) {
+    impl.HandleLocate(request, response);
+  });
+  server.Get("/appliances", [&impl](const httplib::Request&, httplib::Response& response) {
+    impl.HandleAppliances(response);
+  });
+  server.Get("/health", [&impl](const httplib::Request&, httplib::Response& response) {
+    impl.HandleHealth(response);
+  });
+  // httplib's own refusals (body over the limit, unknown path, wrong method) get a JSON body too.
+  server.set_error_handler(httplib::Server::HandlerWithResponse(
+      [&impl](const httplib::Request& request, httplib::Response& response) {
+        if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+        std::string message;
+        if (response.status == 413) {
+          std::ostringstream text;
+          text << "request body larger than " << impl.options.max_body_mb << " MiB";
+          message = text.str();
+        } else if (response.status == 404) {
+          message = "no such endpoint " + request.method + " " + request.path +
+                    ": use POST /locate, GET /appliances or GET /health";
+        } else {
+          message = "request refused (HTTP " + std::to_string(response.status) + ")";
+        }
+        ++impl.refused;
+        Refuse(response, response.status, message);
+        return httplib::Server::HandlerResponse::Handled;
+      }));
+  server.set_exception_handler(
+      [](const httplib::Request&, httplib::Response& response, std::exception_ptr error) {
+        std::string message = "internal error";
+        try {
+          std::rethrow_exception(error);
+        } catch (const std::exception& e) {
+          message = std::string("internal error: ") + e.what();
+        } catch (...) {
+        }
+        Refuse(response, 500, message);
+      });
+}
+
+LocateServer::~LocateServer() { Stop(); }
+
+void LocateServer::Bind() {
+  Impl& impl = *impl_;
+  if (impl.options.port == 0) {
+    impl.port = impl.server.bind_to_any_port(impl.options.host);
+  } else {
+    impl.port =
+        impl.server.bind_to_port(impl.options.host, impl.options.port) ? impl.options.port : -1;
+  }
+  SIGHTMAP_CHECK(impl.port > 0, "cannot listen on " << impl.options.host << ":" << impl.options.port
+                                                    << " (in use by another program, or not an "
+                                                       "address of this machine?) — try --port 0");
+}
+
+int LocateServer::port() const { return impl_->port; }
+
+void LocateServer::Run() {
+  SIGHTMAP_CHECK(impl_->port > 0, "LocateServer::Run before Bind");
+  if (impl_->stop_requested) return;
+  impl_->server.listen_after_bind();
+}
+
+void LocateServer::Stop() {
+  impl_->stop_requested = true;
+  impl_->server.stop();
+}
+
+size_t LocateServer::NumKeyframes() const { return impl_->locator->NumKeyframes(); }
+size_t LocateServer::NumLabels() const { return impl_->locator->Labels().size(); }
+
+}  // namespace sightmap::cli

@@ -1,0 +1,66 @@
+// The HTTP face of the matching phase (`sightmap serve`): phones POST a photo and get back the
+// Locator's answer. cpp-httplib stays inside locate_server.cc.
+//
+//   POST /locate[?fx=&fy=&cx=&cy=]  body: a JPEG or PNG photo -> the Locator's JSON (ToJson)
+//   GET  /appliances                the model's labels with their world points
+//   GET  /health                    status, keyframes, labels, counters
+//
+// Bad uploads are answered with 4xx and {"error": "...", "status": N}: an empty body 400, a body
+// that is not a JPEG or PNG 415, a photo whose header states more than max_megapixels 413 (read
+// from its header, before decoding), one that does not decode 400, a body over max_body_mb 413.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "identify/locator.h"
+
+namespace sightmap::cli {
+
+struct LocateServerOptions {
+  std::string host = "127.0.0.1";
+  int port = 8080;  // 0 = a free port chosen by the system (see LocateServer::port())
+  // Photos located at once: each Locate uses one core for ~100 ms, so more than the machine's
+  // cores only queues in memory. 0 = the hardware's threads.
+  int locate_threads = 0;
+  // HTTP connections served at once (a keep-alive connection holds a worker while idle); 0 =
+  // max(8, 4 x locate_threads). Connections beyond this and max_queued_connections wait in the
+  // kernel's listen backlog instead of in memory.
+  int connection_threads = 0;
+  int max_queued_connections = 64;
+  double max_body_mb = 20.0;     // request bodies above this are refused with 413 [MiB]
+  double max_megapixels = 25.0;  // photos above this are refused from their header [Mpx]
+  int read_timeout_s = 20;       // a client that stops sending for this long is dropped [s]
+  int write_timeout_s = 20;      // [s]
+  int keep_alive_timeout_s = 2;  // idle keep-alive connections are closed after this [s]
+
+  bool Check(std::string* error) const;
+};
+
+class LocateServer {
+ public:
+  // Loads the model read-only and builds the Locator once (seconds for a large model). Throws
+  // sightmap::Error when the model cannot be used.
+  LocateServer(const std::string& model_path, const LocateServerOptions& options,
+               const LocatorOptions& locator_options = LocatorOptions());
+  ~LocateServer();
+  LocateServer(const LocateServer&) = delete;
+  LocateServer& operator=(const LocateServer&) = delete;
+
+  // Binds host:port (port 0: any free port). Throws Error when the address cannot be bound.
+  void Bind();
+  int port() const;  // the bound port, after Bind()
+  // Serves until Stop(); returns after the workers have finished their requests.
+  void Run();
+  // Thread-safe; makes Run() return. Callable before Run() starts.
+  void Stop();
+
+  size_t NumKeyframes() const;
+  size_t NumLabels() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sightmap::cli

@@ -1,0 +1,329 @@
+// `sightmap serve` end to end: the real binary on 127.0.0.1 (--port 0), a real model built from
+// the simulator's walk, real session-2 phone photos, and cpp-httplib clients. Covers the health
+// and appliance endpoints, photos located by 4 clients at once, every kind of bad upload (the
+// server must answer 4xx and keep serving), and a clean stop on SIGTERM.
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "identify/sim_model_testing.h"
+#include "tests/command_runner.h"
+#include "tests/test_data.h"
+
+// Last: httplib.h pulls in <resolv.h>, whose `_res` macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace sightmap {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+// `sightmap serve ARGS` as a child process; reads its stdout until it prints the URL. SIGTERM and
+// reaping in the destructor, so a failed assertion never leaves a server behind.
+class ServerProcess {
+ public:
+  explicit ServerProcess(const std::vector<std::string>& args) {
+    int out[2];
+    if (::pipe(out) != 0) return;
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::dup2(out[1], 1);
+      ::close(out[0]);
+      ::close(out[1]);
+      std::vector<std::string> all = {SIGHTMAP_BINARY, "serve"};
+      all.insert(all.end(), args.begin(), args.end());
+      std::vector<char*> argv;
+      for (std::string& arg : all) argv.push_back(arg.data());
+      argv.push_back(nullptr);
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+    ::close(out[1]);
+    out_ = out[0];
+    // The model loads in seconds; the URL line follows.
+    const std::regex url(R"(listening on http://[0-9.]+:([0-9]+))");
+    const Clock::time_point deadline = Clock::now() + std::chrono::seconds(120);
+    while (Clock::now() < deadline && port_ == 0) {
+      pollfd fd{out_, POLLIN, 0};
+      if (::poll(&fd, 1, 200) <= 0) continue;
+      char buffer[512];
+      const ssize_t n = ::read(out_, buffer, sizeof(buffer));
+      if (n <= 0) break;  // exited
+      output_.append(buffer, static_cast<size_t>(n));
+      std::smatch match;
+      if (std::regex_search(output_, match, url)) port_ = std::stoi(match[1]);
+    }
+  }
+  ~ServerProcess() {
+    if (pid_ > 0 && exit_code_ < 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    if (out_ >= 0) ::close(out_);
+  }
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  int port() const { return port_; }
+  const std::string& output() const { return output_; }
+
+  // Sends `signal_number` and waits up to `timeout` for the exit; returns its code (-1: still up).
+  int StopWith(int signal_number, std::chrono::seconds timeout) {
+    ::kill(pid_, signal_number);
+    const Clock::time_point deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        char buffer[512];
+        ssize_t n = 0;
+        while ((n = ::read(out_, buffer, sizeof(buffer))) > 0) {
+          output_.append(buffer, static_cast<size_t>(n));
+        }
+        return exit_code_;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  int port_ = 0;
+  int exit_code_ = -1;
+  std::string output_;
+};
+
+std::string ReadBytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+std::string Encode(const std::string& extension, const cv::Mat& image) {
+  std::vector<uint8_t> bytes;
+  EXPECT_TRUE(cv::imencode(extension, image, bytes));
+  return std::string(bytes.begin(), bytes.end());
+}
+
+nlohmann::json Json(const httplib::Result& result) {
+  if (!result) return nlohmann::json();
+  return nlohmann::json::parse(result->body, nullptr, /*allow_exceptions=*/false);
+}
+
+// One model and one set of session-2 photos for the suite; one server for the suite.
+class ServeTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(testing::MakeTempDir("serve-test"));
+    SimModelOptions options;
+    options.keyframes = 60;
+    BuildSimulatorModel((*dir_ / "model.db").string(), options);
+    // Phone photos of another day (session 2), with ground truth, as a phone would send them.
+    const testing::CommandResult generated = testing::RunCommand(
+        SIGHTMAP_BINARY,
+        "sim generate --scene office --trajectory handheld --session 2 --seed 7 "
+        "--frames 1 --queries 12 --out " +
+            (*dir_ / "queries").string() + " 2>&1");
+    ASSERT_EQ(generated.exit_code, 0) << generated.out;
+    server_ = new ServerProcess({"--model", (*dir_ / "model.db").string(), "--port", "0",
+                                 "--threads", "2", "--max-body-mb", "2"});
+  }
+  static void TearDownTestSuite() {
+    delete server_;
+    std::error_code ignored;
+    fs::remove_all(*dir_, ignored);
+    delete dir_;
+  }
+
+  static std::vector<std::string> Photos() {
+    std::vector<std::string> photos;
+    for (const auto& entry : fs::directory_iterator(*dir_ / "queries" / "queries")) {
+      if (entry.path().extension() == ".jpg") photos.push_back(ReadBytes(entry.path()));
+    }
+    return photos;
+  }
+
+  static httplib::Client Client() {
+    httplib::Client client("127.0.0.1", server_->port());
+    client.set_read_timeout(60, 0);
+    client.set_write_timeout(60, 0);
+    return client;
+  }
+
+  void ExpectStillServing() {
+    const httplib::Result health = Client().Get("/health");
+    ASSERT_TRUE(health) << "server gone: " << httplib::to_string(health.error());
+    EXPECT_EQ(health->status, 200);
+  }
+
+  static fs::path* dir_;
+  static ServerProcess* server_;
+};
+
+fs::path* ServeTest::dir_ = nullptr;
+ServerProcess* ServeTest::server_ = nullptr;
+
+TEST_F(ServeTest, HealthAndAppliances) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const httplib::Result health = Client().Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  EXPECT_EQ(health->get_header_value("Content-Type"), "application/json");
+  const nlohmann::json h = Json(health);
+  EXPECT_EQ(h["status"], "ok");
+  EXPECT_EQ(h["keyframes"], 60);
+  EXPECT_GT(h["labels"].get<int>(), 5);
+
+  const nlohmann::json a = Json(Client().Get("/appliances"));
+  ASSERT_TRUE(a.contains("appliances")) << a.dump();
+  EXPECT_EQ(a["appliances"].size(), h["labels"].get<size_t>());
+  for (const nlohmann::json& appliance : a["appliances"]) {
+    EXPECT_FALSE(appliance["name"].get<std::string>().empty());
+    ASSERT_FALSE(appliance["points"].empty());
+    EXPECT_EQ(appliance["points"][0].size(), 3u);
+  }
+}
+
+TEST_F(ServeTest, FourClientsLocateRealPhotosAtOnce) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const std::vector<std::string> photos = Photos();
+  ASSERT_GE(photos.size(), 8u);
+  std::atomic<int> answered{0};
+  std::atomic<int> matched{0};
+  std::vector<std::string> failures(4);
+  std::vector<std::thread> clients;
+  for (size_t c = 0; c < 4; ++c) {
+    clients.emplace_back([&, c] {
+      httplib::Client client = Client();
+      for (size_t i = c; i < photos.size(); i += 4) {
+        const httplib::Result result = client.Post("/locate", photos[i], "image/jpeg");
+        if (!result || result->status != 200) {
+          failures[c] += "photo " + std::to_string(i) + ": " +
+                         (result ? std::to_string(result->status) + " " + result->body
+                                 : httplib::to_string(result.error())) +
+                         "\n";
+          continue;
+        }
+        const nlohmann::json answer = Json(result);
+        if (!answer.contains("matched") || !answer.contains("timings_ms") ||
+            answer["photo"]["width"] != 1280) {
+          failures[c] += "photo " + std::to_string(i) + ": unexpected answer " + answer.dump();
+          continue;
+        }
+        ++answered;
+        matched += answer["matched"].get<bool>() ? 1 : 0;
+      }
+    });
+  }
+  for (std::thread& client : clients) client.join();
+  for (const std::string& failure : failures) EXPECT_TRUE(failure.empty()) << failure;
+  EXPECT_EQ(answered, static_cast<int>(photos.size()));
+  // Matching quality is the Locator's test; here some photos must come back located.
+  EXPECT_GT(matched, 0);
+}
+
+TEST_F(ServeTest, GivenIntrinsicsAndPngAreAccepted) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const cv::Mat photo = cv::imread((*dir_ / "queries" / "queries" / "0000.jpg").string());
+  ASSERT_FALSE(photo.empty());
+  const httplib::Result result = Client().Post("/locate?fx=1000&fy=1000&cx=639.5&cy=479.5",
+                                               Encode(".png", photo), "image/png");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 200) << result->body;
+  const nlohmann::json answer = Json(result);
+  EXPECT_EQ(answer["photo"]["format"], "png");
+  EXPECT_EQ(answer["intrinsics"]["source"], "given");
+  EXPECT_DOUBLE_EQ(answer["intrinsics"]["fx"].get<double>(), 1000.0);
+}
+
+TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const std::string jpeg = Photos().at(0);
+  const std::string png =
+      Encode(".png", cv::imread((*dir_ / "queries" / "queries" / "0000.jpg").string()));
+  // A real 100-megapixel image (10000 x 10000 grey, ~100 KB as PNG): refused from its header.
+  const std::string huge_png = Encode(".png", cv::Mat(10000, 10000, CV_8UC1, cv::Scalar(90)));
+  // A JPEG whose frame header claims 10000 x 10000.
+  std::string huge_jpeg = Encode(".jpg", cv::Mat(16, 16, CV_8UC3, cv::Scalar(1, 2, 3)));
+  for (size_t i = 2; i + 9 < huge_jpeg.size(); ++i) {
+    if (static_cast<uint8_t>(huge_jpeg[i]) == 0xFF &&
+        static_cast<uint8_t>(huge_jpeg[i + 1]) == 0xC0) {
+      huge_jpeg[i + 5] = 0x27;
+      huge_jpeg[i + 6] = 0x10;
+      huge_jpeg[i + 7] = 0x27;
+      huge_jpeg[i + 8] = 0x10;
+      break;
+    }
+  }
+  struct Case {
+    const char* what;
+    std::string path;
+    std::string body;
+    int status;
+  };
+  const std::vector<Case> cases = {
+      {"empty body", "/locate", "", 400},
+      {"text", "/locate", "{\"photo\": \"not really\"}", 415},
+      {"truncated png", "/locate", png.substr(0, png.size() / 3), 400},
+      {"100 MP png", "/locate", huge_png, 413},
+      {"100 MP jpeg header", "/locate", huge_jpeg, 413},
+      {"3 MiB over the 2 MiB limit", "/locate", std::string(3 << 20, 'x'), 413},
+      {"three of four intrinsics", "/locate?fx=1000&fy=1000&cx=640", jpeg, 400},
+      {"intrinsics not numbers", "/locate?fx=a&fy=1000&cx=640&cy=480", jpeg, 400},
+      {"unknown endpoint", "/nothing", jpeg, 404},
+  };
+  // A JPEG cut anywhere after its headers still decodes (libjpeg fills the missing rows with
+  // grey): it is located (unmatched), not refused, and must not disturb the server.
+  const httplib::Result cut =
+      Client().Post("/locate", jpeg.substr(0, jpeg.size() / 3), "image/jpeg");
+  ASSERT_TRUE(cut);
+  EXPECT_EQ(cut->status, 200) << cut->body;
+  for (const Case& c : cases) {
+    const httplib::Result result = Client().Post(c.path, c.body, "application/octet-stream");
+    ASSERT_TRUE(result) << c.what << ": " << httplib::to_string(result.error());
+    EXPECT_EQ(result->status, c.status) << c.what << ": " << result->body;
+    const nlohmann::json answer = Json(result);
+    EXPECT_TRUE(answer.contains("error")) << c.what << ": " << result->body;
+    EXPECT_EQ(answer["status"], c.status) << c.what;
+    ExpectStillServing();
+  }
+  const nlohmann::json health = Json(Client().Get("/health"));
+  EXPECT_GE(health["refused"].get<int>(), static_cast<int>(cases.size()));
+}
+
+// Last (gtest runs a file's tests in order): SIGTERM stops the suite's server cleanly.
+TEST_F(ServeTest, SigtermStopsCleanly) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  EXPECT_EQ(server_->StopWith(SIGTERM, std::chrono::seconds(10)), 0) << server_->output();
+  EXPECT_NE(server_->output().find("stopped"), std::string::npos) << server_->output();
+  EXPECT_FALSE(Client().Get("/health"));
+}
+
+TEST(Serve, BusyPortAndMissingModelFailWithOneLine) {
+  const testing::CommandResult missing =
+      testing::RunCommand(SIGHTMAP_BINARY, "serve --model /nonexistent/model.db --port 0");
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.err.find("error: "), std::string::npos) << missing.err;
+  const testing::CommandResult usage = testing::RunCommand(SIGHTMAP_BINARY, "serve --port 0");
+  EXPECT_EQ(usage.exit_code, 2);
+}
+
+}  // namespace
+}  // namespace sightmap
