@@ -79,6 +79,10 @@ void ReplicateModel(const Model& source, const std::string& path, int factor) {
       keyframe.odom_world_from_cam = keyframe.world_from_cam;
       keyframe.intrinsics = infos[i].intrinsics;
       keyframe.features = features[i];
+      // The store wants images; tiny blank ones keep the file small (no depth: no occlusion cloud,
+      // which retrieval does not use).
+      keyframe.color = cv::Mat(12, 16, CV_8UC3, cv::Scalar::all(0));
+      keyframe.depth = cv::Mat(12, 16, CV_16UC1, cv::Scalar::all(0));
       model.AddKeyframe(keyframe);
     }
   }
@@ -104,13 +108,31 @@ int Run(int argc, char** argv) {
   app.add_option("--large-factor", large_factor, "the larger model's size / the model's");
   app.add_option("--dir", dir, "folder for the models (reused when they exist)");
   app.add_flag("--keep", keep, "keep the models for the next run");
+  int vocabulary_keyframes = 30;
+  app.add_option("--vocabulary-keyframes", vocabulary_keyframes,
+                 "keyframes the vocabulary is trained from (0 = all; the mapper uses 30)");
+  LocatorOptions locator_options;
+  app.add_option("--max-side", locator_options.max_image_side_px, "photo side for features [px]");
+  app.add_option("--photo-features", locator_options.features.max_features, "features per photo");
+  app.add_option("--candidates", locator_options.retrieval_candidates, "retrieval candidates");
+  app.add_option("--neighbours", locator_options.max_neighbours, "neighbours per candidate");
+  app.add_option("--neighbour-radius", locator_options.neighbour_radius_m, "[m]");
+  app.add_option("--ratio", locator_options.match_ratio, "descriptor ratio test");
+  app.add_option("--reprojection", locator_options.pnp_reprojection_px, "PnP threshold [px]");
+  app.add_option("--min-inliers", locator_options.min_inliers, "inliers to count as matched");
+  app.add_option("--confident-inliers", locator_options.confident_inliers,
+                 "inliers that end the search");
+  bool estimate = false;
+  app.add_flag("--estimate-intrinsics", estimate, "locate without the photos' intrinsics");
   CLI11_PARSE(app, argc, argv);
 
   fs::create_directories(dir);
-  const std::string model_path = (fs::path(dir) / ("walk-" + std::to_string(keyframes) + ".db"));
+  const std::string model_path = (fs::path(dir) / ("walk-" + std::to_string(keyframes) + "-v" +
+                                                   std::to_string(vocabulary_keyframes) + ".db"));
   if (!fs::exists(model_path)) {
     SimModelOptions options;
     options.keyframes = keyframes;
+    options.vocabulary_keyframes = vocabulary_keyframes;
     std::printf("building a %d-keyframe ground-truth model of the office walk...\n", keyframes);
     std::fflush(stdout);
     const SimModelSummary summary = BuildSimulatorModel(model_path, options);
@@ -119,9 +141,9 @@ int Run(int argc, char** argv) {
   }
   ModelOptions read_only;
   read_only.read_only = true;
-  const Model model = Model::Open(model_path, read_only);
+  const Model model = Model::Open(model_path);  // writable: upgrades a kept older model
   auto start = std::chrono::steady_clock::now();
-  const Locator locator(model);
+  const Locator locator(model, locator_options);
   std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
               locator.NumKeyframes(), locator.NumOcclusionVoxels(), Seconds(start));
 
@@ -138,18 +160,33 @@ int Run(int argc, char** argv) {
   std::vector<double> features_ms, retrieval_ms, matching_ms, pnp_ms, visibility_ms, total_ms;
   std::vector<double> position_mm, rotation_deg;
   int matched = 0;
+  int seen_photos = 0;
+  int seen_matched = 0;
+  const std::vector<KeyframeInfo> keyframe_infos = model.Keyframes();
   int occluded_truth = 0, occluded_fp = 0;
   int recall_photos = 0, recall_good = 0, precision_photos = 0, precision_good = 0;
   for (const sim::QueryPhoto& photo : queries) {
-    const LocateResult result = locator.Locate(photo.image, photo.intrinsics);
+    const LocateResult result =
+        locator.Locate(photo.image, estimate ? std::nullopt : std::optional(photo.intrinsics));
     features_ms.push_back(result.timings.features_ms);
     retrieval_ms.push_back(result.timings.retrieval_ms);
     matching_ms.push_back(result.timings.matching_ms);
     pnp_ms.push_back(result.timings.pnp_ms);
     visibility_ms.push_back(result.timings.visibility_ms);
     total_ms.push_back(result.timings.total_ms);
+    // Whether the walk saw this place: a keyframe within 1.5 m looking within 40 deg.
+    bool seen = false;
+    for (const KeyframeInfo& info : keyframe_infos) {
+      if ((info.world_from_cam.translation() - photo.world_from_cam.translation()).norm() < 1.5 &&
+          info.world_from_cam.linear().col(2).dot(photo.world_from_cam.linear().col(2)) > 0.766) {
+        seen = true;
+      }
+    }
+    seen_photos += seen;
+    if (seen && result.matched) ++seen_matched;
     if (!result.matched) {
-      std::printf("  photo %3d not matched: %s\n", photo.index, result.reason.c_str());
+      std::printf("  photo %3d not matched%s: %s\n", photo.index, seen ? " (seen)" : "",
+                  result.reason.c_str());
       continue;
     }
     ++matched;
@@ -196,6 +233,7 @@ int Run(int argc, char** argv) {
     std::printf("  %-11s median %7.1f ms  p95 %7.1f ms  mean %7.1f ms\n", name, s.median, s.p95,
                 s.mean);
   };
+  std::fflush(stdout);
   std::printf("\nlocate, %zu photos of 1280x960 against %zu keyframes (one thread):\n",
               queries.size(), locator.NumKeyframes());
   line("features", features_ms);
@@ -215,6 +253,10 @@ int Run(int argc, char** argv) {
       rot.median, rot.p95,
       rotation_deg.empty() ? 0.0 : *std::max_element(rotation_deg.begin(), rotation_deg.end()));
   std::printf(
+      "photos of places the walk saw (a keyframe within 1.5 m and 40 deg): %d, matched "
+      "%d\n",
+      seen_photos, seen_matched);
+  std::printf(
       "recall >= 0.8: %d of %d photos (%.1f%%); precision >= 0.8: %d of %d (%.1f%%); "
       "occluded reported visible: %d of %d (%.1f%%)\n",
       recall_good, recall_photos, 100.0 * recall_good / std::max(1, recall_photos), precision_good,
@@ -229,9 +271,10 @@ int Run(int argc, char** argv) {
       start = std::chrono::steady_clock::now();
       ReplicateModel(model, large_path, large_factor);
       std::printf("\nreplicated model written in %.1f s\n", Seconds(start));
+      std::fflush(stdout);
     }
     const Model large_model = Model::Open(large_path, read_only);
-    const Locator large(large_model);
+    const Locator large(large_model, locator_options);
     std::vector<double> small_retrieval, large_retrieval;
     // Interleaved, so both see the same machine load.
     for (const sim::QueryPhoto& photo : queries) {

@@ -206,7 +206,9 @@ void RefineFocal(const std::vector<cv::Point3f>& object, const std::vector<cv::P
     return;  // degenerate inliers: keep the candidate focal length
   }
   const double f = camera.at<double>(0, 0);
-  if (!(f > 0.25 * k.fx && f < 4.0 * k.fx)) return;
+  // The candidates are ~15% apart, so the truth lies within ~8% of the best one; a refinement
+  // that leaves that band has followed the focal-depth ambiguity of a shallow scene.
+  if (!(std::abs(f / k.fx - 1.0) <= 0.1)) return;
   Intrinsics refined = k;
   refined.fx = refined.fy = f;
   PoseHypothesis again = SolvePose(object, image, refined, options);
@@ -478,12 +480,14 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     PoseHypothesis found;
     for (const Intrinsics& k : feature_candidates) {
       PoseHypothesis hypothesis = SolvePose(object, image, k, options);
+      // Each candidate refined before they are compared: on a shallow scene a wrong focal length
+      // fits nearly as many inliers as the right one until both are refined.
+      if (hypothesis.valid && !intrinsics && options.refine_estimated_focal) {
+        RefineFocal(object, image, options, &hypothesis);
+      }
       if (hypothesis.valid && (!found.valid || hypothesis.inliers.size() > found.inliers.size())) {
         found = std::move(hypothesis);
       }
-    }
-    if (found.valid && !intrinsics && options.refine_estimated_focal) {
-      RefineFocal(object, image, options, &found);
     }
     result.timings.pnp_ms += MsSince(stage);
     if (!found.valid) continue;

@@ -60,10 +60,8 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
     keyframe.world_from_cam = world_from_cam;
     keyframe.odom_world_from_cam = world_from_cam;
     keyframe.intrinsics = camera;
-    if (options.store_images) {
-      keyframe.color = frame.color;
-      keyframe.depth = frame.depth;
-    }
+    keyframe.color = frame.color;
+    keyframe.depth = frame.depth;  // the Locator's occlusion cloud
     keyframe.features = mapping::ToStoreFeatures(features);
     model.AddKeyframe(keyframe);
     if ((options.vocabulary_keyframes == 0 || i < options.vocabulary_keyframes) &&

@@ -29,8 +29,6 @@ struct SimModelOptions {
   // mapper trains from its first 30); 0 = all keyframes.
   int vocabulary_keyframes = 30;
   VocabularyOptions vocabulary;
-  // Colour and depth stored with each keyframe (depth feeds the Locator's occlusion cloud).
-  bool store_images = true;
   // Every scene appliance as a label (its points in the world frame).
   bool label_appliances = true;
 
