@@ -301,7 +301,14 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
       [&impl](const httplib::Request& request, httplib::Response& response) {
         if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
         std::string message;
-        if (response.status == 413) {
+        if (response.status == 413 &&
+            request.get_header_value("Content-Type") == "application/x-www-form-urlencoded") {
+          // httplib caps form bodies at 8 KiB; curl --data-binary sends a photo as a form unless
+          // told otherwise.
+          message =
+              "a form-encoded body is limited to 8 KiB: send the photo with Content-Type: "
+              "image/jpeg or image/png";
+        } else if (response.status == 413) {
           std::ostringstream text;
           text << "request body larger than " << impl.options.max_body_mb << " MiB";
           message = text.str();

@@ -366,7 +366,8 @@ void DrawHistogram(cv::Mat& image, const std::string& title, const std::vector<i
     if (h > 0) cv::rectangle(image, bar, good ? kRight : kWrong, cv::FILLED);
     if (count > 0) Text(image, std::to_string(count), {bar.x + 2, bar.y - 4}, 0.4);
   }
-  for (int b = 0; b <= regular; b += std::max(1, regular / 5)) {
+  // Ticks at the regular bins' lower edges; the last bar is labelled "=1" instead.
+  for (int b = 0; b < regular; b += std::max(1, regular / 5)) {
     std::ostringstream tick;
     tick << std::setprecision(2) << static_cast<double>(b) / std::max(1, regular);
     Text(image, tick.str(), {plot_x + b * bar_w - 8, plot_y + plot_h + 16}, 0.4);

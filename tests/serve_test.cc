@@ -304,6 +304,13 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
     EXPECT_EQ(answer["status"], c.status) << c.what;
     ExpectStillServing();
   }
+  // curl --data-binary's default content type: httplib caps form bodies at 8 KiB; the answer
+  // says what to send instead.
+  const httplib::Result form = Client().Post("/locate", jpeg, "application/x-www-form-urlencoded");
+  ASSERT_TRUE(form);
+  EXPECT_EQ(form->status, 413);
+  EXPECT_NE(form->body.find("Content-Type: image/jpeg"), std::string::npos) << form->body;
+  ExpectStillServing();
   const nlohmann::json health = Json(Client().Get("/health"));
   EXPECT_GE(health["refused"].get<int>(), static_cast<int>(cases.size()));
 }
