@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -253,6 +254,31 @@ TEST_F(ServeTest, GivenIntrinsicsAndPngAreAccepted) {
   EXPECT_DOUBLE_EQ(answer["intrinsics"]["fx"].get<double>(), 1000.0);
 }
 
+// A phone's JPEG carries its focal length in EXIF: the server builds the intrinsics from it.
+TEST_F(ServeTest, ExifFocalLengthGivesTheIntrinsics) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  std::string jpeg = Photos().at(0);
+  // APP1 "Exif": little-endian TIFF, IFD0 -> Exif IFD holding FocalLengthIn35mmFilm = 26 mm.
+  const uint8_t app1[] = {
+      0xFF, 0xE1, 0x00, 0x34, 'E',  'x',  'i',  'f',  0,    0,  // marker, length 52, identifier
+      'I',  'I',  0x2A, 0x00, 0x08, 0x00, 0x00, 0x00,           // TIFF header, IFD0 at 8
+      0x01, 0x00, 0x69, 0x87, 0x04, 0x00, 0x01, 0x00, 0x00, 0x00,
+      0x1A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,  // IFD0: ExifIFDPointer (LONG) = 26; no next
+                                                       // IFD
+      0x01, 0x00, 0x05, 0xA4, 0x03, 0x00, 0x01, 0x00, 0x00, 0x00,
+      0x1A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00};  // Exif IFD: FocalLengthIn35mmFilm (SHORT) =
+                                                        // 26; no next IFD
+  jpeg.insert(2, reinterpret_cast<const char*>(app1), sizeof(app1));
+  const httplib::Result result = Client().Post("/locate", jpeg, "image/jpeg");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  const nlohmann::json answer = Json(result);
+  EXPECT_EQ(answer["intrinsics"]["source"], "exif") << result->body;
+  // 26 mm on the 35 mm diagonal (43.27 mm) over the photo's 1600 px diagonal.
+  EXPECT_NEAR(answer["intrinsics"]["fx"].get<double>(), 26.0 * 1600.0 / std::hypot(36.0, 24.0),
+              0.5);
+}
+
 TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
   ASSERT_GT(server_->port(), 0) << server_->output();
   const std::string jpeg = Photos().at(0);
@@ -313,6 +339,38 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
   ExpectStillServing();
   const nlohmann::json health = Json(Client().Get("/health"));
   EXPECT_GE(health["refused"].get<int>(), static_cast<int>(cases.size()));
+}
+
+// `sightmap eval identify` on the same model and photos (the binary, as scripts run it).
+TEST_F(ServeTest, EvalIdentifyReportsThePapersFigures) {
+  const std::string model = (*dir_ / "model.db").string();
+  const std::string plot = (*dir_ / "identify.png").string();
+  const testing::CommandResult json = testing::RunCommand(
+      SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
+                           (*dir_ / "queries").string() + " --limit 6 --json --plot " + plot);
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  const nlohmann::json e = nlohmann::json::parse(json.out, nullptr, false);
+  for (const char* key : {"photos", "matched_ratio", "recall_ge_0_8_ratio",
+                          "precision_ge_0_8_ratio", "occluded_false_positive_ratio",
+                          "locate_median_ms", "locate_p95_ms", "categories", "stages_ms"}) {
+    EXPECT_TRUE(e.contains(key)) << key << " in " << json.out;
+  }
+  EXPECT_EQ(e["photos"], 6);
+  EXPECT_GT(e["locate_median_ms"].get<double>(), 0.0);
+  EXPECT_NE(json.err.find("6/6 photos"), std::string::npos) << json.err;  // progress
+  const cv::Mat image = cv::imread(plot);
+  EXPECT_EQ(image.cols, 1200);
+  // The queries/ folder itself is accepted too; the human table names the figures.
+  const testing::CommandResult table = testing::RunCommand(
+      SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
+                           (*dir_ / "queries" / "queries").string() + " --limit 2");
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  EXPECT_NE(table.out.find("photos matched"), std::string::npos) << table.out;
+  EXPECT_NE(table.out.find("occluded reported as visible"), std::string::npos) << table.out;
+  const testing::CommandResult missing = testing::RunCommand(
+      SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " + dir_->string());
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.err.find("no queries.json"), std::string::npos) << missing.err;
 }
 
 // Last (gtest runs a file's tests in order): SIGTERM stops the suite's server cleanly.
