@@ -6,6 +6,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdlib>
+#include <iostream>
 #include <mutex>
 #include <optional>
 #include <sstream>
@@ -150,6 +151,8 @@ bool LocateServerOptions::Check(std::string* error) const {
     why << "max_megapixels must be in (0, 1000]";
   else if (read_timeout_s < 1 || write_timeout_s < 1 || keep_alive_timeout_s < 1)
     why << "timeouts must be at least 1 s";
+  else if (!(label_refresh_s >= 0.0))
+    why << "label_refresh_s must not be negative";
   if (why.tellp() == 0) return true;
   if (error != nullptr) *error = why.str();
   return false;
@@ -167,6 +170,11 @@ struct LocateServer::Impl {
   std::atomic<int64_t> located{0};
   std::atomic<int64_t> refused{0};
   std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+  // The label watcher sleeps on this until the next refresh or Stop().
+  std::mutex watch_mutex;
+  std::condition_variable watch_wakeup;
+
+  void WatchLabels();
 
   void HandleLocate(const httplib::Request& request, httplib::Response& response);
   void HandleAppliances(httplib::Response& response) const;
@@ -230,6 +238,43 @@ void LocateServer::Impl::HandleLocate(const httplib::Request& request,
   answer["photo"] = {
       {"width", photo.cols}, {"height", photo.rows}, {"format", ToString(header->format)}};
   Reply(response, 200, answer);
+}
+
+// What decides whether the labels changed: every label's name, type, point count and update time.
+std::string LabelFingerprint(const std::vector<LabelRecord>& labels) {
+  std::ostringstream fingerprint;
+  for (const LabelRecord& label : labels) {
+    fingerprint << label.name << '\n'
+                << label.type << '\n'
+                << label.points.size() << ' ' << label.updated_ns << '\n';
+  }
+  return fingerprint.str();
+}
+
+void LocateServer::Impl::WatchLabels() {
+  std::string last = LabelFingerprint(locator->Labels());
+  bool warned = false;
+  std::unique_lock<std::mutex> lock(watch_mutex);
+  const auto period = std::chrono::duration<double>(options.label_refresh_s);
+  while (!watch_wakeup.wait_for(lock, period, [this] { return stop_requested.load(); })) {
+    try {
+      ModelOptions model_options;
+      model_options.read_only = true;
+      const Model model = Model::Open(model_path, model_options);
+      const std::string now = LabelFingerprint(model.Labels());
+      if (now != last) {
+        locator->ReloadLabels(model);
+        last = now;
+        std::cerr << "serve: labels changed in " << model_path << ", now "
+                  << locator->Labels().size() << "\n";
+      }
+      warned = false;
+    } catch (const std::exception& e) {
+      // A writer holding the file for a moment is normal; say so once, keep the labels we have.
+      if (!warned) std::cerr << "serve: cannot re-read the labels (" << e.what() << ")\n";
+      warned = true;
+    }
+  }
 }
 
 void LocateServer::Impl::HandleAppliances(httplib::Response& response) const {
@@ -355,11 +400,31 @@ int LocateServer::port() const { return impl_->port; }
 void LocateServer::Run() {
   SIGHTMAP_CHECK(impl_->port > 0, "LocateServer::Run before Bind");
   if (impl_->stop_requested) return;
+  // The watcher is woken and joined however listening ends (Stop(), a failed accept, a throw).
+  struct Watcher {
+    Impl* impl;
+    std::thread thread;
+    ~Watcher() {
+      {
+        const std::lock_guard<std::mutex> lock(impl->watch_mutex);
+        impl->stop_requested = true;
+      }
+      impl->watch_wakeup.notify_all();
+      if (thread.joinable()) thread.join();
+    }
+  } watcher{impl_.get(), {}};
+  if (impl_->options.label_refresh_s > 0.0) {
+    watcher.thread = std::thread([this] { impl_->WatchLabels(); });
+  }
   impl_->server.listen_after_bind();
 }
 
 void LocateServer::Stop() {
-  impl_->stop_requested = true;
+  {
+    const std::lock_guard<std::mutex> lock(impl_->watch_mutex);
+    impl_->stop_requested = true;
+  }
+  impl_->watch_wakeup.notify_all();
   impl_->server.stop();
 }
 

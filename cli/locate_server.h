@@ -33,6 +33,9 @@ struct LocateServerOptions {
   int read_timeout_s = 20;       // a client that stops sending for this long is dropped [s]
   int write_timeout_s = 20;      // [s]
   int keep_alive_timeout_s = 2;  // idle keep-alive connections are closed after this [s]
+  // The model's labels are re-read this often while serving, so a `sightmap label add` on the
+  // served model answers phones without a restart (0 = never) [s].
+  double label_refresh_s = 2.0;
 
   bool Check(std::string* error) const;
 };
@@ -50,7 +53,8 @@ class LocateServer {
   // Binds host:port (port 0: any free port). Throws Error when the address cannot be bound.
   void Bind();
   int port() const;  // the bound port, after Bind()
-  // Serves until Stop(); returns after the workers have finished their requests.
+  // Serves until Stop(); returns after the workers have finished their requests. Re-reads the
+  // labels every label_refresh_s meanwhile.
   void Run();
   // Thread-safe; makes Run() return. Callable before Run() starts.
   void Stop();

@@ -202,6 +202,32 @@ TEST_F(ServeTest, HealthAndAppliances) {
   }
 }
 
+TEST_F(ServeTest, ALabelAddedWhileServingIsServedWithoutARestart) {
+  const std::string model = (*dir_ / "model.db").string();
+  const size_t before = Json(Client().Get("/appliances"))["appliances"].size();
+  const testing::CommandResult added = testing::RunCommand(
+      SIGHTMAP_BINARY, "label add --model " + model + " --name zz_added_while_serving " +
+                           "--type lamp --point 1,2,1.5 2>&1");
+  ASSERT_EQ(added.exit_code, 0) << added.out;
+  // The server re-reads the labels every 2 s: wait for it, but not for ever.
+  bool seen = false;
+  for (int attempt = 0; attempt < 50 && !seen; ++attempt) {
+    const nlohmann::json a = Json(Client().Get("/appliances"));
+    seen = a["appliances"].size() == before + 1;
+    if (!seen) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  EXPECT_TRUE(seen) << "the new label was not served within 10 s";
+  const testing::CommandResult removed = testing::RunCommand(
+      SIGHTMAP_BINARY, "label remove --model " + model + " --name zz_added_while_serving 2>&1");
+  ASSERT_EQ(removed.exit_code, 0) << removed.out;
+  bool gone = false;
+  for (int attempt = 0; attempt < 50 && !gone; ++attempt) {
+    gone = Json(Client().Get("/appliances"))["appliances"].size() == before;
+    if (!gone) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  EXPECT_TRUE(gone) << "the removed label was still served after 10 s";
+}
+
 TEST_F(ServeTest, FourClientsLocateRealPhotosAtOnce) {
   ASSERT_GT(server_->port(), 0) << server_->output();
   const std::vector<std::string> photos = Photos();
@@ -259,15 +285,15 @@ TEST_F(ServeTest, ExifFocalLengthGivesTheIntrinsics) {
   ASSERT_GT(server_->port(), 0) << server_->output();
   std::string jpeg = Photos().at(0);
   // APP1 "Exif": little-endian TIFF, IFD0 -> Exif IFD holding FocalLengthIn35mmFilm = 26 mm.
-  const uint8_t app1[] = {
-      0xFF, 0xE1, 0x00, 0x34, 'E',  'x',  'i',  'f',  0,    0,  // marker, length 52, identifier
-      'I',  'I',  0x2A, 0x00, 0x08, 0x00, 0x00, 0x00,           // TIFF header, IFD0 at 8
-      0x01, 0x00, 0x69, 0x87, 0x04, 0x00, 0x01, 0x00, 0x00, 0x00,
-      0x1A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,  // IFD0: ExifIFDPointer (LONG) = 26; no next
-                                                       // IFD
-      0x01, 0x00, 0x05, 0xA4, 0x03, 0x00, 0x01, 0x00, 0x00, 0x00,
-      0x1A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00};  // Exif IFD: FocalLengthIn35mmFilm (SHORT) =
-                                                        // 26; no next IFD
+  const uint8_t app1[] = {0xFF, 0xE1, 0x00, 0x34, 'E', 'x', 'i', 'f', 0,
+                          0,  // marker, length 52, identifier
+                          'I', 'I', 0x2A, 0x00, 0x08, 0x00, 0x00, 0x00,  // TIFF header, IFD0 at 8
+                          0x01, 0x00, 0x69, 0x87, 0x04, 0x00, 0x01, 0x00, 0x00, 0x00, 0x1A, 0x00,
+                          0x00, 0x00, 0x00, 0x00, 0x00, 0x00,  // IFD0: ExifIFDPointer (LONG) = 26;
+                                                               // no next IFD
+                          0x01, 0x00, 0x05, 0xA4, 0x03, 0x00, 0x01, 0x00, 0x00, 0x00, 0x1A, 0x00,
+                          0x00, 0x00, 0x00, 0x00, 0x00, 0x00};  // Exif IFD: FocalLengthIn35mmFilm
+                                                                // (SHORT) = 26; no next IFD
   jpeg.insert(2, reinterpret_cast<const char*>(app1), sizeof(app1));
   const httplib::Result result = Client().Post("/locate", jpeg, "image/jpeg");
   ASSERT_TRUE(result);
