@@ -122,6 +122,12 @@ int Run(int argc, char** argv) {
   app.add_option("--min-inliers", locator_options.min_inliers, "inliers to count as matched");
   app.add_option("--confident-inliers", locator_options.confident_inliers,
                  "inliers that end the search");
+  app.add_option("--places", locator_options.max_places, "places verified per photo");
+  app.add_option("--min-cells", locator_options.min_inlier_cells, "grid cells inliers cover");
+  app.add_option("--runner-up-ratio", locator_options.min_inlier_ratio_over_runner_up,
+                 "inliers over a disagreeing runner-up's");
+  app.add_option("--min-share", locator_options.min_inlier_share, "inliers / projected points");
+  app.add_option("--guided-rounds", locator_options.guided_rounds, "guided matching rounds");
   bool estimate = false;
   app.add_flag("--estimate-intrinsics", estimate, "locate without the photos' intrinsics");
   CLI11_PARSE(app, argc, argv);
@@ -160,6 +166,7 @@ int Run(int argc, char** argv) {
   std::vector<double> features_ms, retrieval_ms, matching_ms, pnp_ms, visibility_ms, total_ms;
   std::vector<double> position_mm, rotation_deg;
   int matched = 0;
+  int wrong = 0;  // matched more than 0.3 m from the truth
   int seen_photos = 0;
   int seen_matched = 0;
   const std::vector<KeyframeInfo> keyframe_infos = model.Keyframes();
@@ -190,6 +197,15 @@ int Run(int argc, char** argv) {
       continue;
     }
     ++matched;
+    const double error_m =
+        (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm();
+    wrong += error_m > 0.3;
+    std::printf(
+        "  photo %3d %s by %.2f m%s: %d inliers of %d matches, runner-up %d, %d projected, %d "
+        "cells\n",
+        photo.index, error_m > 0.3 ? "WRONG" : "right", error_m, seen ? " (seen)" : "",
+        result.inliers, result.matches, result.runner_up_inliers, result.projected_points,
+        result.inlier_cells);
     position_mm.push_back(
         1e3 * (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm());
     rotation_deg.push_back(Eigen::AngleAxisd(result.world_from_cam.linear().transpose() *
@@ -252,6 +268,7 @@ int Run(int argc, char** argv) {
       position_mm.empty() ? 0.0 : *std::max_element(position_mm.begin(), position_mm.end()),
       rot.median, rot.p95,
       rotation_deg.empty() ? 0.0 : *std::max_element(rotation_deg.begin(), rotation_deg.end()));
+  std::printf("wrong poses (> 0.3 m): %d\n", wrong);
   std::printf(
       "photos of places the walk saw (a keyframe within 1.5 m and 40 deg): %d, matched "
       "%d\n",

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <mutex>
 #include <sstream>
 #include <unordered_map>
@@ -56,6 +57,20 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "confident_inliers must be at least min_inliers";
   else if (!(max_rotation_from_keyframe_deg > 0.0 && max_rotation_from_keyframe_deg <= 180.0))
     why << "max_rotation_from_keyframe_deg must be in (0, 180]";
+  else if (!(place_radius_m >= 0.0) || !(place_max_angle_deg >= 0.0) || max_places < 1)
+    why << "place_radius_m and place_max_angle_deg must not be negative, max_places positive";
+  else if (min_ransac_inliers < 4 || !(guided_radius_px > 0.0) || guided_max_distance < 1 ||
+           guided_rounds < 0)
+    why << "min_ransac_inliers must be at least 4, guided_radius_px and guided_max_distance "
+           "positive, guided_rounds not negative";
+  else if (min_inlier_cells < 0 || min_inlier_cells > 16)
+    why << "min_inlier_cells must be in [0, 16]";
+  else if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0))
+    why << "min_inlier_share must be in [0, 1]";
+  else if (!(same_pose_m >= 0.0) || !(same_pose_deg >= 0.0) ||
+           !(min_inlier_ratio_over_runner_up >= 1.0))
+    why << "same_pose_m and same_pose_deg must not be negative, "
+           "min_inlier_ratio_over_runner_up at least 1";
   else if (focal_candidates_35mm.empty())
     why << "focal_candidates_35mm must not be empty";
   else if (!(occlusion_voxel_m > 0.0) || occlusion_downscale < 1 || occlusion_pixel_step < 1 ||
@@ -215,6 +230,156 @@ void RefineFocal(const std::vector<cv::Point3f>& object, const std::vector<cv::P
   if (again.valid && again.inliers.size() >= hypothesis->inliers.size()) *hypothesis = again;
 }
 
+// The photo's keypoints bucketed into square cells, for window searches around projected points.
+class PhotoGrid {
+ public:
+  PhotoGrid(const std::vector<cv::Point2f>& points, int width, int height, double cell_px)
+      : cell_(std::max(1.0, cell_px)),
+        cols_(std::max(1, static_cast<int>(std::ceil(width / cell_)))),
+        rows_(std::max(1, static_cast<int>(std::ceil(height / cell_)))),
+        cells_(static_cast<size_t>(cols_ * rows_)) {
+    for (size_t i = 0; i < points.size(); ++i) {
+      const int c = std::clamp(static_cast<int>(points[i].x / cell_), 0, cols_ - 1);
+      const int r = std::clamp(static_cast<int>(points[i].y / cell_), 0, rows_ - 1);
+      cells_[static_cast<size_t>(r * cols_ + c)].push_back(static_cast<int>(i));
+    }
+  }
+
+  // Calls visit(index) for every keypoint in the cells a window of `radius` around p touches.
+  template <typename Visit>
+  void ForEachNear(const cv::Point2f& p, double radius, Visit visit) const {
+    const int c0 = std::max(0, static_cast<int>((p.x - radius) / cell_));
+    const int c1 = std::min(cols_ - 1, static_cast<int>((p.x + radius) / cell_));
+    const int r0 = std::max(0, static_cast<int>((p.y - radius) / cell_));
+    const int r1 = std::min(rows_ - 1, static_cast<int>((p.y + radius) / cell_));
+    for (int r = r0; r <= r1; ++r) {
+      for (int c = c0; c <= c1; ++c) {
+        for (int i : cells_[static_cast<size_t>(r * cols_ + c)]) visit(i);
+      }
+    }
+  }
+
+ private:
+  double cell_;
+  int cols_;
+  int rows_;
+  std::vector<std::vector<int>> cells_;
+};
+
+void ToRvecTvec(const Eigen::Isometry3d& world_from_cam, cv::Vec3d* rvec, cv::Vec3d* tvec) {
+  const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
+  cv::Matx33d rotation;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) rotation(r, c) = cam_from_world.linear()(r, c);
+    (*tvec)[r] = cam_from_world.translation()[r];
+  }
+  cv::Rodrigues(rotation, *rvec);
+}
+
+Eigen::Isometry3d FromRvecTvec(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
+  cv::Matx33d rotation;
+  cv::Rodrigues(rvec, rotation);
+  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) cam_from_world.linear()(r, c) = rotation(r, c);
+    cam_from_world.translation()[r] = tvec[r];
+  }
+  return cam_from_world.inverse();
+}
+
+// Each model point projected with the hypothesis' pose takes the photo keypoint within
+// guided_radius_px whose descriptor is nearest (if within guided_max_distance); a photo keypoint
+// claimed by several model points (the same point in several keyframes) keeps the nearest.
+void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f>& photo_points,
+                 const PhotoGrid& grid, const cv::Mat& model_descriptors,
+                 const std::vector<cv::Point3f>& model_points, const PoseHypothesis& hypothesis,
+                 const LocatorOptions& options, std::vector<cv::Point3f>* object,
+                 std::vector<cv::Point2f>* image, int* projected) {
+  *projected = 0;
+  object->clear();
+  image->clear();
+  if (model_points.empty()) return;
+  cv::Vec3d rvec;
+  cv::Vec3d tvec;
+  ToRvecTvec(hypothesis.world_from_cam, &rvec, &tvec);
+  const Intrinsics& k = hypothesis.intrinsics;
+  cv::Matx33d rotation;
+  cv::Rodrigues(rvec, rotation);
+  std::vector<int> best_model(photo_points.size(), -1);
+  std::vector<int> best_distance(photo_points.size(), options.guided_max_distance + 1);
+  const double radius_sq = options.guided_radius_px * options.guided_radius_px;
+  for (size_t m = 0; m < model_points.size(); ++m) {
+    const cv::Point3f& w = model_points[m];
+    const cv::Vec3d p = rotation * cv::Vec3d(w.x, w.y, w.z) + tvec;
+    if (!(p[2] > 0.1)) continue;
+    const cv::Point2f uv(static_cast<float>(k.fx * p[0] / p[2] + k.cx),
+                         static_cast<float>(k.fy * p[1] / p[2] + k.cy));
+    if (uv.x < 0 || uv.y < 0 || uv.x >= k.width || uv.y >= k.height) continue;
+    ++*projected;
+    const cv::Mat model_row = model_descriptors.row(static_cast<int>(m));
+    int nearest = -1;
+    int nearest_distance = options.guided_max_distance + 1;
+    grid.ForEachNear(uv, options.guided_radius_px, [&](int i) {
+      const cv::Point2f d = photo_points[static_cast<size_t>(i)] - uv;
+      if (d.x * d.x + d.y * d.y > radius_sq) return;
+      const int distance =
+          static_cast<int>(cv::norm(photo_descriptors.row(i), model_row, cv::NORM_HAMMING));
+      if (distance < nearest_distance) {
+        nearest_distance = distance;
+        nearest = i;
+      }
+    });
+    if (nearest < 0 || nearest_distance >= best_distance[static_cast<size_t>(nearest)]) continue;
+    best_distance[static_cast<size_t>(nearest)] = nearest_distance;
+    best_model[static_cast<size_t>(nearest)] = static_cast<int>(m);
+  }
+  for (size_t i = 0; i < photo_points.size(); ++i) {
+    if (best_model[i] < 0) continue;
+    object->push_back(model_points[static_cast<size_t>(best_model[i])]);
+    image->push_back(photo_points[i]);
+  }
+}
+
+// Levenberg-Marquardt from the hypothesis' pose on the correspondences within the reprojection
+// threshold, twice; false (hypothesis invalid) when fewer than 4 remain.
+bool RefineOn(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
+              const LocatorOptions& options, PoseHypothesis* hypothesis) {
+  const cv::Matx33d camera = CameraMatrix(hypothesis->intrinsics);
+  cv::Vec3d rvec;
+  cv::Vec3d tvec;
+  ToRvecTvec(hypothesis->world_from_cam, &rvec, &tvec);
+  std::vector<int> inliers;
+  for (int round = 0; round < 2; ++round) {
+    if (CountInliers(object, image, camera, rvec, tvec, options.pnp_reprojection_px, &inliers) <
+        4) {
+      hypothesis->valid = false;
+      return false;
+    }
+    cv::solvePnPRefineLM(Subset(object, inliers), Subset(image, inliers), camera, cv::noArray(),
+                         rvec, tvec);
+  }
+  CountInliers(object, image, camera, rvec, tvec, options.pnp_reprojection_px, &inliers);
+  hypothesis->world_from_cam = FromRvecTvec(rvec, tvec);
+  hypothesis->inliers = std::move(inliers);
+  hypothesis->valid = hypothesis->inliers.size() >= 4;
+  return hypothesis->valid;
+}
+
+// Cells of a 4x4 grid over the photo holding at least one inlier: inliers bunched in one corner
+// (a poster, a repeated pattern) do not pin a pose down.
+int CoveredCells(const std::vector<cv::Point2f>& image, const std::vector<int>& inliers, int width,
+                 int height) {
+  constexpr int kCells = 4;
+  bool covered[kCells * kCells] = {};
+  for (int i : inliers) {
+    const cv::Point2f& p = image[static_cast<size_t>(i)];
+    const int c = std::clamp(static_cast<int>(p.x * kCells / width), 0, kCells - 1);
+    const int r = std::clamp(static_cast<int>(p.y * kCells / height), 0, kCells - 1);
+    covered[r * kCells + c] = true;
+  }
+  return static_cast<int>(std::count(std::begin(covered), std::end(covered), true));
+}
+
 }  // namespace
 
 struct Locator::Impl {
@@ -226,6 +391,12 @@ struct Locator::Impl {
     cv::Mat descriptors;
     std::vector<cv::Point3f> world_points;
     std::vector<size_t> neighbours;  // slots, nearest first
+  };
+  // Retrieved keyframes of one part of the building: the best-scoring one (head) and the slots
+  // matched together (candidates and their neighbours).
+  struct Place {
+    size_t head = 0;
+    std::vector<size_t> slots;
   };
 
   LocatorOptions options;
@@ -423,25 +594,62 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     feature_candidates.push_back(k.Scaled(grey.cols, grey.rows));
   }
 
-  PoseHypothesis best;
-  size_t best_slot = 0;
-  int best_matches = 0;
-  int most_inliers_rejected = 0;  // for the reason, when nothing verifies
-  double rejected_rotation_deg = 0.0;
-  cv::BFMatcher matcher(cv::NORM_HAMMING);
-  const double same_point_sq = options.same_point_m * options.same_point_m;
+  // Candidates grouped into places: a candidate near an earlier one (same part of the building,
+  // similar view) joins its place, so each place is matched once against the union of its
+  // keyframes' and their neighbours' 3D features rather than keyframe by keyframe.
+  const double place_cos = std::cos(options.place_max_angle_deg * M_PI / 180.0);
+  std::vector<Impl::Place> places;
   for (const PlaceCandidate& candidate : candidates) {
     const size_t slot = static_cast<size_t>(candidate.id);
     const Impl::ModelKeyframe& keyframe = impl_->keyframes[slot];
+    Impl::Place* joined = nullptr;
+    for (Impl::Place& place : places) {
+      const Impl::ModelKeyframe& head = impl_->keyframes[place.head];
+      if ((head.world_from_cam.translation() - keyframe.world_from_cam.translation()).norm() <=
+              options.place_radius_m &&
+          head.view_direction.dot(keyframe.view_direction) >= place_cos) {
+        joined = &place;
+        break;
+      }
+    }
+    if (joined == nullptr) {
+      if (static_cast<int>(places.size()) >= options.max_places) continue;
+      places.push_back(Impl::Place{slot, {}});
+      joined = &places.back();
+    }
+    auto add = [&](size_t s) {
+      if (std::find(joined->slots.begin(), joined->slots.end(), s) == joined->slots.end()) {
+        joined->slots.push_back(s);
+      }
+    };
+    add(slot);
+    for (size_t n : keyframe.neighbours) add(n);
+  }
+
+  const PhotoGrid grid(photo_points, grey.cols, grey.rows, options.guided_radius_px);
+  PoseHypothesis best;
+  size_t best_slot = 0;
+  int best_matches = 0;
+  int runner_up_inliers = 0;  // best of the places whose pose disagrees with the winner's
+  Eigen::Isometry3d runner_up_pose = Eigen::Isometry3d::Identity();
+  int most_inliers_rejected = 0;  // for the reason, when nothing verifies
+  double rejected_rotation_deg = 0.0;
+  int rejected_cells = -1;
+  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  const double same_point_sq = options.same_point_m * options.same_point_m;
+  auto disagree = [&](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return (a.translation() - b.translation()).norm() > options.same_pose_m ||
+           AngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
+  };
+  for (const Impl::Place& place : places) {
+    const Impl::ModelKeyframe& keyframe = impl_->keyframes[place.head];
     ++result.candidates_tried;
 
-    // 2D-3D matches against the candidate and its neighbours.
+    // 2D-3D matches against the union of the place's keyframes.
     stage = Clock::now();
-    std::vector<size_t> group = {slot};
-    group.insert(group.end(), keyframe.neighbours.begin(), keyframe.neighbours.end());
     std::vector<cv::Mat> blocks;
     std::vector<cv::Point3f> model_points;
-    for (size_t s : group) {
+    for (size_t s : place.slots) {
       const Impl::ModelKeyframe& member = impl_->keyframes[s];
       if (member.world_points.empty()) continue;
       blocks.push_back(member.descriptors);
@@ -450,8 +658,8 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     }
     std::vector<cv::Point3f> object;
     std::vector<cv::Point2f> image;
+    cv::Mat model_descriptors;
     if (model_points.size() >= 2) {
-      cv::Mat model_descriptors;
       cv::vconcat(blocks, model_descriptors);
       std::vector<std::vector<cv::DMatch>> knn;
       matcher.knnMatch(features.descriptors, model_descriptors, knn, 4);
@@ -489,24 +697,74 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
         found = std::move(hypothesis);
       }
     }
+    int matches = static_cast<int>(object.size());
+    int projected = 0;
+    // Guided matching: the place's points projected with the first pose find their photo
+    // keypoints in a small window, then the pose is refined on all of them. A right pose gains
+    // many inliers; a pose fitted to chance matches (a similar room) finds few.
+    if (found.valid && static_cast<int>(found.inliers.size()) >= options.min_ransac_inliers) {
+      std::vector<cv::Point3f> guided_object;
+      std::vector<cv::Point2f> guided_image;
+      for (int round = 0; round < options.guided_rounds; ++round) {
+        GuidedMatch(features.descriptors, photo_points, grid, model_descriptors, model_points,
+                    found, options, &guided_object, &guided_image, &projected);
+        if (!RefineOn(guided_object, guided_image, options, &found)) break;
+        matches = static_cast<int>(guided_object.size());
+      }
+      if (found.valid) {
+        object = std::move(guided_object);
+        image = std::move(guided_image);
+      }
+    }
     result.timings.pnp_ms += MsSince(stage);
     if (!found.valid) continue;
     const int inliers = static_cast<int>(found.inliers.size());
     const double rotation_deg =
         AngleDeg(keyframe.world_from_cam.linear(), found.world_from_cam.linear());
-    if (inliers < options.min_inliers || rotation_deg > options.max_rotation_from_keyframe_deg) {
+    const int cells = CoveredCells(image, found.inliers, grey.cols, grey.rows);
+    // With the right pose a good share of the place's points that land in the photo find their
+    // keypoint; a pose fitted to a texture that repeats elsewhere finds few beyond it.
+    const bool low_share =
+        projected > 0 && inliers < options.min_inlier_share * static_cast<double>(projected);
+    if (inliers < options.min_inliers || rotation_deg > options.max_rotation_from_keyframe_deg ||
+        cells < options.min_inlier_cells || low_share) {
       if (inliers > most_inliers_rejected) {
         most_inliers_rejected = inliers;
-        rejected_rotation_deg = inliers >= options.min_inliers ? rotation_deg : 0.0;
+        rejected_rotation_deg =
+            inliers >= options.min_inliers && rotation_deg > options.max_rotation_from_keyframe_deg
+                ? rotation_deg
+                : 0.0;
+        rejected_cells = cells;
       }
       continue;
     }
     if (!best.valid || found.inliers.size() > best.inliers.size()) {
+      if (best.valid && disagree(best.world_from_cam, found.world_from_cam) &&
+          static_cast<int>(best.inliers.size()) > runner_up_inliers) {
+        runner_up_inliers = static_cast<int>(best.inliers.size());
+        runner_up_pose = best.world_from_cam;
+      }
       best = std::move(found);
-      best_slot = slot;
-      best_matches = static_cast<int>(object.size());
+      best_slot = place.head;
+      best_matches = matches;
+      result.projected_points = projected;
+      result.inlier_cells = cells;
+    } else if (disagree(best.world_from_cam, found.world_from_cam) && inliers > runner_up_inliers) {
+      runner_up_inliers = inliers;
+      runner_up_pose = found.world_from_cam;
     }
     if (static_cast<int>(best.inliers.size()) >= options.confident_inliers) break;
+  }
+  result.runner_up_inliers = runner_up_inliers;
+  if (best.valid && runner_up_inliers > 0 &&
+      static_cast<double>(best.inliers.size()) <
+          options.min_inlier_ratio_over_runner_up * runner_up_inliers) {
+    std::ostringstream why;
+    why << "two places fit the photo about as well (" << best.inliers.size() << " and "
+        << runner_up_inliers << " inliers, " << std::fixed << std::setprecision(1)
+        << (best.world_from_cam.translation() - runner_up_pose.translation()).norm()
+        << " m apart): the view is ambiguous.";
+    return finish(why.str());
   }
 
   if (!best.valid) {
@@ -517,8 +775,13 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
           << options.max_rotation_from_keyframe_deg << " allowed).";
     } else {
       why << "none of " << result.candidates_tried
-          << " retrieved keyframes gave a pose: " << most_inliers_rejected
-          << " PnP inliers at best, " << options.min_inliers << " needed.";
+          << " retrieved places gave a pose: " << most_inliers_rejected << " PnP inliers at best";
+      if (rejected_cells >= 0 && most_inliers_rejected >= options.min_inliers) {
+        why << " but in " << rejected_cells << " cells of the photo (" << options.min_inlier_cells
+            << " needed).";
+      } else {
+        why << ", " << options.min_inliers << " needed.";
+      }
     }
     return finish(why.str());
   }
