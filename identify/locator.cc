@@ -138,6 +138,8 @@ struct PoseHypothesis {
 int CountInliers(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
                  const cv::Matx33d& camera, const cv::Vec3d& rvec, const cv::Vec3d& tvec,
                  double threshold_px, std::vector<int>* inliers) {
+  inliers->clear();
+  if (object.empty()) return 0;  // projectPoints throws on an empty input
   std::vector<cv::Point2f> projected;
   cv::projectPoints(object, rvec, tvec, camera, cv::noArray(), projected);
   cv::Matx33d rotation;
@@ -163,9 +165,9 @@ std::vector<T> Subset(const std::vector<T>& values, const std::vector<int>& indi
 
 // RANSAC PnP, then Levenberg-Marquardt on the inliers and again on the inliers of the refined
 // pose (RANSAC's minimal-sample poses leave a few cm that the refinement removes).
-PoseHypothesis SolvePose(const std::vector<cv::Point3f>& object,
-                         const std::vector<cv::Point2f>& image, const Intrinsics& intrinsics,
-                         const LocatorOptions& options) {
+PoseHypothesis SolvePoseUnguarded(const std::vector<cv::Point3f>& object,
+                                  const std::vector<cv::Point2f>& image,
+                                  const Intrinsics& intrinsics, const LocatorOptions& options) {
   PoseHypothesis hypothesis;
   hypothesis.intrinsics = intrinsics;
   if (object.size() < 4) return hypothesis;
@@ -196,6 +198,20 @@ PoseHypothesis SolvePose(const std::vector<cv::Point3f>& object,
   hypothesis.world_from_cam = cam_from_world.inverse();
   hypothesis.inliers = std::move(inliers);
   return hypothesis;
+}
+
+// OpenCV's PnP throws on some degenerate inputs (collinear or repeated points); a degenerate
+// sample is a failed hypothesis, not a failed request.
+PoseHypothesis SolvePose(const std::vector<cv::Point3f>& object,
+                         const std::vector<cv::Point2f>& image, const Intrinsics& intrinsics,
+                         const LocatorOptions& options) {
+  try {
+    return SolvePoseUnguarded(object, image, intrinsics, options);
+  } catch (const cv::Exception&) {
+    PoseHypothesis failed;
+    failed.intrinsics = intrinsics;
+    return failed;
+  }
 }
 
 // Refines the focal length with the pose on a hypothesis' inliers (principal point, aspect ratio
@@ -355,8 +371,13 @@ bool RefineOn(const std::vector<cv::Point3f>& object, const std::vector<cv::Poin
       hypothesis->valid = false;
       return false;
     }
-    cv::solvePnPRefineLM(Subset(object, inliers), Subset(image, inliers), camera, cv::noArray(),
-                         rvec, tvec);
+    try {
+      cv::solvePnPRefineLM(Subset(object, inliers), Subset(image, inliers), camera, cv::noArray(),
+                           rvec, tvec);
+    } catch (const cv::Exception&) {
+      hypothesis->valid = false;  // degenerate correspondences, as in SolvePose
+      return false;
+    }
   }
   CountInliers(object, image, camera, rvec, tvec, options.pnp_reprojection_px, &inliers);
   hypothesis->world_from_cam = FromRvecTvec(rvec, tvec);
