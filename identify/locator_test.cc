@@ -134,12 +134,13 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
       matched, seen_photos_->size(), 1e3 * Median(position_errors),
       1e3 * *std::max_element(position_errors.begin(), position_errors.end()),
       Median(rotation_errors), *std::max_element(rotation_errors.begin(), rotation_errors.end()));
-  // Measured (100 keyframes, 17 photos): 11 matched, median 12 mm / 0.2 deg, one at 22 cm / 3.7
-  // deg. The bounds say what holds today, not the goal (95% matched).
-  EXPECT_GE(matched, static_cast<int>(0.55 * static_cast<double>(seen_photos_->size())));
-  EXPECT_GE(accurate, static_cast<int>(0.8 * matched));
-  EXPECT_LE(Median(position_errors), 0.03);
-  EXPECT_LE(Median(rotation_errors), 1.0);
+  // Measured (100 keyframes, 17 photos): 12 matched, median 5 mm / 0.1 deg, the worst 38 mm /
+  // 1.4 deg: verified poses are never wrong by metres. The bounds say what holds today, not the
+  // issue's goal (95% matched).
+  EXPECT_GE(matched, static_cast<int>(0.65 * static_cast<double>(seen_photos_->size())));
+  EXPECT_EQ(accurate, matched);
+  EXPECT_LE(Median(position_errors), 0.01);
+  EXPECT_LE(Median(rotation_errors), 0.3);
 }
 
 TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
