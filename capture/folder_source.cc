@@ -642,14 +642,7 @@ Intrinsics ReadCameraIntrinsicsTxt(const fs::path& path, int width, int height,
   if (std::abs(k[1]) > 1e-9) {
     notes->push_back(StrCat(path.string(), " has a skew of ", k[1], ", which is ignored."));
   }
-  Intrinsics intrinsics;
-  intrinsics.width = width;
-  intrinsics.height = height;
-  intrinsics.fx = k[0];
-  intrinsics.fy = k[4];
-  intrinsics.cx = k[2];
-  intrinsics.cy = k[5];
-  return intrinsics;
+  return Intrinsics::FromPinhole(width, height, k[0], k[4], k[2], k[5]);
 }
 
 }  // namespace

@@ -45,13 +45,8 @@ Intrinsics ParseIntrinsics(const std::string& text, int width, int height) {
                    "got '"
                        << text << "'");
   }
-  Intrinsics k;
-  k.width = width;
-  k.height = height;
-  k.fx = values[0];
-  k.fy = values[1];
-  k.cx = values[2];
-  k.cy = values[3];
+  const Intrinsics k =
+      Intrinsics::FromPinhole(width, height, values[0], values[1], values[2], values[3]);
   std::string error;
   if (!k.Check(&error)) SIGHTMAP_THROW(InvalidArgument, "--intrinsics: " << error);
   return k;

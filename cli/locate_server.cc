@@ -121,13 +121,8 @@ std::optional<Intrinsics> IntrinsicsFromQuery(const httplib::Request& request, i
     SIGHTMAP_CHECK(!text.empty() && end == text.c_str() + text.size() && std::isfinite(values[i]),
                    names[i] << "=" << text << " is not a number");
   }
-  Intrinsics intrinsics;
-  intrinsics.width = width;
-  intrinsics.height = height;
-  intrinsics.fx = values[0];
-  intrinsics.fy = values[1];
-  intrinsics.cx = values[2];
-  intrinsics.cy = values[3];
+  const Intrinsics intrinsics =
+      Intrinsics::FromPinhole(width, height, values[0], values[1], values[2], values[3]);
   std::string why;
   SIGHTMAP_CHECK(intrinsics.Check(&why), "bad intrinsics: " << why);
   return intrinsics;

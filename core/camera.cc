@@ -6,6 +6,18 @@
 
 namespace sightmap {
 
+Intrinsics Intrinsics::FromPinhole(int width, int height, double fx, double fy, double cx,
+                                   double cy) {
+  Intrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = fx;
+  k.fy = fy;
+  k.cx = cx;
+  k.cy = cy;
+  return k;
+}
+
 Intrinsics Intrinsics::FromFieldOfView(int width, int height, double hfov_rad, double vfov_rad) {
   if (width <= 0 || height <= 0 || !(hfov_rad > 0.0) || !(hfov_rad < M_PI)) {
     SIGHTMAP_THROW(InvalidArgument, "cannot derive intrinsics from a "

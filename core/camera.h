@@ -19,6 +19,10 @@ struct Intrinsics {
   // non-positive vfov means "square pixels": fy = fx.
   static Intrinsics FromFieldOfView(int width, int height, double hfov_rad, double vfov_rad);
 
+  // A pinhole camera from its focal lengths and principal point [px], for width x height images
+  // (unchecked: call Check() on values that come from a user).
+  static Intrinsics FromPinhole(int width, int height, double fx, double fy, double cx, double cy);
+
   // The same camera at another resolution (e.g. 320x240 colour mapped onto 640x480 depth).
   Intrinsics Scaled(int new_width, int new_height) const;
 

@@ -55,6 +55,19 @@ TEST(Intrinsics, ProjectInvertsUnproject) {
   EXPECT_NEAR(k.MirroredHorizontally().cx, 319.5, 1e-12);
 }
 
+TEST(Intrinsics, FromPinholeKeepsEachValueInItsPlace) {
+  const Intrinsics k = Intrinsics::FromPinhole(640, 480, 525.0, 520.0, 319.5, 239.0);
+  EXPECT_EQ(k.width, 640);
+  EXPECT_EQ(k.height, 480);
+  EXPECT_EQ(k.fx, 525.0);
+  EXPECT_EQ(k.fy, 520.0);
+  EXPECT_EQ(k.cx, 319.5);
+  EXPECT_EQ(k.cy, 239.0);
+  const Eigen::Vector2d pixel = k.Project(Eigen::Vector3d(0.1, -0.2, 2.0));
+  EXPECT_NEAR(pixel.x(), 319.5 + 525.0 * 0.05, 1e-12);
+  EXPECT_NEAR(pixel.y(), 239.0 - 520.0 * 0.1, 1e-12);
+}
+
 TEST(Intrinsics, CheckRejectsNonPositiveFocalLength) {
   Intrinsics k;
   k.width = 640;

@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "identify/exif.h"
 #include "identify/visibility.h"
 #include "slam/place_index.h"
 #include "slam/vocabulary.h"
@@ -100,17 +101,6 @@ double MsSince(Clock::time_point start) {
 
 double AngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
   return Eigen::AngleAxisd(a.transpose() * b).angle() * 180.0 / M_PI;
-}
-
-// The diagonal definition of the 35 mm equivalent (identify/exif.h documents the same formula).
-Intrinsics FocalCandidateIntrinsics(int width, int height, double focal_35mm) {
-  Intrinsics k;
-  k.width = width;
-  k.height = height;
-  k.fx = k.fy = focal_35mm * std::hypot(width, height) / std::hypot(36.0, 24.0);
-  k.cx = (width - 1) / 2.0;
-  k.cy = (height - 1) / 2.0;
-  return k;
 }
 
 cv::Matx33d CameraMatrix(const Intrinsics& k) {
@@ -564,7 +554,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     full_candidates.push_back(k);
   } else {
     for (double f35 : options.focal_candidates_35mm) {
-      full_candidates.push_back(FocalCandidateIntrinsics(photo.cols, photo.rows, f35));
+      full_candidates.push_back(IntrinsicsFromFocal35mm(photo.cols, photo.rows, f35));
     }
   }
   result.intrinsics = full_candidates.front();
