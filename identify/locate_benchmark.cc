@@ -13,11 +13,14 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <numeric>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "identify/identify_eval.h"
 #include "identify/locator.h"
 #include "identify/sim_model_testing.h"
 #include "sim/simulator.h"
@@ -27,31 +30,6 @@ namespace sightmap {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Stats {
-  double median = 0.0;
-  double p95 = 0.0;
-  double mean = 0.0;
-};
-
-Stats Summarise(std::vector<double> values) {
-  Stats stats;
-  if (values.empty()) return stats;
-  std::sort(values.begin(), values.end());
-  auto at = [&](double q) {
-    return values[std::min(
-        values.size() - 1,
-        static_cast<size_t>(std::ceil(q * static_cast<double>(values.size())) - 1))];
-  };
-  stats.median = values.size() % 2
-                     ? values[values.size() / 2]
-                     : 0.5 * (values[values.size() / 2 - 1] + values[values.size() / 2]);
-  stats.p95 = at(0.95);
-  double sum = 0.0;
-  for (double v : values) sum += v;
-  stats.mean = sum / static_cast<double>(values.size());
-  return stats;
-}
 
 double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -153,42 +131,34 @@ int Run(int argc, char** argv) {
   std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
               locator.NumKeyframes(), locator.NumOcclusionVoxels(), Seconds(start));
 
-  sim::SimulatorOptions session2;
-  session2.session = 2;
-  session2.seed = 7;
-  session2.fps = 1.0;
-  session2.frames = 1;
-  sim::Simulator simulator(session2);
+  sim::Simulator simulator(PhotoSessionOptions());
   start = std::chrono::steady_clock::now();
   const std::vector<sim::QueryPhoto> queries = simulator.MakeQueries(photos, sim::QueryOptions());
   std::printf("%d session-2 photos rendered in %.1f s\n", photos, Seconds(start));
 
-  std::vector<double> features_ms, retrieval_ms, matching_ms, pnp_ms, visibility_ms, total_ms;
+  // The ground truth and the answers as `sightmap eval identify` scores them.
+  std::vector<QueryTruth> truths;
+  std::vector<PhotoAnswer> answers;
   std::vector<double> position_mm, rotation_deg;
-  int matched = 0;
   int wrong = 0;  // matched more than 0.3 m from the truth
   int seen_photos = 0;
   int seen_matched = 0;
-  const std::vector<KeyframeInfo> keyframe_infos = model.Keyframes();
-  int occluded_truth = 0, occluded_fp = 0;
-  int recall_photos = 0, recall_good = 0, precision_photos = 0, precision_good = 0;
+  std::vector<Eigen::Isometry3d> keyframes_world_from_cam;
+  for (const KeyframeInfo& info : model.Keyframes()) {
+    keyframes_world_from_cam.push_back(info.world_from_cam);
+  }
   for (const sim::QueryPhoto& photo : queries) {
     const LocateResult result =
         locator.Locate(photo.image, estimate ? std::nullopt : std::optional(photo.intrinsics));
-    features_ms.push_back(result.timings.features_ms);
-    retrieval_ms.push_back(result.timings.retrieval_ms);
-    matching_ms.push_back(result.timings.matching_ms);
-    pnp_ms.push_back(result.timings.pnp_ms);
-    visibility_ms.push_back(result.timings.visibility_ms);
-    total_ms.push_back(result.timings.total_ms);
-    // Whether the walk saw this place: a keyframe within 1.5 m looking within 40 deg.
-    bool seen = false;
-    for (const KeyframeInfo& info : keyframe_infos) {
-      if ((info.world_from_cam.translation() - photo.world_from_cam.translation()).norm() < 1.5 &&
-          info.world_from_cam.linear().col(2).dot(photo.world_from_cam.linear().col(2)) > 0.766) {
-        seen = true;
-      }
+    QueryTruth truth;
+    for (const sim::ApplianceVisibility& visibility : photo.visibility) {
+      truth.appliances
+          [simulator.scene().appliances[static_cast<size_t>(visibility.appliance_id - 1)].name] =
+          ParseTruthType(sim::ToString(visibility.type));
     }
+    truths.push_back(std::move(truth));
+    answers.push_back(ToPhotoAnswer(result));
+    const bool seen = WalkSawPlace(keyframes_world_from_cam, photo.world_from_cam);
     seen_photos += seen;
     if (seen && result.matched) ++seen_matched;
     if (!result.matched) {
@@ -196,7 +166,6 @@ int Run(int argc, char** argv) {
                   result.reason.c_str());
       continue;
     }
-    ++matched;
     const double error_m =
         (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm();
     wrong += error_m > 0.3;
@@ -212,62 +181,25 @@ int Run(int argc, char** argv) {
                                              photo.world_from_cam.linear())
                                .angle() *
                            180.0 / M_PI);
-    // The paper's per-photo recall and precision (partially visible is optional).
-    int visible = 0, found_visible = 0, reported = 0, reported_ok = 0;
-    for (const sim::ApplianceVisibility& truth : photo.visibility) {
-      const std::string& name =
-          simulator.scene().appliances[static_cast<size_t>(truth.appliance_id - 1)].name;
-      bool identified = false;
-      for (const ApplianceInView& a : result.appliances) {
-        if (a.name == name && !a.occluded) identified = true;
-      }
-      if (identified) ++reported;
-      if (truth.type == sim::VisibilityType::kVisible) {
-        ++visible;
-        if (identified) ++found_visible;
-      }
-      if (identified && (truth.type == sim::VisibilityType::kVisible ||
-                         truth.type == sim::VisibilityType::kPartiallyVisible)) {
-        ++reported_ok;
-      }
-      if (truth.type == sim::VisibilityType::kOccluded) {
-        ++occluded_truth;
-        if (identified) ++occluded_fp;
-      }
-    }
-    if (visible > 0) {
-      ++recall_photos;
-      if (found_visible >= 0.8 * visible) ++recall_good;
-    }
-    if (reported > 0) {
-      ++precision_photos;
-      if (reported_ok >= 0.8 * reported) ++precision_good;
-    }
   }
-  auto line = [](const char* name, const std::vector<double>& values) {
-    const Stats s = Summarise(values);
-    std::printf("  %-11s median %7.1f ms  p95 %7.1f ms  mean %7.1f ms\n", name, s.median, s.p95,
-                s.mean);
+  const IdentifyEvaluation evaluation = EvaluateIdentification(truths, answers);
+  auto line = [&](const char* stage) {
+    const StageTiming& s = evaluation.stages.at(stage);
+    std::printf("  %-11s median %7.1f ms  p95 %7.1f ms  mean %7.1f ms\n", stage, s.median_ms,
+                s.p95_ms, s.mean_ms);
   };
   std::fflush(stdout);
   std::printf("\nlocate, %zu photos of 1280x960 against %zu keyframes (one thread):\n",
               queries.size(), locator.NumKeyframes());
-  line("features", features_ms);
-  line("retrieval", retrieval_ms);
-  line("matching", matching_ms);
-  line("pnp", pnp_ms);
-  line("visibility", visibility_ms);
-  line("total", total_ms);
-  const Stats pos = Summarise(position_mm);
-  const Stats rot = Summarise(rotation_deg);
+  for (const char* stage : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
+    line(stage);
+  }
   std::printf(
       "matched %d of %zu (%.1f%%); position error median %.1f mm p95 %.1f mm max %.1f mm; "
       "rotation median %.2f deg p95 %.2f deg max %.2f deg\n",
-      matched, queries.size(), 100.0 * matched / static_cast<double>(queries.size()), pos.median,
-      pos.p95,
-      position_mm.empty() ? 0.0 : *std::max_element(position_mm.begin(), position_mm.end()),
-      rot.median, rot.p95,
-      rotation_deg.empty() ? 0.0 : *std::max_element(rotation_deg.begin(), rotation_deg.end()));
+      evaluation.matched_photos, queries.size(), 100.0 * evaluation.matched_ratio,
+      Percentile(position_mm, 0.5), Percentile(position_mm, 0.95), Percentile(position_mm, 1.0),
+      Percentile(rotation_deg, 0.5), Percentile(rotation_deg, 0.95), Percentile(rotation_deg, 1.0));
   std::printf("wrong poses (> 0.3 m): %d\n", wrong);
   std::printf(
       "photos of places the walk saw (a keyframe within 1.5 m and 40 deg): %d, matched "
@@ -276,9 +208,11 @@ int Run(int argc, char** argv) {
   std::printf(
       "recall >= 0.8: %d of %d photos (%.1f%%); precision >= 0.8: %d of %d (%.1f%%); "
       "occluded reported visible: %d of %d (%.1f%%)\n",
-      recall_good, recall_photos, 100.0 * recall_good / std::max(1, recall_photos), precision_good,
-      precision_photos, 100.0 * precision_good / std::max(1, precision_photos), occluded_fp,
-      occluded_truth, 100.0 * occluded_fp / std::max(1, occluded_truth));
+      evaluation.recall_good_photos, evaluation.recall_defined_photos,
+      100.0 * evaluation.recall_ge_0_8_ratio, evaluation.precision_good_photos,
+      evaluation.precision_defined_photos, 100.0 * evaluation.precision_ge_0_8_ratio,
+      evaluation.occluded_identified, evaluation.occluded_instances,
+      100.0 * evaluation.occluded_false_positive_ratio);
 
   // Retrieval scaling.
   if (large_factor > 1) {
@@ -298,14 +232,18 @@ int Run(int argc, char** argv) {
       small_retrieval.push_back(locator.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
       large_retrieval.push_back(large.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
     }
-    const Stats a = Summarise(small_retrieval);
-    const Stats b = Summarise(large_retrieval);
+    const auto mean = [](const std::vector<double>& ms) {
+      return std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
+    };
     std::printf("\nretrieval (bag of words + inverted index), %zu photos:\n", queries.size());
-    std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n",
-                locator.NumKeyframes(), a.median, a.p95, a.mean);
-    std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n",
-                large.NumKeyframes(), b.median, b.p95, b.mean);
-    std::printf("  ratio of medians %.2f, of means %.2f\n", b.median / a.median, b.mean / a.mean);
+    for (const auto& [keyframe_count, ms] : {std::pair(locator.NumKeyframes(), small_retrieval),
+                                             std::pair(large.NumKeyframes(), large_retrieval)}) {
+      std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n", keyframe_count,
+                  Percentile(ms, 0.5), Percentile(ms, 0.95), mean(ms));
+    }
+    std::printf("  ratio of medians %.2f, of means %.2f\n",
+                Percentile(large_retrieval, 0.5) / Percentile(small_retrieval, 0.5),
+                mean(large_retrieval) / mean(small_retrieval));
     if (!keep) fs::remove(large_path);
   }
   struct rusage usage {};

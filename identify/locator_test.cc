@@ -54,26 +54,14 @@ class LocatorTest : public ::testing::Test {
 
     // Session 2: other lighting, chairs moved. Photos whose camera stands within 1.5 m of a
     // keyframe and looks within 40 deg of its direction show a place the walk saw.
-    sim::SimulatorOptions session2;
-    session2.session = 2;
-    session2.seed = 7;
-    session2.fps = 1.0;
-    session2.frames = 1;
-    sim::Simulator simulator(session2);
+    sim::Simulator simulator(PhotoSessionOptions());
     sim::QueryOptions query_options;
     std::vector<sim::QueryPhoto> photos = simulator.MakeQueries(80, query_options);
     seen_photos_ = new std::vector<sim::QueryPhoto>();
     for (sim::QueryPhoto& photo : photos) {
-      bool seen = false;
-      for (const Eigen::Isometry3d& keyframe : summary_->world_from_cam) {
-        if (PositionError(keyframe, photo.world_from_cam) < 1.5 &&
-            keyframe.linear().col(2).dot(photo.world_from_cam.linear().col(2)) >
-                std::cos(40.0 * M_PI / 180.0)) {
-          seen = true;
-          break;
-        }
+      if (WalkSawPlace(summary_->world_from_cam, photo.world_from_cam)) {
+        seen_photos_->push_back(std::move(photo));
       }
-      if (seen) seen_photos_->push_back(std::move(photo));
     }
     scene_ = new sim::Scene(simulator.scene());
   }

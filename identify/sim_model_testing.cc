@@ -1,6 +1,7 @@
 #include "identify/sim_model_testing.h"
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 
 #include "core/check.h"
@@ -91,6 +92,28 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
   summary.keyframes = frames;
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
+}
+
+sim::SimulatorOptions PhotoSessionOptions() {
+  sim::SimulatorOptions options;
+  options.session = 2;
+  options.seed = 7;
+  options.fps = 1.0;
+  options.frames = 1;
+  return options;
+}
+
+bool WalkSawPlace(const std::vector<Eigen::Isometry3d>& keyframes_world_from_cam,
+                  const Eigen::Isometry3d& photo_world_from_cam, double max_distance_m,
+                  double max_angle_deg) {
+  const double min_cos = std::cos(max_angle_deg * M_PI / 180.0);
+  for (const Eigen::Isometry3d& keyframe : keyframes_world_from_cam) {
+    if ((keyframe.translation() - photo_world_from_cam.translation()).norm() < max_distance_m &&
+        keyframe.linear().col(2).dot(photo_world_from_cam.linear().col(2)) > min_cos) {
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace sightmap

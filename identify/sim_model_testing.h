@@ -45,4 +45,15 @@ struct SimModelSummary {
 // Writes a new model at `path` (which must not exist yet).
 SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptions& options);
 
+// The simulator the phone photos come from: session 2 (other lighting, chairs moved), seed 7, one
+// walk frame (only its MakeQueries is wanted).
+sim::SimulatorOptions PhotoSessionOptions();
+
+// Whether a photo shows a place the walk saw: a keyframe stands within max_distance_m of the
+// photo's camera and looks within max_angle_deg of its direction. Photos of places never seen
+// cannot be expected to match.
+bool WalkSawPlace(const std::vector<Eigen::Isometry3d>& keyframes_world_from_cam,
+                  const Eigen::Isometry3d& photo_world_from_cam, double max_distance_m = 1.5,
+                  double max_angle_deg = 40.0);
+
 }  // namespace sightmap
