@@ -178,12 +178,16 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   summary.source_kind = meta.kind;
   const bool live = options_.live || meta.kind == "openni";
   const Intrinsics camera = meta.intrinsics;
-  // Sensors and their recordings never carry ground truth: say so before the model is touched.
-  if (options_.ground_truth_poses && (meta.kind == "openni" || meta.kind == "oni")) {
-    throw Error(
-        "--ground-truth-poses needs a source with ground truth (the simulator, or a TUM "
-        "folder with groundtruth.txt); a " +
-        meta.kind + " source has none");
+  // Said before the model is touched when the source has none at all; a folder whose ground truth
+  // has gaps fails at the first frame without it.
+  const auto no_ground_truth = [](const std::string& what) {
+    return Error(
+        "--ground-truth-poses needs a source with ground truth (the simulator, or a TUM folder "
+        "with groundtruth.txt); " +
+        what + " has none");
+  };
+  if (options_.ground_truth_poses && !meta.has_ground_truth) {
+    throw no_ground_truth("this " + meta.kind + " source");
   }
 
   std::unique_ptr<MapViewFeed> view;
@@ -434,10 +438,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
         continue;
       }
       if (options_.ground_truth_poses && !frame.world_from_cam_gt) {
-        throw Error(
-            "--ground-truth-poses needs a source with ground truth (the simulator, or a "
-            "TUM folder with groundtruth.txt); frame at " +
-            std::to_string(frame.timestamp_ns) + " ns has none");
+        throw no_ground_truth("the frame at " + std::to_string(frame.timestamp_ns) + " ns");
       }
       if (mapper.NumKeyframes() == 0 && options_.anchor_to_ground_truth &&
           frame.world_from_cam_gt) {

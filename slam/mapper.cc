@@ -24,6 +24,15 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
   total->verification_s += times.verification_s;
 }
 
+// Given poses come from files and float renderers, whose rotations are orthonormal only to a few
+// digits; the pose graph wants 1e-6. The nearest rotation (through the quaternion) fixes that.
+Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
+  Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
+  rigid.linear() = Eigen::Quaterniond(pose.linear()).normalized().toRotationMatrix();
+  rigid.translation() = pose.translation();
+  return rigid;
+}
+
 // Adds the floor to the covariance of a registration's information matrix.
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                const MapperOptions& options) {
@@ -164,10 +173,7 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
 
 void Mapper::SetFirstPose(const Eigen::Isometry3d& world_from_cam) {
   SIGHTMAP_CHECK(keyframes_.empty(), "the first pose is set before the first keyframe");
-  first_world_from_cam_.setIdentity();
-  first_world_from_cam_.linear() =
-      Eigen::Quaterniond(world_from_cam.linear()).normalized().toRotationMatrix();
-  first_world_from_cam_.translation() = world_from_cam.translation();
+  first_world_from_cam_ = Orthonormalised(world_from_cam);
 }
 
 Mapper::Keyframe Mapper::MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
@@ -198,10 +204,7 @@ KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat
   const Clock::time_point start = Clock::now();
   KeyframeReport report;
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
-  // Known poses come from files and float renderers: re-orthonormalise so the graph accepts them.
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = Eigen::Quaterniond(world_from_cam.linear()).normalized().toRotationMatrix();
-  pose.translation() = world_from_cam.translation();
+  const Eigen::Isometry3d pose = Orthonormalised(world_from_cam);
   std::optional<MapperLink> link;
   if (keyframes_.empty()) {
     segment_parent_.push_back(0);
