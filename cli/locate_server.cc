@@ -170,6 +170,14 @@ struct LocateServer::Impl {
   std::condition_variable watch_wakeup;
 
   void WatchLabels();
+  // Marks the server stopping and wakes the label watcher (httplib's own stop is separate).
+  void RequestStop() {
+    {
+      const std::lock_guard<std::mutex> lock(watch_mutex);
+      stop_requested = true;
+    }
+    watch_wakeup.notify_all();
+  }
 
   void HandleLocate(const httplib::Request& request, httplib::Response& response);
   void HandleAppliances(httplib::Response& response) const;
@@ -400,11 +408,7 @@ void LocateServer::Run() {
     Impl* impl;
     std::thread thread;
     ~Watcher() {
-      {
-        const std::lock_guard<std::mutex> lock(impl->watch_mutex);
-        impl->stop_requested = true;
-      }
-      impl->watch_wakeup.notify_all();
+      impl->RequestStop();
       if (thread.joinable()) thread.join();
     }
   } watcher{impl_.get(), {}};
@@ -415,11 +419,7 @@ void LocateServer::Run() {
 }
 
 void LocateServer::Stop() {
-  {
-    const std::lock_guard<std::mutex> lock(impl_->watch_mutex);
-    impl_->stop_requested = true;
-  }
-  impl_->watch_wakeup.notify_all();
+  impl_->RequestStop();
   impl_->server.stop();
 }
 
