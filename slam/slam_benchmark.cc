@@ -6,6 +6,7 @@
 //   slam_benchmark --trajectory handheld --frames 600
 //   slam_benchmark --trajectory robot --frames 600 --false-loop
 //   slam_benchmark --frames 150 --overlap   (what consecutive 1 Hz frames share, by ground truth)
+//   slam_benchmark --frames 1500 --fps 5 --overlap   (the same walk at 5 Hz, every frame mapped)
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -273,16 +274,19 @@ int Main(int argc, char** argv) {
   int64_t frames_wanted = 600;
   bool false_loop = false;
   bool overlap = false;
+  double fps = 1.0;
   app.add_option("--trajectory", trajectory, "handheld or robot")
       ->check(CLI::IsMember({"handheld", "robot"}));
   app.add_option("--session", session, "simulator session (>= 1)");
   app.add_option("--seed", seed, "simulator seed");
-  app.add_option("--frames", frames_wanted, "keyframes (1 Hz frames of the walk)");
+  app.add_option("--frames", frames_wanted, "keyframes (frames of the walk at --fps)");
   app.add_flag("--false-loop", false_loop,
                "also run again with a wrong loop injected halfway and compare the ATE");
   app.add_flag("--overlap", overlap,
                "first report what consecutive frames share by ground truth, and how many pairs "
                "registration bridges");
+  app.add_option("--fps", fps,
+                 "frames per second of the walk; every frame is mapped as a keyframe");
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
@@ -290,7 +294,7 @@ int Main(int argc, char** argv) {
       trajectory == "robot" ? sim::TrajectoryKind::kRobot : sim::TrajectoryKind::kHandheld;
   sim_options.session = session;
   sim_options.seed = seed;
-  sim_options.fps = 1.0;
+  sim_options.fps = fps;
   sim_options.frames = frames_wanted;
   sim::Simulator simulator(sim_options);
   std::vector<Frame> frames;
@@ -308,8 +312,9 @@ int Main(int argc, char** argv) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count());
   const Intrinsics camera = simulator.options().camera;
   MapperOptions options;
-  std::printf("simulator office, %s, session %d, seed %llu, %zu keyframes at 1 Hz\n",
-              trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size());
+  std::printf("simulator office, %s, session %d, seed %llu, %zu keyframes at %g Hz\n",
+              trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size(),
+              fps);
   if (overlap) ReportOverlap(frames, camera, options);
   const RunResult clean = Run(frames, camera, options, -1, true);
   if (false_loop) {
