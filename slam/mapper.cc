@@ -22,6 +22,7 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
   total->matching_s += times.matching_s;
   total->ransac_s += times.ransac_s;
   total->verification_s += times.verification_s;
+  ++total->registrations;
 }
 
 // Given poses come from files and float renderers, whose rotations are orthonormal only to a few
@@ -73,6 +74,13 @@ bool MapperOptions::Check(std::string* error) const {
   if (!(join_max_disagreement_m > 0.0) || !(join_max_disagreement_rad > 0.0)) {
     return fail("join_max_disagreement_m and join_max_disagreement_rad must be positive");
   }
+  if (!(walk_max_speed_mps > 0.0) || !(walk_max_turn_rate_dps > 0.0) || !(walk_slack_m >= 0.0) ||
+      !(walk_slack_deg >= 0.0) || !(walk_max_gap_s >= 0.0)) {
+    return fail(
+        "walk_max_speed_mps and walk_max_turn_rate_dps must be positive, the slacks and "
+        "walk_max_gap_s not negative");
+  }
+
   if (!(link_min_sigma_m > 0.0) || !(link_min_sigma_rad > 0.0)) {
     return fail("link_min_sigma_m and link_min_sigma_rad must be positive");
   }
@@ -206,6 +214,8 @@ KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
   const Eigen::Isometry3d pose = Orthonormalised(world_from_cam);
   std::optional<MapperLink> link;
+  if (start_new_segment_) ++walk_;
+  keyframe.walk = walk_;
   if (keyframes_.empty()) {
     segment_parent_.push_back(0);
   } else {
@@ -246,6 +256,8 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   const Clock::time_point start = Clock::now();
   KeyframeReport report;
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
+  if (start_new_segment_) ++walk_;
+  keyframe.walk = walk_;
 
   // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
   // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
@@ -461,6 +473,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
       // pose graph has nothing to check a link against: a join waits until a second keyframe of
       // the segment, registered elsewhere in the map, agrees on where the segment lies.
       const Eigen::Isometry3d correction = JoinCorrection(newer, link);
+      if (!JoinKeepsTheWalkPossible(older, newer, correction)) continue;
       const bool confirmed =
           pending_join_ && pending_join_->older == older && pending_join_->newer == newer &&
           (pending_join_->correction.inverse() * correction).translation().norm() <
@@ -494,6 +507,39 @@ Eigen::Isometry3d Mapper::JoinCorrection(int newer_root, const MapperLink& link)
     return graph_.Pose(link.from) * link.from_from_to * graph_.Pose(link.to).inverse();
   }
   return graph_.Pose(link.to) * link.from_from_to.inverse() * graph_.Pose(link.from).inverse();
+}
+
+bool Mapper::JoinKeepsTheWalkPossible(int older_root, int newer_root,
+                                      const Eigen::Isometry3d& correction) const {
+  // Each place in time where the walk passes from one of the two segments to the other (other
+  // segments' keyframes in between are skipped: they are not placed yet).
+  const Keyframe* previous = nullptr;
+  int previous_root = -1;
+  for (const Keyframe& keyframe : keyframes_) {
+    const int root = Root(keyframe.segment);
+    if (root != older_root && root != newer_root) continue;
+    if (previous != nullptr && previous_root != root && keyframe.walk >= 0 &&
+        keyframe.walk == previous->walk) {
+      const double gap_s =
+          1e-9 * static_cast<double>(keyframe.timestamp_ns - previous->timestamp_ns);
+      if (gap_s >= 0.0 && gap_s <= options_.walk_max_gap_s) {
+        const auto placed = [&](const Keyframe& k, int k_root) {
+          return k_root == newer_root ? correction * graph_.Pose(k.id) : graph_.Pose(k.id);
+        };
+        const Eigen::Isometry3d motion =
+            placed(*previous, previous_root).inverse() * placed(keyframe, root);
+        const double turn_deg = Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
+        if (motion.translation().norm() >
+                options_.walk_max_speed_mps * gap_s + options_.walk_slack_m ||
+            turn_deg > options_.walk_max_turn_rate_dps * gap_s + options_.walk_slack_deg) {
+          return false;
+        }
+      }
+    }
+    previous = &keyframe;
+    previous_root = root;
+  }
+  return true;
 }
 
 void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link) {

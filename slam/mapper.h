@@ -68,6 +68,15 @@ struct MapperOptions {
   // [m], [rad].
   double join_max_disagreement_m = 0.10;
   double join_max_disagreement_rad = 0.05;
+  // Where odometry broke, the walk did not: between the last keyframe of one segment and the next
+  // keyframe of the same capture, the sensor moved at most this fast. A join that would put them
+  // further apart matched a look-alike place (offices repeat their rooms and furniture) and is
+  // refused, however well its features agree. Gaps longer than walk_max_gap_s are not checked.
+  double walk_max_speed_mps = 1.5;       // [m/s]
+  double walk_max_turn_rate_dps = 60.0;  // [deg/s]
+  double walk_slack_m = 0.5;             // added to the bound whatever the gap [m]
+  double walk_slack_deg = 20.0;          // [deg]
+  double walk_max_gap_s = 10.0;          // [s]
   // Registration's information matrix assumes independent depth errors and so claims sub-millimetre
   // precision from a few hundred inliers; systematic errors (depth bias, calibration) do not shrink
   // with the inlier count. This floor is added to every link's covariance so the pose graph weighs
@@ -100,6 +109,7 @@ struct MapperStageTimes {
   double place_recognition_s = 0.0;  // bag of words, index query (and training once)
   double optimisation_s = 0.0;
   double total_s = 0.0;
+  int registrations = 0;  // pairs registered (odometry and place candidates), what matching costs
 };
 
 struct KeyframeReport {
@@ -178,6 +188,9 @@ class Mapper {
     int64_t id = 0;
     TimestampNs timestamp_ns = 0;
     int segment = 0;
+    // The continuous capture the keyframe came from (a new one after StartNewSegment); -1 for a
+    // restored keyframe, whose capture is over.
+    int walk = -1;
     Features features;
     cv::Mat depth_small;  // depth_downscale x smaller, nearest samples
     bool indexed = false;
@@ -200,6 +213,10 @@ class Mapper {
   // true when it joined two segments.
   bool SearchPlaces(Keyframe& keyframe, KeyframeReport* report);
   Eigen::Isometry3d JoinCorrection(int newer_root, const MapperLink& link) const;
+  // False when moving the newer segment by `correction` would make the walk jump: see
+  // MapperOptions::walk_max_speed_mps.
+  bool JoinKeepsTheWalkPossible(int older_root, int newer_root,
+                                const Eigen::Isometry3d& correction) const;
   void JoinSegments(int older_root, int newer_root, const MapperLink& link);
   void Optimise(KeyframeReport* report);
 
@@ -215,6 +232,7 @@ class Mapper {
   int64_t last_loop_keyframe_ = -1000000;
   bool vocabulary_given_ = false;
   bool start_new_segment_ = false;
+  int walk_ = 0;  // Keyframe::walk of the next keyframe
   Eigen::Isometry3d first_world_from_cam_ = Eigen::Isometry3d::Identity();
   // A relocalisation waiting for a second keyframe to agree before two segments are joined.
   struct PendingJoin {

@@ -109,6 +109,56 @@ TEST(Mapper, RelocalisesAfterAJumpAndJoinsTheSegments) {
   EXPECT_LT(error.ate_rmse_m, 0.05);
 }
 
+// Frames 0-29, four blank frames (the sensor covered: lost, and too many for odometry to reach
+// back past), then frames 10-24 again, unannounced: to the mapper the walk went on. Returns the
+// mapper's segments at the end and whether any keyframe was relocalised.
+std::pair<int, bool> WalkBackAfterABlindGap(const MapperOptions& options, double* gap_s,
+                                            double* jump_m) {
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera, options);
+  const cv::Mat black = cv::Mat::zeros(walk.frames[0].color.size(), walk.frames[0].color.type());
+  const cv::Mat no_depth = cv::Mat::zeros(walk.frames[0].depth.size(), CV_16UC1);
+  bool relocalised = false;
+  TimestampNs t = 0;
+  const auto add = [&](const cv::Mat& color, const cv::Mat& depth) {
+    relocalised =
+        mapper.AddKeyframe(t, color, depth).state == TrackingState::kRelocalised || relocalised;
+    t += 1'000'000'000;
+  };
+  for (size_t i = 0; i < 30; ++i) add(walk.frames[i].color, walk.frames[i].depth);
+  for (int i = 0; i < 4; ++i) add(black, no_depth);
+  for (size_t i = 10; i < 25; ++i) add(walk.frames[i].color, walk.frames[i].depth);
+  *gap_s = 5.0;  // from frame 29's keyframe to frame 10's
+  *jump_m = (walk.frames[29].world_from_cam_gt->inverse() * *walk.frames[10].world_from_cam_gt)
+                .translation()
+                .norm();
+  return {mapper.NumSegments(), relocalised};
+}
+
+TEST(Mapper, AJoinThatWouldMakeTheWalkJumpIsRefused) {
+  // The same walk twice: with bounds the jump fits in, the segments are joined; with a speed
+  // bound half the jump's, the relocalisation is refused and the segment stays apart (as a
+  // look-alike room 10 m away would).
+  double gap_s = 0.0;
+  double jump_m = 0.0;
+  MapperOptions options = SmallVocabulary();
+  options.walk_slack_m = 0.0;
+  options.walk_max_turn_rate_dps = 1000.0;
+  options.walk_max_speed_mps = 10.0;
+  const auto [loose_segments, loose_relocalised] = WalkBackAfterABlindGap(options, &gap_s, &jump_m);
+  ASSERT_GT(jump_m, 0.3) << "the test needs the walk to come back from elsewhere";
+  EXPECT_TRUE(loose_relocalised);
+  // The blank keyframes are segments of their own: they are never joined.
+  EXPECT_EQ(loose_segments, 1 + 4);
+
+  options.walk_max_speed_mps = 0.5 * jump_m / gap_s;
+  const auto [tight_segments, tight_relocalised] = WalkBackAfterABlindGap(options, &gap_s, &jump_m);
+  EXPECT_FALSE(tight_relocalised);
+  EXPECT_EQ(tight_segments, 1 + 4 + 1);
+  std::printf("walked back %.2f m in %.0f s: joined under %.1f m/s, refused under %.2f m/s\n",
+              jump_m, gap_s, 10.0, options.walk_max_speed_mps);
+}
+
 TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
   const Walk& walk = HandheldWalk();
   std::vector<StampedPose> ground_truth;
