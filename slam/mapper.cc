@@ -396,7 +396,7 @@ KeyframeReport Mapper::AddExternalLink(const MapperLink& link) {
   KeyframeReport report;
   report.id = link.to;
   AddLink(link, &report);
-  Optimise(&report);
+  Optimise(link.to, &report);
   report.segment = SegmentOf(link.to);
   report.state = state_;
   report.world_from_cam = graph_.Pose(link.to);
@@ -492,7 +492,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     }
     AddLink(link, report);
     last_loop_keyframe_ = keyframe.id;
-    Optimise(report);
+    Optimise(keyframe.id, report);
     const MapperLink& added = links_.back();
     report->loop_closed = added.active;
     return link.type == MapperLinkType::kRelocalisation;
@@ -552,9 +552,9 @@ void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link
   segment_parent_[static_cast<size_t>(newer_root)] = older_root;
 }
 
-void Mapper::Optimise(KeyframeReport* report) {
+void Mapper::Optimise(int64_t around, KeyframeReport* report) {
   const Clock::time_point start = Clock::now();
-  const PoseGraphSummary summary = graph_.Optimize(options_.pose_graph);
+  const PoseGraphSummary summary = graph_.OptimizeAround(around, options_.pose_graph);
   for (size_t edge : summary.rejected_edges) {
     if (links_[edge].active) {
       links_[edge].active = false;

@@ -218,7 +218,8 @@ class Mapper {
   bool JoinKeepsTheWalkPossible(int older_root, int newer_root,
                                 const Eigen::Isometry3d& correction) const;
   void JoinSegments(int older_root, int newer_root, const MapperLink& link);
-  void Optimise(KeyframeReport* report);
+  // Optimises the part of the map joined to keyframe `around` (where a link was just added).
+  void Optimise(int64_t around, KeyframeReport* report);
 
   Intrinsics camera_;
   MapperOptions options_;

@@ -111,6 +111,10 @@ class PoseGraph {
   // Moves the poses to the least-squares estimate of the active edges. Poses without an active
   // edge do not move. Throws InvalidArgument on invalid options.
   PoseGraphSummary Optimize(const PoseGraphOptions& options = PoseGraphOptions());
+  // The same over the part of the graph that active edges tie to pose `id` only: the rest has
+  // no new edge and stays as it is. What a new link needs, at a cost that follows its part of
+  // the map rather than the whole (a map of many unjoined segments).
+  PoseGraphSummary OptimizeAround(int64_t id, const PoseGraphOptions& options = PoseGraphOptions());
 
   const Eigen::Isometry3d& Pose(int64_t id) const;  // throws when the id is unknown
   bool HasPose(int64_t id) const;
@@ -125,6 +129,10 @@ class PoseGraph {
     Eigen::Isometry3d world_from_cam;
     bool fixed = false;
   };
+  // Optimize() over the active edges with `selected[e]` (all when empty).
+  PoseGraphSummary OptimizeEdges(const PoseGraphOptions& options,
+                                 const std::vector<bool>& selected);
+
   std::map<int64_t, Node> nodes_;  // by id: references stay valid, components find lowest ids
   std::vector<PoseGraphEdge> edges_;
   std::vector<bool> active_;

@@ -312,6 +312,46 @@ TEST(PoseGraph, DisconnectedComponentsEachHoldTheirLowestId) {
   EXPECT_TRUE(graph.Pose(14).isApprox(twelve * step * step, 1e-6));
 }
 
+TEST(PoseGraph, OptimizeAroundMovesOnlyThePartTiedToThePose) {
+  // Two chains, both off their optimum, and a false loop in the second: optimising around a pose
+  // of the first settles the first only; the second keeps its poses and its false loop.
+  const Eigen::Isometry3d step = Translation(1.0);
+  const Eigen::Isometry3d nudge =
+      ExpSe3((Vector6d() << 0.05, -0.03, 0.02, 0.02, 0.01, -0.03).finished());
+  PoseGraph graph;
+  for (int64_t i = 0; i < 5; ++i) {
+    graph.AddPose(i, i == 0 ? Eigen::Isometry3d::Identity() : nudge * graph.Pose(i - 1) * step);
+    graph.AddPose(10 + i, i == 0 ? Translation(0.0, 5.0) : graph.Pose(9 + i) * step * nudge);
+  }
+  // Odometry to 1 cm / 0.6 deg: a loop 6 m off cannot bend it.
+  for (int64_t i = 0; i < 4; ++i) {
+    graph.AddEdge(MakeEdge(i, i + 1, step, 1e4 * Matrix6d::Identity()));
+    graph.AddEdge(MakeEdge(10 + i, 11 + i, step, 1e4 * Matrix6d::Identity()));
+  }
+  const size_t false_loop = graph.AddEdge(
+      MakeEdge(10, 14, Translation(-2.0), Matrix6d::Identity(), PoseGraphEdgeType::kLoop));
+  std::vector<Eigen::Isometry3d> second;
+  for (int64_t i = 10; i < 15; ++i) second.push_back(graph.Pose(i));
+
+  const PoseGraphSummary summary = graph.OptimizeAround(3);
+  EXPECT_TRUE(summary.converged);
+  EXPECT_TRUE(summary.rejected_edges.empty());
+  for (int64_t i = 1; i < 5; ++i) {
+    EXPECT_TRUE(graph.Pose(i).isApprox(graph.Pose(i - 1) * step, 1e-6)) << i;
+  }
+  for (int64_t i = 10; i < 15; ++i) {
+    EXPECT_TRUE(graph.Pose(i).isApprox(second[static_cast<size_t>(i - 10)], 0.0)) << i;
+  }
+  EXPECT_TRUE(graph.EdgeActive(false_loop));
+
+  // Around a pose of the second chain, the false loop is found and switched off.
+  const PoseGraphSummary around_second = graph.OptimizeAround(12);
+  ASSERT_EQ(around_second.rejected_edges.size(), 1u);
+  EXPECT_EQ(around_second.rejected_edges[0], false_loop);
+  EXPECT_TRUE(graph.Pose(14).isApprox(graph.Pose(10) * step * step * step * step, 1e-6));
+  EXPECT_THROW(graph.OptimizeAround(77), Error);
+}
+
 TEST(PoseGraph, InvalidInputThrows) {
   PoseGraph graph;
   graph.AddPose(1, Eigen::Isometry3d::Identity());
