@@ -7,6 +7,7 @@
 //   slam_benchmark --trajectory robot --frames 600 --false-loop
 //   slam_benchmark --frames 150 --overlap   (what consecutive 1 Hz frames share, by ground truth)
 //   slam_benchmark --frames 1500 --fps 5 --overlap   (the same walk at 5 Hz, every frame mapped)
+//   slam_benchmark --frames 600 --laps 4   (the same 600 frames four times: cost against map size)
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -71,8 +72,10 @@ struct RunResult {
   double mapping_s = 0.0;
 };
 
+// `lap_length` > 0: the frames are one walk of that many frames repeated (--laps).
 RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
-              const MapperOptions& options, int false_loop_at, bool verbose) {
+              const MapperOptions& options, int false_loop_at, bool verbose,
+              size_t lap_length = 0) {
   Mapper mapper(camera, options);
   std::vector<MapperStageTimes> times;
   RunResult run;
@@ -209,8 +212,31 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
         for (size_t i = from; i < to; ++i) sum += times[i].registrations;
         return sum / static_cast<double>(to - from);
       };
-      std::printf("  registrations per keyframe, mean: %.2f at 100-200 -> %.2f\n",
-                  mean_registrations(100, 200), mean_registrations(n - 100, n));
+      if (lap_length >= 200 && n >= 2 * lap_length) {
+        // The same frames on the first lap and the last: what the map's size alone costs.
+        const size_t last_lap = n - lap_length;
+        const double first = Median(column(&MapperStageTimes::total_s, 100, 200));
+        const double again =
+            Median(column(&MapperStageTimes::total_s, last_lap + 100, last_lap + 200));
+        std::printf(
+            "same frames 100-200  median %.1f ms on lap 1 (keyframes 100-200), %.1f ms on lap %zu "
+            "(keyframes %zu-%zu): x%.2f\n",
+            1e3 * first, 1e3 * again, n / lap_length, last_lap + 100, last_lap + 200,
+            again / first);
+      }
+      const auto mean_points = [&mapper](size_t from, size_t to) {
+        double sum = 0.0;
+        for (size_t i = from; i < to; ++i) {
+          sum += static_cast<double>(mapper.FeaturesOf(static_cast<int64_t>(i)).NumPoints());
+        }
+        return sum / static_cast<double>(to - from);
+      };
+      // Matching is quadratic in the 3D keypoints in view: a richer scene costs more per pair.
+      std::printf(
+          "  registrations per keyframe, mean: %.2f at 100-200 -> %.2f; 3D keypoints %.0f -> "
+          "%.0f\n",
+          mean_registrations(100, 200), mean_registrations(n - 100, n), mean_points(100, 200),
+          mean_points(n - 100, n));
     }
     std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
     std::printf("segments            %d\n", run.segments);
@@ -313,6 +339,7 @@ int Main(int argc, char** argv) {
   bool overlap = false;
   double fps = 1.0;
   bool no_walk_check = false;
+  int laps = 1;
   app.add_option("--trajectory", trajectory, "handheld or robot")
       ->check(CLI::IsMember({"handheld", "robot"}));
   app.add_option("--session", session, "simulator session (>= 1)");
@@ -327,6 +354,10 @@ int Main(int argc, char** argv) {
                  "frames per second of the walk; every frame is mapped as a keyframe");
   app.add_flag("--no-walk-check", no_walk_check,
                "join segments without checking that the walk stays possible (for comparison)");
+  app.add_option("--laps", laps,
+                 "walk the frames this many times (the frames shared, not rendered again), to "
+                 "compare the cost of the same frames in a small and a large map")
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
@@ -357,7 +388,16 @@ int Main(int argc, char** argv) {
               trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size(),
               fps);
   if (overlap) ReportOverlap(frames, camera, options);
-  const RunResult clean = Run(frames, camera, options, -1, true);
+  const size_t lap_length = frames.size();
+  for (int lap = 1; lap < laps; ++lap) {
+    const TimestampNs offset = frames[lap_length - 1].timestamp_ns + 1'000'000'000;
+    for (size_t i = 0; i < lap_length; ++i) {
+      Frame again = frames[i];
+      again.timestamp_ns += offset * lap;
+      frames.push_back(again);
+    }
+  }
+  const RunResult clean = Run(frames, camera, options, -1, true, laps > 1 ? lap_length : 0);
   if (false_loop) {
     const RunResult injected =
         Run(frames, camera, options, static_cast<int>(frames.size()) * 3 / 4, false);
