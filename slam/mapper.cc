@@ -80,7 +80,6 @@ bool MapperOptions::Check(std::string* error) const {
         "walk_max_speed_mps and walk_max_turn_rate_dps must be positive, the slacks and "
         "walk_max_gap_s not negative");
   }
-
   if (!(link_min_sigma_m > 0.0) || !(link_min_sigma_rad > 0.0)) {
     return fail("link_min_sigma_m and link_min_sigma_rad must be positive");
   }
