@@ -2,6 +2,7 @@
 #include "slam/mapper.h"
 
 #include <map>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -157,6 +158,19 @@ TEST(Mapper, AJoinThatWouldMakeTheWalkJumpIsRefused) {
   EXPECT_EQ(tight_segments, 1 + 4 + 1);
   std::printf("walked back %.2f m in %.0f s: joined under %.1f m/s, refused under %.2f m/s\n",
               jump_m, gap_s, 10.0, options.walk_max_speed_mps);
+}
+
+TEST(Mapper, OptionsRefuseAnImpossibleWalkBound) {
+  std::string error;
+  EXPECT_TRUE(MapperOptions().Check(&error)) << error;
+  MapperOptions still;
+  still.walk_max_speed_mps = 0.0;
+  EXPECT_FALSE(still.Check(&error));
+  EXPECT_NE(error.find("walk_max_speed_mps"), std::string::npos) << error;
+  MapperOptions negative_gap;
+  negative_gap.walk_max_gap_s = -1.0;
+  EXPECT_FALSE(negative_gap.Check(&error));
+  EXPECT_THROW(Mapper(HandheldWalk().camera, still), Error);
 }
 
 TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
