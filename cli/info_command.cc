@@ -32,6 +32,7 @@ int RunInfo(int argc, char** argv) {
     out["keyframes"] = summary.keyframes;
     out["loop_closures"] = summary.loop_closures;
     out["segments"] = summary.segments;
+    out["largest_segment_keyframes"] = summary.largest_segment_keyframes;
     out["labels"] = summary.labels;
     out["size_bytes"] = summary.size_bytes;
     out["links"] = {{"odometry", summary.odometry_links},
@@ -63,7 +64,11 @@ int RunInfo(int argc, char** argv) {
     std::cout << "\n";
   }
   std::cout << "keyframes      " << summary.keyframes << " in " << summary.segments
-            << " segment(s)\n";
+            << " segment(s)";
+  if (summary.segments > 1) {
+    std::cout << ", the largest " << summary.largest_segment_keyframes << " keyframes";
+  }
+  std::cout << "\n";
   std::cout << "links          " << summary.odometry_links << " odometry, " << summary.loop_closures
             << " loop closure, " << summary.relocalisation_links << " relocalisation, "
             << summary.user_links << " user";

@@ -136,6 +136,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["model_keyframes"] = summary.model_keyframes;
   json["loops"] = summary.loops;
   json["segments"] = summary.segments;
+  json["largest_segment_keyframes"] = summary.largest_segment_keyframes;
   json["dropped_frames"] = summary.dropped_frames;
   json["frames_read"] = summary.frames_read;
   json["links_rejected_after_commit"] = summary.links_rejected_after_commit;
@@ -177,7 +178,12 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
         << "\n";
   }
   out << "  loops       " << summary.loops << "\n";
-  out << "  segments    " << summary.segments << "\n";
+  out << "  segments    " << summary.segments;
+  if (summary.segments > 1) {
+    out << " (the largest holds " << summary.largest_segment_keyframes << " of "
+        << summary.model_keyframes << " keyframes)";
+  }
+  out << "\n";
   out << "  dropped     " << summary.dropped_frames << " frames\n";
   if (summary.ate_rmse_m) {
     out << std::setprecision(3) << "  ATE         " << *summary.ate_rmse_m << " m rmse (max "

@@ -568,6 +568,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   summary.model_keyframes = model.NumKeyframes();
   summary.loops = mapper.NumLoopClosures();
   summary.segments = mapper.NumSegments();
+  summary.largest_segment_keyframes = model.Summary().largest_segment_keyframes;
   summary.dropped_frames = dropped;
   summary.frames_read = frames_read;
   summary.links_rejected_after_commit = links_rejected_after_commit;

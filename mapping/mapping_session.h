@@ -116,8 +116,9 @@ struct MappingSummary {
   bool joined_stored_map = false;           // resumed and relocalised into the stored map
   int64_t keyframes = 0;                    // this session's
   int64_t model_keyframes = 0;
-  int64_t loops = 0;     // accepted and active loop closures in the map
-  int64_t segments = 0;  // unjoined parts of the map
+  int64_t loops = 0;                      // accepted and active loop closures in the map
+  int64_t segments = 0;                   // unjoined parts of the map
+  int64_t largest_segment_keyframes = 0;  // keyframes in the largest of them (the model's count)
   int64_t dropped_frames = 0;
   int64_t frames_read = 0;
   int64_t links_rejected_after_commit = 0;  // loop links switched off after being stored

@@ -73,6 +73,8 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
   EXPECT_EQ(sessions[0].source, "sim:office?fps=1&frames=12");
   // Every link reached the store: the model's graph falls into the mapper's segments.
   EXPECT_EQ(model.Summary().segments, summary.segments);
+  EXPECT_EQ(model.Summary().largest_segment_keyframes, summary.largest_segment_keyframes);
+  EXPECT_GE(summary.largest_segment_keyframes * summary.segments, summary.model_keyframes);
   EXPECT_FALSE(model.Links().empty());
   EXPECT_EQ(model.LoadFeatures(model.Keyframes().back().id).keypoints.size(),
             static_cast<size_t>(model.Keyframes().back().num_features));

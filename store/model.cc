@@ -855,7 +855,12 @@ ModelSummary Model::Summary() const {
       if (a != b) parent[a] = b;
     }
   }
-  for (size_t i = 0; i < parent.size(); ++i) summary.segments += find(i) == i;
+  std::vector<int64_t> keyframes_in(parent.size(), 0);
+  for (size_t i = 0; i < parent.size(); ++i) {
+    summary.segments += find(i) == i;
+    summary.largest_segment_keyframes =
+        std::max(summary.largest_segment_keyframes, ++keyframes_in[find(i)]);
+  }
 
   // Bounding box of camera positions and label points.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());

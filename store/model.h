@@ -171,6 +171,7 @@ struct ModelSummary {
   int64_t inactive_links = 0;
   // Connected parts of the pose graph: a new one starts when tracking was lost and not recovered.
   int64_t segments = 0;
+  int64_t largest_segment_keyframes = 0;  // keyframes in the largest part
   int64_t labels = 0;
   int64_t size_bytes = 0;  // the database file plus its WAL
   // Axis-aligned box of keyframe positions and label points [m]; empty when there are none.

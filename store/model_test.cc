@@ -252,6 +252,7 @@ TEST(Model, SummaryCountsLinksSegmentsAndBoundingBox) {
     ids.push_back(model.AddKeyframe(keyframe));
   }
   EXPECT_EQ(model.Summary().segments, 2);
+  EXPECT_EQ(model.Summary().largest_segment_keyframes, 3);  // 0-1-2, then 3-4
   LinkRecord loop;
   loop.from = ids[4];
   loop.to = ids[0];
@@ -263,6 +264,7 @@ TEST(Model, SummaryCountsLinksSegmentsAndBoundingBox) {
   EXPECT_EQ(summary.odometry_links, 3);
   EXPECT_EQ(summary.loop_closures, 1);
   EXPECT_EQ(summary.segments, 1);
+  EXPECT_EQ(summary.largest_segment_keyframes, 5);
   EXPECT_TRUE(summary.has_bounding_box);
   EXPECT_NEAR(summary.bbox_max.x(), 0.4, 1e-12);
   EXPECT_NEAR(summary.bbox_min.x(), 0.0, 1e-12);

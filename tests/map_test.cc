@@ -222,6 +222,8 @@ TEST(Map, ASimSummaryAsJsonHasAnAte) {
   EXPECT_GE(summary.at("ate_rmse_m").get<double>(), 0.0);
   EXPECT_EQ(summary.at("ate_poses"), 15);
   EXPECT_EQ(summary.at("segments").get<int64_t>(), Info(dir + "/m.db").at("segments"));
+  EXPECT_EQ(summary.at("largest_segment_keyframes").get<int64_t>(),
+            Info(dir + "/m.db").at("largest_segment_keyframes"));
 }
 
 TEST(Map, WithoutASensorTheDefaultSourceFailsWithOneLine) {
