@@ -153,6 +153,27 @@ std::vector<T> Subset(const std::vector<T>& values, const std::vector<int>& indi
   return subset;
 }
 
+void ToRvecTvec(const Eigen::Isometry3d& world_from_cam, cv::Vec3d* rvec, cv::Vec3d* tvec) {
+  const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
+  cv::Matx33d rotation;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) rotation(r, c) = cam_from_world.linear()(r, c);
+    (*tvec)[r] = cam_from_world.translation()[r];
+  }
+  cv::Rodrigues(rotation, *rvec);
+}
+
+Eigen::Isometry3d FromRvecTvec(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
+  cv::Matx33d rotation;
+  cv::Rodrigues(rvec, rotation);
+  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) cam_from_world.linear()(r, c) = rotation(r, c);
+    cam_from_world.translation()[r] = tvec[r];
+  }
+  return cam_from_world.inverse();
+}
+
 // RANSAC PnP, then Levenberg-Marquardt on the inliers and again on the inliers of the refined
 // pose (RANSAC's minimal-sample poses leave a few cm that the refinement removes).
 PoseHypothesis SolvePoseUnguarded(const std::vector<cv::Point3f>& object,
@@ -177,15 +198,8 @@ PoseHypothesis SolvePoseUnguarded(const std::vector<cv::Point3f>& object,
       return hypothesis;
     }
   }
-  cv::Matx33d rotation;
-  cv::Rodrigues(rvec, rotation);
-  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) cam_from_world.linear()(r, c) = rotation(r, c);
-    cam_from_world.translation()[r] = tvec[r];
-  }
   hypothesis.valid = true;
-  hypothesis.world_from_cam = cam_from_world.inverse();
+  hypothesis.world_from_cam = FromRvecTvec(rvec, tvec);
   hypothesis.inliers = std::move(inliers);
   return hypothesis;
 }
@@ -271,27 +285,6 @@ class PhotoGrid {
   int rows_;
   std::vector<std::vector<int>> cells_;
 };
-
-void ToRvecTvec(const Eigen::Isometry3d& world_from_cam, cv::Vec3d* rvec, cv::Vec3d* tvec) {
-  const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
-  cv::Matx33d rotation;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) rotation(r, c) = cam_from_world.linear()(r, c);
-    (*tvec)[r] = cam_from_world.translation()[r];
-  }
-  cv::Rodrigues(rotation, *rvec);
-}
-
-Eigen::Isometry3d FromRvecTvec(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
-  cv::Matx33d rotation;
-  cv::Rodrigues(rvec, rotation);
-  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) cam_from_world.linear()(r, c) = rotation(r, c);
-    cam_from_world.translation()[r] = tvec[r];
-  }
-  return cam_from_world.inverse();
-}
 
 // Each model point projected with the hypothesis' pose takes the photo keypoint within
 // guided_radius_px whose descriptor is nearest (if within guided_max_distance); a photo keypoint
