@@ -234,29 +234,17 @@ double PoseGraph::EdgeChi2(size_t index) const {
 }
 
 PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options) {
-  return OptimizeEdges(options, {});
+  return OptimizeEdges(options, std::nullopt);
 }
 
 PoseGraphSummary PoseGraph::OptimizeAround(int64_t id, const PoseGraphOptions& options) {
   SIGHTMAP_CHECK(nodes_.count(id) > 0, "pose " << id << " is not in the pose graph");
-  std::map<int64_t, size_t> index_of;
-  for (const auto& [pose_id, node] : nodes_) index_of.emplace(pose_id, index_of.size());
-  Components components(nodes_.size());
-  for (size_t e = 0; e < edges_.size(); ++e) {
-    if (active_[e]) components.Join(index_of.at(edges_[e].from), index_of.at(edges_[e].to));
-  }
-  const size_t part = components.Find(index_of.at(id));
-  std::vector<bool> selected(edges_.size(), false);
-  for (size_t e = 0; e < edges_.size(); ++e) {
-    selected[e] = active_[e] && components.Find(index_of.at(edges_[e].from)) == part;
-  }
-  return OptimizeEdges(options, selected);
+  return OptimizeEdges(options, id);
 }
 
 PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
-                                          const std::vector<bool>& selected) {
+                                          const std::optional<int64_t>& around) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  const auto in_selection = [&selected](size_t e) { return selected.empty() || selected[e]; };
   const auto start = std::chrono::steady_clock::now();
   PoseGraphSummary summary;
   summary.edge_chi2.assign(edges_.size(), 0.0);
@@ -269,10 +257,24 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
     nodes.push_back(&node);
   }
   std::vector<std::pair<size_t, size_t>> ends(edges_.size());
-  std::vector<Matrix6d> sqrt_information(edges_.size());
   for (size_t e = 0; e < edges_.size(); ++e) {
     ends[e] = {index_of.at(edges_[e].from), index_of.at(edges_[e].to)};
-    sqrt_information[e] = SqrtInformation(edges_[e].information);
+  }
+  // The edges in play: every active one, or those that active edges tie to `around`.
+  std::vector<bool> selected(active_);
+  if (around) {
+    Components tied(nodes.size());
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      if (active_[e]) tied.Join(ends[e].first, ends[e].second);
+    }
+    const size_t part = tied.Find(index_of.at(*around));
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      selected[e] = active_[e] && tied.Find(ends[e].first) == part;
+    }
+  }
+  std::vector<Matrix6d> sqrt_information(edges_.size());
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    if (selected[e]) sqrt_information[e] = SqrtInformation(edges_[e].information);
   }
   std::vector<PoseParameters> initial(nodes.size());
   for (size_t i = 0; i < nodes.size(); ++i) initial[i].Set(nodes[i]->world_from_cam);
@@ -306,7 +308,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
     std::vector<bool> in_problem(nodes.size(), false);
     Components components(nodes.size());
     for (size_t e = 0; e < edges_.size(); ++e) {
-      if (!active_[e] || !in_selection(e)) continue;
+      if (!active_[e] || !selected[e]) continue;
       const auto [a, b] = ends[e];
       problem.AddResidualBlock(EdgeCost::Create(edges_[e].from_from_to, sqrt_information[e]),
                                edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : nullptr,
@@ -359,7 +361,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
     size_t worst = edges_.size();
     double worst_chi2 = options.max_loop_chi2;
     for (size_t e = 0; e < edges_.size(); ++e) {
-      if (!active_[e] || !in_selection(e) || edges_[e].type != PoseGraphEdgeType::kLoop) continue;
+      if (!active_[e] || !selected[e] || edges_[e].type != PoseGraphEdgeType::kLoop) continue;
       const double chi2 = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
       if (chi2 > worst_chi2) {
         worst = e;

@@ -24,6 +24,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -129,9 +130,9 @@ class PoseGraph {
     Eigen::Isometry3d world_from_cam;
     bool fixed = false;
   };
-  // Optimize() over the active edges with `selected[e]` (all when empty).
+  // Optimize() over every active edge, or only those active edges tie to pose `around`.
   PoseGraphSummary OptimizeEdges(const PoseGraphOptions& options,
-                                 const std::vector<bool>& selected);
+                                 const std::optional<int64_t>& around);
 
   std::map<int64_t, Node> nodes_;  // by id: references stay valid, components find lowest ids
   std::vector<PoseGraphEdge> edges_;
