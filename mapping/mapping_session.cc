@@ -568,7 +568,9 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   summary.model_keyframes = model.NumKeyframes();
   summary.loops = mapper.NumLoopClosures();
   summary.segments = mapper.NumSegments();
-  summary.largest_segment_keyframes = model.Summary().largest_segment_keyframes;
+  // Nothing writes to the model after this (the PLY and the trajectory only read it).
+  const ModelSummary model_summary = model.Summary();
+  summary.largest_segment_keyframes = model_summary.largest_segment_keyframes;
   summary.dropped_frames = dropped;
   summary.frames_read = frames_read;
   summary.links_rejected_after_commit = links_rejected_after_commit;
@@ -605,7 +607,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
       summary.trajectory_path = options_.trajectory_path;
     }
   }
-  summary.model_bytes = model.Summary().size_bytes;
+  summary.model_bytes = model_summary.size_bytes;
   summary.peak_rss_mib = PeakRssMiB();
   return summary;
 }
