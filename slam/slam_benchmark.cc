@@ -195,23 +195,19 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
       const double late = Median(column(&MapperStageTimes::total_s, n - 100, n));
       std::printf("median per keyframe  %.1f ms at keyframes 100-200, %.1f ms at %zu-%zu (x%.2f)\n",
                   1e3 * early, 1e3 * late, n - 100, n, late / early);
-      // Which stage grows: the mean of each (a median hides stages that run on some keyframes).
-      const auto mean = [](const std::vector<double>& values) {
+      // Which stage grows: the mean of each over keyframes [from, to) (a median hides stages
+      // that run on some keyframes only).
+      const auto mean = [](size_t from, size_t to, const auto& value_of) {
         double sum = 0.0;
-        for (double v : values) sum += v;
-        return values.empty() ? 0.0 : sum / static_cast<double>(values.size());
+        for (size_t i = from; i < to; ++i) sum += value_of(i);
+        return sum / static_cast<double>(to - from);
       };
       std::printf("  mean per stage [ms] at 100-200 -> last 100:");
       for (const auto& [name, field] : stages) {
-        std::printf(" %s %.1f->%.1f,", name, 1e3 * mean(column(field, 100, 200)),
-                    1e3 * mean(column(field, n - 100, n)));
+        const auto stage_ms = [&times, field = field](size_t i) { return 1e3 * (times[i].*field); };
+        std::printf(" %s %.1f->%.1f,", name, mean(100, 200, stage_ms), mean(n - 100, n, stage_ms));
       }
       std::printf("\n");
-      const auto mean_registrations = [&times](size_t from, size_t to) {
-        double sum = 0.0;
-        for (size_t i = from; i < to; ++i) sum += times[i].registrations;
-        return sum / static_cast<double>(to - from);
-      };
       if (lap_length >= 200 && n >= 2 * lap_length) {
         // The same frames on the first lap and the last: what the map's size alone costs.
         const size_t last_lap = n - lap_length;
@@ -224,19 +220,18 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
             1e3 * first, 1e3 * again, n / lap_length, last_lap + 100, last_lap + 200,
             again / first);
       }
-      const auto mean_points = [&mapper](size_t from, size_t to) {
-        double sum = 0.0;
-        for (size_t i = from; i < to; ++i) {
-          sum += static_cast<double>(mapper.FeaturesOf(static_cast<int64_t>(i)).NumPoints());
-        }
-        return sum / static_cast<double>(to - from);
+      const auto registrations = [&times](size_t i) {
+        return static_cast<double>(times[i].registrations);
+      };
+      const auto points = [&mapper](size_t i) {
+        return static_cast<double>(mapper.FeaturesOf(static_cast<int64_t>(i)).NumPoints());
       };
       // Matching is quadratic in the 3D keypoints in view: a richer scene costs more per pair.
       std::printf(
           "  registrations per keyframe, mean: %.2f at 100-200 -> %.2f; 3D keypoints %.0f -> "
           "%.0f\n",
-          mean_registrations(100, 200), mean_registrations(n - 100, n), mean_points(100, 200),
-          mean_points(n - 100, n));
+          mean(100, 200, registrations), mean(n - 100, n, registrations), mean(100, 200, points),
+          mean(n - 100, n, points));
     }
     std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
     std::printf("segments            %d\n", run.segments);
