@@ -194,7 +194,10 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   if (options_.show_view) view = MapViewFeed::Create(options_.view, notices);
 
   Model model = Model::Open(options_.model_path, options_.model);
-  Mapper mapper(camera, options_.mapper);
+  // Owned apart so that its memory (features, depth and the graph of every keyframe) is freed
+  // before the PLY export, which reads the model: a 3,000-keyframe run would hold both at once.
+  auto mapper_owner = std::make_unique<Mapper>(camera, options_.mapper);
+  Mapper& mapper = *mapper_owner;
 
   // Mapper id -> store id. Filled by the restore below, then only by the writer thread.
   std::vector<KeyframeId> store_ids;
@@ -592,6 +595,9 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     }
   }
 
+  // Nothing below uses the mapper or the view.
+  mapper_owner.reset();
+  view.reset();
   if (summary.model_keyframes > 0) {
     if (!options_.ply_path.empty()) {
       if (notices) {

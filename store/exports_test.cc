@@ -124,9 +124,9 @@ TEST(Ply, VoxelSizeAndOutlierRemoval) {
   EXPECT_THROW(ExportPly(Model::Open(":memory:"), dir + "/empty.ply"), Error);
 }
 
-TEST(Ply, VoxelFilterSplitsCloudsTooLargeForPclIndices) {
-  // Two walls 3 km apart at a 2 cm leaf: 150,000 x 235 x 125 voxels overflow PCL's int index,
-  // where pcl::VoxelGrid alone would return the cloud unfiltered.
+TEST(Ply, VoxelFilterHandlesABoundingBoxOfBillionsOfVoxels) {
+  // Two walls 3 km apart at a 2 cm leaf: 150,000 x 235 x 125 voxels overflow a 32-bit index (on
+  // such a cloud pcl::VoxelGrid returns its input unfiltered).
   Model model = Model::Open(":memory:");
   const SessionId session = model.BeginSession({});
   SyntheticKeyframeOptions options = WallKeyframes();
@@ -148,6 +148,44 @@ TEST(Ply, VoxelFilterSplitsCloudsTooLargeForPclIndices) {
   const PlyExportStats filtered = ExportPly(model, path, coarse);
   EXPECT_LT(filtered.written_points, fine.written_points / 4);
   EXPECT_EQ(static_cast<int64_t>(ReadPly(path).size()), filtered.written_points);
+}
+
+TEST(Ply, VoxelsMergedAcrossManyPointsMatchTheCentroidsOfOneView) {
+  // The same 640x480 view four times, every pixel: 1.2M points, past the accumulator's first
+  // merge. The voxels and their centroids must be those of the view exported once.
+  SyntheticKeyframeOptions options;
+  options.num_features = 10;
+  options.step_m = 0.0;
+  Model once = Model::Open(":memory:");
+  Model four = Model::Open(":memory:");
+  const SessionId session_once = once.BeginSession({});
+  const SessionId session_four = four.BeginSession({});
+  once.AddKeyframe(MakeSyntheticKeyframe(session_once, 0, options));
+  for (int i = 0; i < 4; ++i) four.AddKeyframe(MakeSyntheticKeyframe(session_four, i, options));
+  const std::string dir = testing::MakeTempDir("ply_merge");
+  PlyExportOptions every_pixel;
+  every_pixel.pixel_step = 1;
+  every_pixel.voxel_size_m = 0.02;
+  const PlyExportStats stats_once = ExportPly(once, dir + "/once.ply", every_pixel);
+  const PlyExportStats stats_four = ExportPly(four, dir + "/four.ply", every_pixel);
+  EXPECT_EQ(stats_four.back_projected_points, 4 * stats_once.back_projected_points);
+  EXPECT_GT(stats_four.back_projected_points, 1'000'000);
+  ASSERT_EQ(stats_four.written_points, stats_once.written_points);
+  const std::vector<ColoredPoint> a = ReadPly(dir + "/once.ply");
+  const std::vector<ColoredPoint> b = ReadPly(dir + "/four.ply");
+  ASSERT_EQ(a.size(), b.size());
+  double worst_m = 0.0;
+  int colour_differences = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    worst_m = std::max(worst_m, static_cast<double>((a[i].position - b[i].position).norm()));
+    colour_differences +=
+        a[i].red != b[i].red || a[i].green != b[i].green || a[i].blue != b[i].blue;
+  }
+  EXPECT_LT(worst_m, 1e-5);
+  EXPECT_EQ(colour_differences, 0);
+  // Each centroid lies in its 2 cm voxel on the wall at z = 2 m.
+  for (const ColoredPoint& p : a) ASSERT_NEAR(p.position.z(), 2.0, 0.011);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/four.ply.partial"));
 }
 
 LabelRecord MakeLabel(const std::string& name, std::vector<Eigen::Vector3d> worlds) {

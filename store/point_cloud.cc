@@ -2,16 +2,15 @@
 // here keeps PCL a private dependency of sightmap_store.
 #include "store/point_cloud.h"
 
-#include <pcl/common/common.h>
 #include <pcl/console/print.h>
 #include <pcl/filters/statistical_outlier_removal.h>
-#include <pcl/filters/voxel_grid.h>
 #include <pcl/io/ply_io.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -23,43 +22,199 @@ namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointXYZRGB>;
 
-// Downsampling as points arrive keeps memory bounded on large models: past this many points the
-// accumulated cloud is voxel filtered again, and after that whenever it has doubled since the last
-// filtering. (Refiltering at a fixed size made a 3,000-keyframe export quadratic: once the
-// filtered floor itself held 4M points, every keyframe refiltered all of it.)
-constexpr size_t kRefilterPoints = 4'000'000;
+// Back-projected points are summed per voxel as they arrive (PCL's VoxelGrid answer: each voxel's
+// centroid and mean colour), so a 3,000-keyframe model never holds its tens of millions of raw
+// points at once: PCL's filter on the raw cloud, refiltered whenever it doubled, peaked at 1.5 GB.
+class VoxelAccumulator {
+ public:
+  // leaf_m 0 keeps every point: each gets its own key.
+  explicit VoxelAccumulator(double leaf_m) : leaf_m_(leaf_m) {}
 
-// pcl::VoxelGrid indexes voxels with 32-bit ints and returns its input unfiltered when the
-// bounding box holds more voxels than that (a 100 m floor at 2 cm does). Larger clouds are cut
-// into slabs along x on voxel boundaries, each small enough, and filtered slab by slab.
-Cloud::Ptr VoxelFilter(const Cloud::Ptr& cloud, double leaf_m) {
-  if (leaf_m <= 0.0 || cloud->empty()) return cloud;
-  Eigen::Vector4f lo;
-  Eigen::Vector4f hi;
-  pcl::getMinMax3D(*cloud, lo, hi);
-  const Eigen::Array3d cells = ((hi - lo).head<3>().cast<double>().array() / leaf_m).floor() + 1.0;
-  const double limit = static_cast<double>(std::numeric_limits<int32_t>::max()) / 2.0;
-  const double yz_cells = cells.y() * cells.z();
-  const int slab_cells = static_cast<int>(std::max(1.0, std::floor(limit / yz_cells)));
-  const int slabs = static_cast<int>(std::ceil(cells.x() / slab_cells));
-  std::vector<Cloud::Ptr> parts(static_cast<size_t>(slabs));
-  for (auto& part : parts) part = std::make_shared<Cloud>();
-  for (const pcl::PointXYZRGB& point : *cloud) {
-    const int cell = static_cast<int>(std::floor((point.x - lo.x()) / leaf_m));
-    parts[static_cast<size_t>(std::min(slabs - 1, cell / slab_cells))]->push_back(point);
+  void Add(const Eigen::Vector3f& world, const cv::Vec3b& bgr) {
+    Sum sum;
+    Eigen::Vector3f offset = world;
+    if (leaf_m_ > 0.0) {
+      uint64_t key = 0;
+      for (int axis = 0; axis < 3; ++axis) {
+        const double cell_f = std::floor(world[axis] / leaf_m_);
+        // 21 bits per axis: +-1,048,576 cells (+-21 km at 2 cm). Nothing indoors lies farther;
+        // a point that does is a depth glitch on a wild pose, and is left out.
+        if (!(std::abs(cell_f) < static_cast<double>(kAxisOffset))) return;
+        const int64_t cell = static_cast<int64_t>(cell_f);
+        offset[axis] = static_cast<float>(world[axis] - cell * leaf_m_);
+        key |= (static_cast<uint64_t>(cell + kAxisOffset) & kAxisMask) << (21 * axis);
+      }
+      sum.key = key;
+    } else {
+      sum.key = sums_.size();  // never merged
+    }
+    sum.dx = offset.x();
+    sum.dy = offset.y();
+    sum.dz = offset.z();
+    sum.count = 1;
+    sum.blue = bgr[0];
+    sum.green = bgr[1];
+    sum.red = bgr[2];
+    sums_.push_back(sum);
+    if (leaf_m_ > 0.0 && sums_.size() >= merge_at_) Merge();
   }
-  auto filtered = std::make_shared<Cloud>();
-  pcl::VoxelGrid<pcl::PointXYZRGB> grid;
-  const float leaf = static_cast<float>(leaf_m);
-  grid.setLeafSize(leaf, leaf, leaf);
-  for (const Cloud::Ptr& part : parts) {
-    if (part->empty()) continue;
-    Cloud kept;
-    grid.setInputCloud(part);
-    grid.filter(kept);
-    *filtered += kept;
+
+  // Voxels (or points, at leaf 0) in key order, each as its centroid and mean colour.
+  std::vector<ColoredPoint> Points() {
+    Merge();
+    std::vector<ColoredPoint> points;
+    points.reserve(sums_.size());
+    for (const Sum& sum : sums_) {
+      Eigen::Vector3d corner = Eigen::Vector3d::Zero();
+      if (leaf_m_ > 0.0) {
+        for (int axis = 0; axis < 3; ++axis) {
+          const int64_t cell =
+              static_cast<int64_t>((sum.key >> (21 * axis)) & kAxisMask) - kAxisOffset;
+          corner[axis] = static_cast<double>(cell) * leaf_m_;
+        }
+      }
+      const double n = sum.count;
+      ColoredPoint point;
+      point.position = (corner + Eigen::Vector3d(sum.dx, sum.dy, sum.dz) / n).cast<float>();
+      point.red = static_cast<uint8_t>(std::lround(sum.red / n));
+      point.green = static_cast<uint8_t>(std::lround(sum.green / n));
+      point.blue = static_cast<uint8_t>(std::lround(sum.blue / n));
+      points.push_back(point);
+    }
+    std::vector<Sum>().swap(sums_);
+    return points;
   }
-  return filtered;
+
+ private:
+  // Offsets from the voxel's corner keep the float sums small: exact to about 0.1 mm over 10^5
+  // points of a 2 cm voxel.
+  struct Sum {
+    uint64_t key = 0;
+    float dx = 0.0f;
+    float dy = 0.0f;
+    float dz = 0.0f;
+    uint32_t count = 0;
+    uint32_t blue = 0;
+    uint32_t green = 0;
+    uint32_t red = 0;
+  };
+  static constexpr int64_t kAxisOffset = int64_t{1} << 20;
+  static constexpr uint64_t kAxisMask = (uint64_t{1} << 21) - 1;
+  // Sums are merged (sorted by key, equal keys added) once they reach this many, and after that
+  // whenever they have grown by half since: memory stays within 1.5x the voxels, and merges cost
+  // O(n log n) a logarithmic number of times.
+  static constexpr size_t kFirstMerge = 1'000'000;
+
+  void Merge() {
+    if (leaf_m_ <= 0.0 || sums_.empty()) return;
+    std::sort(sums_.begin(), sums_.end(), [](const Sum& a, const Sum& b) { return a.key < b.key; });
+    size_t out = 0;
+    for (size_t i = 1; i < sums_.size(); ++i) {
+      Sum& kept = sums_[out];
+      const Sum& next = sums_[i];
+      if (next.key == kept.key) {
+        kept.dx += next.dx;
+        kept.dy += next.dy;
+        kept.dz += next.dz;
+        kept.count += next.count;
+        kept.blue += next.blue;
+        kept.green += next.green;
+        kept.red += next.red;
+      } else {
+        sums_[++out] = next;
+      }
+    }
+    sums_.resize(out + 1);
+    merge_at_ = std::max(kFirstMerge, sums_.size() + sums_.size() / 2);
+  }
+
+  double leaf_m_;
+  std::vector<Sum> sums_;
+  size_t merge_at_ = kFirstMerge;
+};
+
+// Binary little-endian PLY, x y z (float) red green blue (uchar), written beside `path` and renamed
+// over it when complete: a crash or a full disk never leaves a truncated cloud under the name.
+void WritePly(const std::string& path, const std::vector<ColoredPoint>& points) {
+  static_assert(sizeof(float) == 4, "PLY floats are 4 bytes");
+  static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
+                "records are copied as they lie in memory");
+  const std::string partial = path + ".partial";
+  std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+  SIGHTMAP_CHECK(out.is_open(),
+                 "cannot write " << path << ": check that its folder exists and is writable");
+  out << "ply\nformat binary_little_endian 1.0\ncomment written by sightmap\nelement vertex "
+      << points.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+         "property uchar green\nproperty uchar blue\nend_header\n";
+  std::vector<char> buffer;
+  constexpr size_t kRecord = 15;
+  constexpr size_t kBatch = 1 << 16;
+  buffer.reserve(kRecord * kBatch);
+  for (size_t i = 0; i < points.size(); i += kBatch) {
+    buffer.clear();
+    for (size_t j = i; j < std::min(points.size(), i + kBatch); ++j) {
+      const ColoredPoint& p = points[j];
+      char record[kRecord];
+      std::memcpy(record, p.position.data(), 12);
+      record[12] = static_cast<char>(p.red);
+      record[13] = static_cast<char>(p.green);
+      record[14] = static_cast<char>(p.blue);
+      buffer.insert(buffer.end(), record, record + kRecord);
+    }
+    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  }
+  out.flush();
+  const bool written = static_cast<bool>(out);
+  out.close();
+  std::error_code ec;
+  if (!written || out.fail()) {
+    std::filesystem::remove(partial, ec);
+    SIGHTMAP_THROW(Error, "cannot write " << path << ": is the disk full?");
+  }
+  std::filesystem::rename(partial, path, ec);
+  if (ec) {
+    std::filesystem::remove(partial, ec);
+    SIGHTMAP_THROW(Error, "cannot write " << path << ": " << ec.message());
+  }
+}
+
+std::vector<ColoredPoint> ToColoredPoints(const Cloud& cloud) {
+  std::vector<ColoredPoint> points;
+  points.reserve(cloud.size());
+  for (const pcl::PointXYZRGB& p : cloud) {
+    ColoredPoint point;
+    point.position = Eigen::Vector3f(p.x, p.y, p.z);
+    point.red = p.r;
+    point.green = p.g;
+    point.blue = p.b;
+    points.push_back(point);
+  }
+  return points;
+}
+
+// PCL's statistical outlier removal, on the voxel centres.
+std::vector<ColoredPoint> RemoveOutliers(const std::vector<ColoredPoint>& points,
+                                         const PlyExportOptions& options) {
+  auto cloud = std::make_shared<Cloud>();
+  cloud->reserve(points.size());
+  for (const ColoredPoint& p : points) {
+    pcl::PointXYZRGB point;
+    point.x = p.position.x();
+    point.y = p.position.y();
+    point.z = p.position.z();
+    point.r = p.red;
+    point.g = p.green;
+    point.b = p.blue;
+    cloud->push_back(point);
+  }
+  pcl::StatisticalOutlierRemoval<pcl::PointXYZRGB> removal;
+  removal.setInputCloud(cloud);
+  removal.setMeanK(options.outlier_neighbours);
+  removal.setStddevMulThresh(options.outlier_stddev);
+  Cloud kept;
+  removal.filter(kept);
+  return ToColoredPoints(kept);
 }
 
 }  // namespace
@@ -87,8 +242,7 @@ PlyExportStats ExportPly(const Model& model, const std::string& path,
                                          << model.path()
                                          << " has no keyframes: there is no point cloud to export");
   PlyExportStats stats;
-  auto cloud = std::make_shared<Cloud>();
-  size_t refilter_at = kRefilterPoints;
+  VoxelAccumulator voxels(options.voxel_size_m);
   const uint16_t min_mm = static_cast<uint16_t>(std::ceil(options.min_depth_m * 1000.0));
   const double max_mm = options.max_depth_m * 1000.0;
   for (const KeyframeInfo& keyframe : keyframes) {
@@ -105,52 +259,22 @@ PlyExportStats ExportPly(const Model& model, const std::string& path,
       for (int u = 0; u < depth.cols; u += options.pixel_step) {
         const uint16_t z_mm = depth_row[u];
         if (z_mm == 0 || z_mm < min_mm || z_mm > max_mm) continue;
-        const Eigen::Vector3f world = world_from_cam * k.Unproject(u, v, z_mm * 1e-3).cast<float>();
-        pcl::PointXYZRGB point;
-        point.x = world.x();
-        point.y = world.y();
-        point.z = world.z();
-        point.b = color_row[u][0];
-        point.g = color_row[u][1];
-        point.r = color_row[u][2];
-        cloud->push_back(point);
+        voxels.Add(world_from_cam * k.Unproject(u, v, z_mm * 1e-3).cast<float>(), color_row[u]);
         ++stats.back_projected_points;
       }
     }
     ++stats.keyframes;
-    if (cloud->size() > refilter_at) {
-      cloud = VoxelFilter(cloud, options.voxel_size_m);
-      refilter_at = std::max(kRefilterPoints, 2 * cloud->size());
-    }
   }
-  cloud = VoxelFilter(cloud, options.voxel_size_m);
-  if (options.remove_outliers && cloud->size() > static_cast<size_t>(options.outlier_neighbours)) {
-    pcl::StatisticalOutlierRemoval<pcl::PointXYZRGB> removal;
-    removal.setInputCloud(cloud);
-    removal.setMeanK(options.outlier_neighbours);
-    removal.setStddevMulThresh(options.outlier_stddev);
-    auto kept = std::make_shared<Cloud>();
-    removal.filter(*kept);
-    cloud = kept;
+  std::vector<ColoredPoint> points = voxels.Points();
+  if (options.remove_outliers && points.size() > static_cast<size_t>(options.outlier_neighbours)) {
+    points = RemoveOutliers(points, options);
   }
-  SIGHTMAP_CHECK(!cloud->empty(), "no keyframe of model "
+  SIGHTMAP_CHECK(!points.empty(), "no keyframe of model "
                                       << model.path() << " has depth within ["
                                       << options.min_depth_m << ", " << options.max_depth_m
                                       << "] m: there is no point cloud to export");
-  cloud->width = static_cast<uint32_t>(cloud->size());
-  cloud->height = 1;
-  cloud->is_dense = true;
-  // Open the file ourselves first: PCL reports failures on stderr, and the CLI promises one line.
-  SIGHTMAP_CHECK(std::ofstream(path, std::ios::binary).is_open(),
-                 "cannot write " << path << ": check that its folder exists and is writable");
-  // No camera element in the header: CloudCompare and MeshLab read it, but it is not standard PLY.
-  pcl::PLYWriter writer;
-  const pcl::console::VERBOSITY_LEVEL verbosity = pcl::console::getVerbosityLevel();
-  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
-  const int rc = writer.write(path, *cloud, /*binary=*/true, /*use_camera=*/false);
-  pcl::console::setVerbosityLevel(verbosity);
-  SIGHTMAP_CHECK(rc == 0, "cannot write " << path << ": is the disk full?");
-  stats.written_points = static_cast<int64_t>(cloud->size());
+  WritePly(path, points);
+  stats.written_points = static_cast<int64_t>(points.size());
   return stats;
 }
 
@@ -165,17 +289,7 @@ std::vector<ColoredPoint> ReadPly(const std::string& path) {
   const int rc = reader.read(path, cloud);
   pcl::console::setVerbosityLevel(verbosity);
   SIGHTMAP_CHECK(rc == 0, "cannot read " << path << " as PLY: it is damaged or not a PLY file");
-  std::vector<ColoredPoint> points;
-  points.reserve(cloud.size());
-  for (const pcl::PointXYZRGB& p : cloud) {
-    ColoredPoint point;
-    point.position = Eigen::Vector3f(p.x, p.y, p.z);
-    point.red = p.r;
-    point.green = p.g;
-    point.blue = p.b;
-    points.push_back(point);
-  }
-  return points;
+  return ToColoredPoints(cloud);
 }
 
 }  // namespace sightmap
