@@ -14,15 +14,18 @@
 #include <cstdio>
 #include <filesystem>
 #include <numeric>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
 #include "identify/sim_model_testing.h"
+#include "identify/visibility.h"
 #include "sim/simulator.h"
 #include "store/model.h"
 
@@ -74,6 +77,82 @@ void ReplicateModel(const Model& source, const std::string& path, int factor) {
   model.EndSession(id, SessionEnd::kFinished, 0);
 }
 
+// The share of a photo's view the walk saw from a similar viewpoint: the model's surfaces drawn
+// from the photo's true pose (the occlusion cloud, 1/16 resolution); a pixel counts as covered
+// when some keyframe saw its surface point (in its image, its depth within 10 cm) from a ray
+// within `max_angle_deg` of the photo's and a distance within a factor `max_scale` (ORB's pyramid
+// spans 3.6x). Local features can only match what is covered: this bounds the matched share.
+class ViewCoverage {
+ public:
+  ViewCoverage(const Model& model, double max_angle_deg, double max_scale)
+      : cos_max_(std::cos(max_angle_deg * M_PI / 180.0)), max_scale_(max_scale) {
+    OcclusionCloudBuilder builder(0.05);
+    for (const KeyframeInfo& info : model.Keyframes()) {
+      const cv::Mat depth = model.LoadDepth(info.id);
+      if (depth.empty()) continue;
+      builder.AddDepth(depth, info.intrinsics, info.world_from_cam, 4, 0.3, 5.0);
+      View view;
+      cv::resize(depth, view.depth_mm, cv::Size(160, 120), 0.0, 0.0, cv::INTER_NEAREST);
+      view.intrinsics = info.intrinsics.Scaled(160, 120);
+      view.world_from_cam = info.world_from_cam;
+      view.cam_from_world = info.world_from_cam.inverse();
+      views_.push_back(std::move(view));
+    }
+    cloud_ = builder.Build();
+  }
+
+  double Of(const sim::QueryPhoto& photo) const {
+    const Intrinsics small =
+        photo.intrinsics.Scaled(photo.intrinsics.width / 16, photo.intrinsics.height / 16);
+    VisibilityOptions options;
+    options.max_splat_radius_px = 2;
+    const cv::Mat surface = RenderOcclusionDepth(cloud_, small, photo.world_from_cam, options);
+    const Eigen::Vector3d centre = photo.world_from_cam.translation();
+    std::vector<const View*> near;
+    for (const View& view : views_) {
+      if ((view.world_from_cam.translation() - centre).norm() < 8.0) near.push_back(&view);
+    }
+    int covered = 0;
+    for (int v = 0; v < surface.rows; ++v) {
+      for (int u = 0; u < surface.cols; ++u) {
+        const float z = surface.at<float>(v, u);
+        if (!std::isfinite(z)) continue;
+        const Eigen::Vector3d world = photo.world_from_cam * small.Unproject(u, v, z);
+        const Eigen::Vector3d photo_ray = world - centre;
+        for (const View* view : near) {
+          const Eigen::Vector3d ray = world - view->world_from_cam.translation();
+          const double scale = ray.norm() / photo_ray.norm();
+          if (scale > max_scale_ || scale < 1.0 / max_scale_) continue;
+          if (ray.dot(photo_ray) < cos_max_ * ray.norm() * photo_ray.norm()) continue;
+          const Eigen::Vector3d cam = view->cam_from_world * world;
+          if (cam.z() <= 0.1) continue;
+          const Eigen::Vector2d px = view->intrinsics.Project(cam);
+          const int pu = static_cast<int>(std::lround(px.x()));
+          const int pv = static_cast<int>(std::lround(px.y()));
+          if (pu < 0 || pv < 0 || pu >= view->depth_mm.cols || pv >= view->depth_mm.rows) continue;
+          const double seen_m = view->depth_mm.at<uint16_t>(pv, pu) * 1e-3;
+          if (std::abs(seen_m - cam.z()) > 0.1) continue;
+          ++covered;
+          break;
+        }
+      }
+    }
+    return static_cast<double>(covered) / (surface.rows * surface.cols);
+  }
+
+ private:
+  struct View {
+    cv::Mat depth_mm;
+    Intrinsics intrinsics;
+    Eigen::Isometry3d world_from_cam;
+    Eigen::Isometry3d cam_from_world;
+  };
+  double cos_max_;
+  double max_scale_;
+  OcclusionCloud cloud_;
+  std::vector<View> views_;
+};
+
 int Run(int argc, char** argv) {
   CLI::App app("Locate timings per stage and retrieval scaling (issue 9)", "locate_benchmark");
   int keyframes = 600;
@@ -95,6 +174,8 @@ int Run(int argc, char** argv) {
   app.add_option("--candidates", locator_options.retrieval_candidates, "retrieval candidates");
   app.add_option("--neighbours", locator_options.max_neighbours, "neighbours per candidate");
   app.add_option("--neighbour-radius", locator_options.neighbour_radius_m, "[m]");
+  app.add_option("--node-level", locator_options.match_node_level,
+                 "vocabulary level whose nodes bound matching (0 = exhaustive)");
   app.add_option("--ratio", locator_options.match_ratio, "descriptor ratio test");
   app.add_option("--reprojection", locator_options.pnp_reprojection_px, "PnP threshold [px]");
   app.add_option("--min-inliers", locator_options.min_inliers, "inliers to count as matched");
@@ -106,6 +187,9 @@ int Run(int argc, char** argv) {
                  "inliers over a disagreeing runner-up's");
   app.add_option("--min-share", locator_options.min_inlier_share, "inliers / projected points");
   app.add_option("--guided-rounds", locator_options.guided_rounds, "guided matching rounds");
+  bool coverage = false;
+  app.add_flag("--coverage", coverage,
+               "measure, by ground truth, how much of each photo's view the walk saw");
   bool estimate = false;
   app.add_flag("--estimate-intrinsics", estimate, "locate without the photos' intrinsics");
   CLI11_PARSE(app, argc, argv);
@@ -147,9 +231,26 @@ int Run(int argc, char** argv) {
   for (const KeyframeInfo& info : model.Keyframes()) {
     keyframes_world_from_cam.push_back(info.world_from_cam);
   }
+  std::optional<ViewCoverage> view_coverage;
+  if (coverage) view_coverage.emplace(model, 40.0, 2.0);
+  // Per coverage band [0, 10%), [10, 25%), [25, 50%), [50, 100%]: photos and matched photos.
+  const double band_edges[] = {0.0, 0.10, 0.25, 0.50, 1.01};
+  int band_photos[4] = {0, 0, 0, 0};
+  int band_matched[4] = {0, 0, 0, 0};
   for (const sim::QueryPhoto& photo : queries) {
     const LocateResult result =
         locator.Locate(photo.image, estimate ? std::nullopt : std::optional(photo.intrinsics));
+    if (view_coverage) {
+      const double share = view_coverage->Of(photo);
+      for (int b = 0; b < 4; ++b) {
+        if (share >= band_edges[b] && share < band_edges[b + 1]) {
+          ++band_photos[b];
+          band_matched[b] += result.matched;
+        }
+      }
+      std::printf("  photo %3d: %2.0f%% of its view seen by the walk from within 40 deg, 2x\n",
+                  photo.index, 100.0 * share);
+    }
     QueryTruth truth;
     for (const sim::ApplianceVisibility& visibility : photo.visibility) {
       truth.appliances
@@ -213,6 +314,16 @@ int Run(int argc, char** argv) {
       evaluation.precision_defined_photos, 100.0 * evaluation.precision_ge_0_8_ratio,
       evaluation.occluded_identified, evaluation.occluded_instances,
       100.0 * evaluation.occluded_false_positive_ratio);
+
+  if (view_coverage) {
+    std::printf(
+        "\nshare of the photo's view some keyframe saw from within 40 deg and a distance factor "
+        "of 2:\n");
+    for (int b = 0; b < 4; ++b) {
+      std::printf("  %3.0f-%3.0f%%: %3d photos, %3d matched\n", 100.0 * band_edges[b],
+                  std::min(100.0, 100.0 * band_edges[b + 1]), band_photos[b], band_matched[b]);
+    }
+  }
 
   // Retrieval scaling.
   if (large_factor > 1) {

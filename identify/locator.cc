@@ -10,12 +10,12 @@
 
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
 #include "identify/exif.h"
 #include "identify/visibility.h"
+#include "slam/hamming.h"
 #include "slam/place_index.h"
 #include "slam/vocabulary.h"
 
@@ -286,17 +286,53 @@ class PhotoGrid {
   std::vector<std::vector<int>> cells_;
 };
 
+// The k nearest `train` descriptors of each `query` descriptor among those under the same
+// vocabulary node, nearest first, as cv::BFMatcher::knnMatch gives them.
+std::vector<std::vector<cv::DMatch>> KnnWithinNodes(const cv::Mat& query,
+                                                    const std::vector<int>& query_nodes,
+                                                    const cv::Mat& train,
+                                                    const std::vector<int>& train_nodes, size_t k) {
+  SIGHTMAP_CHECK(query_nodes.size() == static_cast<size_t>(query.rows) &&
+                     train_nodes.size() == static_cast<size_t>(train.rows),
+                 "one vocabulary node per descriptor");
+  // Train rows sorted by node, so each query scans only its own node's run.
+  std::vector<std::pair<int, int>> by_node(train_nodes.size());
+  for (size_t r = 0; r < train_nodes.size(); ++r) {
+    by_node[r] = {train_nodes[r], static_cast<int>(r)};
+  }
+  std::sort(by_node.begin(), by_node.end());
+  std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(query.rows));
+  for (int q = 0; q < query.rows; ++q) {
+    const int node = query_nodes[static_cast<size_t>(q)];
+    auto it = std::lower_bound(by_node.begin(), by_node.end(), std::pair(node, -1));
+    std::vector<cv::DMatch>& nearest = knn[static_cast<size_t>(q)];
+    const uint8_t* d = query.ptr<uint8_t>(q);
+    for (; it != by_node.end() && it->first == node; ++it) {
+      const float distance = static_cast<float>(Hamming256(d, train.ptr<uint8_t>(it->second)));
+      if (nearest.size() == k && distance >= nearest.back().distance) continue;
+      if (nearest.size() == k) nearest.pop_back();
+      auto at = std::upper_bound(
+          nearest.begin(), nearest.end(), distance,
+          [](float value, const cv::DMatch& match) { return value < match.distance; });
+      nearest.insert(at, cv::DMatch(q, it->second, distance));
+    }
+  }
+  return knn;
+}
+
 // Each model point projected with the hypothesis' pose takes the photo keypoint within
 // guided_radius_px whose descriptor is nearest (if within guided_max_distance); a photo keypoint
 // claimed by several model points (the same point in several keyframes) keeps the nearest.
+// `model_index` receives each correspondence's row in `model_points`.
 void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f>& photo_points,
                  const PhotoGrid& grid, const cv::Mat& model_descriptors,
                  const std::vector<cv::Point3f>& model_points, const PoseHypothesis& hypothesis,
                  const LocatorOptions& options, std::vector<cv::Point3f>* object,
-                 std::vector<cv::Point2f>* image, int* projected) {
+                 std::vector<cv::Point2f>* image, std::vector<int>* model_index, int* projected) {
   *projected = 0;
   object->clear();
   image->clear();
+  model_index->clear();
   if (model_points.empty()) return;
   cv::Vec3d rvec;
   cv::Vec3d tvec;
@@ -315,14 +351,13 @@ void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f
                          static_cast<float>(k.fy * p[1] / p[2] + k.cy));
     if (uv.x < 0 || uv.y < 0 || uv.x >= k.width || uv.y >= k.height) continue;
     ++*projected;
-    const cv::Mat model_row = model_descriptors.row(static_cast<int>(m));
+    const uint8_t* model_row = model_descriptors.ptr<uint8_t>(static_cast<int>(m));
     int nearest = -1;
     int nearest_distance = options.guided_max_distance + 1;
     grid.ForEachNear(uv, options.guided_radius_px, [&](int i) {
       const cv::Point2f d = photo_points[static_cast<size_t>(i)] - uv;
       if (d.x * d.x + d.y * d.y > radius_sq) return;
-      const int distance =
-          static_cast<int>(cv::norm(photo_descriptors.row(i), model_row, cv::NORM_HAMMING));
+      const int distance = Hamming256(photo_descriptors.ptr<uint8_t>(i), model_row);
       if (distance < nearest_distance) {
         nearest_distance = distance;
         nearest = i;
@@ -336,6 +371,7 @@ void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f
     if (best_model[i] < 0) continue;
     object->push_back(model_points[static_cast<size_t>(best_model[i])]);
     image->push_back(photo_points[i]);
+    model_index->push_back(best_model[i]);
   }
 }
 
@@ -394,6 +430,7 @@ struct Locator::Impl {
     // The features that have a 3D point: their descriptors (one row each) and world points [m].
     cv::Mat descriptors;
     std::vector<cv::Point3f> world_points;
+    std::vector<int> nodes;          // per descriptor: its vocabulary node at match_node_level
     std::vector<size_t> neighbours;  // slots, nearest first
   };
   // Retrieved keyframes of one part of the building: the best-scoring one (head) and the slots
@@ -486,6 +523,8 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
       keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
       for (size_t r = 0; r < rows.size(); ++r) {
         features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
+        keyframe.nodes.push_back(impl_->vocabulary.NodeOf(
+            keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
       }
     }
     if (info.depth_bytes > 0) {
@@ -639,34 +678,44 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   int most_inliers_rejected = 0;  // for the reason, when nothing verifies
   double rejected_rotation_deg = 0.0;
   int rejected_cells = -1;
-  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  stage = Clock::now();
+  std::vector<int> photo_nodes(static_cast<size_t>(features.descriptors.rows));
+  for (int r = 0; r < features.descriptors.rows; ++r) {
+    photo_nodes[static_cast<size_t>(r)] =
+        impl_->vocabulary.NodeOf(features.descriptors.ptr<uint8_t>(r), options.match_node_level);
+  }
+  result.timings.matching_ms += MsSince(stage);
   const double same_point_sq = options.same_point_m * options.same_point_m;
   auto disagree = [&](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
     return (a.translation() - b.translation()).norm() > options.same_pose_m ||
            AngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
   };
   for (const Impl::Place& place : places) {
-    const Impl::ModelKeyframe& keyframe = impl_->keyframes[place.head];
     ++result.candidates_tried;
 
     // 2D-3D matches against the union of the place's keyframes.
     stage = Clock::now();
     std::vector<cv::Mat> blocks;
     std::vector<cv::Point3f> model_points;
+    std::vector<int> model_nodes;
+    std::vector<size_t> model_slots;  // the keyframe each model point comes from
     for (size_t s : place.slots) {
       const Impl::ModelKeyframe& member = impl_->keyframes[s];
       if (member.world_points.empty()) continue;
       blocks.push_back(member.descriptors);
       model_points.insert(model_points.end(), member.world_points.begin(),
                           member.world_points.end());
+      model_nodes.insert(model_nodes.end(), member.nodes.begin(), member.nodes.end());
+      model_slots.insert(model_slots.end(), member.world_points.size(), s);
     }
     std::vector<cv::Point3f> object;
     std::vector<cv::Point2f> image;
+    std::vector<int> object_model;  // per correspondence, its row in model_points
     cv::Mat model_descriptors;
     if (model_points.size() >= 2) {
       cv::vconcat(blocks, model_descriptors);
-      std::vector<std::vector<cv::DMatch>> knn;
-      matcher.knnMatch(features.descriptors, model_descriptors, knn, 4);
+      const std::vector<std::vector<cv::DMatch>> knn =
+          KnnWithinNodes(features.descriptors, photo_nodes, model_descriptors, model_nodes, 4);
       for (const std::vector<cv::DMatch>& neighbours : knn) {
         if (neighbours.empty()) continue;
         const cv::DMatch& nearest = neighbours[0];
@@ -684,6 +733,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
         if (!distinct) continue;
         object.push_back(p);
         image.push_back(photo_points[static_cast<size_t>(nearest.queryIdx)]);
+        object_model.push_back(nearest.trainIdx);
       }
     }
     result.timings.matching_ms += MsSince(stage);
@@ -709,22 +759,39 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     if (found.valid && static_cast<int>(found.inliers.size()) >= options.min_ransac_inliers) {
       std::vector<cv::Point3f> guided_object;
       std::vector<cv::Point2f> guided_image;
+      std::vector<int> guided_model;
       for (int round = 0; round < options.guided_rounds; ++round) {
         GuidedMatch(features.descriptors, photo_points, grid, model_descriptors, model_points,
-                    found, options, &guided_object, &guided_image, &projected);
+                    found, options, &guided_object, &guided_image, &guided_model, &projected);
         if (!RefineOn(guided_object, guided_image, options, &found)) break;
         matches = static_cast<int>(guided_object.size());
       }
       if (found.valid) {
         object = std::move(guided_object);
         image = std::move(guided_image);
+        object_model = std::move(guided_model);
       }
     }
     result.timings.pnp_ms += MsSince(stage);
     if (!found.valid) continue;
     const int inliers = static_cast<int>(found.inliers.size());
-    const double rotation_deg =
-        AngleDeg(keyframe.world_from_cam.linear(), found.world_from_cam.linear());
+    // The paper's check is against the retrieved keyframe the pose was verified on: the member
+    // of the place holding most inliers (a place spans views up to ~100 deg apart, so its head
+    // may face away from a right pose).
+    std::unordered_map<size_t, int> inliers_of_slot;
+    for (int i : found.inliers) {
+      ++inliers_of_slot[model_slots[static_cast<size_t>(object_model[static_cast<size_t>(i)])]];
+    }
+    size_t verified_slot = place.head;
+    int verified_inliers = -1;
+    for (const auto& [slot, count] : inliers_of_slot) {
+      if (count > verified_inliers || (count == verified_inliers && slot < verified_slot)) {
+        verified_slot = slot;
+        verified_inliers = count;
+      }
+    }
+    const double rotation_deg = AngleDeg(impl_->keyframes[verified_slot].world_from_cam.linear(),
+                                         found.world_from_cam.linear());
     const int cells = CoveredCells(image, found.inliers, grey.cols, grey.rows);
     // With the right pose a good share of the place's points that land in the photo find their
     // keypoint; a pose fitted to a texture that repeats elsewhere finds few beyond it.
@@ -749,7 +816,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
         runner_up_pose = best.world_from_cam;
       }
       best = std::move(found);
-      best_slot = place.head;
+      best_slot = verified_slot;
       best_matches = matches;
       result.projected_points = projected;
       result.inlier_cells = cells;

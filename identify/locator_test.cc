@@ -399,6 +399,10 @@ TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
   EXPECT_TRUE(locator.Check(nullptr));
   locator.min_inliers = 3;
   EXPECT_FALSE(locator.Check(nullptr));
+  locator = LocatorOptions();
+  locator.match_node_level = -1;
+  EXPECT_FALSE(locator.Check(&error));
+  EXPECT_NE(error.find("match_node_level"), std::string::npos) << error;
 }
 
 }  // namespace

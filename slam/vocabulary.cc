@@ -337,25 +337,37 @@ float Vocabulary::WordWeight(int word) const {
   return idf_[word];
 }
 
+uint32_t Vocabulary::Descend(const uint64_t descriptor[4], int max_levels) const {
+  uint32_t index = 0;
+  for (int level = 0; level < max_levels && nodes_[index].num_children != 0; ++level) {
+    const Node& node = nodes_[index];
+    uint32_t best = node.first_child;
+    int best_distance = Hamming256(descriptor, nodes_[best].descriptor);
+    for (uint32_t c = 1; c < node.num_children; ++c) {
+      const int distance = Hamming256(descriptor, nodes_[node.first_child + c].descriptor);
+      if (distance < best_distance) {
+        best_distance = distance;
+        best = node.first_child + c;
+      }
+    }
+    index = best;
+  }
+  return index;
+}
+
 int Vocabulary::WordOf(const uint8_t* descriptor32) const {
   SIGHTMAP_CHECK(!nodes_.empty(), "the vocabulary is empty: train or load one first");
   uint64_t d[4];
   std::memcpy(d, descriptor32, kDescriptorBytes);
-  const Node* node = &nodes_[0];
-  while (node->num_children != 0) {
-    const Node* best = &nodes_[node->first_child];
-    int best_distance = Hamming256(d, best->descriptor);
-    for (uint32_t c = 1; c < node->num_children; ++c) {
-      const Node* child = &nodes_[node->first_child + c];
-      const int distance = Hamming256(d, child->descriptor);
-      if (distance < best_distance) {
-        best_distance = distance;
-        best = child;
-      }
-    }
-    node = best;
-  }
-  return node->word;
+  return nodes_[Descend(d, std::numeric_limits<int>::max())].word;
+}
+
+int Vocabulary::NodeOf(const uint8_t* descriptor32, int level) const {
+  SIGHTMAP_CHECK(!nodes_.empty(), "the vocabulary is empty: train or load one first");
+  SIGHTMAP_CHECK(level >= 0, "a tree level is not negative, got " << level);
+  uint64_t d[4];
+  std::memcpy(d, descriptor32, kDescriptorBytes);
+  return static_cast<int>(Descend(d, level));
 }
 
 BowVector Vocabulary::Transform(const cv::Mat& descriptors, std::vector<int>* word_of_row) const {

@@ -56,6 +56,12 @@ class Vocabulary {
 
   // The word of one 32-byte descriptor: the leaf reached by descending to the nearest child.
   int WordOf(const uint8_t* descriptor32) const;
+  // The tree node a descriptor reaches after descending `level` levels from the root (the leaf, if
+  // the tree is shallower there), as an index in [0, NumNodes()): level 0 is the root. Descriptors
+  // that share a node at a coarse level are candidates for the same point, which lets matching
+  // compare a descriptor only with those of its own node (DBoW2's direct index, as ORB-SLAM uses).
+  int NodeOf(const uint8_t* descriptor32, int level) const;
+  int NumNodes() const { return static_cast<int>(nodes_.size()); }
 
   // The tf-idf vector of one image's descriptors (CV_8U, 32 columns, any number of rows; an
   // empty matrix gives an empty vector). `word_of_row`, when given, receives each row's word.
@@ -77,6 +83,9 @@ class Vocabulary {
     uint32_t num_children = 0;  // 0 for a leaf
     int32_t word = -1;          // leaves only
   };
+
+  // The node `descriptor` reaches after at most `max_levels` descents (an index into nodes_).
+  uint32_t Descend(const uint64_t descriptor[4], int max_levels) const;
 
   int branching_ = 0;
   int depth_ = 0;

@@ -217,6 +217,39 @@ TEST(Vocabulary, TrainsThirtyImagesQuicklyAndTransformsConsistently) {
   EXPECT_TRUE(vocabulary.Transform(cv::Mat()).empty());
 }
 
+TEST(Vocabulary, NodeOfDescendsTheSamePathAsWordOf) {
+  SyntheticPlaces places(20, 400, 5);
+  std::vector<cv::Mat> images;
+  for (int i = 0; i < 20; ++i) images.push_back(places.Image(i, 400));
+  const Vocabulary vocabulary = Vocabulary::Train(images);
+  ASSERT_GT(vocabulary.NumWords(), 100);
+  std::map<int, std::set<int>> level2_nodes_of_word;
+  std::set<int> level1_nodes;
+  for (const cv::Mat& image : images) {
+    for (int r = 0; r < image.rows; ++r) {
+      const uint8_t* d = image.ptr<uint8_t>(r);
+      EXPECT_EQ(vocabulary.NodeOf(d, 0), 0);
+      const int level1 = vocabulary.NodeOf(d, 1);
+      const int level2 = vocabulary.NodeOf(d, 2);
+      EXPECT_GE(level1, 1);
+      EXPECT_LE(level1, 10);  // the root's children are nodes 1..10, breadth first
+      EXPECT_GT(level2, 10);
+      EXPECT_LT(level2, vocabulary.NumNodes());
+      level1_nodes.insert(level1);
+      level2_nodes_of_word[vocabulary.WordOf(d)].insert(level2);
+      // Descending past the leaves stops at the leaf: the same node at the full depth and beyond.
+      EXPECT_EQ(vocabulary.NodeOf(d, 4), vocabulary.NodeOf(d, 40));
+    }
+  }
+  EXPECT_EQ(level1_nodes.size(), 10u);
+  // A word lies under exactly one level-2 node: the two descents take the same path.
+  for (const auto& [word, nodes] : level2_nodes_of_word) {
+    EXPECT_EQ(nodes.size(), 1u) << "word " << word;
+  }
+  EXPECT_THROW(vocabulary.NodeOf(images[0].ptr<uint8_t>(0), -1), Error);
+  EXPECT_THROW(Vocabulary().NodeOf(images[0].ptr<uint8_t>(0), 1), Error);
+}
+
 TEST(Vocabulary, RejectsNonBinaryDescriptorsAndBadOptions) {
   const std::vector<cv::Mat> images = TrainingImages(3, 100, 13);
   const Vocabulary vocabulary = Vocabulary::Train(images);
