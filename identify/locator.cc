@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
@@ -44,6 +45,10 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "retrieval_candidates must be at least 1";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
     why << "neighbour_radius_m and max_neighbours must not be negative";
+  else if (match_node_level < 0)
+    why << "match_node_level must not be negative";
+  else if (match_node_level < 0)
+    why << "match_node_level must not be negative";
   else if (!(match_ratio > 0.0 && match_ratio <= 1.0))
     why << "match_ratio must be in (0, 1]";
   else if (same_point_m < 0.0)
@@ -714,8 +719,13 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     cv::Mat model_descriptors;
     if (model_points.size() >= 2) {
       cv::vconcat(blocks, model_descriptors);
-      const std::vector<std::vector<cv::DMatch>> knn =
-          KnnWithinNodes(features.descriptors, photo_nodes, model_descriptors, model_nodes, 4);
+      std::vector<std::vector<cv::DMatch>> knn;
+      if (options.match_node_level > 0) {
+        knn = KnnWithinNodes(features.descriptors, photo_nodes, model_descriptors, model_nodes, 4);
+      } else {
+        // OpenCV's exhaustive search uses the machine's vector popcount.
+        cv::BFMatcher(cv::NORM_HAMMING).knnMatch(features.descriptors, model_descriptors, knn, 4);
+      }
       for (const std::vector<cv::DMatch>& neighbours : knn) {
         if (neighbours.empty()) continue;
         const cv::DMatch& nearest = neighbours[0];

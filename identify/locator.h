@@ -22,8 +22,8 @@ namespace sightmap {
 struct LocatorOptions {
   // Photo features: more than a keyframe's, because a phone photo sees more. 3000: with places
   // matched once each and guided matching, 3000 features, 20 candidates and 6 places matched 39
-  // of 100 session-2 photos against 35 with 1500, 10 and 4. (5000 with 40 candidates and 12
-  // places: 40 of 100, not worth 2/3 more feature time.)
+  // of 100 session-2 photos against 35 with 1500, 10 and 4 (5000 features, 40 candidates and 12
+  // places: 40).
   FeatureOptions features = [] {
     FeatureOptions f;
     f.max_features = 3000;
@@ -34,26 +34,27 @@ struct LocatorOptions {
   // detail at about half its size) [px]; the answer's pixels are in the original image.
   int max_image_side_px = 960;
   // Retrieval: keyframes taken from the inverted index, best bag-of-words score first, each
-  // verified by PnP; the best verified pose wins. 40 candidates and 12 places (against 20 and 6):
-  // with matching bounded by vocabulary nodes, 39 of 100 photos matched with no wrong pose,
-  // against 37 and one 0.7 m off; affordable since matching costs 1/30 of what it did.
-  int retrieval_candidates = 40;
+  // verified by PnP; the best verified pose wins. (40 candidates and 12 places matched the same
+  // 39 of 100 photos at about twice the matching time.)
+  int retrieval_candidates = 20;
   // Candidates within place_radius_m of an earlier candidate, looking within place_max_angle_deg
   // of it, join its place; each place (its candidates and their neighbours) is matched once
   // against the photo, at most max_places places per photo [m], [deg].
   double place_radius_m = 2.0;
   double place_max_angle_deg = 60.0;
-  int max_places = 12;
+  int max_places = 6;
   // Keyframes whose position lies within this distance of a candidate's and whose viewing direction
   // differs by less than neighbour_max_angle_deg join its 2D-3D matching [m], [deg].
   double neighbour_radius_m = 1.0;
   double neighbour_max_angle_deg = 45.0;
   int max_neighbours = 4;
-  // A photo descriptor is compared only with the model descriptors under the same node of the
-  // vocabulary tree this many levels below the root (0: with every descriptor of the place). At 2
-  // (about 100 nodes) matching costs about 1/100 of the exhaustive search; a descriptor whose
-  // nearest neighbour fell under another node loses that match (ORB-SLAM's search by BoW).
-  int match_node_level = 2;
+  // When positive, a photo descriptor is compared only with the model descriptors under the same
+  // node of the vocabulary tree this many levels below the root (ORB-SLAM's search by BoW); 0
+  // compares it with every descriptor of the place. Level 2 (about 100 nodes) cuts matching to
+  // 1/30 (p95 of the whole locate 404 -> 184 ms), but its ratio test no longer sees the
+  // second-nearest descriptors of other nodes: verified poses went wrong by 0.7 m (1 of 100
+  // benchmark photos) and 2.6 m (1 of 17 in locator_test), where exhaustive matching has none.
+  int match_node_level = 0;
   // Nearest-neighbour distance ratio for photo-to-model descriptor matches.
   double match_ratio = 0.8;
   // Neighbouring keyframes see the same 3D point with near-identical descriptors: a second-nearest

@@ -131,6 +131,25 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
   EXPECT_LE(Median(rotation_errors), 0.3);
 }
 
+TEST_F(LocatorTest, MatchingBoundedByVocabularyNodesStillMatchesMostSeenPhotos) {
+  LocatorOptions options;
+  options.match_node_level = 2;
+  const Locator bounded(*model_, options);
+  int matched = 0;
+  std::vector<double> position_errors;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult result = bounded.Locate(photo.image, photo.intrinsics);
+    if (!result.matched) continue;
+    ++matched;
+    position_errors.push_back(PositionError(result.world_from_cam, photo.world_from_cam));
+  }
+  // Measured: 12 of 17, as exhaustive matching, but one of them 2.6 m off (why it is not the
+  // default); the median stays at millimetres.
+  EXPECT_GE(matched, static_cast<int>(0.65 * static_cast<double>(seen_photos_->size())));
+  ASSERT_FALSE(position_errors.empty());
+  EXPECT_LE(Median(position_errors), 0.01);
+}
+
 TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
   cv::Mat noise(960, 1280, CV_8UC3);
   cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
