@@ -187,6 +187,10 @@ int Run(int argc, char** argv) {
                  "inliers over a disagreeing runner-up's");
   app.add_option("--min-share", locator_options.min_inlier_share, "inliers / projected points");
   app.add_option("--guided-rounds", locator_options.guided_rounds, "guided matching rounds");
+  app.add_option("--occlusion-margin", locator_options.occlusion_margin_m,
+                 "occlusion margin at the camera [m]");
+  app.add_option("--occlusion-margin-ratio", locator_options.occlusion_margin_ratio,
+                 "occlusion margin per metre of depth");
   bool coverage = false;
   app.add_flag("--coverage", coverage,
                "measure, by ground truth, how much of each photo's view the walk saw");

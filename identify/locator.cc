@@ -450,10 +450,16 @@ struct Locator::Impl {
   Vocabulary vocabulary;
   PlaceIndex index;  // ids are slots into `keyframes`
   OcclusionCloud cloud;
+  // Every keyframe's depth at 80x60, to tell from which side the walk saw each label point.
+  std::vector<SightingView> sighting_views;
+  struct LabelSet {
+    std::vector<LabelRecord> labels;
+    LabelSightings sightings;  // per label, per point
+  };
   mutable std::mutex labels_mutex;
-  std::shared_ptr<const std::vector<LabelRecord>> labels;
+  std::shared_ptr<const LabelSet> labels;
 
-  std::shared_ptr<const std::vector<LabelRecord>> CurrentLabels() const {
+  std::shared_ptr<const LabelSet> CurrentLabels() const {
     std::lock_guard<std::mutex> lock(labels_mutex);
     return labels;
   }
@@ -533,9 +539,11 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
       }
     }
     if (info.depth_bytes > 0) {
-      cloud.AddDepth(model.LoadDepth(info.id), info.intrinsics, info.world_from_cam,
-                     options.occlusion_pixel_step, options.features.min_depth_m,
-                     options.occlusion_max_depth_m);
+      const cv::Mat depth = model.LoadDepth(info.id);
+      cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
+                     options.features.min_depth_m, options.occlusion_max_depth_m);
+      impl_->sighting_views.push_back(
+          MakeSightingView(depth, info.intrinsics, info.world_from_cam, 80, 60));
     }
     impl_->keyframes.push_back(std::move(keyframe));
   }
@@ -550,7 +558,10 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
 Locator::~Locator() = default;
 
 void Locator::ReloadLabels(const Model& model) {
-  auto labels = std::make_shared<const std::vector<LabelRecord>>(model.Labels());
+  auto labels = std::make_shared<Impl::LabelSet>();
+  labels->labels = model.Labels();
+  labels->sightings =
+      SightLabels(labels->labels, impl_->sighting_views, ToVisibilityOptions(impl_->options));
   std::lock_guard<std::mutex> lock(impl_->labels_mutex);
   impl_->labels = std::move(labels);
 }
@@ -558,7 +569,7 @@ void Locator::ReloadLabels(const Model& model) {
 size_t Locator::NumKeyframes() const { return impl_->keyframes.size(); }
 const LocatorOptions& Locator::options() const { return impl_->options; }
 size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.size(); }
-std::vector<LabelRecord> Locator::Labels() const { return *impl_->CurrentLabels(); }
+std::vector<LabelRecord> Locator::Labels() const { return impl_->CurrentLabels()->labels; }
 
 LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                              IntrinsicsSource source) const {
@@ -876,8 +887,9 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
 
   stage = Clock::now();
   const auto labels = impl_->CurrentLabels();
-  result.appliances = AppliancesInView(*labels, &impl_->cloud, result.intrinsics,
-                                       result.world_from_cam, ToVisibilityOptions(options));
+  result.appliances =
+      AppliancesInView(labels->labels, &impl_->cloud, result.intrinsics, result.world_from_cam,
+                       ToVisibilityOptions(options), &labels->sightings);
   result.timings.visibility_ms = MsSince(stage);
   result.timings.total_ms = MsSince(start);
   return result;

@@ -407,6 +407,60 @@ TEST_F(VisibilityTest, APoseMovesTheViewAndPixelsAreTheVisiblePointsCentre) {
   EXPECT_TRUE(result[1].occluded);  // now behind the wall
 }
 
+TEST_F(VisibilityTest, AFarSwitchSeenFromBehindItsWallIsOccludedWhenTheWalkSawItFromTheFront) {
+  // A switch on the near face of a 0.2 m wall (faces z = 3.0 and 3.2 in the cloud), the walk's
+  // keyframes in front of it (z < 3) and a photo from 8 m behind the wall, looking back along -z.
+  OcclusionCloudBuilder builder(0.05);
+  for (double x = -3.0; x <= 3.0; x += 0.02) {
+    for (double y = -2.5; y <= 2.5; y += 0.02) {
+      builder.AddPoint({x, y, 3.0});
+      builder.AddPoint({x, y, 3.2});
+    }
+  }
+  const OcclusionCloud wall = builder.Build();
+  const Eigen::Vector3d switch_point(0.3, 0.2, 2.99);
+  const std::vector<LabelRecord> labels = {Label("switch", {switch_point})};
+  // Keyframes 1.5-2.5 m in front of the wall, looking at it (+z): their depth sees the near face.
+  const Intrinsics keyframe_intrinsics = Intrinsics::FromFieldOfView(160, 120, 1.0, 0.0);
+  std::vector<SightingView> views;
+  for (int i = 0; i < 4; ++i) {
+    Eigen::Isometry3d world_from_keyframe = Eigen::Isometry3d::Identity();
+    world_from_keyframe.translation() = Eigen::Vector3d(0.4 * i - 0.6, 0.1, 0.5 + 0.3 * i);
+    // Facing the wall, every pixel's depth is the distance to its plane z = 3.
+    const cv::Mat depth(
+        120, 160, CV_16UC1,
+        cv::Scalar(std::lround(1000.0 * (3.0 - world_from_keyframe.translation().z()))));
+    views.push_back(MakeSightingView(depth, keyframe_intrinsics, world_from_keyframe, 80, 60));
+  }
+  const VisibilityOptions options;
+  const LabelSightings sightings = SightLabels(labels, views, options);
+  ASSERT_EQ(sightings.size(), 1u);
+  ASSERT_EQ(sightings[0].size(), 1u);
+  EXPECT_EQ(sightings[0][0].keyframes, 4);
+  EXPECT_GT(sightings[0][0].mean_ray.z(), 0.9);  // seen looking along +z
+
+  Eigen::Isometry3d behind = Eigen::Isometry3d::Identity();
+  behind.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  behind.translation() = Eigen::Vector3d(0.0, 0.0, 11.0);
+  // The wall's far face is 0.21 m nearer than the switch: inside the 0.15 + 0.05 x 8 m margin.
+  const std::vector<ApplianceInView> margin_only =
+      AppliancesInView(labels, &wall, intrinsics_, behind, options);
+  ASSERT_EQ(margin_only.size(), 1u);
+  EXPECT_FALSE(margin_only[0].occluded);
+  const std::vector<ApplianceInView> with_sightings =
+      AppliancesInView(labels, &wall, intrinsics_, behind, options, &sightings);
+  ASSERT_EQ(with_sightings.size(), 1u);
+  EXPECT_TRUE(with_sightings[0].occluded);
+
+  // From the front, as far away, it stays visible.
+  Eigen::Isometry3d front = Eigen::Isometry3d::Identity();
+  front.translation() = Eigen::Vector3d(0.5, 0.0, -5.0);
+  const std::vector<ApplianceInView> seen =
+      AppliancesInView(labels, &wall, intrinsics_, front, options, &sightings);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_FALSE(seen[0].occluded);
+}
+
 TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
   VisibilityOptions options;
   EXPECT_TRUE(options.Check(nullptr));

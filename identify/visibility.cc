@@ -5,6 +5,8 @@
 #include <limits>
 #include <tuple>
 
+#include <opencv2/imgproc.hpp>
+
 #include "core/check.h"
 
 namespace sightmap {
@@ -88,6 +90,12 @@ bool VisibilityOptions::Check(std::string* error) const {
   else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
            !(min_unoccluded_share > 0.0 && min_unoccluded_share <= 1.0))
     why = "min_in_view_share and min_unoccluded_share must be in (0, 1]";
+  else if (!(sighting_depth_m > 0.0) || !(sighting_max_m > 0.0) || min_sighting_keyframes < 1 ||
+           !(min_one_sidedness >= 0.0 && min_one_sidedness <= 1.0) ||
+           !(behind_angle_deg >= 90.0 && behind_angle_deg <= 180.0) || behind_margin_m < 0.0)
+    why =
+        "sighting_depth_m and min_sighting_keyframes must be positive, min_one_sidedness in "
+        "[0, 1], behind_angle_deg in [90, 180], behind_margin_m not negative";
   if (why == nullptr) return true;
   if (error != nullptr) *error = std::string("VisibilityOptions: ") + why;
   return false;
@@ -135,20 +143,67 @@ cv::Mat RenderOcclusionDepth(const OcclusionCloud& cloud, const Intrinsics& intr
   return depth;
 }
 
+SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
+                              const Eigen::Isometry3d& world_from_cam, int width, int height) {
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && width > 0 && height > 0,
+                 "a sighting view needs 16-bit depth [mm] and a positive size");
+  SightingView view;
+  cv::resize(depth_mm, view.depth_mm, cv::Size(width, height), 0.0, 0.0, cv::INTER_NEAREST);
+  view.intrinsics = intrinsics.Scaled(width, height);
+  view.cam_from_world = world_from_cam.inverse();
+  return view;
+}
+
+LabelSightings SightLabels(const std::vector<LabelRecord>& labels,
+                           const std::vector<SightingView>& views,
+                           const VisibilityOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  LabelSightings sightings(labels.size());
+  for (size_t l = 0; l < labels.size(); ++l) {
+    for (const LabelPoint& point : labels[l].points) {
+      PointSighting sighting;
+      for (const SightingView& view : views) {
+        const Eigen::Vector3d cam = view.cam_from_world * point.world;
+        if (!(cam.z() > 0.0)) continue;
+        const Eigen::Vector2d pixel = view.intrinsics.Project(cam);
+        const int u = static_cast<int>(std::lround(pixel.x()));
+        const int v = static_cast<int>(std::lround(pixel.y()));
+        if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) continue;
+        // Seen when nothing stands in front of it: the depth reaches it (or beyond), or is
+        // missing within the sensor's range (a dark screen returns no depth).
+        const double seen_m = view.depth_mm.at<uint16_t>(v, u) * 1e-3;
+        const bool clear = seen_m > 0.0 ? seen_m >= cam.z() - options.sighting_depth_m
+                                        : cam.z() <= options.sighting_max_m;
+        if (!clear) continue;
+        // The ray from the keyframe to the point, in the world frame.
+        sighting.mean_ray += view.cam_from_world.linear().transpose() * cam.normalized();
+        ++sighting.keyframes;
+      }
+      if (sighting.keyframes > 0) sighting.mean_ray /= sighting.keyframes;
+      sightings[l].push_back(sighting);
+    }
+  }
+  return sightings;
+}
+
 std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& labels,
                                               const OcclusionCloud* cloud,
                                               const Intrinsics& intrinsics,
                                               const Eigen::Isometry3d& world_from_cam,
-                                              const VisibilityOptions& options) {
+                                              const VisibilityOptions& options,
+                                              const LabelSightings* sightings) {
   SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(sightings == nullptr || sightings->size() == labels.size(),
+                 "one sighting list per label");
   std::vector<ApplianceInView> result;
   if (labels.empty()) return result;
   const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
+  const double cos_behind = std::cos(options.behind_angle_deg * M_PI / 180.0);
 
   // The z-buffer, drawn only when some label is in the view cone.
   cv::Mat zbuffer;
   Intrinsics small;
-  auto occluded = [&](const Eigen::Vector3d& cam_point) {
+  auto occluded = [&](const Eigen::Vector3d& cam_point, const PointSighting* sighting) {
     if (cloud == nullptr || cloud->world_points.empty()) return false;
     if (zbuffer.empty()) {
       const int ds = options.zbuffer_downscale;
@@ -161,17 +216,26 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& la
     const int v = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, small.height - 1);
     const double surface = zbuffer.at<float>(v, u);
     const double z = cam_point.z();
-    return surface < z - (options.margin_m + options.margin_ratio * z);
+    if (surface < z - (options.margin_m + options.margin_ratio * z)) return true;
+    if (sighting == nullptr || sighting->keyframes < options.min_sighting_keyframes) return false;
+    const double one_sidedness = sighting->mean_ray.norm();
+    if (one_sidedness < options.min_one_sidedness) return false;
+    const Eigen::Vector3d photo_ray = world_from_cam.linear() * cam_point.normalized();
+    const bool from_behind = photo_ray.dot(sighting->mean_ray) < cos_behind * one_sidedness;
+    return from_behind && surface < z - options.behind_margin_m;
   };
 
-  for (const LabelRecord& label : labels) {
+  for (size_t l = 0; l < labels.size(); ++l) {
+    const LabelRecord& label = labels[l];
     if (label.points.empty()) continue;
     int in_view = 0;
     int unoccluded = 0;
     Eigen::Vector2d sum_visible = Eigen::Vector2d::Zero();
     Eigen::Vector2d sum_in_view = Eigen::Vector2d::Zero();
     double nearest = std::numeric_limits<double>::infinity();
-    for (const LabelPoint& point : label.points) {
+    for (size_t p = 0; p < label.points.size(); ++p) {
+      const LabelPoint& point = label.points[p];
+      const PointSighting* sighting = sightings != nullptr ? &(*sightings)[l].at(p) : nullptr;
       const Eigen::Vector3d cam_point = cam_from_world * point.world;
       if (!(cam_point.z() > 0.0)) continue;
       const Eigen::Vector2d pixel = intrinsics.Project(cam_point);
@@ -183,7 +247,7 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& la
       ++in_view;
       sum_in_view += pixel;
       nearest = std::min(nearest, cam_point.norm());
-      if (!occluded(cam_point)) {
+      if (!occluded(cam_point, sighting)) {
         ++unoccluded;
         sum_visible += pixel;
       }

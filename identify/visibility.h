@@ -67,9 +67,46 @@ struct VisibilityOptions {
   // the camera; visible when at least this share of those are not occluded.
   double min_in_view_share = 0.5;
   double min_unoccluded_share = 0.5;
+  // The margin above grows with distance (pose, voxel and grazing-angle errors), so a far
+  // appliance on the other side of a wall (0.1-0.3 m in front of it) passed as visible. A label
+  // point the walk saw from one side only is hidden from a camera on the other side: when at
+  // least min_sighting_keyframes keyframes saw it (their depth not nearer than the point by more
+  // than sighting_depth_m, or missing with the point within sighting_max_m),
+  // their mean unit ray (keyframe to point) is at least min_one_sidedness long, the photo's ray
+  // is more than behind_angle_deg from it, and the z-buffer has a surface more than
+  // behind_margin_m in front of the point [m], [m], [], [], [deg], [m].
+  double sighting_depth_m = 0.10;
+  double sighting_max_m = 4.5;
+  int min_sighting_keyframes = 3;
+  double min_one_sidedness = 0.8;
+  double behind_angle_deg = 120.0;
+  double behind_margin_m = 0.05;
 
   bool Check(std::string* error) const;
 };
+
+// One keyframe's depth at a small size, for telling from where the walk saw a label point.
+struct SightingView {
+  cv::Mat depth_mm;       // CV_16UC1
+  Intrinsics intrinsics;  // at depth_mm's size
+  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+};
+
+// From where the walk saw a label point: the mean of the unit rays (keyframe centre to point) of
+// the keyframes whose depth agrees with the point, and how many did.
+struct PointSighting {
+  Eigen::Vector3d mean_ray = Eigen::Vector3d::Zero();  // length 1: all from one direction
+  int keyframes = 0;
+};
+// Per label, per point.
+using LabelSightings = std::vector<std::vector<PointSighting>>;
+
+// `depth_mm` resized to `width` x `height` (nearest, so no depth is invented at edges).
+SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
+                              const Eigen::Isometry3d& world_from_cam, int width, int height);
+LabelSightings SightLabels(const std::vector<LabelRecord>& labels,
+                           const std::vector<SightingView>& views,
+                           const VisibilityOptions& options);
 
 // The cloud's depth [m] seen from `world_from_cam` through `intrinsics` (already at the z-buffer's
 // resolution), +infinity where nothing was drawn. CV_32FC1.
@@ -80,10 +117,13 @@ cv::Mat RenderOcclusionDepth(const OcclusionCloud& cloud, const Intrinsics& intr
 // The labels in the view cone of a photo with `intrinsics` (full resolution) at `world_from_cam`,
 // nearest first; occluded ones are kept with occluded = true. Without a cloud (nullptr or empty)
 // nothing counts as occluded.
+// With `sightings` (SightLabels' answer for `labels`), a point seen from behind its surface is
+// occluded too.
 std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& labels,
                                               const OcclusionCloud* cloud,
                                               const Intrinsics& intrinsics,
                                               const Eigen::Isometry3d& world_from_cam,
-                                              const VisibilityOptions& options);
+                                              const VisibilityOptions& options,
+                                              const LabelSightings* sightings = nullptr);
 
 }  // namespace sightmap

@@ -101,8 +101,8 @@ class VoxelAccumulator {
   static constexpr int64_t kAxisOffset = int64_t{1} << 20;
   static constexpr uint64_t kAxisMask = (uint64_t{1} << 21) - 1;
   // Sums are merged (sorted by key, equal keys added) once they reach this many, and after that
-  // whenever they have grown by half since: memory stays within 1.5x the voxels, and merges cost
-  // O(n log n) a logarithmic number of times.
+  // whenever they have grown by half since: memory stays within 1.5x the voxels, and each merge
+  // of n sums follows at least n/3 new points, so all merges cost O(points x log voxels).
   static constexpr size_t kFirstMerge = 1'000'000;
 
   void Merge() {
