@@ -84,8 +84,9 @@ struct LocatorOptions {
   // pose projects into the photo (measured: right poses 0.021-0.09, wrong ones from 0.009).
   double min_inlier_share = 0.02;
   // Poses of two places agree when within same_pose_m and same_pose_deg; when they disagree the
-  // winner needs min_inlier_ratio_over_runner_up x the runner-up's inliers, else the photo is
-  // ambiguous (the office's similar rooms) and not matched [m], [deg], [].
+  // winner needs min_inlier_ratio_over_runner_up x the runner-up's inliers (a pose refused by a
+  // check above counts too, when it has min_inliers), else the photo is ambiguous (the office's
+  // similar rooms) and not matched [m], [deg], [].
   double same_pose_m = 0.5;
   double same_pose_deg = 15.0;
   double min_inlier_ratio_over_runner_up = 1.5;
