@@ -94,8 +94,9 @@ bool VisibilityOptions::Check(std::string* error) const {
            !(min_one_sidedness >= 0.0 && min_one_sidedness <= 1.0) ||
            !(behind_angle_deg >= 90.0 && behind_angle_deg <= 180.0) || behind_margin_m < 0.0)
     why =
-        "sighting_depth_m and min_sighting_keyframes must be positive, min_one_sidedness in "
-        "[0, 1], behind_angle_deg in [90, 180], behind_margin_m not negative";
+        "sighting_depth_m, sighting_max_m and min_sighting_keyframes must be positive, "
+        "min_one_sidedness in [0, 1], behind_angle_deg in [90, 180], behind_margin_m not "
+        "negative";
   if (why == nullptr) return true;
   if (error != nullptr) *error = std::string("VisibilityOptions: ") + why;
   return false;
