@@ -22,6 +22,7 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/rotation.h"
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
 #include "identify/sim_model_testing.h"
@@ -282,10 +283,8 @@ int Run(int argc, char** argv) {
         result.inlier_cells);
     position_mm.push_back(
         1e3 * (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm());
-    rotation_deg.push_back(Eigen::AngleAxisd(result.world_from_cam.linear().transpose() *
-                                             photo.world_from_cam.linear())
-                               .angle() *
-                           180.0 / M_PI);
+    rotation_deg.push_back(
+        RotationAngleDeg(result.world_from_cam.linear(), photo.world_from_cam.linear()));
   }
   const IdentifyEvaluation evaluation = EvaluateIdentification(truths, answers);
   auto line = [&](const char* stage) {

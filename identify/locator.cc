@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "identify/exif.h"
 #include "identify/visibility.h"
 #include "slam/hamming.h"
@@ -102,10 +103,6 @@ using Clock = std::chrono::steady_clock;
 
 double MsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-double AngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
-  return Eigen::AngleAxisd(a.transpose() * b).angle() * 180.0 / M_PI;
 }
 
 cv::Matx33d CameraMatrix(const Intrinsics& k) {
@@ -706,7 +703,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   const double same_point_sq = options.same_point_m * options.same_point_m;
   auto disagree = [&](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
     return (a.translation() - b.translation()).norm() > options.same_pose_m ||
-           AngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
+           RotationAngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
   };
   for (const Impl::Place& place : places) {
     ++result.candidates_tried;
@@ -813,8 +810,8 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
         verified_inliers = count;
       }
     }
-    const double rotation_deg = AngleDeg(impl_->keyframes[verified_slot].world_from_cam.linear(),
-                                         found.world_from_cam.linear());
+    const double rotation_deg = RotationAngleDeg(
+        impl_->keyframes[verified_slot].world_from_cam.linear(), found.world_from_cam.linear());
     const int cells = CoveredCells(image, found.inliers, grey.cols, grey.rows);
     // With the right pose a good share of the place's points that land in the photo find their
     // keypoint; a pose fitted to a texture that repeats elsewhere finds few beyond it.

@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "identify/sim_model_testing.h"
 #include "identify/visibility.h"
 #include "sim/simulator.h"
@@ -27,10 +28,6 @@ namespace fs = std::filesystem;
 
 double PositionError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.translation() - b.translation()).norm();
-}
-
-double RotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180.0 / M_PI;
 }
 
 double Median(std::vector<double> values) {
@@ -113,7 +110,8 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
     ++matched;
     EXPECT_EQ(result.intrinsics_source, IntrinsicsSource::kGiven);
     position_errors.push_back(PositionError(result.world_from_cam, photo.world_from_cam));
-    rotation_errors.push_back(RotationErrorDeg(result.world_from_cam, photo.world_from_cam));
+    rotation_errors.push_back(
+        RotationAngleDeg(result.world_from_cam.linear(), photo.world_from_cam.linear()));
     if (position_errors.back() <= 0.05 && rotation_errors.back() <= 2.0) ++accurate;
   }
   std::printf(

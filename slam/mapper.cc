@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 
 namespace sightmap {
 namespace {
@@ -527,7 +528,7 @@ bool Mapper::JoinKeepsTheWalkPossible(int older_root, int newer_root,
         };
         const Eigen::Isometry3d motion =
             placed(*previous, previous_root).inverse() * placed(keyframe, root);
-        const double turn_deg = Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
+        const double turn_deg = RotationAngleDeg(motion);
         if (motion.translation().norm() >
                 options_.walk_max_speed_mps * gap_s + options_.walk_slack_m ||
             turn_deg > options_.walk_max_turn_rate_dps * gap_s + options_.walk_slack_deg) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/simulator.h"
 #include "slam/trajectory_eval.h"
 
@@ -37,10 +38,6 @@ const Walk& HandheldWalk() {
     return result;
   }();
   return *walk;
-}
-
-double RotationDeg(const Eigen::Isometry3d& motion) {
-  return Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
 }
 
 MapperOptions SmallVocabulary() {
@@ -76,7 +73,7 @@ TEST(Mapper, TracksTheHandheldWalkWithCentimetreAccuracy) {
     const Eigen::Isometry3d off = truth.inverse() * link.from_from_to;
     if (!link.active) continue;
     EXPECT_LT(off.translation().norm(), 0.10) << link.from << " -> " << link.to;
-    EXPECT_LT(RotationDeg(off), 3.0) << link.from << " -> " << link.to;
+    EXPECT_LT(RotationAngleDeg(off), 3.0) << link.from << " -> " << link.to;
   }
 }
 
@@ -265,7 +262,7 @@ TEST(Mapper, KeyframesAtKnownPosesKeepThemAndAreIndexed) {
     const Eigen::Isometry3d error =
         walk.frames[i].world_from_cam_gt->inverse() * mapper.WorldFromCam(static_cast<int64_t>(i));
     EXPECT_LT(error.translation().norm(), 1e-6) << "keyframe " << i;
-    EXPECT_LT(RotationDeg(error), 1e-4) << "keyframe " << i;
+    EXPECT_LT(RotationAngleDeg(error), 1e-4) << "keyframe " << i;
   }
 }
 

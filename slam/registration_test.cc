@@ -8,14 +8,11 @@
 #include <Eigen/Eigenvalues>
 
 #include "capture/rgbd_source.h"
+#include "core/rotation.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
 namespace {
-
-double AngleDeg(const Eigen::Isometry3d& motion) {
-  return Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
-}
 
 // Source features at random points in front of the camera; the target sees the same points
 // moved by `target_from_source`, plus `outliers` matches whose target point is somewhere else.
@@ -67,7 +64,7 @@ TEST(Registration, RecoversAKnownMotionAmongFortyPercentOutliers) {
   EXPECT_GE(result.inliers, 290);
   EXPECT_LE(result.inliers, 310);
   EXPECT_LT((result.target_from_source.translation() - truth.translation()).norm(), 0.005);
-  EXPECT_LT(AngleDeg(result.target_from_source.inverse() * truth), 0.2);
+  EXPECT_LT(RotationAngleDeg(result.target_from_source.inverse() * truth), 0.2);
   // Six directions constrained by hundreds of points: the information is well conditioned.
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(result.information);
   EXPECT_GT(eigen.eigenvalues().minCoeff(), 0.0);
@@ -131,16 +128,16 @@ TEST(Registration, RealLoungeFramesRegisterOrAreRefusedNeverWrong) {
     std::printf(
         "pair %zu->%zu: truth %.1f cm %.1f deg | %s, %d matches, %d corr, %d inliers, rmse %.1f "
         "mm, consistent %.2f, seen-through %.2f | error %.2f cm %.2f deg %s\n",
-        pair.target, pair.source, 100 * truth.translation().norm(), AngleDeg(truth),
+        pair.target, pair.source, 100 * truth.translation().norm(), RotationAngleDeg(truth),
         result.success ? "accepted" : "refused", result.matches, result.correspondences,
         result.inliers, 1000 * result.rmse_m, result.consistent_fraction, result.violation_fraction,
-        100 * error.translation().norm(), AngleDeg(error), result.failure.c_str());
+        100 * error.translation().norm(), RotationAngleDeg(error), result.failure.c_str());
     if (pair.must_register) {
       ASSERT_TRUE(result.success) << result.failure;
     }
     if (result.success) {
       EXPECT_LT(error.translation().norm(), pair.max_translation_m);
-      EXPECT_LT(AngleDeg(error), pair.max_rotation_deg);
+      EXPECT_LT(RotationAngleDeg(error), pair.max_rotation_deg);
     }
   }
 }

@@ -22,6 +22,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/simulator.h"
 #include "slam/features.h"
 #include "slam/mapper.h"
@@ -51,10 +52,6 @@ double PeakRssMiB() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
-}
-
-double RotationDeg(const Eigen::Isometry3d& motion) {
-  return Eigen::AngleAxisd(motion.linear()).angle() * 180.0 / M_PI;
 }
 
 struct RunResult {
@@ -123,8 +120,8 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
           (frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() * frame.world_from_cam_gt)
               .translation()
               .norm(),
-          RotationDeg(frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() *
-                      frame.world_from_cam_gt),
+          RotationAngleDeg(frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() *
+                           frame.world_from_cam_gt),
           injected.links_rejected > 0 ? "rejected" : "kept");
     }
   }
@@ -141,7 +138,7 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
         frames[static_cast<size_t>(link.to)].world_from_cam_gt;
     const Eigen::Isometry3d error = truth.inverse() * link.from_from_to;
     const double error_m = error.translation().norm();
-    const double error_deg = RotationDeg(error);
+    const double error_deg = RotationAngleDeg(error);
     if (error_m > 0.10 || error_deg > 3.0) {
       ++run.false_loops;
       std::fprintf(stderr, "FALSE loop %lld -> %lld: %.3f m, %.2f deg off\n",
@@ -291,7 +288,7 @@ void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
   for (size_t i = 1; i < frames.size(); ++i) {
     const Eigen::Isometry3d b_from_a =
         frames[i].world_from_cam_gt.inverse() * frames[i - 1].world_from_cam_gt;
-    angles_deg.push_back(RotationDeg(b_from_a));
+    angles_deg.push_back(RotationAngleDeg(b_from_a));
     distances_m.push_back(b_from_a.translation().norm());
     const int repeatable = RepeatableKeypoints(features[i - 1], features[i], b_from_a, camera);
     const RegistrationResult result =

@@ -7,6 +7,7 @@
 #include <tuple>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "slam/rigid_alignment.h"
 
 namespace sightmap {
@@ -70,10 +71,6 @@ std::vector<MatchedPose> MatchByTimestamp(std::vector<StampedPose> ground_truth,
   return matched;
 }
 
-double AngleDeg(const Eigen::Matrix3d& rotation) {
-  return Eigen::AngleAxisd(rotation).angle() * 180.0 / M_PI;
-}
-
 // Mean drift over pairs (i, j) chosen by `next(i)`; returns {translation, rotation} per unit of
 // `length(i, j)`.
 template <typename NextFn, typename LengthFn>
@@ -91,7 +88,7 @@ std::pair<double, double> MeanDrift(const std::vector<MatchedPose>& poses, NextF
     const Eigen::Isometry3d est_motion = poses[i].est.inverse() * poses[j].est;
     const Eigen::Isometry3d error = gt_motion.inverse() * est_motion;
     translation += error.translation().norm() / span;
-    rotation += AngleDeg(error.linear()) / span;
+    rotation += RotationAngleDeg(error.linear()) / span;
     ++*pairs;
   }
   if (*pairs == 0) return {0.0, 0.0};

@@ -1,0 +1,19 @@
+#include "core/rotation.h"
+
+#include <cmath>
+
+namespace sightmap {
+
+double RotationAngleDeg(const Eigen::Matrix3d& rotation) {
+  return Eigen::AngleAxisd(rotation).angle() * 180.0 / M_PI;
+}
+
+double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return RotationAngleDeg(Eigen::Matrix3d(a.transpose() * b));
+}
+
+double RotationAngleDeg(const Eigen::Isometry3d& motion) {
+  return RotationAngleDeg(motion.linear());
+}
+
+}  // namespace sightmap

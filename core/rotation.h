@@ -1,0 +1,16 @@
+// How far a rotation turns, in degrees, whatever its axis: the one measure that pose errors, motion
+// limits and the paper's "rotation from the retrieved keyframe" check all use.
+#pragma once
+
+#include <Eigen/Geometry>
+
+namespace sightmap {
+
+// The angle of `rotation`'s axis-angle form [deg, 0-180].
+double RotationAngleDeg(const Eigen::Matrix3d& rotation);
+// The angle between two orientations: of a^T b [deg, 0-180].
+double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
+// The angle of a rigid motion's rotation [deg, 0-180].
+double RotationAngleDeg(const Eigen::Isometry3d& motion);
+
+}  // namespace sightmap

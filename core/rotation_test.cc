@@ -1,0 +1,31 @@
+#include "core/rotation.h"
+
+#include <gtest/gtest.h>
+
+namespace sightmap {
+namespace {
+
+TEST(RotationAngleDeg, MeasuresTheTurnWhateverTheAxis) {
+  EXPECT_NEAR(RotationAngleDeg(Eigen::Matrix3d::Identity()), 0.0, 1e-12);
+  const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 0.5).normalized();
+  for (double deg : {0.5, 30.0, 90.0, 179.0}) {
+    const Eigen::Matrix3d r = Eigen::AngleAxisd(deg * M_PI / 180.0, axis).toRotationMatrix();
+    EXPECT_NEAR(RotationAngleDeg(r), deg, 1e-9);
+    EXPECT_NEAR(RotationAngleDeg(Eigen::Matrix3d(r.transpose())), deg, 1e-9);  // either way
+  }
+  // Between two orientations: 40 deg about z, then 70 deg about z.
+  const Eigen::Matrix3d a =
+      Eigen::AngleAxisd(40.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Matrix3d b =
+      Eigen::AngleAxisd(70.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  EXPECT_NEAR(RotationAngleDeg(a, b), 30.0, 1e-9);
+  EXPECT_NEAR(RotationAngleDeg(b, a), 30.0, 1e-9);
+  // A motion's translation does not count.
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.linear() = b;
+  motion.translation() = Eigen::Vector3d(5.0, 0.0, 0.0);
+  EXPECT_NEAR(RotationAngleDeg(motion), 70.0, 1e-9);
+}
+
+}  // namespace
+}  // namespace sightmap
