@@ -3,39 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <tuple>
 
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/voxel_key.h"
 
 namespace sightmap {
-namespace {
-
-// 21 bits per axis: +-1,048,576 cells, i.e. +-52 km at 5 cm.
-constexpr int64_t kAxisOffset = int64_t{1} << 20;
-constexpr uint64_t kAxisMask = (uint64_t{1} << 21) - 1;
-
-uint64_t VoxelKey(const Eigen::Vector3d& p, double voxel_m) {
-  uint64_t key = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    const int64_t cell = static_cast<int64_t>(std::floor(p[axis] / voxel_m)) + kAxisOffset;
-    key |= (static_cast<uint64_t>(cell) & kAxisMask) << (21 * axis);
-  }
-  return key;
-}
-
-Eigen::Vector3f VoxelCentre(uint64_t key, double voxel_m) {
-  Eigen::Vector3f centre;
-  for (int axis = 0; axis < 3; ++axis) {
-    const int64_t cell = static_cast<int64_t>((key >> (21 * axis)) & kAxisMask) - kAxisOffset;
-    centre[axis] = static_cast<float>((static_cast<double>(cell) + 0.5) * voxel_m);
-  }
-  return centre;
-}
-
-}  // namespace
-
 OcclusionCloudBuilder::OcclusionCloudBuilder(double voxel_m) : voxel_m_(voxel_m) {
   SIGHTMAP_CHECK(voxel_m > 0.0, "the occlusion cloud's voxel size must be positive");
 }
@@ -55,20 +31,23 @@ void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& 
     for (int u = pixel_step / 2; u < depth_mm.cols; u += pixel_step) {
       const double z = row[u] * 1e-3;
       if (z < min_depth_m || z > max_depth_m) continue;
-      voxels_.insert(VoxelKey(world_from_cam * k.Unproject(u, v, z), voxel_m_));
+      AddPoint(world_from_cam * k.Unproject(u, v, z));
     }
   }
 }
 
 void OcclusionCloudBuilder::AddPoint(const Eigen::Vector3d& world_point) {
-  voxels_.insert(VoxelKey(world_point, voxel_m_));
+  if (const std::optional<uint64_t> key = VoxelKeyOf(world_point, voxel_m_)) voxels_.insert(*key);
 }
 
 OcclusionCloud OcclusionCloudBuilder::Build() const {
   OcclusionCloud cloud;
   cloud.voxel_m = voxel_m_;
   cloud.world_points.reserve(voxels_.size());
-  for (uint64_t key : voxels_) cloud.world_points.push_back(VoxelCentre(key, voxel_m_));
+  const Eigen::Vector3d half = Eigen::Vector3d::Constant(0.5 * voxel_m_);
+  for (uint64_t key : voxels_) {
+    cloud.world_points.push_back((VoxelCorner(key, voxel_m_) + half).cast<float>());
+  }
   // Sorted so the same model gives the same cloud whatever the hash order (reproducible answers).
   std::sort(cloud.world_points.begin(), cloud.world_points.end(),
             [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {

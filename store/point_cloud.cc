@@ -14,8 +14,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 
 #include "core/check.h"
+#include "core/voxel_key.h"
 
 namespace sightmap {
 namespace {
@@ -34,17 +36,11 @@ class VoxelAccumulator {
     Sum sum;
     Eigen::Vector3f offset = world;
     if (leaf_m_ > 0.0) {
-      uint64_t key = 0;
-      for (int axis = 0; axis < 3; ++axis) {
-        const double cell_f = std::floor(world[axis] / leaf_m_);
-        // 21 bits per axis: +-1,048,576 cells (+-21 km at 2 cm). Nothing indoors lies farther;
-        // a point that does is a depth glitch on a wild pose, and is left out.
-        if (!(std::abs(cell_f) < static_cast<double>(kAxisOffset))) return;
-        const int64_t cell = static_cast<int64_t>(cell_f);
-        offset[axis] = static_cast<float>(world[axis] - cell * leaf_m_);
-        key |= (static_cast<uint64_t>(cell + kAxisOffset) & kAxisMask) << (21 * axis);
-      }
-      sum.key = key;
+      const Eigen::Vector3d point = world.cast<double>();
+      const std::optional<uint64_t> key = VoxelKeyOf(point, leaf_m_);
+      if (!key) return;  // beyond +-21 km (at 2 cm): a depth glitch on a wild pose
+      sum.key = *key;
+      offset = (point - VoxelCorner(*key, leaf_m_)).cast<float>();
     } else {
       sum.key = sums_.size();  // never merged
     }
@@ -65,14 +61,8 @@ class VoxelAccumulator {
     std::vector<ColoredPoint> points;
     points.reserve(sums_.size());
     for (const Sum& sum : sums_) {
-      Eigen::Vector3d corner = Eigen::Vector3d::Zero();
-      if (leaf_m_ > 0.0) {
-        for (int axis = 0; axis < 3; ++axis) {
-          const int64_t cell =
-              static_cast<int64_t>((sum.key >> (21 * axis)) & kAxisMask) - kAxisOffset;
-          corner[axis] = static_cast<double>(cell) * leaf_m_;
-        }
-      }
+      const Eigen::Vector3d corner =
+          leaf_m_ > 0.0 ? VoxelCorner(sum.key, leaf_m_) : Eigen::Vector3d::Zero();
       const double n = sum.count;
       ColoredPoint point;
       point.position = (corner + Eigen::Vector3d(sum.dx, sum.dy, sum.dz) / n).cast<float>();
@@ -98,8 +88,6 @@ class VoxelAccumulator {
     uint32_t green = 0;
     uint32_t red = 0;
   };
-  static constexpr int64_t kAxisOffset = int64_t{1} << 20;
-  static constexpr uint64_t kAxisMask = (uint64_t{1} << 21) - 1;
   // Sums are merged (sorted by key, equal keys added) once they reach this many, and after that
   // whenever they have grown by half since: memory stays within 1.5x the voxels, and each merge
   // of n sums follows at least n/3 new points, so all merges cost O(points x log voxels).
