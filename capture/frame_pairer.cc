@@ -16,7 +16,11 @@ void FramePairer::AddDepth(TimedImage depth) {
 }
 
 void FramePairer::AddColor(TimedImage color) {
-  while (!pending_depth_.empty()) {
+  // Only depth frames up to this colour frame's time are decided now, between it and the one
+  // before; a later one waits, since the next colour frame may be nearer. (Deciding every pending
+  // frame here left a depth stream running a frame ahead of colour unpaired for ever: OpenNI2's
+  // dummy device does that now and then.)
+  while (!pending_depth_.empty() && pending_depth_.front().timestamp_ns <= color.timestamp_ns) {
     TimedImage depth = std::move(pending_depth_.front());
     pending_depth_.pop_front();
     Resolve(std::move(depth), &color);

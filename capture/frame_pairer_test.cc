@@ -43,6 +43,20 @@ TEST(FramePairer, DepthWaitsForALaterCloserColourFrame) {
   EXPECT_EQ(Drain(pairer), (std::vector<std::pair<int, int>>{{30, 33}}));
 }
 
+TEST(FramePairer, DepthRunningAFrameAheadOfColourStillPairsFrameForFrame) {
+  // OpenNI2's dummy device, now and then: depth k+1 arrives before colour k, every frame.
+  FramePairer pairer(20 * kMs);
+  pairer.AddDepth(Stamp(0));
+  for (int k = 0; k < 10; ++k) {
+    pairer.AddDepth(Stamp((k + 1) * 33));
+    pairer.AddColor(Stamp(k * 33));
+  }
+  std::vector<std::pair<int, int>> expected;
+  for (int k = 0; k < 10; ++k) expected.emplace_back(k * 33, k * 33);
+  EXPECT_EQ(Drain(pairer), expected);
+  EXPECT_EQ(pairer.unpaired_depth_frames(), 0);
+}
+
 TEST(FramePairer, LastDepthWithoutPartnerIsCountedUnpaired) {
   // openni2-24f.oni ends with a depth frame 30 ms after the last colour frame.
   FramePairer pairer(20 * kMs);

@@ -179,6 +179,11 @@ class OpenNiSource final : public RgbdSource {
   }
 
   std::optional<RgbdFrame> Next() override {
+    // A live sensor whose colour stream stalls while depth keeps coming (or the reverse) never
+    // times out in ReadOneFrame and would loop here for ever: no pair for frame_timeout_ms is
+    // the same failure as no frame.
+    const auto give_up =
+        std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.frame_timeout_ms);
     while (true) {
       if (auto pair = pairer_.PopPair()) return MakeFrame(std::move(pair->first), pair->second);
       if (finished_) return std::nullopt;
@@ -188,6 +193,15 @@ class OpenNiSource final : public RgbdSource {
         pairer_.Finish();
         finished_ = true;
         continue;
+      }
+      if (!is_file_ && std::chrono::steady_clock::now() > give_up) {
+        SIGHTMAP_THROW(Error, "no depth frame of " << metadata_.uri << " found a colour frame for "
+                                                   << options_.frame_timeout_ms << " ms ("
+                                                   << stats_.depth_frames << " depth and "
+                                                   << stats_.color_frames
+                                                   << " colour frames so far): one stream "
+                                                      "stalled — reconnect the sensor and run "
+                                                      "'sightmap devices'");
       }
       ReadOneFrame();
     }
