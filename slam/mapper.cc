@@ -194,6 +194,7 @@ Mapper::Keyframe Mapper::MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& c
   Keyframe keyframe;
   keyframe.id = static_cast<int64_t>(keyframes_.size());
   keyframe.timestamp_ns = timestamp_ns;
+  keyframe.walk = walk_;
   const Clock::time_point stage = Clock::now();
   keyframe.features = ExtractFeatures(color, depth_mm, camera_, options_.features);
   cv::resize(
@@ -214,8 +215,6 @@ KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
   const Eigen::Isometry3d pose = Orthonormalised(world_from_cam);
   std::optional<MapperLink> link;
-  if (start_new_segment_) ++walk_;
-  keyframe.walk = walk_;
   if (keyframes_.empty()) {
     segment_parent_.push_back(0);
   } else {
@@ -256,8 +255,6 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   const Clock::time_point start = Clock::now();
   KeyframeReport report;
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
-  if (start_new_segment_) ++walk_;
-  keyframe.walk = walk_;
 
   // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
   // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
@@ -374,7 +371,7 @@ int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
   keyframes_.push_back(std::move(keyframe));
   if (vocabulary_) IndexKeyframe(keyframes_.back());
   // The next new keyframe cannot be registered to a stored one by odometry: the camera was off.
-  start_new_segment_ = true;
+  StartNewSegment();
   return keyframes_.back().id;
 }
 

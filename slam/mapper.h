@@ -163,7 +163,10 @@ class Mapper {
   void RestoreLink(const MapperLink& link);
   // The next keyframe starts a new segment (a new session, or a jump the caller knows of): it is
   // relocalised against the map through place recognition instead of registered to the last one.
-  void StartNewSegment() { start_new_segment_ = true; }
+  void StartNewSegment() {
+    start_new_segment_ = true;
+    ++walk_;  // the capture is interrupted: the next keyframe starts another walk
+  }
 
   // A vocabulary to use instead of training one (before the first keyframe).
   void SetVocabulary(std::shared_ptr<const Vocabulary> vocabulary);
@@ -233,7 +236,7 @@ class Mapper {
   int64_t last_loop_keyframe_ = -1000000;
   bool vocabulary_given_ = false;
   bool start_new_segment_ = false;
-  int walk_ = 0;  // Keyframe::walk of the next keyframe
+  int walk_ = 0;  // Keyframe::walk of the next new keyframe
   Eigen::Isometry3d first_world_from_cam_ = Eigen::Isometry3d::Identity();
   // A relocalisation waiting for a second keyframe to agree before two segments are joined.
   struct PendingJoin {
