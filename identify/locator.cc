@@ -432,7 +432,7 @@ struct Locator::Impl {
     // The features that have a 3D point: their descriptors (one row each) and world points [m].
     cv::Mat descriptors;
     std::vector<cv::Point3f> world_points;
-    std::vector<int> nodes;          // per descriptor: its vocabulary node at match_node_level
+    std::vector<int> nodes;  // per descriptor: its vocabulary node at match_node_level (> 0 only)
     std::vector<size_t> neighbours;  // slots, nearest first
   };
   // Retrieved keyframes of one part of the building: the best-scoring one (head) and the slots
@@ -531,8 +531,10 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
       keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
       for (size_t r = 0; r < rows.size(); ++r) {
         features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
-        keyframe.nodes.push_back(impl_->vocabulary.NodeOf(
-            keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
+        if (options.match_node_level > 0) {
+          keyframe.nodes.push_back(impl_->vocabulary.NodeOf(
+              keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
+        }
       }
     }
     if (info.depth_bytes > 0) {
@@ -693,11 +695,13 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   int rejected_cells = -1;
   // Poses with min_inliers that a check refused: inliers and pose.
   std::vector<std::pair<int, Eigen::Isometry3d>> refused;
+  // Vocabulary nodes only for matching bounded by them; exhaustive matching needs none.
+  const bool bounded = options.match_node_level > 0;
   stage = Clock::now();
-  std::vector<int> photo_nodes(static_cast<size_t>(features.descriptors.rows));
-  for (int r = 0; r < features.descriptors.rows; ++r) {
-    photo_nodes[static_cast<size_t>(r)] =
-        impl_->vocabulary.NodeOf(features.descriptors.ptr<uint8_t>(r), options.match_node_level);
+  std::vector<int> photo_nodes;
+  for (int r = 0; bounded && r < features.descriptors.rows; ++r) {
+    photo_nodes.push_back(
+        impl_->vocabulary.NodeOf(features.descriptors.ptr<uint8_t>(r), options.match_node_level));
   }
   result.timings.matching_ms += MsSince(stage);
   const double same_point_sq = options.same_point_m * options.same_point_m;
@@ -720,7 +724,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       blocks.push_back(member.descriptors);
       model_points.insert(model_points.end(), member.world_points.begin(),
                           member.world_points.end());
-      model_nodes.insert(model_nodes.end(), member.nodes.begin(), member.nodes.end());
+      if (bounded) model_nodes.insert(model_nodes.end(), member.nodes.begin(), member.nodes.end());
       model_slots.insert(model_slots.end(), member.world_points.size(), s);
     }
     std::vector<cv::Point3f> object;
@@ -730,7 +734,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     if (model_points.size() >= 2) {
       cv::vconcat(blocks, model_descriptors);
       std::vector<std::vector<cv::DMatch>> knn;
-      if (options.match_node_level > 0) {
+      if (bounded) {
         knn = KnnWithinNodes(features.descriptors, photo_nodes, model_descriptors, model_nodes, 4);
       } else {
         // OpenCV's exhaustive search uses the machine's vector popcount.
