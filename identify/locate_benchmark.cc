@@ -20,7 +20,6 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "core/rotation.h"
 #include "identify/identify_eval.h"
@@ -92,12 +91,8 @@ class ViewCoverage {
       const cv::Mat depth = model.LoadDepth(info.id);
       if (depth.empty()) continue;
       builder.AddDepth(depth, info.intrinsics, info.world_from_cam, 4, 0.3, 5.0);
-      View view;
-      cv::resize(depth, view.depth_mm, cv::Size(160, 120), 0.0, 0.0, cv::INTER_NEAREST);
-      view.intrinsics = info.intrinsics.Scaled(160, 120);
-      view.world_from_cam = info.world_from_cam;
-      view.cam_from_world = info.world_from_cam.inverse();
-      views_.push_back(std::move(view));
+      views_.push_back({MakeSightingView(depth, info.intrinsics, info.world_from_cam, 160, 120),
+                        info.world_from_cam.translation()});
     }
     cloud_ = builder.Build();
   }
@@ -111,7 +106,7 @@ class ViewCoverage {
     const Eigen::Vector3d centre = photo.world_from_cam.translation();
     std::vector<const View*> near;
     for (const View& view : views_) {
-      if ((view.world_from_cam.translation() - centre).norm() < 8.0) near.push_back(&view);
+      if ((view.centre - centre).norm() < 8.0) near.push_back(&view);
     }
     int covered = 0;
     for (int v = 0; v < surface.rows; ++v) {
@@ -121,17 +116,18 @@ class ViewCoverage {
         const Eigen::Vector3d world = photo.world_from_cam * small.Unproject(u, v, z);
         const Eigen::Vector3d photo_ray = world - centre;
         for (const View* view : near) {
-          const Eigen::Vector3d ray = world - view->world_from_cam.translation();
+          const Eigen::Vector3d ray = world - view->centre;
           const double scale = ray.norm() / photo_ray.norm();
           if (scale > max_scale_ || scale < 1.0 / max_scale_) continue;
           if (ray.dot(photo_ray) < cos_max_ * ray.norm() * photo_ray.norm()) continue;
-          const Eigen::Vector3d cam = view->cam_from_world * world;
+          const SightingView& seen = view->sighting;
+          const Eigen::Vector3d cam = seen.cam_from_world * world;
           if (cam.z() <= 0.1) continue;
-          const Eigen::Vector2d px = view->intrinsics.Project(cam);
+          const Eigen::Vector2d px = seen.intrinsics.Project(cam);
           const int pu = static_cast<int>(std::lround(px.x()));
           const int pv = static_cast<int>(std::lround(px.y()));
-          if (pu < 0 || pv < 0 || pu >= view->depth_mm.cols || pv >= view->depth_mm.rows) continue;
-          const double seen_m = view->depth_mm.at<uint16_t>(pv, pu) * 1e-3;
+          if (pu < 0 || pv < 0 || pu >= seen.depth_mm.cols || pv >= seen.depth_mm.rows) continue;
+          const double seen_m = seen.depth_mm.at<uint16_t>(pv, pu) * 1e-3;
           if (std::abs(seen_m - cam.z()) > 0.1) continue;
           ++covered;
           break;
@@ -143,10 +139,8 @@ class ViewCoverage {
 
  private:
   struct View {
-    cv::Mat depth_mm;
-    Intrinsics intrinsics;
-    Eigen::Isometry3d world_from_cam;
-    Eigen::Isometry3d cam_from_world;
+    SightingView sighting;   // its depth at 160x120
+    Eigen::Vector3d centre;  // the keyframe's camera in the world [m]
   };
   double cos_max_;
   double max_scale_;
