@@ -63,12 +63,16 @@ TEST(SensorModel, RangeBorderAndNoReturnSurfaces) {
   const DepthSensorOptions options;
   cv::Mat ideal(480, 640, CV_32F, cv::Scalar(2.0f));
   ideal(cv::Rect(300, 0, 40, 480)) = 0.3f;  // too close
-  ideal(cv::Rect(400, 0, 40, 480)) = 5.0f;  // too far
+  ideal(cv::Rect(400, 0, 40, 480)) = 9.0f;  // too far
+  ideal(cv::Rect(500, 0, 40, 480)) = 7.0f;  // far, but within a PrimeSense sensor's range
   cv::Mat mask(480, 640, CV_8U, cv::Scalar(0));
   mask(cv::Rect(100, 100, 50, 50)) = 255;  // glass
   const cv::Mat depth = SimulateDepth(ideal, mask, KinectIntrinsics(), options, 1);
   EXPECT_EQ(cv::countNonZero(depth(cv::Rect(305, 10, 30, 460))), 0);
   EXPECT_EQ(cv::countNonZero(depth(cv::Rect(405, 10, 30, 460))), 0);
+  // (Its right edge lies in the shadow of the 2 m wall beside it: 525 * 0.075 * (1/2 - 1/7) =
+  // 14 px.)
+  EXPECT_GT(cv::countNonZero(depth(cv::Rect(502, 30, 20, 400))), 20 * 400 * 9 / 10);
   EXPECT_EQ(cv::countNonZero(depth(cv::Rect(102, 102, 46, 46))), 0);
   EXPECT_EQ(cv::countNonZero(depth.colRange(0, options.border_left_px)), 0);
   EXPECT_EQ(cv::countNonZero(depth.rowRange(0, options.border_top_px)), 0);
@@ -121,7 +125,10 @@ TEST(SensorModel, GrazingAnglesDropOut) {
   const int grazing_row = static_cast<int>(239.5 + 0.3 * 525 / 3.5);
   const int steep_row = static_cast<int>(239.5 + 0.3 * 525 / 0.9);
   EXPECT_EQ(cv::countNonZero(depth.row(grazing_row)), 0);
-  EXPECT_GT(cv::countNonZero(depth.row(steep_row)), 500);
+  // Most of the row inside the invalid border.
+  const DepthSensorOptions sensor;
+  const int inside = 640 - sensor.border_left_px - sensor.border_right_px;
+  EXPECT_GT(cv::countNonZero(depth.row(steep_row)), inside * 79 / 100);
 }
 
 TEST(SensorModel, ColourGainBlurAndNoise) {

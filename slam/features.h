@@ -25,9 +25,10 @@ struct FeatureOptions {
   // ORB's FAST threshold; lowered per cell when a low-texture cell finds too few corners.
   int orb_fast_threshold = 20;
   // Depth outside [min_depth_m, max_depth_m] is not trusted for a 3D point (Kinect-class sensors
-  // measure 0.5-4.5 m; noise grows with the square of depth) [m].
+  // measure 0.5-8 m; noise grows with the square of depth, and registration weighs each point by
+  // that noise) [m].
   double min_depth_m = 0.4;
-  double max_depth_m = 5.0;
+  double max_depth_m = 8.0;
   // Corners often sit on depth edges, where the depth under a keypoint may belong to the
   // foreground or the background: a keypoint gets no 3D point when the depth within
   // depth_window_radius_px varies by more than depth_edge_ratio x its depth (holes ignored).
