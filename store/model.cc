@@ -153,6 +153,8 @@ const char* LinkTypeName(LinkType type) {
       return "relocalisation";
     case LinkType::kUser:
       return "user";
+    case LinkType::kPrior:
+      return "prior";
   }
   return "unknown";
 }
@@ -425,9 +427,13 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
     // Decide and upgrade under the write lock, so two processes opening a new file do not both
     // create the schema.
     Transaction transaction(db);
-    Statement count(db, "SELECT count(*) FROM sqlite_master");
-    count.Step();
-    const int64_t objects = count.Int(0);
+    // Finalised before migrating: a statement still reading sqlite_master keeps a migration from
+    // dropping a table ("database table is locked").
+    const int64_t objects = [db] {
+      Statement count(db, "SELECT count(*) FROM sqlite_master");
+      count.Step();
+      return count.Int(0);
+    }();
     check_ours(read_application_id(), objects);
     const int version = objects == 0 ? 0 : read_version();
     if (version > latest) {
@@ -827,6 +833,9 @@ ModelSummary Model::Summary() const {
           break;
         case LinkType::kUser:
           summary.user_links = query.Int(1);
+          break;
+        case LinkType::kPrior:
+          summary.prior_links = query.Int(1);
           break;
       }
     }

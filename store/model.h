@@ -69,7 +69,8 @@ struct KeyframeFeatures {
   std::vector<Eigen::Vector3f> cam_points;
 };
 
-enum class LinkType { kOdometry = 0, kLoopClosure = 1, kRelocalisation = 2, kUser = 3 };
+// kPrior: the tracker's motion model across a blind stretch (no registration behind it).
+enum class LinkType { kOdometry = 0, kLoopClosure = 1, kRelocalisation = 2, kUser = 3, kPrior = 4 };
 const char* LinkTypeName(LinkType type);
 
 struct LinkRecord {
@@ -167,6 +168,7 @@ struct ModelSummary {
   int64_t loop_closures = 0;
   int64_t relocalisation_links = 0;
   int64_t user_links = 0;
+  int64_t prior_links = 0;  // the motion model's, across blind stretches
   // Links switched off by the pose graph (not counted above).
   int64_t inactive_links = 0;
   // Connected parts of the pose graph: a new one starts when tracking was lost and not recovered.

@@ -399,7 +399,7 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
   sqlite3_stmt* stmt = nullptr;
   sqlite3_prepare_v2(db, "SELECT group_concat(version) FROM sightmap_schema", -1, &stmt, nullptr);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3");
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3,4");
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }

@@ -97,6 +97,25 @@ CREATE TABLE vocabulary (
       R"sql(
 ALTER TABLE links ADD COLUMN active INTEGER NOT NULL DEFAULT 1 CHECK (active IN (0, 1));
 )sql",
+      // 4: a prior link (type 4): the tracker's motion model across seconds where nothing
+      // registered. SQLite cannot widen a CHECK in place, so the table is rebuilt.
+      R"sql(
+CREATE TABLE links_v4 (
+  id INTEGER PRIMARY KEY,
+  from_id INTEGER NOT NULL REFERENCES keyframes(id) ON DELETE CASCADE,
+  to_id INTEGER NOT NULL REFERENCES keyframes(id) ON DELETE CASCADE,
+  type INTEGER NOT NULL CHECK (type BETWEEN 0 AND 4),
+  tx REAL NOT NULL, ty REAL NOT NULL, tz REAL NOT NULL,
+  qx REAL NOT NULL, qy REAL NOT NULL, qz REAL NOT NULL, qw REAL NOT NULL,
+  information BLOB NOT NULL,
+  active INTEGER NOT NULL DEFAULT 1 CHECK (active IN (0, 1)));
+INSERT INTO links_v4 (id, from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, information, active)
+  SELECT id, from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, information, active FROM links;
+DROP TABLE links;
+ALTER TABLE links_v4 RENAME TO links;
+CREATE INDEX links_by_from ON links(from_id);
+CREATE INDEX links_by_to ON links(to_id);
+)sql",
   };
   return kMigrations;
 }
