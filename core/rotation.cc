@@ -16,4 +16,11 @@ double RotationAngleDeg(const Eigen::Isometry3d& motion) {
   return RotationAngleDeg(motion.linear());
 }
 
+Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
+  Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
+  rigid.linear() = Eigen::Quaterniond(pose.linear()).normalized().toRotationMatrix();
+  rigid.translation() = pose.translation();
+  return rigid;
+}
+
 }  // namespace sightmap

@@ -13,4 +13,9 @@ double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 // The angle of a rigid motion's rotation [deg, 0-180].
 double RotationAngleDeg(const Eigen::Isometry3d& motion);
 
+// The nearest rigid motion (rotation through the unit quaternion). Poses from files, float
+// renderers and long chains of products are orthonormal only to a few digits; the pose graph
+// wants 1e-6.
+Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose);
+
 }  // namespace sightmap

@@ -26,15 +26,6 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
   ++total->registrations;
 }
 
-// Given poses come from files and float renderers, whose rotations are orthonormal only to a few
-// digits; the pose graph wants 1e-6. The nearest rotation (through the quaternion) fixes that.
-Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
-  Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
-  rigid.linear() = Eigen::Quaterniond(pose.linear()).normalized().toRotationMatrix();
-  rigid.translation() = pose.translation();
-  return rigid;
-}
-
 // Adds the floor to the covariance of a registration's information matrix.
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                const MapperOptions& options) {
@@ -128,6 +119,12 @@ int Mapper::NumLoopClosures() const {
   }));
 }
 
+int Mapper::NumPriorLinks() const {
+  return static_cast<int>(std::count_if(links_.begin(), links_.end(), [](const MapperLink& link) {
+    return link.type == MapperLinkType::kPrior;
+  }));
+}
+
 int Mapper::NumSegments() const {
   int roots = 0;
   for (size_t s = 0; s < segment_parent_.size(); ++s) {
@@ -170,8 +167,10 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
   edge.to = link.to;
   edge.from_from_to = link.from_from_to;
   edge.information = link.information;
-  edge.type = link.type == MapperLinkType::kOdometry ? PoseGraphEdgeType::kOdometry
-                                                     : PoseGraphEdgeType::kLoop;
+  // A prior is odometry to the graph: switching it off would split the map it holds together.
+  edge.type = link.type == MapperLinkType::kOdometry || link.type == MapperLinkType::kPrior
+                  ? PoseGraphEdgeType::kOdometry
+                  : PoseGraphEdgeType::kLoop;
   // Links and graph edges are added together only here, so a link's index is its edge's index.
   const size_t index = graph_.AddEdge(edge);
   SIGHTMAP_CHECK(index == links_.size(), "pose graph edges and mapper links out of step");
@@ -254,38 +253,78 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
                                    const cv::Mat& depth_mm) {
   const Clock::time_point start = Clock::now();
   KeyframeReport report;
-  Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
+  Insert(MakeKeyframe(timestamp_ns, color, depth_mm, &report), nullptr, &report);
+  report.times.total_s = SecondsSince(start);
+  return report;
+}
 
+KeyframeReport Mapper::AddTrackedKeyframe(TimestampNs timestamp_ns, Features features,
+                                          const cv::Mat& depth_small,
+                                          const std::optional<KeyframeMotion>& motion) {
+  const Clock::time_point start = Clock::now();
+  const cv::Size small(camera_.width / options_.depth_downscale,
+                       camera_.height / options_.depth_downscale);
+  SIGHTMAP_CHECK(depth_small.type() == CV_16UC1 && depth_small.size() == small,
+                 "a tracked keyframe's depth must be 16-bit [mm] of 1/" << options_.depth_downscale
+                                                                        << " the camera's size");
+  SIGHTMAP_CHECK(features.has_point.size() == features.size() &&
+                     features.points_cam.size() == features.size() &&
+                     features.descriptors.rows == static_cast<int>(features.size()),
+                 "a tracked keyframe's features are inconsistent");
+  KeyframeReport report;
+  Keyframe keyframe;
+  keyframe.id = static_cast<int64_t>(keyframes_.size());
+  keyframe.timestamp_ns = timestamp_ns;
+  keyframe.walk = walk_;
+  keyframe.features = std::move(features);
+  keyframe.depth_small = depth_small;
+  report.id = keyframe.id;
+  report.features = static_cast<int>(keyframe.features.size());
+  const bool continues = motion && !keyframes_.empty() && !start_new_segment_;
+  Insert(std::move(keyframe), continues ? &*motion : nullptr, &report);
+  report.times.total_s = SecondsSince(start);
+  return report;
+}
+
+void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report) {
   // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
   // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
-  // one often registers to the keyframes before it and so continues their segment.
+  // one often registers to the keyframes before it and so continues their segment. A tracked
+  // keyframe is linked to the last one already; its registrations start one further back.
   std::vector<MapperLink> odometry;
   Eigen::Isometry3d world_from_cam = first_world_from_cam_;
   if (!keyframes_.empty()) {
     const Keyframe& last = keyframes_.back();
     const int segment_root = Root(last.segment);
     world_from_cam = graph_.Pose(last.id);
-    // Where the camera probably is: the last motion again (a walker keeps turning and walking
-    // for a few seconds), which seeds guided matching when global matches are few.
+    // Where the camera probably is: the tracked motion, or else the last motion again (a walker
+    // keeps turning and walking for a few seconds), which seeds guided matching when global
+    // matches are few.
     Eigen::Isometry3d predicted = world_from_cam;
-    if (last.id > 0 && Root(keyframes_[static_cast<size_t>(last.id - 1)].segment) == segment_root) {
+    if (motion) {
+      predicted = Orthonormalised(world_from_cam * motion->previous_from_cam);
+    } else if (last.id > 0 &&
+               Root(keyframes_[static_cast<size_t>(last.id - 1)].segment) == segment_root) {
       predicted = world_from_cam * (graph_.Pose(last.id - 1).inverse() * world_from_cam);
     }
-    for (int64_t id = last.id;
-         !start_new_segment_ && id >= 0 && last.id - id < options_.odometry_window; --id) {
+    const int64_t first_target = motion ? last.id - 1 : last.id;
+    const int wanted_links = options_.extra_odometry_links + (motion ? 0 : 1);
+    for (int64_t id = first_target; !start_new_segment_ && wanted_links > 0 && id >= 0 &&
+                                    last.id - id < options_.odometry_window;
+         --id) {
       const Keyframe& target = keyframes_[static_cast<size_t>(id)];
       const int target_root = Root(target.segment);
-      if (!odometry.empty() &&
-          target_root != Root(keyframes_[static_cast<size_t>(odometry[0].from)].segment)) {
+      const int64_t anchor = !odometry.empty() ? odometry[0].from : (motion ? last.id : -1);
+      if (anchor >= 0 && target_root != Root(keyframes_[static_cast<size_t>(anchor)].segment)) {
         continue;  // links of one keyframe stay within one segment
       }
       // The prediction is in the last keyframe's segment frame: no prior for other segments.
       const Eigen::Isometry3d prior = graph_.Pose(target.id).inverse() * predicted;
-      const RegistrationResult result =
-          Register(keyframe, target, &report.times, target_root == segment_root ? &prior : nullptr);
+      const RegistrationResult result = Register(keyframe, target, &report->times,
+                                                 target_root == segment_root ? &prior : nullptr);
       if (!result.success) {
-        if (report.odometry_failure.empty()) {
-          report.odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
+        if (report->odometry_failure.empty()) {
+          report->odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
         }
         continue;
       }
@@ -296,34 +335,48 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
       link.information = FlooredInformation(result.information, options_);
       link.type = MapperLinkType::kOdometry;
       link.inliers = result.inliers;
-      if (odometry.empty()) world_from_cam = graph_.Pose(target.id) * link.from_from_to;
+      if (odometry.empty() && (!motion || motion->source == MotionSource::kPrior)) {
+        world_from_cam = graph_.Pose(target.id) * link.from_from_to;
+      }
       odometry.push_back(link);
-      if (static_cast<int>(odometry.size()) > options_.extra_odometry_links) break;
+      if (static_cast<int>(odometry.size()) >= wanted_links) break;
+    }
+    if (motion) {
+      MapperLink link;
+      link.from = last.id;
+      link.to = keyframe.id;
+      link.from_from_to = Orthonormalised(motion->previous_from_cam);
+      link.information = FlooredInformation(motion->information, options_);
+      link.type = motion->source == MotionSource::kPrior ? MapperLinkType::kPrior
+                                                         : MapperLinkType::kOdometry;
+      link.inliers = motion->inliers;
+      if (odometry.empty() || motion->source != MotionSource::kPrior) world_from_cam = predicted;
+      odometry.insert(odometry.begin(), link);
     }
     keyframe.segment = odometry.empty() ? last.segment : Get(odometry.front().from).segment;
     if (odometry.empty() || start_new_segment_) {
       // Lost: a new segment, seeded where the camera was last.
       keyframe.segment = static_cast<int>(segment_parent_.size());
       segment_parent_.push_back(keyframe.segment);
-    } else {
-      report.odometry_failure.clear();
+    } else if (!motion || motion->source != MotionSource::kPrior) {
+      report->odometry_failure.clear();
     }
   } else {
     segment_parent_.push_back(0);
   }
-  if (start_new_segment_) report.odometry_failure = "a new segment was asked for";
+  if (start_new_segment_) report->odometry_failure = "a new segment was asked for";
   start_new_segment_ = false;
   graph_.AddPose(keyframe.id, world_from_cam);
-  for (const MapperLink& link : odometry) AddLink(link, &report);
+  for (const MapperLink& link : odometry) AddLink(link, report);
   keyframes_.push_back(std::move(keyframe));
   Keyframe& inserted = keyframes_.back();
   // Place recognition.
   bool relocalised = false;
   if (!vocabulary_ &&
       static_cast<int>(keyframes_.size()) >= options_.vocabulary_training_keyframes) {
-    TrainVocabulary(&report.times);
+    TrainVocabulary(&report->times);
   } else if (vocabulary_) {
-    relocalised = SearchPlaces(inserted, &report);
+    relocalised = SearchPlaces(inserted, report);
   }
   // Lost: this keyframe could not be registered to the last ones and starts a segment of its own
   // (NumSegments() says how many parts of the map are not joined yet). The first keyframe of a
@@ -336,11 +389,9 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
     state_ = keyframes_.size() == 1 ? TrackingState::kTracking : TrackingState::kLost;
   }
 
-  report.segment = Root(inserted.segment);
-  report.state = state_;
-  report.world_from_cam = graph_.Pose(inserted.id);
-  report.times.total_s = SecondsSince(start);
-  return report;
+  report->segment = Root(inserted.segment);
+  report->state = state_;
+  report->world_from_cam = graph_.Pose(inserted.id);
 }
 
 int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,

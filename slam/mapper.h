@@ -31,6 +31,7 @@
 #include "slam/place_index.h"
 #include "slam/pose_graph.h"
 #include "slam/registration.h"
+#include "slam/tracker.h"
 #include "slam/vocabulary.h"
 
 namespace sightmap {
@@ -87,7 +88,9 @@ struct MapperOptions {
   bool Check(std::string* error) const;
 };
 
-enum class MapperLinkType { kOdometry, kLoopClosure, kRelocalisation };
+// kPrior: the tracker's motion model across seconds where nothing registered (a bare wall filled
+// the view); its covariance grows with the blind time, so a later loop closure corrects it.
+enum class MapperLinkType { kOdometry, kLoopClosure, kRelocalisation, kPrior };
 
 struct MapperLink {
   int64_t from = 0;
@@ -138,6 +141,15 @@ class Mapper {
   // both of the camera's size). Throws InvalidArgument for images that do not fit the camera.
   KeyframeReport AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
                              const cv::Mat& depth_mm);
+  // Inserts a keyframe the Tracker emitted (features computed, depth already 1/depth_downscale).
+  // Its motion from the previous keyframe (the last one added) becomes the odometry link, of type
+  // kPrior when the motion model made it, so the keyframe continues the segment of the one before
+  // whatever registration does; registrations to older keyframes of the odometry window add links
+  // as in AddKeyframe. Without a motion (the tracker's first keyframe) it is placed as AddKeyframe
+  // places a keyframe that registers to nothing: a new segment for place recognition to join.
+  KeyframeReport AddTrackedKeyframe(TimestampNs timestamp_ns, Features features,
+                                    const cv::Mat& depth_small,
+                                    const std::optional<KeyframeMotion>& motion);
   // Inserts a keyframe whose pose is known (a survey with ground truth): no registration and no
   // loop search, one odometry link to the previous keyframe carrying the known relative pose. It
   // still gets features and is indexed for place recognition, so the model it makes serves photo
@@ -177,6 +189,7 @@ class Mapper {
   size_t NumKeyframes() const { return keyframes_.size(); }
   int NumLoopClosures() const;  // accepted and still active
   int NumSegments() const;      // segments not joined to another
+  int NumPriorLinks() const;    // links made by the tracker's motion model
   TrackingState tracking_state() const { return state_; }
 
   // Current estimates, after the latest optimisation, in keyframe order.
@@ -203,6 +216,10 @@ class Mapper {
   // A keyframe's features and small depth (checks the images; times features_s in `report`).
   Keyframe MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& color, const cv::Mat& depth_mm,
                         KeyframeReport* report) const;
+  // Registers `keyframe` to the newest keyframes (all of the odometry window, or those before the
+  // last when `motion` already links it to the last) and inserts it with its links; then place
+  // recognition. The shared body of AddKeyframe and AddTrackedKeyframe.
+  void Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report);
   Keyframe& Get(int64_t id);
   const Keyframe& Get(int64_t id) const;
   int Root(int segment) const;

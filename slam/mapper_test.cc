@@ -10,15 +10,13 @@
 #include "core/check.h"
 #include "core/rotation.h"
 #include "sim/simulator.h"
+#include "slam/sim_walk_testing.h"
 #include "slam/trajectory_eval.h"
 
 namespace sightmap {
 namespace {
 
-struct Walk {
-  Intrinsics camera;
-  std::vector<RgbdFrame> frames;
-};
+using Walk = testing::SimWalk;
 
 // 9 s of the handheld walk at 5 Hz, rendered once for all tests of this file. These tests check
 // the mapper's logic on frames registration can bridge; how it fares at 1 Hz over a whole walk
@@ -28,14 +26,8 @@ const Walk& HandheldWalk() {
     sim::SimulatorOptions options;
     options.fps = 5.0;
     options.frames = 48;
-    sim::Simulator simulator(options);
-    auto* result = new Walk;
-    result->camera = simulator.options().camera;
     // From 0.6 s in: session 1 starts facing a bare wall at arm's length while turning away.
-    for (int64_t i = 3; i < simulator.num_frames(); ++i) {
-      result->frames.push_back(simulator.RenderFrame(i));
-    }
-    return result;
+    return new Walk(testing::RenderSimWalk(options, 3));
   }();
   return *walk;
 }

@@ -14,8 +14,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
+#include <functional>
 #include <iostream>
 #include <map>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +31,7 @@
 #include "slam/features.h"
 #include "slam/mapper.h"
 #include "slam/registration.h"
+#include "slam/tracker.h"
 #include "slam/trajectory_eval.h"
 
 namespace sightmap {
@@ -69,18 +74,77 @@ struct RunResult {
   double mapping_s = 0.0;
 };
 
+// Gives the mapper its next keyframe (and that keyframe's true pose); nullopt at the end.
+using KeyframeFeed =
+    std::function<std::optional<KeyframeReport>(Mapper& mapper, Eigen::Isometry3d* truth)>;
+
+// Every frame a keyframe, registered by the mapper alone (the 1 Hz capture of the paper).
+KeyframeFeed EveryFrame(const std::vector<Frame>& frames) {
+  auto next = std::make_shared<size_t>(0);
+  return
+      [&frames, next](Mapper& mapper, Eigen::Isometry3d* truth) -> std::optional<KeyframeReport> {
+        if (*next >= frames.size()) return std::nullopt;
+        const Frame& frame = frames[(*next)++];
+        *truth = frame.world_from_cam_gt;
+        return mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+      };
+}
+
+// Per-frame tracking figures of a tracked run.
+struct TrackingFigures {
+  std::vector<double> frame_s;
+  double render_s = 0.0;
+  TrackerCounters counters;
+};
+
+// Renders the walk frame by frame (nothing kept but the keyframes' poses) and tracks every frame;
+// the keyframes the tracker emits go to the mapper.
+KeyframeFeed TrackedFrames(sim::Simulator& simulator, const TrackerOptions& options,
+                           TrackingFigures* figures) {
+  auto tracker = std::make_shared<Tracker>(simulator.options().camera, options);
+  auto pending = std::make_shared<std::deque<TrackedKeyframe>>();
+  auto next = std::make_shared<int64_t>(0);
+  return [&simulator, tracker, pending, next, figures](
+             Mapper& mapper, Eigen::Isometry3d* truth) -> std::optional<KeyframeReport> {
+    while (pending->empty()) {
+      if (*next >= simulator.num_frames()) return std::nullopt;
+      const auto start = std::chrono::steady_clock::now();
+      const RgbdFrame frame = simulator.RenderFrame((*next)++);
+      figures->render_s +=
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      TrackResult result = tracker->Track(frame);
+      figures->frame_s.push_back(result.total_s);
+      for (TrackedKeyframe& keyframe : result.keyframes) pending->push_back(std::move(keyframe));
+      figures->counters = tracker->counters();
+      if ((*next) % 600 == 0) {
+        std::fprintf(stderr, "tracked %lld of %lld frames, %zu keyframes\n",
+                     static_cast<long long>(*next), static_cast<long long>(simulator.num_frames()),
+                     mapper.NumKeyframes());
+      }
+    }
+    TrackedKeyframe keyframe = std::move(pending->front());
+    pending->pop_front();
+    *truth = *keyframe.frame.world_from_cam_gt;
+    return mapper.AddTrackedKeyframe(keyframe.frame.timestamp_ns, std::move(keyframe.features),
+                                     keyframe.depth_small, keyframe.motion);
+  };
+}
+
 // `lap_length` > 0: the frames are one walk of that many frames repeated (--laps).
-RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
-              const MapperOptions& options, int false_loop_at, bool verbose,
-              size_t lap_length = 0) {
+RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOptions& options,
+              int false_loop_at, bool verbose, size_t lap_length = 0) {
   Mapper mapper(camera, options);
   std::vector<MapperStageTimes> times;
+  std::vector<Eigen::Isometry3d> truths;  // by keyframe id
   RunResult run;
   int64_t false_from = -1;
   int64_t false_to = -1;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const Frame& frame = frames[i];
-    const KeyframeReport report = mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+  Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
+  for (size_t i = 0;; ++i) {
+    const std::optional<KeyframeReport> next = feed(mapper, &truth);
+    if (!next) break;
+    const KeyframeReport& report = *next;
+    truths.push_back(truth);
     times.push_back(report.times);
     run.mapping_s += report.times.total_s;
     run.loops_rejected += report.links_rejected;
@@ -114,15 +178,12 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
       link.type = MapperLinkType::kLoopClosure;
       const KeyframeReport injected = mapper.AddExternalLink(link);
       run.false_loop_injected = true;
-      std::fprintf(
-          stderr, "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
-          static_cast<long long>(false_from), static_cast<long long>(false_to),
-          (frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() * frame.world_from_cam_gt)
-              .translation()
-              .norm(),
-          RotationAngleDeg(frames[static_cast<size_t>(from)].world_from_cam_gt.inverse() *
-                           frame.world_from_cam_gt),
-          injected.links_rejected > 0 ? "rejected" : "kept");
+      std::fprintf(stderr,
+                   "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
+                   static_cast<long long>(false_from), static_cast<long long>(false_to),
+                   (truths[static_cast<size_t>(from)].inverse() * truth).translation().norm(),
+                   RotationAngleDeg(truths[static_cast<size_t>(from)].inverse() * truth),
+                   injected.links_rejected > 0 ? "rejected" : "kept");
     }
   }
   run.keyframes = static_cast<int>(mapper.NumKeyframes());
@@ -133,10 +194,9 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
     if (link.type == MapperLinkType::kOdometry || !link.active) continue;
     if (link.from == false_from && link.to == false_to) continue;
     ++run.loops;
-    const Eigen::Isometry3d truth =
-        frames[static_cast<size_t>(link.from)].world_from_cam_gt.inverse() *
-        frames[static_cast<size_t>(link.to)].world_from_cam_gt;
-    const Eigen::Isometry3d error = truth.inverse() * link.from_from_to;
+    const Eigen::Isometry3d link_truth =
+        truths[static_cast<size_t>(link.from)].inverse() * truths[static_cast<size_t>(link.to)];
+    const Eigen::Isometry3d error = link_truth.inverse() * link.from_from_to;
     const double error_m = error.translation().norm();
     const double error_deg = RotationAngleDeg(error);
     if (error_m > 0.10 || error_deg > 3.0) {
@@ -148,9 +208,11 @@ RunResult Run(const std::vector<Frame>& frames, const Intrinsics& camera,
   }
 
   std::vector<StampedPose> ground_truth;
-  for (const Frame& frame : frames)
-    ground_truth.push_back({frame.timestamp_ns, frame.world_from_cam_gt});
-  run.error = EvaluateTrajectory(ground_truth, mapper.Trajectory());
+  const std::vector<StampedPose> trajectory = mapper.Trajectory();
+  for (size_t i = 0; i < truths.size(); ++i) {
+    ground_truth.push_back({trajectory[i].timestamp_ns, truths[i]});
+  }
+  run.error = EvaluateTrajectory(ground_truth, trajectory);
   std::map<int, std::vector<StampedPose>> parts;
   const std::vector<StampedPose> estimate = mapper.Trajectory();
   for (size_t i = 0; i < estimate.size(); ++i) {
@@ -321,6 +383,68 @@ void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
               pairs - static_cast<size_t>(unbridgeable));
 }
 
+void PrintFalseLoop(const RunResult& clean, const RunResult& injected, int at) {
+  if (!injected.false_loop_injected) {
+    std::printf("false loop          not injected: no segment of 30 keyframes after %d\n", at);
+    return;
+  }
+  std::printf(
+      "false loop          ATE rmse %.4f m with it, %.4f m without (%+.1f%%); largest part "
+      "%.4f m with it, %.4f m without\n",
+      injected.error.ate_rmse_m, clean.error.ate_rmse_m,
+      100.0 * (injected.error.ate_rmse_m / clean.error.ate_rmse_m - 1.0),
+      injected.largest_error.ate_rmse_m, clean.largest_error.ate_rmse_m);
+}
+
+// --track: the walk tracked frame by frame, as `sightmap map` does (on one thread here, so the
+// times are the tracker's and the mapper's alone).
+int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOptions& options,
+                        bool false_loop) {
+  TrackerOptions tracker;
+  tracker.features = options.features;
+  tracker.registration = options.registration;
+  tracker.depth_downscale = options.depth_downscale;
+  sim::Simulator simulator(sim_options);
+  std::printf("simulator office, %s, session %d, seed %llu, %lld frames at %g Hz, tracked\n",
+              sim_options.trajectory == sim::TrajectoryKind::kRobot ? "robot" : "handheld",
+              sim_options.session, static_cast<unsigned long long>(sim_options.seed),
+              static_cast<long long>(simulator.num_frames()), sim_options.fps);
+  TrackingFigures figures;
+  const auto start = std::chrono::steady_clock::now();
+  const RunResult clean = Run(TrackedFrames(simulator, tracker, &figures),
+                              simulator.options().camera, options, -1, true);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double walk_s = static_cast<double>(simulator.num_frames()) / sim_options.fps;
+  const TrackerCounters& c = figures.counters;
+  std::printf(
+      "tracking            %lld frames: %lld registered, %lld dense, %lld blind; %lld keyframes "
+      "(%lld early, %lld on the motion model)\n",
+      static_cast<long long>(c.frames), static_cast<long long>(c.registered),
+      static_cast<long long>(c.dense), static_cast<long long>(c.blind),
+      static_cast<long long>(c.keyframes), static_cast<long long>(c.early_keyframes),
+      static_cast<long long>(c.prior_keyframes));
+  std::printf("tracking per frame  p50 %.1f ms, p95 %.1f ms, max %.1f ms\n",
+              1e3 * Percentile(figures.frame_s, 0.5), 1e3 * Percentile(figures.frame_s, 0.95),
+              1e3 * Percentile(figures.frame_s, 1.0));
+  std::printf(
+      "speed               %.0f s of walk in %.0f s on one thread (%.0f s rendering): x%.2f real "
+      "time without rendering\n",
+      walk_s, wall_s, figures.render_s, walk_s / std::max(1e-9, wall_s - figures.render_s));
+  std::printf(
+      "largest part ratio  %.4f\n",
+      clean.keyframes > 0 ? static_cast<double>(clean.largest_keyframes) / clean.keyframes : 0.0);
+  if (false_loop) {
+    sim::Simulator again(sim_options);
+    TrackingFigures ignored;
+    const int at = clean.keyframes * 3 / 4;
+    const RunResult injected =
+        Run(TrackedFrames(again, tracker, &ignored), again.options().camera, options, at, false);
+    PrintFalseLoop(clean, injected, at);
+  }
+  return 0;
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"SLAM on the synthetic building at 1 Hz: speed and accuracy"};
   std::string trajectory = "handheld";
@@ -332,6 +456,7 @@ int Main(int argc, char** argv) {
   double fps = 1.0;
   bool no_walk_check = false;
   int laps = 1;
+  bool track = false;
   app.add_option("--trajectory", trajectory, "handheld or robot")
       ->check(CLI::IsMember({"handheld", "robot"}));
   app.add_option("--session", session, "simulator session (>= 1)");
@@ -350,6 +475,10 @@ int Main(int argc, char** argv) {
                  "walk the frames this many times (the frames shared, not rendered again), to "
                  "compare the cost of the same frames in a small and a large map")
       ->check(CLI::PositiveNumber);
+  app.add_flag("--track", track,
+               "track every frame of the walk at --fps (rendered as it goes, not kept) and map the "
+               "keyframes the tracker emits at 1 Hz and where the overlap runs out, as `sightmap "
+               "map` does");
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
@@ -360,6 +489,10 @@ int Main(int argc, char** argv) {
   sim_options.fps = fps;
   sim_options.frames = frames_wanted;
   sim::Simulator simulator(sim_options);
+  const Intrinsics camera = simulator.options().camera;
+  MapperOptions options;
+  if (no_walk_check) options.walk_max_gap_s = 0.0;
+  if (track) return RunTrackedBenchmark(sim_options, options, false_loop);
   std::vector<Frame> frames;
   const auto render_start = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < simulator.num_frames(); ++i) {
@@ -373,9 +506,6 @@ int Main(int argc, char** argv) {
   std::fprintf(
       stderr, "rendering took %.1f s\n",
       std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count());
-  const Intrinsics camera = simulator.options().camera;
-  MapperOptions options;
-  if (no_walk_check) options.walk_max_gap_s = 0.0;
   std::printf("simulator office, %s, session %d, seed %llu, %zu keyframes at %g Hz\n",
               trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size(),
               fps);
@@ -389,21 +519,12 @@ int Main(int argc, char** argv) {
       frames.push_back(again);
     }
   }
-  const RunResult clean = Run(frames, camera, options, -1, true, laps > 1 ? lap_length : 0);
+  const RunResult clean =
+      Run(EveryFrame(frames), camera, options, -1, true, laps > 1 ? lap_length : 0);
   if (false_loop) {
     const RunResult injected =
-        Run(frames, camera, options, static_cast<int>(frames.size()) * 3 / 4, false);
-    if (!injected.false_loop_injected) {
-      std::printf("false loop          not injected: no segment of 30 keyframes after %d\n",
-                  static_cast<int>(frames.size()) * 3 / 4);
-    } else {
-      std::printf(
-          "false loop          ATE rmse %.4f m with it, %.4f m without (%+.1f%%); largest part "
-          "%.4f m with it, %.4f m without\n",
-          injected.error.ate_rmse_m, clean.error.ate_rmse_m,
-          100.0 * (injected.error.ate_rmse_m / clean.error.ate_rmse_m - 1.0),
-          injected.largest_error.ate_rmse_m, clean.largest_error.ate_rmse_m);
-    }
+        Run(EveryFrame(frames), camera, options, static_cast<int>(frames.size()) * 3 / 4, false);
+    PrintFalseLoop(clean, injected, static_cast<int>(frames.size()) * 3 / 4);
   }
   return 0;
 }

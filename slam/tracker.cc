@@ -1,0 +1,402 @@
+#include "slam/tracker.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/rgbd.hpp>
+
+#include "core/check.h"
+#include "core/rotation.h"
+
+namespace sightmap {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Matrix6 Diagonal(double sigma_m, double sigma_rad) {
+  Eigen::Matrix<double, 6, 1> variances;
+  variances.head<3>().setConstant(sigma_m * sigma_m);
+  variances.tail<3>().setConstant(sigma_rad * sigma_rad);
+  return variances.asDiagonal();
+}
+
+// Registration's information can be singular along a degenerate direction: a tiny ridge keeps the
+// inverse finite, and the mapper's floor decides how much such a link is trusted.
+Matrix6 Inverse(const Matrix6& m) {
+  const Matrix6 inverse = (m + 1e-12 * Matrix6::Identity()).inverse();
+  return 0.5 * (inverse + inverse.transpose());
+}
+
+// The precedence of how a frame was placed along a chain from the reference.
+MotionSource Worse(MotionSource a, MotionSource b) {
+  return static_cast<int>(a) > static_cast<int>(b) ? a : b;
+}
+
+}  // namespace
+
+const char* ToString(MotionSource source) {
+  switch (source) {
+    case MotionSource::kRegistered:
+      return "registered";
+    case MotionSource::kChained:
+      return "chained";
+    case MotionSource::kPrior:
+      return "prior";
+  }
+  return "unknown";
+}
+
+const char* ToString(FrameTracking tracking) {
+  switch (tracking) {
+    case FrameTracking::kRegistered:
+      return "registered";
+    case FrameTracking::kDense:
+      return "dense";
+    case FrameTracking::kBlind:
+      return "blind";
+  }
+  return "unknown";
+}
+
+bool TrackerOptions::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    if (error) *error = what;
+    return false;
+  };
+  if (!features.Check(error) || !registration.Check(error)) return false;
+  if (!(keyframe_rate_hz >= 0.0) || !std::isfinite(keyframe_rate_hz) || keyframe_rate_hz > 1000) {
+    return fail("keyframe_rate_hz must be in [0, 1000] (0 makes every frame a keyframe)");
+  }
+  if (!(min_reference_inlier_ratio >= 0.0 && min_reference_inlier_ratio <= 1.0)) {
+    return fail("min_reference_inlier_ratio must be in [0, 1]");
+  }
+  if (!(max_deviation_mps > 0.0) || !(max_deviation_dps > 0.0) || !(deviation_slack_m >= 0.0) ||
+      !(deviation_slack_deg >= 0.0)) {
+    return fail("the deviation bounds must be positive and the slacks not negative");
+  }
+  if (!(min_keyframe_interval_s >= 0.0)) return fail("min_keyframe_interval_s must be >= 0");
+  if (!(richer_reference_ratio >= 1.0)) return fail("richer_reference_ratio must be >= 1");
+  if (depth_downscale < 1 || dense_downscale < 1) {
+    return fail("depth_downscale and dense_downscale must be at least 1");
+  }
+  if (!(dense_max_depth_m > 0.0)) return fail("dense_max_depth_m must be positive");
+  if (!(dense_max_deviation_mps > 0.0) || !(dense_max_deviation_dps > 0.0) ||
+      !(dense_slack_m >= 0.0) || !(dense_slack_deg >= 0.0)) {
+    return fail("the dense deviation bounds must be positive and the slacks not negative");
+  }
+  if (!(dense_step_sigma_m > 0.0) || !(dense_step_sigma_rad > 0.0) || !(prior_sigma_m > 0.0) ||
+      !(prior_sigma_mps >= 0.0) || !(prior_sigma_rad > 0.0) || !(prior_sigma_radps >= 0.0)) {
+    return fail("the dense step and prior sigmas must be positive");
+  }
+  if (!(blind_keyframe_after_s >= 0.0)) return fail("blind_keyframe_after_s must be >= 0");
+  if (min_reference_points < 0) return fail("min_reference_points must not be negative");
+  return true;
+}
+
+struct Tracker::Placed {
+  RgbdFrame frame;
+  Features features;
+  cv::Mat depth_small;
+  int points = 0;  // keypoints with a 3D point
+  // Pose in the reference keyframe's camera frame, its covariance, and how it was found.
+  Eigen::Isometry3d reference_from_cam = Eigen::Isometry3d::Identity();
+  Matrix6 covariance = Matrix6::Zero();
+  MotionSource source = MotionSource::kRegistered;
+  int inliers = 0;
+  double blind_s = 0.0;
+  Matrix6 blind_start_covariance = Matrix6::Zero();  // the covariance when the blind time began
+};
+
+// What OpenCV's dense odometry caches per frame (pyramids, normals), computed on demand.
+struct Tracker::DenseFrame {
+  int64_t index = -1;
+  cv::Ptr<cv::rgbd::OdometryFrame> frame;
+};
+
+namespace {
+
+KeyframeSamplerOptions RateOf(const TrackerOptions& options) {
+  KeyframeSamplerOptions rate;
+  rate.rate_hz = options.keyframe_rate_hz;
+  return rate;
+}
+
+}  // namespace
+
+Tracker::Tracker(const Intrinsics& camera, const TrackerOptions& options)
+    : camera_(camera), options_(options), rate_(RateOf(options)) {
+  SIGHTMAP_CHECK_OPTIONS(options_);
+  SIGHTMAP_CHECK_OPTIONS(camera_);
+  SIGHTMAP_CHECK(camera_.width % options_.depth_downscale == 0 &&
+                     camera_.height % options_.depth_downscale == 0 &&
+                     camera_.width % options_.dense_downscale == 0 &&
+                     camera_.height % options_.dense_downscale == 0,
+                 "the depth and dense downscales must divide the " << camera_.width << "x"
+                                                                   << camera_.height << " image");
+}
+
+Tracker::~Tracker() = default;
+
+void Tracker::Reset() {
+  reference_.reset();
+  last_.reset();
+  last_dense_.reset();
+  velocity_ = Eigen::Isometry3d::Identity();
+  velocity_dt_s_ = 0.0;
+  rate_ = KeyframeSampler(RateOf(options_));
+}
+
+Tracker::Placed Tracker::Prepare(const RgbdFrame& frame, TrackResult* result) const {
+  if (frame.color.type() != CV_8UC3 || frame.color.cols != camera_.width ||
+      frame.color.rows != camera_.height) {
+    SIGHTMAP_THROW(InvalidArgument, "a tracked frame's colour must be 8-bit BGR of "
+                                        << camera_.width << "x" << camera_.height);
+  }
+  if (frame.depth.type() != CV_16UC1 || frame.depth.size() != frame.color.size()) {
+    SIGHTMAP_THROW(InvalidArgument,
+                   "a tracked frame's depth must be 16-bit [mm] of the colour image's size");
+  }
+  const Clock::time_point start = Clock::now();
+  Placed placed;
+  placed.frame = frame;
+  placed.features = ExtractFeatures(frame.color, frame.depth, camera_, options_.features);
+  placed.points = static_cast<int>(placed.features.NumPoints());
+  cv::resize(
+      frame.depth, placed.depth_small,
+      cv::Size(camera_.width / options_.depth_downscale, camera_.height / options_.depth_downscale),
+      0.0, 0.0, cv::INTER_NEAREST);
+  result->features_s = SecondsSince(start);
+  return placed;
+}
+
+bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
+                                  TrackResult* result) {
+  const Clock::time_point start = Clock::now();
+  const RegistrationResult registration =
+      RegisterRgbd(frame.features, reference_->features, frame.depth_small, reference_->depth_small,
+                   camera_, options_.registration, &predicted);
+  result->registration_s += SecondsSince(start);
+  if (!registration.success) return false;
+  // The prediction is good to the time since the last frame registration or ICP placed.
+  const double since_placed_s = dt_s + last_->blind_s;
+  const Eigen::Isometry3d deviation = predicted.inverse() * registration.target_from_source;
+  if (!registration.target_from_source.matrix().allFinite() ||
+      !registration.information.allFinite() ||
+      deviation.translation().norm() >
+          options_.max_deviation_mps * since_placed_s + options_.deviation_slack_m ||
+      RotationAngleDeg(deviation) >
+          options_.max_deviation_dps * since_placed_s + options_.deviation_slack_deg) {
+    return false;
+  }
+  reference_best_inliers_ = std::max(reference_best_inliers_, registration.inliers);
+  frame.reference_from_cam = registration.target_from_source;
+  frame.covariance = Inverse(registration.information);
+  frame.source = MotionSource::kRegistered;
+  frame.inliers = registration.inliers;
+  frame.blind_s = 0.0;
+  result->inliers = registration.inliers;
+  return true;
+}
+
+bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
+                              TrackResult* result) {
+  const Clock::time_point start = Clock::now();
+  const int factor = options_.dense_downscale;
+  const Intrinsics small = camera_.Scaled(camera_.width / factor, camera_.height / factor);
+  const cv::Matx33d camera_matrix(small.fx, 0, small.cx, 0, small.fy, small.cy, 0, 0, 1);
+  cv::rgbd::RgbdICPOdometry odometry(cv::Mat(camera_matrix), 0.4f,
+                                     static_cast<float>(options_.dense_max_depth_m));
+  const auto make = [&](const RgbdFrame& source) {
+    cv::Mat gray;
+    cv::Mat gray_small;
+    cv::cvtColor(source.color, gray, cv::COLOR_BGR2GRAY);
+    cv::resize(gray, gray_small, cv::Size(small.width, small.height), 0.0, 0.0, cv::INTER_AREA);
+    cv::Mat depth_small;
+    cv::resize(source.depth, depth_small, cv::Size(small.width, small.height), 0.0, 0.0,
+               cv::INTER_NEAREST);
+    cv::Mat depth_m;
+    depth_small.convertTo(depth_m, CV_32F, 1e-3);
+    depth_m.setTo(std::numeric_limits<float>::quiet_NaN(), depth_small == 0);
+    DenseFrame dense;
+    dense.index = source.index;
+    dense.frame = cv::makePtr<cv::rgbd::OdometryFrame>(gray_small, depth_m);
+    return dense;
+  };
+  if (!last_dense_ || last_dense_->index != last_->frame.index) {
+    last_dense_ = std::make_unique<DenseFrame>(make(last_->frame));
+  }
+  DenseFrame current = make(frame.frame);
+  // Predicted step from the last frame: last_from_cam.
+  const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
+  cv::Mat init(4, 4, CV_64F);
+  cv::Mat rt;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) init.at<double>(r, c) = step_guess.matrix()(r, c);
+  }
+  bool ok = false;
+  try {
+    ok = odometry.compute(current.frame, last_dense_->frame, rt, init);
+  } catch (const cv::Exception&) {
+    ok = false;  // too few valid pixels for OpenCV's solver: the view is blind
+  }
+  result->dense_s = SecondsSince(start);
+  last_dense_ = std::make_unique<DenseFrame>(std::move(current));
+  if (!ok || rt.empty()) return false;
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) step.matrix()(r, c) = rt.at<double>(r, c);
+  }
+  const Eigen::Isometry3d deviation = step_guess.inverse() * step;
+  if (!step.matrix().allFinite() ||
+      deviation.translation().norm() >
+          options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m ||
+      RotationAngleDeg(deviation) >
+          options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) {
+    return false;
+  }
+  frame.reference_from_cam = Orthonormalised(last_->reference_from_cam * step);
+  frame.covariance =
+      last_->covariance + Diagonal(options_.dense_step_sigma_m, options_.dense_step_sigma_rad);
+  frame.source = Worse(last_->source, MotionSource::kChained);
+  frame.blind_s = last_->blind_s;
+  frame.blind_start_covariance = last_->blind_start_covariance;
+  return true;
+}
+
+void Tracker::PlaceBlind(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s) const {
+  frame.reference_from_cam = predicted;
+  frame.source = MotionSource::kPrior;
+  frame.blind_s = last_->blind_s + dt_s;
+  frame.blind_start_covariance =
+      last_->blind_s > 0.0 ? last_->blind_start_covariance : last_->covariance;
+  frame.covariance =
+      frame.blind_start_covariance +
+      Diagonal(options_.prior_sigma_m + options_.prior_sigma_mps * frame.blind_s,
+               options_.prior_sigma_rad + options_.prior_sigma_radps * frame.blind_s);
+}
+
+void Tracker::Emit(Placed& frame, bool early, TrackResult* result) {
+  TrackedKeyframe keyframe;
+  keyframe.frame = frame.frame;
+  keyframe.features = frame.features;
+  keyframe.depth_small = frame.depth_small;
+  if (reference_) {
+    KeyframeMotion motion;
+    motion.source = frame.source;
+    motion.previous_from_cam = Orthonormalised(frame.reference_from_cam);
+    motion.information = Inverse(frame.covariance);
+    motion.inliers = frame.source == MotionSource::kRegistered ? frame.inliers : 0;
+    motion.blind_s = frame.blind_s;
+    keyframe.motion = motion;
+    if (motion.source == MotionSource::kPrior) ++counters_.prior_keyframes;
+  }
+  result->keyframes.push_back(std::move(keyframe));
+  ++counters_.keyframes;
+  if (early) ++counters_.early_keyframes;
+  // The keyframe is the new reference: poses are now relative to it, and exact.
+  frame.reference_from_cam = Eigen::Isometry3d::Identity();
+  frame.covariance = Matrix6::Zero();
+  frame.source = MotionSource::kRegistered;
+  frame.inliers = 0;
+  frame.blind_s = 0.0;
+  frame.blind_start_covariance = Matrix6::Zero();
+  reference_ = std::make_unique<Placed>(frame);
+  reference_best_inliers_ = 0;
+}
+
+TrackResult Tracker::Track(const RgbdFrame& input) {
+  const Clock::time_point start = Clock::now();
+  TrackResult result;
+  Placed frame = Prepare(input, &result);
+  ++counters_.frames;
+  const bool tick = rate_.Accept(input.timestamp_ns);
+  if (!reference_) {
+    Emit(frame, false, &result);
+    last_ = std::make_unique<Placed>(frame);
+    ++counters_.registered;
+    result.total_s = SecondsSince(start);
+    return result;
+  }
+  const double dt_s =
+      std::max(1e-3, 1e-9 * static_cast<double>(input.timestamp_ns - last_->frame.timestamp_ns));
+  // Constant velocity, scaled to this frame's interval when the stream skipped frames.
+  Eigen::Isometry3d velocity = velocity_;
+  if (velocity_dt_s_ > 0.0 && std::abs(dt_s / velocity_dt_s_ - 1.0) > 0.25) {
+    const double scale = std::min(dt_s / velocity_dt_s_, 3.0);
+    const Eigen::AngleAxisd turn(velocity_.linear());
+    velocity = Eigen::Isometry3d::Identity();
+    velocity.linear() = Eigen::AngleAxisd(turn.angle() * scale, turn.axis()).toRotationMatrix();
+    velocity.translation() = velocity_.translation() * scale;
+  }
+  Eigen::Isometry3d predicted = last_->reference_from_cam * velocity;
+
+  bool registered = RegisterToReference(frame, predicted, dt_s, &result);
+  if (!registered && last_->frame.index != reference_->frame.index &&
+      last_->source == MotionSource::kRegistered) {
+    // The overlap with the reference is lost, but the last frame still had it: it becomes the
+    // keyframe this frame registers to.
+    Emit(*last_, true, &result);
+    predicted = velocity;
+    registered = RegisterToReference(frame, predicted, dt_s, &result);
+  }
+  FrameTracking tracking = FrameTracking::kRegistered;
+  if (!registered) {
+    const bool dense = options_.dense_fallback && RegisterDensely(frame, predicted, dt_s, &result);
+    tracking = dense ? FrameTracking::kDense : FrameTracking::kBlind;
+    if (!dense) PlaceBlind(frame, predicted, dt_s);
+  }
+  result.tracking = tracking;
+  switch (tracking) {
+    case FrameTracking::kRegistered:
+      ++counters_.registered;
+      break;
+    case FrameTracking::kDense:
+      ++counters_.dense;
+      break;
+    case FrameTracking::kBlind:
+      ++counters_.blind;
+      break;
+  }
+  velocity_ = last_->reference_from_cam.inverse() * frame.reference_from_cam;
+  velocity_dt_s_ = dt_s;
+
+  // Is this frame a keyframe?
+  const double since_keyframe_s =
+      1e-9 * static_cast<double>(input.timestamp_ns - reference_->frame.timestamp_ns);
+  const bool may_add_early = since_keyframe_s >= options_.min_keyframe_interval_s;
+  const bool good_reference = frame.points >= options_.min_reference_points;
+  bool early = false;
+  switch (tracking) {
+    case FrameTracking::kRegistered:
+      early = (frame.inliers < options_.min_reference_inlier_ratio * reference_best_inliers_ ||
+               frame.points > options_.richer_reference_ratio * reference_->points) &&
+              may_add_early;
+      break;
+    case FrameTracking::kDense:
+      // Features may register to a frame the dense chain reached where not to the reference, but
+      // a dense chain along a bare wall gains nothing from a keyframe every frame.
+      early = good_reference && since_keyframe_s >= options_.blind_keyframe_after_s;
+      break;
+    case FrameTracking::kBlind:
+      early = frame.blind_s >= options_.blind_keyframe_after_s && good_reference && may_add_early;
+      break;
+  }
+  if (tick || early) Emit(frame, !tick, &result);
+  result.reference_index = reference_->frame.index;
+  result.reference_from_cam = frame.reference_from_cam;
+  if (!last_dense_ || last_dense_->index != frame.frame.index) last_dense_.reset();
+  last_ = std::make_unique<Placed>(std::move(frame));
+  result.total_s = SecondsSince(start);
+  return result;
+}
+
+}  // namespace sightmap

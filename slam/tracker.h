@@ -1,0 +1,193 @@
+// Tracking at the sensor's rate: every frame the source delivers is placed relative to the newest
+// keyframe, and the tracker decides which frames become keyframes.
+//
+// The paper keeps one keyframe a second, but its RTAB-Map tracked the frames in between; frames
+// 33-100 ms apart almost always overlap where frames a second apart often do not. Per frame:
+//  1. Features, registered to the reference (the newest keyframe) with the constant-velocity
+//     prediction as the guided-matching prior.
+//  2. When that fails, the last frame that was placed becomes a keyframe (it still overlapped the
+//     reference) and the frame is registered to it instead: keyframes are inserted where the
+//     overlap is about to be lost, not only on the 1 Hz clock.
+//  3. When features fail too (a bare wall, a door frame), dense RGB-D odometry between this frame
+//     and the previous one (OpenCV's RgbdICPOdometry: point-to-plane ICP and photometric error),
+//     started from the prediction and refused when it strays far from it.
+//  4. When nothing registers (the view is blind for a moment), the frame is placed by the motion
+//     model; after blind_keyframe_after_s a frame with enough 3D points becomes a keyframe linked
+//     to the last one by that prediction, with a covariance that grows with the blind time. The
+//     map stays one graph and a later loop closure corrects the guess.
+//
+// A keyframe is emitted with its motion from the previously emitted keyframe, so the mapper needs
+// no registration of its own to continue the chain. One thread calls Track; no threads inside.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "capture/keyframe_sampler.h"
+#include "core/camera.h"
+#include "core/rgbd_frame.h"
+#include "slam/features.h"
+#include "slam/registration.h"
+
+namespace sightmap {
+
+struct TrackerOptions {
+  FeatureOptions features;
+  RegistrationOptions registration;
+  // Keyframes per second of source time, on a grid anchored at the first frame [Hz]; 0 makes
+  // every placed frame a keyframe.
+  double keyframe_rate_hz = 1.0;
+  // A frame registered to the reference with fewer inliers than this share of the most any frame
+  // had against it is losing the overlap: it becomes a keyframe early so that the next frames
+  // register to it. Relative, because a bare room never has many inliers: there a keyframe comes
+  // only when registration fails (the last placed frame is taken then).
+  double min_reference_inlier_ratio = 0.35;
+  // A frame with this many times the reference's 3D keypoints becomes a keyframe early: a view
+  // turning away from a bare wall is a better reference than the wall (registration to the wall's
+  // few keypoints is the least accurate).
+  double richer_reference_ratio = 2.0;
+  // No early keyframe closer than this to the previous one [s].
+  double min_keyframe_interval_s = 0.15;
+  // Depth kept per frame for registration's dense check, 1/N of the image (as the mapper's).
+  int depth_downscale = 4;
+
+  // A registration further than this from the constant-velocity prediction is refused: it matched
+  // a repeated texture (a second of walk holds no such jump). Rates times the time since the last
+  // frame the registration placed, plus the slack [m/s], [deg/s], [m], [deg].
+  double max_deviation_mps = 1.0;
+  double max_deviation_dps = 60.0;
+  double deviation_slack_m = 0.05;
+  double deviation_slack_deg = 3.0;
+
+  // Dense fallback on consecutive frames, at 1/dense_downscale of the image.
+  bool dense_fallback = true;
+  int dense_downscale = 2;
+  double dense_max_depth_m = 6.0;  // farther depth is too noisy for ICP [m]
+  // A dense step is refused when it differs from the constant-velocity prediction by more than
+  // these rates times the frame interval (plus the slack): ICP on a bare wall slides along it
+  // [m/s], [deg/s], [m], [deg].
+  double dense_max_deviation_mps = 0.3;
+  double dense_max_deviation_dps = 30.0;
+  double dense_slack_m = 0.02;
+  double dense_slack_deg = 1.0;
+  // Standard deviation of one dense step, accumulated along a chain [m], [rad].
+  // ICP slides along bare walls: measured on the simulated walk, steps err by 0.2-3 cm.
+  double dense_step_sigma_m = 0.02;
+  double dense_step_sigma_rad = 0.01;
+
+  // Blind frames: the motion model's standard deviation is sigma + rate x blind time [m], [m/s],
+  // [rad], [rad/s] (a walker keeps pace for a second but turns unpredictably).
+  double prior_sigma_m = 0.02;
+  double prior_sigma_mps = 0.3;
+  double prior_sigma_rad = 0.02;
+  double prior_sigma_radps = 0.35;
+  // After this long without any registration a frame becomes a keyframe on the prediction [s].
+  double blind_keyframe_after_s = 0.3;
+  // Frames with fewer 3D keypoints make poor references: a blind stretch waits for a better one.
+  int min_reference_points = 30;
+
+  bool Check(std::string* error) const;
+};
+
+// How a keyframe's pose relative to the previous keyframe was found.
+enum class MotionSource {
+  kRegistered,  // features registered directly to the previous keyframe
+  kChained,     // through frames in between registered densely
+  kPrior,       // the motion model across frames where nothing registered
+};
+const char* ToString(MotionSource source);
+
+struct KeyframeMotion {
+  MotionSource source = MotionSource::kRegistered;
+  // The keyframe's camera in the previous keyframe's camera frame.
+  Eigen::Isometry3d previous_from_cam = Eigen::Isometry3d::Identity();
+  // Inverse covariance, translation then rotation (registration's convention).
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
+  int inliers = 0;       // of the direct registration (0 for a prior)
+  double blind_s = 0.0;  // time covered by the motion model alone [s]
+};
+
+struct TrackedKeyframe {
+  RgbdFrame frame;  // images, timestamp, index and ground truth as the source gave them
+  Features features;
+  cv::Mat depth_small;                   // depth_downscale x smaller, nearest samples
+  std::optional<KeyframeMotion> motion;  // none for the tracker's first keyframe
+};
+
+enum class FrameTracking { kRegistered, kDense, kBlind };
+const char* ToString(FrameTracking tracking);
+
+// What one frame did.
+struct TrackResult {
+  FrameTracking tracking = FrameTracking::kRegistered;
+  // Keyframes decided by this frame, oldest first (0, 1 or 2: the previous frame when the overlap
+  // was lost, then maybe this one).
+  std::vector<TrackedKeyframe> keyframes;
+  int inliers = 0;  // to the reference, when registered
+  // Where the frame is: in the camera frame of the newest keyframe (the source's frame index).
+  int64_t reference_index = 0;
+  Eigen::Isometry3d reference_from_cam = Eigen::Isometry3d::Identity();
+  double features_s = 0.0;
+  double registration_s = 0.0;
+  double dense_s = 0.0;
+  double total_s = 0.0;
+};
+
+struct TrackerCounters {
+  int64_t frames = 0;
+  int64_t registered = 0;  // by features to a keyframe
+  int64_t dense = 0;       // by the dense fallback
+  int64_t blind = 0;       // by the motion model only
+  int64_t keyframes = 0;
+  int64_t early_keyframes = 0;  // off the rate's clock: overlap lost or weak
+  int64_t prior_keyframes = 0;  // emitted on the motion model
+};
+
+class Tracker {
+ public:
+  Tracker(const Intrinsics& camera, const TrackerOptions& options = TrackerOptions());
+  ~Tracker();
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
+
+  // Places one frame (colour BGR 8-bit and depth 16-bit mm of the camera's size). Throws
+  // InvalidArgument for images that do not fit the camera.
+  TrackResult Track(const RgbdFrame& frame);
+  // The next frame starts afresh, as a keyframe without motion (a jump the caller knows of).
+  void Reset();
+
+  const TrackerCounters& counters() const { return counters_; }
+
+ private:
+  struct Placed;  // a frame with its features and its pose relative to the reference
+  struct DenseFrame;
+
+  Placed Prepare(const RgbdFrame& frame, TrackResult* result) const;
+  // Registers `frame` to the reference by features; true when it succeeded.
+  bool RegisterToReference(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
+                           TrackResult* result);
+  bool RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
+                       TrackResult* result);
+  void PlaceBlind(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s) const;
+  // Emits `frame` as a keyframe and makes it the reference.
+  void Emit(Placed& frame, bool early, TrackResult* result);
+
+  Intrinsics camera_;
+  TrackerOptions options_;
+  std::unique_ptr<Placed> reference_;  // the newest keyframe
+  std::unique_ptr<Placed> last_;       // the newest frame placed (may be the reference)
+  int reference_best_inliers_ = 0;     // the most inliers a frame had against the reference
+  Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();  // last step: previous_from_last
+  double velocity_dt_s_ = 0.0;
+  KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
+  TrackerCounters counters_;
+  std::unique_ptr<DenseFrame> last_dense_;  // the dense odometry's cache of last_
+};
+
+}  // namespace sightmap

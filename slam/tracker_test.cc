@@ -1,0 +1,169 @@
+// The tracker on the synthetic building at 10 Hz and on hand-made blind frames, against the
+// simulator's ground truth.
+#include "slam/tracker.h"
+
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/check.h"
+#include "core/rotation.h"
+#include "sim/simulator.h"
+#include "slam/sim_walk_testing.h"
+
+namespace sightmap {
+namespace {
+
+using Walk = testing::SimWalk;
+
+// 4 s of the handheld walk at 10 Hz, rendered once for all tests of this file. It starts facing a
+// bare wall at arm's length while turning away.
+const Walk& HandheldWalk() {
+  static const Walk* walk = [] {
+    sim::SimulatorOptions options;
+    options.fps = 10.0;
+    options.frames = 40;
+    options.seed = 11;
+    return new Walk(testing::RenderSimWalk(options));
+  }();
+  return *walk;
+}
+
+// Chains the emitted keyframes' motions into poses in the first keyframe's frame.
+struct Chain {
+  std::vector<Eigen::Isometry3d> poses;  // first_from_keyframe
+  std::vector<const RgbdFrame*> frames;
+  std::vector<MotionSource> sources;
+};
+
+void Append(const TrackResult& result, const std::vector<RgbdFrame>& frames, Chain* chain) {
+  for (const TrackedKeyframe& keyframe : result.keyframes) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    if (keyframe.motion) {
+      EXPECT_FALSE(chain->poses.empty());
+      pose = chain->poses.back() * keyframe.motion->previous_from_cam;
+      chain->sources.push_back(keyframe.motion->source);
+    } else {
+      EXPECT_TRUE(chain->poses.empty());
+    }
+    chain->poses.push_back(pose);
+    chain->frames.push_back(&frames[static_cast<size_t>(keyframe.frame.index)]);
+  }
+}
+
+TEST(Tracker, KeepsOneKeyframeASecondAndChainsThemAccurately) {
+  const Walk& walk = HandheldWalk();
+  Tracker tracker(walk.camera);
+  Chain chain;
+  for (const RgbdFrame& frame : walk.frames) Append(tracker.Track(frame), walk.frames, &chain);
+  const TrackerCounters& counters = tracker.counters();
+  EXPECT_EQ(counters.frames, 40);
+  // At least the 4 on the 1 Hz clock; early ones only where the overlap thinned.
+  EXPECT_GE(counters.keyframes, 4);
+  EXPECT_EQ(static_cast<int64_t>(chain.poses.size()), counters.keyframes);
+  EXPECT_EQ(chain.frames.front()->index, 0);
+  EXPECT_EQ(counters.blind, 0) << "4 s of an ordinary walk has no blind frame";
+  // The chained keyframe poses against the ground truth, relative to the first keyframe.
+  const Eigen::Isometry3d gt_first = *chain.frames.front()->world_from_cam_gt;
+  double worst_m = 0.0;
+  double worst_deg = 0.0;
+  for (size_t i = 0; i < chain.poses.size(); ++i) {
+    const Eigen::Isometry3d truth = gt_first.inverse() * *chain.frames[i]->world_from_cam_gt;
+    const Eigen::Isometry3d error = truth.inverse() * chain.poses[i];
+    worst_m = std::max(worst_m, error.translation().norm());
+    worst_deg = std::max(worst_deg, RotationAngleDeg(error));
+  }
+  std::printf("%lld keyframes (%lld early) over %lld frames: worst %.3f m, %.2f deg\n",
+              static_cast<long long>(counters.keyframes),
+              static_cast<long long>(counters.early_keyframes),
+              static_cast<long long>(counters.frames), worst_m, worst_deg);
+  EXPECT_LT(worst_m, 0.05);
+  EXPECT_LT(worst_deg, 2.0);
+}
+
+TEST(Tracker, EveryFrameIsAKeyframeAtRateZero) {
+  const Walk& walk = HandheldWalk();
+  TrackerOptions options;
+  options.keyframe_rate_hz = 0.0;
+  Tracker tracker(walk.camera, options);
+  int emitted = 0;
+  for (size_t i = 0; i < 8; ++i) {
+    emitted += static_cast<int>(tracker.Track(walk.frames[i]).keyframes.size());
+  }
+  EXPECT_EQ(emitted, 8);
+}
+
+TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
+  const Walk& walk = HandheldWalk();
+  TrackerOptions options;
+  options.min_reference_points = 0;  // the blind frames themselves become keyframes
+  Tracker tracker(walk.camera, options);
+  Chain chain;
+  // Ten frames of the walk, then 12 frames where the sensor sees nothing (lens covered: black
+  // colour, no depth), then the walk again from where it would be.
+  for (size_t i = 0; i < 10; ++i) Append(tracker.Track(walk.frames[i]), walk.frames, &chain);
+  std::vector<KeyframeMotion> priors;
+  int last_seen_emitted = 0;
+  for (size_t i = 10; i < 22; ++i) {
+    RgbdFrame blind = walk.frames[i];
+    blind.color = cv::Mat::zeros(blind.color.size(), CV_8UC3);
+    blind.depth = cv::Mat::zeros(blind.depth.size(), CV_16UC1);
+    const TrackResult result = tracker.Track(blind);
+    EXPECT_EQ(result.tracking, FrameTracking::kBlind) << "frame " << i;
+    for (const TrackedKeyframe& keyframe : result.keyframes) {
+      ASSERT_TRUE(keyframe.motion);
+      if (keyframe.frame.index < 10) {
+        // The last frame that still saw the scene becomes a keyframe, registered as usual.
+        EXPECT_EQ(keyframe.frame.index, 9);
+        EXPECT_EQ(keyframe.motion->source, MotionSource::kRegistered);
+        ++last_seen_emitted;
+        continue;
+      }
+      EXPECT_EQ(keyframe.motion->source, MotionSource::kPrior);
+      priors.push_back(*keyframe.motion);
+    }
+  }
+  EXPECT_EQ(last_seen_emitted, 1);
+  ASSERT_GE(priors.size(), 2u);
+  EXPECT_EQ(tracker.counters().prior_keyframes, static_cast<int64_t>(priors.size()));
+  // A prior over a longer blind time is trusted less than one over a shorter.
+  for (const KeyframeMotion& a : priors) {
+    EXPECT_GT(a.blind_s, 0.0);
+    const double sigma_a = std::sqrt(a.information.inverse()(0, 0));
+    EXPECT_GE(sigma_a, options.prior_sigma_m);
+    for (const KeyframeMotion& b : priors) {
+      if (b.blind_s > a.blind_s + 1e-6) {
+        EXPECT_GT(std::sqrt(b.information.inverse()(0, 0)), sigma_a);
+      }
+    }
+  }
+  // The walk resumes: frames register again.
+  int registered = 0;
+  for (size_t i = 22; i < 40; ++i) {
+    registered += tracker.Track(walk.frames[i]).tracking != FrameTracking::kBlind;
+  }
+  EXPECT_GT(registered, 0);
+}
+
+TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
+  const Walk& walk = HandheldWalk();
+  Tracker tracker(walk.camera);
+  RgbdFrame small = walk.frames[0];
+  small.color = cv::Mat::zeros(10, 10, CV_8UC3);
+  EXPECT_THROW(tracker.Track(small), InvalidArgument);
+  TrackerOptions options;
+  std::string error;
+  options.keyframe_rate_hz = -1.0;
+  EXPECT_FALSE(options.Check(&error));
+  options = TrackerOptions();
+  options.dense_downscale = 0;
+  EXPECT_FALSE(options.Check(&error));
+  options = TrackerOptions();
+  options.prior_sigma_m = 0.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_TRUE(TrackerOptions().Check(&error));
+}
+
+}  // namespace
+}  // namespace sightmap
