@@ -33,12 +33,18 @@ int RunInfo(int argc, char** argv) {
     out["loop_closures"] = summary.loop_closures;
     out["segments"] = summary.segments;
     out["largest_segment_keyframes"] = summary.largest_segment_keyframes;
+    out["largest_part_ratio"] = summary.keyframes > 0
+                                    ? static_cast<double>(summary.largest_segment_keyframes) /
+                                          static_cast<double>(summary.keyframes)
+                                    : 0.0;
+    out["prior_links"] = summary.prior_links;
     out["labels"] = summary.labels;
     out["size_bytes"] = summary.size_bytes;
     out["links"] = {{"odometry", summary.odometry_links},
                     {"loop", summary.loop_closures},
                     {"relocalisation", summary.relocalisation_links},
                     {"user", summary.user_links},
+                    {"prior", summary.prior_links},
                     {"inactive", summary.inactive_links}};
     if (summary.has_bounding_box) {
       out["bounding_box"] = {
@@ -71,7 +77,7 @@ int RunInfo(int argc, char** argv) {
   std::cout << "\n";
   std::cout << "links          " << summary.odometry_links << " odometry, " << summary.loop_closures
             << " loop closure, " << summary.relocalisation_links << " relocalisation, "
-            << summary.user_links << " user";
+            << summary.user_links << " user, " << summary.prior_links << " prior";
   if (summary.inactive_links > 0) {
     std::cout << "; " << summary.inactive_links << " switched off as inconsistent";
   }

@@ -137,6 +137,16 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["loops"] = summary.loops;
   json["segments"] = summary.segments;
   json["largest_segment_keyframes"] = summary.largest_segment_keyframes;
+  json["largest_part_ratio"] = summary.largest_part_ratio;
+  json["prior_links"] = summary.prior_links;
+  json["tracked_frames"] = summary.tracked_frames;
+  json["dense_frames"] = summary.dense_frames;
+  json["blind_frames"] = summary.blind_frames;
+  json["early_keyframes"] = summary.early_keyframes;
+  json["track_median_ms"] = summary.track_median_ms;
+  json["track_p95_ms"] = summary.track_p95_ms;
+  json["keyframe_median_ms"] = summary.keyframe_median_ms;
+  json["keyframe_p95_ms"] = summary.keyframe_p95_ms;
   json["dropped_frames"] = summary.dropped_frames;
   json["frames_read"] = summary.frames_read;
   json["links_rejected_after_commit"] = summary.links_rejected_after_commit;
@@ -184,6 +194,15 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
         << summary.model_keyframes << " keyframes)";
   }
   out << "\n";
+  if (summary.tracked_frames > 0) {
+    out << "  tracked     " << summary.tracked_frames << " frames (" << summary.dense_frames
+        << " by dense odometry, " << summary.blind_frames << " by the motion model alone; "
+        << summary.prior_links << " prior links, " << summary.early_keyframes
+        << " early keyframes); " << std::setprecision(1) << summary.track_median_ms
+        << " ms median, " << summary.track_p95_ms << " ms p95 per frame\n";
+  }
+  out << std::setprecision(1) << "  keyframe    " << summary.keyframe_median_ms << " ms median, "
+      << summary.keyframe_p95_ms << " ms p95 to map\n";
   out << "  dropped     " << summary.dropped_frames << " frames\n";
   if (summary.ate_rmse_m) {
     out << std::setprecision(3) << "  ATE         " << *summary.ate_rmse_m << " m rmse (max "
@@ -243,10 +262,19 @@ int RunMap(int argc, char** argv) {
   app.add_flag("--ground-truth-poses", options.ground_truth_poses,
                "take each keyframe's pose from the source's ground truth instead of registering "
                "it (evaluates photo localisation apart from SLAM; simulator or TUM folders)");
+  bool no_tracking = false;
+  app.add_option("--track-every", options.track_every,
+                 "track every Nth frame of the source (1: every frame)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_flag("--no-tracking", no_tracking,
+               "register keyframes to each other only, not the frames in between (the paper's "
+               "1 Hz capture)");
   app.add_flag("--json", json, "print the summary as one JSON object (stable keys)");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
   options.live = options.source_options.realtime;
+  options.tracking.track = !no_tracking;
   options.view.choice = preview    ? mapping::ViewChoice::kPreview
                         : headless ? mapping::ViewChoice::kHeadless
                                    : mapping::ViewChoice::kAuto;

@@ -2,7 +2,9 @@
 
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <map>
 #include <mutex>
@@ -32,6 +34,15 @@ TimestampNs WallClockNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
+}
+
+// The p-th quantile (0..1) by nearest rank; 0 for no values.
+double Percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  const auto rank = static_cast<size_t>(std::lround(p * static_cast<double>(values.size() - 1)));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(rank),
+                   values.end());
+  return values[rank];
 }
 
 double PeakRssMiB() {
@@ -69,6 +80,8 @@ LinkType ToStore(MapperLinkType type) {
       return LinkType::kLoopClosure;
     case MapperLinkType::kRelocalisation:
       return LinkType::kRelocalisation;
+    case MapperLinkType::kPrior:
+      return LinkType::kPrior;
   }
   return LinkType::kOdometry;
 }
@@ -79,6 +92,8 @@ MapperLinkType FromStore(LinkType type) {
       return MapperLinkType::kOdometry;
     case LinkType::kRelocalisation:
       return MapperLinkType::kRelocalisation;
+    case LinkType::kPrior:
+      return MapperLinkType::kPrior;
     case LinkType::kLoopClosure:
     case LinkType::kUser:  // a user's link constrains the graph like a verified loop
       return MapperLinkType::kLoopClosure;
@@ -152,12 +167,16 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "start_frame and max_keyframes must be >= 0";
     return false;
   }
+  if (track_every < 1) {
+    *error = "track_every must be >= 1";
+    return false;
+  }
   if (frame_queue_capacity < 1 || write_queue_capacity < 1) {
     *error = "queue capacities must be >= 1";
     return false;
   }
-  return source_options.Check(error) && sampler.Check(error) && mapper.Check(error) &&
-         model.Check(error) && ply.Check(error) && view.Check(error);
+  return source_options.Check(error) && sampler.Check(error) && tracking.Check(error) &&
+         mapper.Check(error) && model.Check(error) && ply.Check(error) && view.Check(error);
 }
 
 MappingSession::MappingSession(const MappingOptions& options) : options_(options) {
@@ -283,6 +302,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
 
   // Shared between the stages.
   BoundedQueue<RgbdFrame> frames(static_cast<size_t>(options_.frame_queue_capacity));
+  BoundedQueue<KeyframeItem> keyframes(2);
   BoundedQueue<WriteTask> writes(static_cast<size_t>(options_.write_queue_capacity));
   std::atomic<bool> capture_stop{false};
   std::atomic<int64_t> frames_read{0};
@@ -359,10 +379,27 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
       writer_failed = true;
       writes.Close();
       frames.Close();
+      keyframes.Close();
     }
   });
 
+  // The tracker works with the mapper's features and depth, at the keyframe rate asked for.
+  TrackStageOptions tracking = options_.tracking;
+  tracking.track = tracking.track && !options_.ground_truth_poses;
+  tracking.tracker.features = options_.mapper.features;
+  tracking.tracker.registration = options_.mapper.registration;
+  tracking.tracker.depth_downscale = options_.mapper.depth_downscale;
+  tracking.tracker.keyframe_rate_hz = options_.sampler.rate_hz;
+  // Without tracking only keyframes are needed, and the capture stage samples them itself so that
+  // a live sensor drops keyframes the mapper cannot take, not frames in between.
   KeyframeSampler sampler(options_.sampler);
+  const auto wanted = [&](const RgbdFrame& frame) {
+    if (!tracking.track) return sampler.Accept(frame.timestamp_ns);
+    return (frame.index - options_.start_frame) % options_.track_every == 0;
+  };
+  TrackStageOptions pass_through = tracking;
+  pass_through.tracker.keyframe_rate_hz = 0.0;  // every frame handed on is a keyframe
+  TrackStage track(camera, tracking.track ? tracking : pass_through, &frames, &keyframes);
   ScopedThread capture([&] {
     try {
       Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);
@@ -382,7 +419,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
           }
         }
-        if (!sampler.Accept(frame->timestamp_ns)) continue;
+        if (!wanted(*frame)) continue;
         if (live) {
           if (!frames.TryPush(std::move(*frame)) && !capture_stop) ++dropped;
         } else if (!frames.Push(std::move(*frame))) {
@@ -399,6 +436,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   // The SLAM stage, on this thread.
   std::vector<StampedPose> ground_truth;
   std::vector<int64_t> session_ids;
+  std::vector<double> keyframe_s;  // mapping time of each keyframe
   int64_t links_rejected_after_commit = 0;
   bool vocabulary_sent = vocabulary_stored;
   bool joined = false;
@@ -430,16 +468,17 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   std::exception_ptr slam_error;
   try {
     while (!stop_requested()) {
-      RgbdFrame frame;
-      const auto popped = frames.Pop(&frame, std::chrono::milliseconds(100));
-      if (popped == BoundedQueue<RgbdFrame>::PopResult::kEnd) break;
-      if (popped == BoundedQueue<RgbdFrame>::PopResult::kTimeout) {
+      KeyframeItem item;
+      const auto popped = keyframes.Pop(&item, std::chrono::milliseconds(100));
+      if (popped == BoundedQueue<KeyframeItem>::PopResult::kEnd) break;
+      if (popped == BoundedQueue<KeyframeItem>::PopResult::kTimeout) {
         if (progress_ && SecondsSince(last_progress) > 1.0) {
           progress_(make_progress());
           last_progress = Clock::now();
         }
         continue;
       }
+      RgbdFrame& frame = item.keyframe.frame;
       if (options_.ground_truth_poses && !frame.world_from_cam_gt) {
         throw no_ground_truth("the frame at " + std::to_string(frame.timestamp_ns) + " ns");
       }
@@ -447,11 +486,17 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
           frame.world_from_cam_gt) {
         mapper.SetFirstPose(*frame.world_from_cam_gt);
       }
-      const KeyframeReport report =
-          options_.ground_truth_poses
-              ? mapper.AddKeyframeAtPose(frame.timestamp_ns, frame.color, frame.depth,
-                                         *frame.world_from_cam_gt)
-              : mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+      KeyframeReport report;
+      if (options_.ground_truth_poses) {
+        report = mapper.AddKeyframeAtPose(frame.timestamp_ns, frame.color, frame.depth,
+                                          *frame.world_from_cam_gt);
+      } else if (item.tracked) {
+        report = mapper.AddTrackedKeyframe(frame.timestamp_ns, std::move(item.keyframe.features),
+                                           item.keyframe.depth_small, item.keyframe.motion);
+      } else {
+        report = mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+      }
+      keyframe_s.push_back(report.times.total_s);
       session_ids.push_back(report.id);
       if (frame.world_from_cam_gt) {
         ground_truth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
@@ -522,6 +567,10 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   frames.Close();
   frames.Clear();
   capture.Join();
+  keyframes.Close();
+  keyframes.Clear();
+  track.Join();
+  if (!slam_error && track.error()) slam_error = track.error();
   // Every pose as the mapper has it now, then the writer drains and ends.
   if (!slam_error && !writer_failed && !session_ids.empty()) {
     WriteTask poses;
@@ -574,6 +623,20 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   // Nothing writes to the model after this (the PLY and the trajectory only read it).
   const ModelSummary model_summary = model.Summary();
   summary.largest_segment_keyframes = model_summary.largest_segment_keyframes;
+  summary.largest_part_ratio = model_summary.keyframes > 0
+                                   ? static_cast<double>(model_summary.largest_segment_keyframes) /
+                                         static_cast<double>(model_summary.keyframes)
+                                   : 0.0;
+  summary.prior_links = model_summary.prior_links;
+  const TrackStageReport& tracked = track.report();
+  summary.tracked_frames = tracking.track ? tracked.counters.frames : 0;
+  summary.dense_frames = tracked.counters.dense;
+  summary.blind_frames = tracked.counters.blind;
+  summary.early_keyframes = tracked.counters.early_keyframes;
+  summary.track_median_ms = 1e3 * Percentile(tracked.frame_s, 0.5);
+  summary.track_p95_ms = 1e3 * Percentile(tracked.frame_s, 0.95);
+  summary.keyframe_median_ms = 1e3 * Percentile(keyframe_s, 0.5);
+  summary.keyframe_p95_ms = 1e3 * Percentile(keyframe_s, 0.95);
   summary.dropped_frames = dropped;
   summary.frames_read = frames_read;
   summary.links_rejected_after_commit = links_rejected_after_commit;

@@ -35,6 +35,7 @@
 #include "capture/keyframe_sampler.h"
 #include "capture/rgbd_source.h"
 #include "mapping/map_view_feed.h"
+#include "mapping/track_stage.h"
 #include "slam/mapper.h"
 #include "store/model.h"
 #include "store/point_cloud.h"
@@ -68,6 +69,12 @@ struct MappingOptions {
 
   SourceOptions source_options;
   KeyframeSamplerOptions sampler;  // rate_hz: keyframes per second of source time [Hz]
+  // Tracking every frame (tracking.track) between capture and mapping. Its features, registration
+  // and depth downscale are the mapper's, and its keyframe rate is sampler.rate_hz, whatever is
+  // set here: the mapper takes the tracker's features as they are.
+  TrackStageOptions tracking;
+  // Track every Nth frame of the source (1: all of them) [frames].
+  int track_every = 1;
   MapperOptions mapper;
   ModelOptions model;
   PlyExportOptions ply;
@@ -119,6 +126,16 @@ struct MappingSummary {
   int64_t loops = 0;                      // accepted and active loop closures in the map
   int64_t segments = 0;                   // unjoined parts of the map
   int64_t largest_segment_keyframes = 0;  // keyframes in the largest of them (the model's count)
+  double largest_part_ratio = 0.0;        // largest_segment_keyframes / model keyframes
+  int64_t prior_links = 0;                // links made by the motion model across blind stretches
+  int64_t tracked_frames = 0;             // frames the tracker placed (0 without tracking)
+  int64_t dense_frames = 0;               // of them, placed by the dense fallback
+  int64_t blind_frames = 0;               // of them, placed by the motion model alone
+  int64_t early_keyframes = 0;            // keyframes taken off the rate's clock (overlap lost)
+  double track_median_ms = 0.0;           // tracking time per frame
+  double track_p95_ms = 0.0;
+  double keyframe_median_ms = 0.0;  // mapping time per keyframe
+  double keyframe_p95_ms = 0.0;
   int64_t dropped_frames = 0;
   int64_t frames_read = 0;
   int64_t links_rejected_after_commit = 0;  // loop links switched off after being stored

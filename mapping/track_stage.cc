@@ -1,0 +1,71 @@
+#include "mapping/track_stage.h"
+
+#include <utility>
+
+#include "core/check.h"
+
+namespace sightmap::mapping {
+
+bool TrackStageOptions::Check(std::string* error) const { return tracker.Check(error); }
+
+TrackStage::TrackStage(const Intrinsics& camera, const TrackStageOptions& options,
+                       BoundedQueue<RgbdFrame>* frames, BoundedQueue<KeyframeItem>* keyframes)
+    : camera_(camera), options_(options), frames_(frames), keyframes_(keyframes) {
+  SIGHTMAP_CHECK_OPTIONS(options_);
+  SIGHTMAP_CHECK(frames_ != nullptr && keyframes_ != nullptr, "the track stage needs its queues");
+  thread_ = std::thread([this] { Run(); });
+}
+
+TrackStage::~TrackStage() {
+  // The queues outlive the stage; closing the input lets the thread end.
+  frames_->Close();
+  Join();
+}
+
+void TrackStage::Join() {
+  if (thread_.joinable()) thread_.join();
+}
+
+std::exception_ptr TrackStage::error() const {
+  std::lock_guard<std::mutex> lock(error_mutex_);
+  return error_;
+}
+
+void TrackStage::Run() {
+  try {
+    if (options_.track) {
+      Tracker tracker(camera_, options_.tracker);
+      bool taken = true;
+      while (taken) {
+        std::optional<RgbdFrame> frame = frames_->Pop();
+        if (!frame) break;
+        TrackResult result = tracker.Track(*frame);
+        report_.frame_s.push_back(result.total_s);
+        ++tracked_frames_;
+        for (TrackedKeyframe& keyframe : result.keyframes) {
+          // A closed keyframe queue: the mapping stage stopped taking keyframes.
+          taken = taken && keyframes_->Push(KeyframeItem{std::move(keyframe), true});
+        }
+      }
+      report_.counters = tracker.counters();
+    } else {
+      KeyframeSamplerOptions sampling;
+      sampling.rate_hz = options_.tracker.keyframe_rate_hz;
+      KeyframeSampler sampler(sampling);
+      while (std::optional<RgbdFrame> frame = frames_->Pop()) {
+        if (!sampler.Accept(frame->timestamp_ns)) continue;
+        KeyframeItem item;
+        item.keyframe.frame = std::move(*frame);
+        if (!keyframes_->Push(std::move(item))) break;
+        ++report_.counters.keyframes;
+      }
+    }
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(error_mutex_);
+    error_ = std::current_exception();
+    frames_->Close();
+  }
+  keyframes_->Close();
+}
+
+}  // namespace sightmap::mapping
