@@ -61,6 +61,7 @@ bool MapperOptions::Check(std::string* error) const {
   }
   if (loop_exclude_recent < 1) return fail("loop_exclude_recent must be at least 1");
   if (loop_candidates < 0) return fail("loop_candidates must not be negative");
+  if (loop_min_inliers < 0) return fail("loop_min_inliers must not be negative");
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
   if (!(join_max_disagreement_m > 0.0) || !(join_max_disagreement_rad > 0.0)) {
@@ -504,7 +505,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     if (candidate.score < options_.loop_min_relative_score * reference_score) break;
     const Keyframe& target = keyframes_[static_cast<size_t>(candidate.id)];
     const RegistrationResult result = Register(keyframe, target, &report->times);
-    if (!result.success) continue;
+    if (!result.success || result.inliers < options_.loop_min_inliers) continue;
     MapperLink link;
     link.from = target.id;
     link.to = keyframe.id;

@@ -61,6 +61,11 @@ struct MapperOptions {
   // A candidate's score must reach this fraction of the score between the keyframe and its
   // odometry neighbour (DBoW2's normalised score: scores vary a lot between scenes).
   double loop_min_relative_score = 0.3;
+  // A place registered with fewer inliers is not taken as a loop or relocalisation. Odometry
+  // accepts 12 (keyframes a second apart on a bare wall have no more), but a revisit has other
+  // keyframes to close on, and loops on few inliers over repeated texture are the ones that slide
+  // by 10-30 cm (the office's doors and desks share their textures).
+  int loop_min_inliers = 40;
   // Loops closer than this to the last accepted loop (in keyframes) are not searched: one
   // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
   int loop_min_spacing = 3;

@@ -191,7 +191,11 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
 
   // Every accepted loop against ground truth.
   for (const MapperLink& link : mapper.Links()) {
-    if (link.type == MapperLinkType::kOdometry || !link.active) continue;
+    // Priors are the motion model's guesses, not place recognition's claims.
+    if (link.type == MapperLinkType::kOdometry || link.type == MapperLinkType::kPrior ||
+        !link.active) {
+      continue;
+    }
     if (link.from == false_from && link.to == false_to) continue;
     ++run.loops;
     const Eigen::Isometry3d link_truth =

@@ -10,6 +10,7 @@
 #include "core/check.h"
 #include "core/rotation.h"
 #include "sim/simulator.h"
+#include "slam/mapper.h"
 #include "slam/sim_walk_testing.h"
 
 namespace sightmap {
@@ -144,6 +145,40 @@ TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
     registered += tracker.Track(walk.frames[i]).tracking != FrameTracking::kBlind;
   }
   EXPECT_GT(registered, 0);
+}
+
+TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
+  const Walk& walk = HandheldWalk();
+  TrackerOptions options;
+  options.min_reference_points = 0;
+  Tracker tracker(walk.camera, options);
+  MapperOptions mapper_options;
+  mapper_options.vocabulary_training_keyframes = 1000;  // no place recognition: links only
+  Mapper mapper(walk.camera, mapper_options);
+  const auto feed = [&](const RgbdFrame& frame) {
+    for (TrackedKeyframe& keyframe : tracker.Track(frame).keyframes) {
+      const KeyframeReport report =
+          mapper.AddTrackedKeyframe(keyframe.frame.timestamp_ns, std::move(keyframe.features),
+                                    keyframe.depth_small, keyframe.motion);
+      EXPECT_NE(report.state, TrackingState::kLost) << "keyframe " << report.id;
+    }
+  };
+  for (size_t i = 0; i < 30; ++i) {
+    RgbdFrame frame = walk.frames[i];
+    if (i >= 10 && i < 22) {  // the lens covered for 1.2 s
+      frame.color = cv::Mat::zeros(frame.color.size(), CV_8UC3);
+      frame.depth = cv::Mat::zeros(frame.depth.size(), CV_16UC1);
+    }
+    feed(frame);
+  }
+  EXPECT_EQ(mapper.NumSegments(), 1);
+  EXPECT_EQ(mapper.NumPriorLinks(), tracker.counters().prior_keyframes);
+  EXPECT_GT(mapper.NumPriorLinks(), 0);
+  for (const MapperLink& link : mapper.Links()) {
+    if (link.type != MapperLinkType::kPrior) continue;
+    // A prior is looser than any registration the floor allows.
+    EXPECT_LT(link.information(0, 0), 1.0 / (0.02 * 0.02) + 1e-6);
+  }
 }
 
 TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {

@@ -162,6 +162,10 @@ void ExpectRecordingMapsEveryFrame(const std::string& recording, int frames) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const nlohmann::json summary = nlohmann::json::parse(run.out);
   EXPECT_EQ(summary.at("keyframes"), frames);
+  // Every frame tracked, and the recording one connected part.
+  EXPECT_EQ(summary.at("tracked_frames"), frames);
+  EXPECT_EQ(summary.at("segments"), 1);
+  EXPECT_EQ(summary.at("largest_part_ratio"), 1.0);
   EXPECT_EQ(summary.at("dropped_frames"), 0) << "a replay waits for the mapper";
   EXPECT_EQ(summary.at("reason"), "the source ended");
   EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), frames);
@@ -224,6 +228,38 @@ TEST(Map, ASimSummaryAsJsonHasAnAte) {
   EXPECT_EQ(summary.at("segments").get<int64_t>(), Info(dir + "/m.db").at("segments"));
   EXPECT_EQ(summary.at("largest_segment_keyframes").get<int64_t>(),
             Info(dir + "/m.db").at("largest_segment_keyframes"));
+}
+
+TEST(Map, TracksEveryFrameAtTenHertzAndKeepsOneKeyframeASecondInOnePart) {
+  const std::string dir = testing::MakeTempDir("sim-10hz");
+  const CommandResult run =
+      Sightmap("map --source 'sim:office?frames=120&fps=10&seed=11' --model " + dir +
+               "/m.db --headless --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json summary = nlohmann::json::parse(run.out);
+  EXPECT_EQ(summary.at("tracked_frames"), 120);
+  // 12 s: 12 on the 1 Hz clock, and early ones where the overlap ran out (the walk starts
+  // facing a bare wall at arm's length).
+  EXPECT_GE(summary.at("keyframes").get<int>(), 12);
+  EXPECT_LE(summary.at("keyframes").get<int>(), 40);
+  EXPECT_EQ(summary.at("segments"), 1);
+  EXPECT_EQ(summary.at("largest_part_ratio"), 1.0);
+  EXPECT_LT(summary.at("ate_rmse_m").get<double>(), 0.10);
+  EXPECT_LT(summary.at("dense_frames").get<int64_t>() + summary.at("blind_frames").get<int64_t>(),
+            60)
+      << "most frames of an ordinary walk register by features";
+  EXPECT_GT(summary.at("track_median_ms").get<double>(), 0.0);
+  const nlohmann::json info = Info(dir + "/m.db");
+  EXPECT_EQ(info.at("prior_links"), summary.at("prior_links"));
+  EXPECT_EQ(info.at("largest_part_ratio"), 1.0);
+  // --no-tracking maps the 1 Hz keyframes only, as before.
+  const CommandResult untracked =
+      Sightmap("map --source 'sim:office?frames=30&fps=10&seed=11' --no-tracking --model " + dir +
+               "/u.db --headless --json");
+  ASSERT_EQ(untracked.exit_code, 0) << untracked.err;
+  const nlohmann::json plain = nlohmann::json::parse(untracked.out);
+  EXPECT_EQ(plain.at("tracked_frames"), 0);
+  EXPECT_EQ(plain.at("keyframes"), 3);
 }
 
 TEST(Map, WithoutASensorTheDefaultSourceFailsWithOneLine) {
