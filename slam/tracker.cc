@@ -36,6 +36,16 @@ Matrix6 Inverse(const Matrix6& m) {
   return 0.5 * (inverse + inverse.transpose());
 }
 
+// The motion `step` repeated `scale` times (its rotation angle and translation scaled).
+Eigen::Isometry3d Scaled(const Eigen::Isometry3d& step, double scale) {
+  if (scale == 1.0) return step;
+  const Eigen::AngleAxisd turn(step.linear());
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() = Eigen::AngleAxisd(turn.angle() * scale, turn.axis()).toRotationMatrix();
+  scaled.translation() = step.translation() * scale;
+  return scaled;
+}
+
 // The precedence of how a frame was placed along a chain from the reference.
 MotionSource Worse(MotionSource a, MotionSource b) {
   return static_cast<int>(a) > static_cast<int>(b) ? a : b;
@@ -98,6 +108,9 @@ bool TrackerOptions::Check(std::string* error) const {
     return fail("the dense step and prior sigmas must be positive");
   }
   if (!(blind_keyframe_after_s >= 0.0)) return fail("blind_keyframe_after_s must be >= 0");
+  if (!(blind_velocity_decay >= 0.0 && blind_velocity_decay <= 1.0)) {
+    return fail("blind_velocity_decay must be in [0, 1]");
+  }
   if (min_reference_points < 0) return fail("min_reference_points must not be negative");
   return true;
 }
@@ -328,15 +341,12 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   }
   const double dt_s =
       std::max(1e-3, 1e-9 * static_cast<double>(input.timestamp_ns - last_->frame.timestamp_ns));
-  // Constant velocity, scaled to this frame's interval when the stream skipped frames.
-  Eigen::Isometry3d velocity = velocity_;
-  if (velocity_dt_s_ > 0.0 && std::abs(dt_s / velocity_dt_s_ - 1.0) > 0.25) {
-    const double scale = std::min(dt_s / velocity_dt_s_, 3.0);
-    const Eigen::AngleAxisd turn(velocity_.linear());
-    velocity = Eigen::Isometry3d::Identity();
-    velocity.linear() = Eigen::AngleAxisd(turn.angle() * scale, turn.axis()).toRotationMatrix();
-    velocity.translation() = velocity_.translation() * scale;
-  }
+  // Constant velocity, scaled to this frame's interval when the stream skipped frames, and fading
+  // while nothing registers: one bad step extrapolated over a blind second turned the map by
+  // 50 degrees, where standing still is off by the turn the walker really made.
+  double scale = velocity_dt_s_ > 0.0 ? std::min(dt_s / velocity_dt_s_, 3.0) : 1.0;
+  if (last_->source == MotionSource::kPrior) scale *= options_.blind_velocity_decay;
+  const Eigen::Isometry3d velocity = Scaled(velocity_, scale);
   Eigen::Isometry3d predicted = last_->reference_from_cam * velocity;
 
   bool registered = RegisterToReference(frame, predicted, dt_s, &result);
@@ -366,7 +376,11 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
       ++counters_.blind;
       break;
   }
-  velocity_ = last_->reference_from_cam.inverse() * frame.reference_from_cam;
+  if (tracking != FrameTracking::kBlind) {
+    velocity_ = last_->reference_from_cam.inverse() * frame.reference_from_cam;
+  } else {
+    velocity_ = velocity;  // the faded prediction
+  }
   velocity_dt_s_ = dt_s;
 
   // Is this frame a keyframe?

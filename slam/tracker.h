@@ -59,7 +59,9 @@ struct TrackerOptions {
 
   // A registration further than this from the constant-velocity prediction is refused: it matched
   // a repeated texture (a second of walk holds no such jump). Rates times the time since the last
-  // frame the registration placed, plus the slack [m/s], [deg/s], [m], [deg].
+  // frame the registration placed, plus the slack; tighter bounds (0.5 m/s, 20 deg/s) refused
+  // right registrations of a walker's sweeps and tripled the blind frames [m/s], [deg/s], [m],
+  // [deg].
   double max_deviation_mps = 1.0;
   double max_deviation_dps = 60.0;
   double deviation_slack_m = 0.05;
@@ -86,7 +88,10 @@ struct TrackerOptions {
   double prior_sigma_m = 0.02;
   double prior_sigma_mps = 0.3;
   double prior_sigma_rad = 0.02;
-  double prior_sigma_radps = 0.35;
+  double prior_sigma_radps = 0.6;
+  // While frames are blind the predicted velocity fades by this factor a frame: the last
+  // registered step may be the bad one that preceded the blindness.
+  double blind_velocity_decay = 0.8;
   // After this long without any registration a frame becomes a keyframe on the prediction [s].
   double blind_keyframe_after_s = 0.3;
   // Frames with fewer 3D keypoints make poor references: a blind stretch waits for a better one.
