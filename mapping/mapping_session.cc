@@ -397,9 +397,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     if (!tracking.track) return sampler.Accept(frame.timestamp_ns);
     return (frame.index - options_.start_frame) % options_.track_every == 0;
   };
-  TrackStageOptions pass_through = tracking;
-  pass_through.tracker.keyframe_rate_hz = 0.0;  // every frame handed on is a keyframe
-  TrackStage track(camera, tracking.track ? tracking : pass_through, &frames, &keyframes);
+  TrackStage track(camera, tracking, &frames, &keyframes);
   ScopedThread capture([&] {
     try {
       Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);

@@ -49,11 +49,7 @@ void TrackStage::Run() {
       }
       report_.counters = tracker.counters();
     } else {
-      KeyframeSamplerOptions sampling;
-      sampling.rate_hz = options_.tracker.keyframe_rate_hz;
-      KeyframeSampler sampler(sampling);
       while (std::optional<RgbdFrame> frame = frames_->Pop()) {
-        if (!sampler.Accept(frame->timestamp_ns)) continue;
         KeyframeItem item;
         item.keyframe.frame = std::move(*frame);
         if (!keyframes_->Push(std::move(item))) break;

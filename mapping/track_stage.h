@@ -4,8 +4,9 @@
 // dropped), and the capture stage decides whether frames wait for the tracker (replays) or are
 // dropped (a live sensor).
 //
-// Without tracking (a model of ground-truth poses, or tracking switched off) the stage only picks
-// one frame per period, as the paper's 1 Hz capture did; the mapper then computes the features.
+// Without tracking (a model of ground-truth poses, or tracking switched off) the stage hands every
+// frame on as a keyframe: the capture stage picks one per period then, as the paper's 1 Hz capture
+// did, so that a live sensor drops keyframes rather than frames; the mapper computes the features.
 #pragma once
 
 #include <atomic>
@@ -16,7 +17,6 @@
 #include <thread>
 #include <vector>
 
-#include "capture/keyframe_sampler.h"
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 #include "mapping/bounded_queue.h"
@@ -25,9 +25,9 @@
 namespace sightmap::mapping {
 
 struct TrackStageOptions {
-  // Track every frame (true), or only sample keyframes at tracker.keyframe_rate_hz (false).
+  // Track every frame (true), or hand every frame on as a keyframe (false).
   bool track = true;
-  TrackerOptions tracker;  // keyframe_rate_hz is the keyframe rate either way [Hz]
+  TrackerOptions tracker;
 
   bool Check(std::string* error) const;
 };

@@ -42,6 +42,14 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
   return 0.5 * (floored + floored.transpose());
 }
 
+// Features handed in (restored or tracked) must be one consistent set.
+void CheckFeatures(const Features& features, const char* what) {
+  SIGHTMAP_CHECK(features.has_point.size() == features.size() &&
+                     features.points_cam.size() == features.size() &&
+                     features.descriptors.rows == static_cast<int>(features.size()),
+                 what << "'s features are inconsistent");
+}
+
 }  // namespace
 
 bool MapperOptions::Check(std::string* error) const {
@@ -268,10 +276,7 @@ KeyframeReport Mapper::AddTrackedKeyframe(TimestampNs timestamp_ns, Features fea
   SIGHTMAP_CHECK(depth_small.type() == CV_16UC1 && depth_small.size() == small,
                  "a tracked keyframe's depth must be 16-bit [mm] of 1/" << options_.depth_downscale
                                                                         << " the camera's size");
-  SIGHTMAP_CHECK(features.has_point.size() == features.size() &&
-                     features.points_cam.size() == features.size() &&
-                     features.descriptors.rows == static_cast<int>(features.size()),
-                 "a tracked keyframe's features are inconsistent");
+  CheckFeatures(features, "a tracked keyframe");
   KeyframeReport report;
   Keyframe keyframe;
   keyframe.id = static_cast<int64_t>(keyframes_.size());
@@ -404,10 +409,7 @@ int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
                       (depth_mm.cols == camera_.width && depth_mm.rows == camera_.height)),
                  "a restored keyframe's depth must be 16-bit [mm] of the camera's size or 1/"
                      << options_.depth_downscale << " of it");
-  SIGHTMAP_CHECK(features.has_point.size() == features.size() &&
-                     features.points_cam.size() == features.size() &&
-                     features.descriptors.rows == static_cast<int>(features.size()),
-                 "a restored keyframe's features are inconsistent");
+  CheckFeatures(features, "a restored keyframe");
   Keyframe keyframe;
   keyframe.id = static_cast<int64_t>(keyframes_.size());
   keyframe.timestamp_ns = timestamp_ns;

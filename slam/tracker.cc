@@ -326,6 +326,70 @@ void Tracker::Emit(Placed& frame, bool early, TrackResult* result) {
   reference_best_inliers_ = 0;
 }
 
+FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
+  // Constant velocity, scaled to this frame's interval when the stream skipped frames, and fading
+  // while nothing registers: one bad step extrapolated over a blind second turned the map by
+  // 50 degrees, where standing still is off by the turn the walker really made.
+  double scale = velocity_dt_s_ > 0.0 ? std::min(dt_s / velocity_dt_s_, 3.0) : 1.0;
+  if (last_->source == MotionSource::kPrior) scale *= options_.blind_velocity_decay;
+  const Eigen::Isometry3d velocity = Scaled(velocity_, scale);
+  Eigen::Isometry3d predicted = last_->reference_from_cam * velocity;
+
+  bool registered = RegisterToReference(frame, predicted, dt_s, result);
+  if (!registered && last_->frame.index != reference_->frame.index &&
+      last_->source == MotionSource::kRegistered) {
+    // The overlap with the reference is lost, but the last frame still had it: it becomes the
+    // keyframe this frame registers to.
+    Emit(*last_, true, result);
+    predicted = velocity;
+    registered = RegisterToReference(frame, predicted, dt_s, result);
+  }
+  FrameTracking tracking = FrameTracking::kRegistered;
+  if (!registered) {
+    const bool dense = options_.dense_fallback && RegisterDensely(frame, predicted, dt_s, result);
+    tracking = dense ? FrameTracking::kDense : FrameTracking::kBlind;
+    if (!dense) PlaceBlind(frame, predicted, dt_s);
+  }
+  result->tracking = tracking;
+  switch (tracking) {
+    case FrameTracking::kRegistered:
+      ++counters_.registered;
+      break;
+    case FrameTracking::kDense:
+      ++counters_.dense;
+      break;
+    case FrameTracking::kBlind:
+      ++counters_.blind;
+      break;
+  }
+  // A blind frame keeps the faded prediction as the velocity.
+  velocity_ = tracking == FrameTracking::kBlind
+                  ? velocity
+                  : last_->reference_from_cam.inverse() * frame.reference_from_cam;
+  velocity_dt_s_ = dt_s;
+  return tracking;
+}
+
+bool Tracker::WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) const {
+  const double since_keyframe_s =
+      1e-9 * static_cast<double>(frame.frame.timestamp_ns - reference_->frame.timestamp_ns);
+  const bool may_add_early = since_keyframe_s >= options_.min_keyframe_interval_s;
+  const bool good_reference = frame.points >= options_.min_reference_points;
+  switch (tracking) {
+    case FrameTracking::kRegistered:
+      return (frame.inliers < options_.min_reference_inlier_ratio * reference_best_inliers_ ||
+              frame.points > options_.richer_reference_ratio * reference_->points) &&
+             may_add_early;
+    case FrameTracking::kDense:
+      // Features may register to a frame the dense chain reached where not to the reference, but
+      // a dense chain along a bare wall gains nothing from a keyframe every frame.
+      return good_reference && since_keyframe_s >= options_.blind_keyframe_after_s;
+    case FrameTracking::kBlind:
+      return frame.blind_s >= options_.blind_keyframe_after_s && good_reference && may_add_early;
+  }
+  return false;
+}
+
 TrackResult Tracker::Track(const RgbdFrame& input) {
   const Clock::time_point start = Clock::now();
   TrackResult result;
@@ -341,69 +405,8 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   }
   const double dt_s =
       std::max(1e-3, 1e-9 * static_cast<double>(input.timestamp_ns - last_->frame.timestamp_ns));
-  // Constant velocity, scaled to this frame's interval when the stream skipped frames, and fading
-  // while nothing registers: one bad step extrapolated over a blind second turned the map by
-  // 50 degrees, where standing still is off by the turn the walker really made.
-  double scale = velocity_dt_s_ > 0.0 ? std::min(dt_s / velocity_dt_s_, 3.0) : 1.0;
-  if (last_->source == MotionSource::kPrior) scale *= options_.blind_velocity_decay;
-  const Eigen::Isometry3d velocity = Scaled(velocity_, scale);
-  Eigen::Isometry3d predicted = last_->reference_from_cam * velocity;
-
-  bool registered = RegisterToReference(frame, predicted, dt_s, &result);
-  if (!registered && last_->frame.index != reference_->frame.index &&
-      last_->source == MotionSource::kRegistered) {
-    // The overlap with the reference is lost, but the last frame still had it: it becomes the
-    // keyframe this frame registers to.
-    Emit(*last_, true, &result);
-    predicted = velocity;
-    registered = RegisterToReference(frame, predicted, dt_s, &result);
-  }
-  FrameTracking tracking = FrameTracking::kRegistered;
-  if (!registered) {
-    const bool dense = options_.dense_fallback && RegisterDensely(frame, predicted, dt_s, &result);
-    tracking = dense ? FrameTracking::kDense : FrameTracking::kBlind;
-    if (!dense) PlaceBlind(frame, predicted, dt_s);
-  }
-  result.tracking = tracking;
-  switch (tracking) {
-    case FrameTracking::kRegistered:
-      ++counters_.registered;
-      break;
-    case FrameTracking::kDense:
-      ++counters_.dense;
-      break;
-    case FrameTracking::kBlind:
-      ++counters_.blind;
-      break;
-  }
-  if (tracking != FrameTracking::kBlind) {
-    velocity_ = last_->reference_from_cam.inverse() * frame.reference_from_cam;
-  } else {
-    velocity_ = velocity;  // the faded prediction
-  }
-  velocity_dt_s_ = dt_s;
-
-  // Is this frame a keyframe?
-  const double since_keyframe_s =
-      1e-9 * static_cast<double>(input.timestamp_ns - reference_->frame.timestamp_ns);
-  const bool may_add_early = since_keyframe_s >= options_.min_keyframe_interval_s;
-  const bool good_reference = frame.points >= options_.min_reference_points;
-  bool early = false;
-  switch (tracking) {
-    case FrameTracking::kRegistered:
-      early = (frame.inliers < options_.min_reference_inlier_ratio * reference_best_inliers_ ||
-               frame.points > options_.richer_reference_ratio * reference_->points) &&
-              may_add_early;
-      break;
-    case FrameTracking::kDense:
-      // Features may register to a frame the dense chain reached where not to the reference, but
-      // a dense chain along a bare wall gains nothing from a keyframe every frame.
-      early = good_reference && since_keyframe_s >= options_.blind_keyframe_after_s;
-      break;
-    case FrameTracking::kBlind:
-      early = frame.blind_s >= options_.blind_keyframe_after_s && good_reference && may_add_early;
-      break;
-  }
+  const FrameTracking tracking = Place(frame, dt_s, &result);
+  const bool early = WantsEarlyKeyframe(frame, tracking);
   if (tick || early) Emit(frame, !tick, &result);
   result.reference_index = reference_->frame.index;
   result.reference_from_cam = frame.reference_from_cam;

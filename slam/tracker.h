@@ -180,6 +180,11 @@ class Tracker {
   bool RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                        TrackResult* result);
   void PlaceBlind(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s) const;
+  // Places `frame` relative to the reference: features, then the last frame as a new keyframe,
+  // then dense odometry, then the motion model. Updates the velocity and the counters.
+  FrameTracking Place(Placed& frame, double dt_s, TrackResult* result);
+  // Whether `frame`, placed by `tracking`, should become a keyframe off the rate's clock.
+  bool WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) const;
   // Emits `frame` as a keyframe and makes it the reference.
   void Emit(Placed& frame, bool early, TrackResult* result);
 
