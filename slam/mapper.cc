@@ -63,6 +63,9 @@ bool MapperOptions::Check(std::string* error) const {
   }
   if (odometry_window < 1) return fail("odometry_window must be at least 1");
   if (extra_odometry_links < 0) return fail("extra_odometry_links must not be negative");
+  if (!(extra_link_max_disagreement_m > 0.0) || !(extra_link_max_disagreement_deg > 0.0)) {
+    return fail("extra_link_max_disagreement_m and _deg must be positive");
+  }
   if (depth_downscale < 1) return fail("depth_downscale must be at least 1");
   if (vocabulary_training_keyframes < 1) {
     return fail("vocabulary_training_keyframes must be at least 1");
@@ -126,6 +129,13 @@ int Mapper::NumLoopClosures() const {
   return static_cast<int>(std::count_if(links_.begin(), links_.end(), [](const MapperLink& link) {
     return link.active && link.type == MapperLinkType::kLoopClosure;
   }));
+}
+
+bool Mapper::AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
+                                     const Eigen::Isometry3d& tracked) const {
+  const Eigen::Isometry3d disagreement = tracked.inverse() * registered;
+  return disagreement.translation().norm() <= options_.extra_link_max_disagreement_m &&
+         RotationAngleDeg(disagreement) <= options_.extra_link_max_disagreement_deg;
 }
 
 int Mapper::NumPriorLinks() const {
@@ -332,6 +342,12 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeRep
         if (report->odometry_failure.empty()) {
           report->odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
         }
+        continue;
+      }
+      if (motion && motion->source != MotionSource::kPrior &&
+          !AgreesWithTrackedMotion(graph_.Pose(target.id) * result.target_from_source, predicted)) {
+        // An extra link is odometry and never switched off: one 40 degrees off (a repeated texture
+        // registered across a second) bent a whole walk once the next loop was optimised.
         continue;
       }
       MapperLink link;

@@ -46,6 +46,11 @@ struct MapperOptions {
   // Besides the first successful odometry link, register to this many more keyframes of the window
   // for extra edges: a graph with a few short links per keyframe drifts less than a chain.
   int extra_odometry_links = 1;
+  // A tracked keyframe's extra link (registered to an older keyframe) must place it within this
+  // of where the tracked motion does, or it is dropped: tracked motions err by centimetres, and
+  // odometry links are never switched off [m], [deg].
+  double extra_link_max_disagreement_m = 0.15;
+  double extra_link_max_disagreement_deg = 5.0;
   // Depth kept per keyframe for the dense verification, as 1/N of the image size (nearest
   // sample, so depth edges stay sharp): 160x120 at N = 4 is 38 KB a keyframe.
   int depth_downscale = 4;
@@ -225,6 +230,9 @@ class Mapper {
   // last when `motion` already links it to the last) and inserts it with its links; then place
   // recognition. The shared body of AddKeyframe and AddTrackedKeyframe.
   void Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report);
+  // Whether a registration's pose for a new keyframe agrees with the one its tracked motion gives.
+  bool AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
+                               const Eigen::Isometry3d& tracked) const;
   Keyframe& Get(int64_t id);
   const Keyframe& Get(int64_t id) const;
   int Root(int segment) const;
