@@ -210,7 +210,16 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   }
 
   std::unique_ptr<MapViewFeed> view;
-  if (options_.show_view) view = MapViewFeed::Create(options_.view, notices);
+  if (options_.show_view) {
+    MapViewFeedOptions view_options = options_.view;
+    // A map anchored to the source's ground truth is in the scene's frame, whose up is +z (the
+    // simulator's building, TUM's motion capture), not the first camera's -y: the floor plan was
+    // a side view of the building.
+    if (options_.anchor_to_ground_truth && meta.has_ground_truth) {
+      view_options.world_up = Eigen::Vector3d::UnitZ();
+    }
+    view = MapViewFeed::Create(view_options, notices);
+  }
 
   Model model = Model::Open(options_.model_path, options_.model);
   // Owned apart so that its memory (features, depth and the graph of every keyframe) is freed
