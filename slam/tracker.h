@@ -5,9 +5,9 @@
 // 33-100 ms apart almost always overlap where frames a second apart often do not. Per frame:
 //  1. Features, registered to the reference (the newest keyframe) with the constant-velocity
 //     prediction as the guided-matching prior.
-//  2. When that fails, the last frame that was placed becomes a keyframe (it still overlapped the
-//     reference) and the frame is registered to it instead: keyframes are inserted where the
-//     overlap is about to be lost, not only on the 1 Hz clock.
+//  2. When that fails and the last frame was registered by features, that frame becomes a
+//     keyframe (it still overlapped the reference) and this one is registered to it instead:
+//     keyframes are inserted where the overlap runs out, not only on the 1 Hz clock.
 //  3. When features fail too (a bare wall, a door frame), dense RGB-D odometry between this frame
 //     and the previous one (OpenCV's RgbdICPOdometry: point-to-plane ICP and photometric error),
 //     started from the prediction and refused when it strays far from it.
