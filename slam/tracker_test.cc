@@ -31,6 +31,14 @@ const Walk& HandheldWalk() {
   return *walk;
 }
 
+// The frame as a sensor with its lens covered gives it: black colour, no depth.
+RgbdFrame CoveredLens(const RgbdFrame& frame) {
+  RgbdFrame covered = frame;
+  covered.color = cv::Mat::zeros(frame.color.size(), CV_8UC3);
+  covered.depth = cv::Mat::zeros(frame.depth.size(), CV_16UC1);
+  return covered;
+}
+
 // Chains the emitted keyframes' motions into poses in the first keyframe's frame.
 struct Chain {
   std::vector<Eigen::Isometry3d> poses;  // first_from_keyframe
@@ -107,10 +115,7 @@ TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
   std::vector<KeyframeMotion> priors;
   int last_seen_emitted = 0;
   for (size_t i = 10; i < 22; ++i) {
-    RgbdFrame blind = walk.frames[i];
-    blind.color = cv::Mat::zeros(blind.color.size(), CV_8UC3);
-    blind.depth = cv::Mat::zeros(blind.depth.size(), CV_16UC1);
-    const TrackResult result = tracker.Track(blind);
+    const TrackResult result = tracker.Track(CoveredLens(walk.frames[i]));
     EXPECT_EQ(result.tracking, FrameTracking::kBlind) << "frame " << i;
     for (const TrackedKeyframe& keyframe : result.keyframes) {
       ASSERT_TRUE(keyframe.motion);
@@ -164,12 +169,8 @@ TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
     }
   };
   for (size_t i = 0; i < 30; ++i) {
-    RgbdFrame frame = walk.frames[i];
-    if (i >= 10 && i < 22) {  // the lens covered for 1.2 s
-      frame.color = cv::Mat::zeros(frame.color.size(), CV_8UC3);
-      frame.depth = cv::Mat::zeros(frame.depth.size(), CV_16UC1);
-    }
-    feed(frame);
+    // The lens covered for 1.2 s.
+    feed(i >= 10 && i < 22 ? CoveredLens(walk.frames[i]) : walk.frames[i]);
   }
   EXPECT_EQ(mapper.NumSegments(), 1);
   EXPECT_EQ(mapper.NumPriorLinks(), tracker.counters().prior_keyframes);
