@@ -32,6 +32,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "core/statistics.h"  // Percentile, used with the evaluation
 #include "identify/locator.h"
 
 namespace sightmap {
@@ -112,9 +113,6 @@ struct IdentifyEvaluation {
 IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
                                           const std::vector<PhotoAnswer>& answers,
                                           const IdentifyEvalOptions& options = {});
-
-// The linear-interpolation percentile (q in [0, 1]) of `values`; 0 when empty.
-double Percentile(std::vector<double> values, double q);
 
 // Stable keys: photos, matched_photos, matched_ratio, recall_ge_0_8_ratio, precision_ge_0_8_ratio,
 // occluded_false_positive_ratio, locate_median_ms, locate_p95_ms, categories

@@ -2,9 +2,7 @@
 
 #include <sys/resource.h>
 
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <exception>
 #include <map>
 #include <mutex>
@@ -16,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/statistics.h"
 #include "mapping/bounded_queue.h"
 #include "mapping/feature_conversion.h"
 #include "slam/trajectory_eval.h"
@@ -34,15 +33,6 @@ TimestampNs WallClockNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
-}
-
-// The p-th quantile (0..1) by nearest rank; 0 for no values.
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  const auto rank = static_cast<size_t>(std::lround(p * static_cast<double>(values.size() - 1)));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(rank),
-                   values.end());
-  return values[rank];
 }
 
 double PeakRssMiB() {
@@ -171,7 +161,7 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "track_every must be >= 1";
     return false;
   }
-  if (frame_queue_capacity < 1 || write_queue_capacity < 1) {
+  if (frame_queue_capacity < 1 || keyframe_queue_capacity < 1 || write_queue_capacity < 1) {
     *error = "queue capacities must be >= 1";
     return false;
   }
@@ -311,7 +301,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
 
   // Shared between the stages.
   BoundedQueue<RgbdFrame> frames(static_cast<size_t>(options_.frame_queue_capacity));
-  BoundedQueue<KeyframeItem> keyframes(2);
+  BoundedQueue<KeyframeItem> keyframes(static_cast<size_t>(options_.keyframe_queue_capacity));
   BoundedQueue<WriteTask> writes(static_cast<size_t>(options_.write_queue_capacity));
   std::atomic<bool> capture_stop{false};
   std::atomic<int64_t> frames_read{0};
