@@ -64,6 +64,8 @@ struct MappingOptions {
   bool ground_truth_poses = false;
   // Frames between capture and SLAM: small, a queued frame only adds latency [keyframes].
   int frame_queue_capacity = 2;
+  // Keyframes between tracking and SLAM: small, the tracker waits while they are full [keyframes].
+  int keyframe_queue_capacity = 2;
   // Keyframes and pose updates between SLAM and the writer [items].
   int write_queue_capacity = 8;
 

@@ -159,6 +159,12 @@ TEST(MappingSession, BadOptionsAreRefused) {
   options.model_path = "x.db";
   options.frame_queue_capacity = 0;
   EXPECT_THROW(MappingSession{options}, InvalidArgument);
+  options.frame_queue_capacity = 2;
+  options.keyframe_queue_capacity = 0;
+  EXPECT_THROW(MappingSession{options}, InvalidArgument);
+  options.keyframe_queue_capacity = 2;
+  options.track_every = 0;
+  EXPECT_THROW(MappingSession{options}, InvalidArgument);
 }
 
 }  // namespace

@@ -159,15 +159,6 @@ Tracker::Tracker(const Intrinsics& camera, const TrackerOptions& options)
 
 Tracker::~Tracker() = default;
 
-void Tracker::Reset() {
-  reference_.reset();
-  last_.reset();
-  last_dense_.reset();
-  velocity_ = Eigen::Isometry3d::Identity();
-  velocity_dt_s_ = 0.0;
-  rate_ = KeyframeSampler(RateOf(options_));
-}
-
 Tracker::Placed Tracker::Prepare(const RgbdFrame& frame, TrackResult* result) const {
   if (frame.color.type() != CV_8UC3 || frame.color.cols != camera_.width ||
       frame.color.rows != camera_.height) {

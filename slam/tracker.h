@@ -164,8 +164,6 @@ class Tracker {
   // Places one frame (colour BGR 8-bit and depth 16-bit mm of the camera's size). Throws
   // InvalidArgument for images that do not fit the camera.
   TrackResult Track(const RgbdFrame& frame);
-  // The next frame starts afresh, as a keyframe without motion (a jump the caller knows of).
-  void Reset();
 
   const TrackerCounters& counters() const { return counters_; }
 
