@@ -244,16 +244,17 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     std::map<int64_t, int64_t> mapper_id_of;  // store id -> mapper id
     for (const KeyframeInfo& info : stored) {
       const cv::Mat depth = model.LoadDepth(info.id);
+      const cv::Mat color = model.LoadColor(info.id);
       const int64_t id =
           mapper.RestoreKeyframe(info.timestamp_ns, FromStoreFeatures(model.LoadFeatures(info.id)),
-                                 depth, info.world_from_cam);
+                                 depth, info.world_from_cam, color);
       SIGHTMAP_CHECK(id == static_cast<int64_t>(store_ids.size()),
                      "the mapper restored keyframe " << info.id.value() << " as " << id);
       store_ids.push_back(info.id);
       mapper_id_of[info.id.value()] = id;
       if (view) {
-        view->AddKeyframe(id, static_cast<int>(info.session.value()), info.world_from_cam,
-                          model.LoadColor(info.id), depth, info.intrinsics);
+        view->AddKeyframe(id, static_cast<int>(info.session.value()), info.world_from_cam, color,
+                          depth, info.intrinsics);
       }
     }
     for (const LinkRecord& record : model.Links()) {
@@ -488,8 +489,8 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
         report = mapper.AddKeyframeAtPose(frame.timestamp_ns, frame.color, frame.depth,
                                           *frame.world_from_cam_gt);
       } else if (item.tracked) {
-        report = mapper.AddTrackedKeyframe(frame.timestamp_ns, std::move(item.keyframe.features),
-                                           item.keyframe.depth_small, item.keyframe.motion);
+        // A copy: the images are shared, and `frame` is written to the model below.
+        report = mapper.AddTrackedKeyframe(item.keyframe);
       } else {
         report = mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
       }

@@ -28,10 +28,10 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
 
 // Adds the floor to the covariance of a registration's information matrix.
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
-                                               const MapperOptions& options) {
+                                               double min_sigma_m, double min_sigma_rad) {
   Eigen::Matrix<double, 6, 1> floor;
-  floor.head<3>().setConstant(options.link_min_sigma_m * options.link_min_sigma_m);
-  floor.tail<3>().setConstant(options.link_min_sigma_rad * options.link_min_sigma_rad);
+  floor.head<3>().setConstant(min_sigma_m * min_sigma_m);
+  floor.tail<3>().setConstant(min_sigma_rad * min_sigma_rad);
   // A singular information (degenerate geometry) is lifted by a tiny ridge before inverting: the
   // floor then dominates those directions.
   const Eigen::Matrix<double, 6, 6> lifted =
@@ -40,6 +40,11 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
   covariance += floor.asDiagonal();
   Eigen::Matrix<double, 6, 6> floored = covariance.inverse();
   return 0.5 * (floored + floored.transpose());
+}
+
+Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
+                                               const MapperOptions& options) {
+  return FlooredInformation(information, options.link_min_sigma_m, options.link_min_sigma_rad);
 }
 
 // Features handed in (restored or tracked) must be one consistent set.
@@ -87,6 +92,13 @@ bool MapperOptions::Check(std::string* error) const {
   if (!(link_min_sigma_m > 0.0) || !(link_min_sigma_rad > 0.0)) {
     return fail("link_min_sigma_m and link_min_sigma_rad must be positive");
   }
+  if (!dense.Check(error)) return false;
+  if (!(dense_max_correction_m > 0.0) || !(dense_max_correction_deg > 0.0)) {
+    return fail("dense_max_correction_m and dense_max_correction_deg must be positive");
+  }
+  if (!(dense_link_min_sigma_m > 0.0) || !(dense_link_min_sigma_rad > 0.0)) {
+    return fail("dense_link_min_sigma_m and dense_link_min_sigma_rad must be positive");
+  }
   return true;
 }
 
@@ -98,6 +110,11 @@ Mapper::Mapper(const Intrinsics& camera, const MapperOptions& options)
                      camera_.height % options_.depth_downscale == 0,
                  "depth_downscale " << options_.depth_downscale << " does not divide the "
                                     << camera_.width << "x" << camera_.height << " image");
+  SIGHTMAP_CHECK(camera_.width % options_.dense.downscale == 0 &&
+                     camera_.height % options_.dense.downscale == 0,
+                 "the dense downscale " << options_.dense.downscale << " does not divide the "
+                                        << camera_.width << "x" << camera_.height << " image");
+  if (options_.dense_refinement) aligner_ = std::make_unique<DenseAligner>(camera_, options_.dense);
 }
 
 Mapper::~Mapper() = default;
@@ -171,13 +188,42 @@ int Mapper::SegmentOf(int64_t id) const { return Root(Get(id).segment); }
 const Features& Mapper::FeaturesOf(int64_t id) const { return Get(id).features; }
 
 RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& target,
-                                    MapperStageTimes* times,
-                                    const Eigen::Isometry3d* target_from_source_prior) const {
+                                    MapperStageTimes* times, const Eigen::Isometry3d* prior,
+                                    bool require_dense) const {
   RegistrationResult result =
       RegisterRgbd(source.features, target.features, source.depth_small, target.depth_small,
-                   camera_, options_.registration, target_from_source_prior);
+                   camera_, options_.registration, prior);
   AddRegistrationTimes(result.times, times);
+  if (!result.success) return result;
+  result.information = FlooredInformation(result.information, options_);
+  const bool refined =
+      RefineDensely(source, target, &result.target_from_source, &result.information, times);
+  if (require_dense && !refined && !source.dense.empty() && !target.dense.empty()) {
+    result.success = false;
+    result.failure = "dense alignment does not confirm the features' pose";
+  }
   return result;
+}
+
+bool Mapper::RefineDensely(const Keyframe& source, const Keyframe& target,
+                           Eigen::Isometry3d* target_from_source,
+                           Eigen::Matrix<double, 6, 6>* information,
+                           MapperStageTimes* times) const {
+  if (!aligner_ || source.dense.empty() || target.dense.empty()) return false;
+  const Clock::time_point start = Clock::now();
+  const DenseAlignment aligned = aligner_->Align(source.dense, target.dense, *target_from_source);
+  times->dense_s += SecondsSince(start);
+  if (!aligned.success) return false;
+  const Eigen::Isometry3d correction = target_from_source->inverse() * aligned.target_from_source;
+  if (correction.translation().norm() > options_.dense_max_correction_m ||
+      RotationAngleDeg(correction) > options_.dense_max_correction_deg) {
+    return false;
+  }
+  *target_from_source = aligned.target_from_source;
+  *information = FlooredInformation(aligned.information, options_.dense_link_min_sigma_m,
+                                    options_.dense_link_min_sigma_rad);
+  ++times->dense_refined;
+  return true;
 }
 
 void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
@@ -219,6 +265,9 @@ Mapper::Keyframe Mapper::MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& c
       depth_mm, keyframe.depth_small,
       cv::Size(camera_.width / options_.depth_downscale, camera_.height / options_.depth_downscale),
       0.0, 0.0, cv::INTER_NEAREST);
+  if (options_.dense_refinement) {
+    keyframe.dense = MakeDenseImage(color, depth_mm, camera_, options_.dense);
+  }
   report->times.features_s = SecondsSince(stage);
   report->id = keyframe.id;
   report->features = static_cast<int>(keyframe.features.size());
@@ -231,6 +280,7 @@ KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat
   const Clock::time_point start = Clock::now();
   KeyframeReport report;
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
+  keyframe.dense = DenseImage();  // a known pose needs no refinement
   const Eigen::Isometry3d pose = Orthonormalised(world_from_cam);
   std::optional<MapperLink> link;
   if (keyframes_.empty()) {
@@ -277,32 +327,53 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   return report;
 }
 
-KeyframeReport Mapper::AddTrackedKeyframe(TimestampNs timestamp_ns, Features features,
-                                          const cv::Mat& depth_small,
-                                          const std::optional<KeyframeMotion>& motion) {
+KeyframeReport Mapper::AddTrackedKeyframe(TrackedKeyframe tracked) {
   const Clock::time_point start = Clock::now();
   const cv::Size small(camera_.width / options_.depth_downscale,
                        camera_.height / options_.depth_downscale);
-  SIGHTMAP_CHECK(depth_small.type() == CV_16UC1 && depth_small.size() == small,
+  SIGHTMAP_CHECK(tracked.depth_small.type() == CV_16UC1 && tracked.depth_small.size() == small,
                  "a tracked keyframe's depth must be 16-bit [mm] of 1/" << options_.depth_downscale
                                                                         << " the camera's size");
-  CheckFeatures(features, "a tracked keyframe");
+  CheckFeatures(tracked.features, "a tracked keyframe");
   KeyframeReport report;
   Keyframe keyframe;
   keyframe.id = static_cast<int64_t>(keyframes_.size());
-  keyframe.timestamp_ns = timestamp_ns;
+  keyframe.timestamp_ns = tracked.frame.timestamp_ns;
   keyframe.walk = walk_;
-  keyframe.features = std::move(features);
-  keyframe.depth_small = depth_small;
+  keyframe.features = std::move(tracked.features);
+  keyframe.depth_small = tracked.depth_small;
+  if (options_.dense_refinement) {
+    const Clock::time_point stage = Clock::now();
+    keyframe.dense =
+        MakeDenseImage(tracked.frame.color, tracked.frame.depth, camera_, options_.dense);
+    report.times.dense_s += SecondsSince(stage);
+  }
   report.id = keyframe.id;
   report.features = static_cast<int>(keyframe.features.size());
+  const std::optional<KeyframeMotion>& motion = tracked.motion;
   const bool continues = motion && !keyframes_.empty() && !start_new_segment_;
   Insert(std::move(keyframe), continues ? &*motion : nullptr, &report);
   report.times.total_s = SecondsSince(start);
   return report;
 }
 
-void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report) {
+void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
+                    KeyframeReport* report) {
+  // The tracker's motion is refined like a registration when features registered it. Motions
+  // chained through dense steps or guessed by the motion model are not: they come from views
+  // without features (a bare wall), where alignment started 12 degrees off converges within 2
+  // degrees of its start (measured on the simulated walk) and would claim millimetres for it.
+  std::optional<KeyframeMotion> refined_motion;
+  bool motion_refined = false;
+  if (tracked_motion) {
+    refined_motion = *tracked_motion;
+    if (tracked_motion->source == MotionSource::kRegistered && !keyframes_.empty()) {
+      motion_refined =
+          RefineDensely(keyframe, keyframes_.back(), &refined_motion->previous_from_cam,
+                        &refined_motion->information, &report->times);
+    }
+  }
+  const KeyframeMotion* motion = refined_motion ? &*refined_motion : nullptr;
   // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
   // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
   // one often registers to the keyframes before it and so continues their segment. A tracked
@@ -336,8 +407,9 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeRep
       }
       // The prediction is in the last keyframe's segment frame: no prior for other segments.
       const Eigen::Isometry3d prior = graph_.Pose(target.id).inverse() * predicted;
-      const RegistrationResult result = Register(keyframe, target, &report->times,
-                                                 target_root == segment_root ? &prior : nullptr);
+      const RegistrationResult result =
+          Register(keyframe, target, &report->times, target_root == segment_root ? &prior : nullptr,
+                   /*require_dense=*/false);
       if (!result.success) {
         if (report->odometry_failure.empty()) {
           report->odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
@@ -354,7 +426,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeRep
       link.from = target.id;
       link.to = keyframe.id;
       link.from_from_to = result.target_from_source;
-      link.information = FlooredInformation(result.information, options_);
+      link.information = result.information;
       link.type = MapperLinkType::kOdometry;
       link.inliers = result.inliers;
       if (odometry.empty() && (!motion || motion->source == MotionSource::kPrior)) {
@@ -368,7 +440,8 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeRep
       link.from = last.id;
       link.to = keyframe.id;
       link.from_from_to = Orthonormalised(motion->previous_from_cam);
-      link.information = FlooredInformation(motion->information, options_);
+      link.information =
+          motion_refined ? motion->information : FlooredInformation(motion->information, options_);
       link.type = motion->source == MotionSource::kPrior ? MapperLinkType::kPrior
                                                          : MapperLinkType::kOdometry;
       link.inliers = motion->inliers;
@@ -417,7 +490,8 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeRep
 }
 
 int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
-                                const cv::Mat& depth_mm, const Eigen::Isometry3d& world_from_cam) {
+                                const cv::Mat& depth_mm, const Eigen::Isometry3d& world_from_cam,
+                                const cv::Mat& color) {
   const cv::Size small(camera_.width / options_.depth_downscale,
                        camera_.height / options_.depth_downscale);
   SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 &&
@@ -434,6 +508,9 @@ int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
     keyframe.depth_small = depth_mm.clone();
   } else {
     cv::resize(depth_mm, keyframe.depth_small, small, 0.0, 0.0, cv::INTER_NEAREST);
+  }
+  if (options_.dense_refinement && !color.empty() && depth_mm.size() == color.size()) {
+    keyframe.dense = MakeDenseImage(color, depth_mm, camera_, options_.dense);
   }
   keyframe.segment = static_cast<int>(segment_parent_.size());
   segment_parent_.push_back(keyframe.segment);
@@ -522,13 +599,14 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
   for (const PlaceCandidate& candidate : candidates) {
     if (candidate.score < options_.loop_min_relative_score * reference_score) break;
     const Keyframe& target = keyframes_[static_cast<size_t>(candidate.id)];
-    const RegistrationResult result = Register(keyframe, target, &report->times);
+    const RegistrationResult result =
+        Register(keyframe, target, &report->times, nullptr, /*require_dense=*/true);
     if (!result.success || result.inliers < options_.loop_min_inliers) continue;
     MapperLink link;
     link.from = target.id;
     link.to = keyframe.id;
     link.from_from_to = result.target_from_source;
-    link.information = FlooredInformation(result.information, options_);
+    link.information = result.information;
     link.inliers = result.inliers;
     const int target_root = Root(target.segment);
     if (target_root != root) {

@@ -27,6 +27,7 @@
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 #include "core/tracking_state.h"
+#include "slam/dense_alignment.h"
 #include "slam/features.h"
 #include "slam/place_index.h"
 #include "slam/pose_graph.h"
@@ -74,7 +75,15 @@ struct MapperOptions {
   // Loops closer than this to the last accepted loop (in keyframes) are not searched: one
   // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
   int loop_min_spacing = 3;
-  PoseGraphOptions pose_graph;
+  // With a Cauchy loss on odometry too: odometry is never switched off, but one link in twenty
+  // comes from a view without features (a bare wall) and errs by centimetres and degrees while its
+  // neighbours, refined densely, claim millimetres. The loss lets the links around it and the loops
+  // outvote it instead of bending the map.
+  PoseGraphOptions pose_graph = [] {
+    PoseGraphOptions options;
+    options.odometry_loss_scale = options.loop_loss_scale;
+    return options;
+  }();
   // Two relocalisations of one segment must agree this well before the segments are joined
   // [m], [rad].
   double join_max_disagreement_m = 0.10;
@@ -94,6 +103,22 @@ struct MapperOptions {
   // links realistically and its chi-square test of loops means something [m], [rad].
   double link_min_sigma_m = 0.01;
   double link_min_sigma_rad = 0.003;
+
+  // Dense refinement (see dense_alignment.h): every link registration finds (odometry, the
+  // tracker's motions, loops and relocalisations) is refined by dense RGB-D alignment from the
+  // features' pose, which costs about 10 ms a link and a 320x240 grey and depth image a keyframe.
+  // A refinement that moves the pose further than these bounds slid along a bare wall: an odometry
+  // link keeps the features' pose, a place (loop or relocalisation) is refused, since a revisit has
+  // other keyframes to close on and the loops refinement cannot confirm are the ones 10-30 cm off
+  // [m], [deg].
+  bool dense_refinement = true;
+  DenseAlignmentOptions dense;
+  double dense_max_correction_m = 0.05;
+  double dense_max_correction_deg = 2.0;
+  // The floor of a refined link's covariance, as link_min_sigma_* for the features' links: refined
+  // links err by about 2 mm against the simulator's ground truth [m], [rad].
+  double dense_link_min_sigma_m = 0.003;
+  double dense_link_min_sigma_rad = 0.001;
 
   bool Check(std::string* error) const;
 };
@@ -119,10 +144,12 @@ struct MapperStageTimes {
   double matching_s = 0.0;
   double ransac_s = 0.0;  // RANSAC and refinement
   double verification_s = 0.0;
+  double dense_s = 0.0;              // dense refinement of registered links
   double place_recognition_s = 0.0;  // bag of words, index query (and training once)
   double optimisation_s = 0.0;
   double total_s = 0.0;
   int registrations = 0;  // pairs registered (odometry and place candidates), what matching costs
+  int dense_refined = 0;  // links whose pose dense alignment refined
 };
 
 struct KeyframeReport {
@@ -151,15 +178,14 @@ class Mapper {
   // both of the camera's size). Throws InvalidArgument for images that do not fit the camera.
   KeyframeReport AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& color,
                              const cv::Mat& depth_mm);
-  // Inserts a keyframe the Tracker emitted (features computed, depth already 1/depth_downscale).
-  // Its motion from the previous keyframe (the last one added) becomes the odometry link, of type
-  // kPrior when the motion model made it, so the keyframe continues the segment of the one before
-  // whatever registration does; registrations to older keyframes of the odometry window add links
-  // as in AddKeyframe. Without a motion (the tracker's first keyframe) it is placed as AddKeyframe
-  // places a keyframe that registers to nothing: a new segment for place recognition to join.
-  KeyframeReport AddTrackedKeyframe(TimestampNs timestamp_ns, Features features,
-                                    const cv::Mat& depth_small,
-                                    const std::optional<KeyframeMotion>& motion);
+  // Inserts a keyframe the Tracker emitted (features computed, depth_small at 1/depth_downscale;
+  // its full-size images give the dense refinement's). Its motion from the previous keyframe (the
+  // last one added) becomes the odometry link, of type kPrior when the motion model made it, so
+  // the keyframe continues the segment of the one before whatever registration does;
+  // registrations to older keyframes of the odometry window add links as in AddKeyframe. Without
+  // a motion (the tracker's first keyframe) it is placed as AddKeyframe places a keyframe that
+  // registers to nothing: a new segment for place recognition to join.
+  KeyframeReport AddTrackedKeyframe(TrackedKeyframe keyframe);
   // Inserts a keyframe whose pose is known (a survey with ground truth): no registration and no
   // loop search, one odometry link to the previous keyframe carrying the known relative pose. It
   // still gets features and is indexed for place recognition, so the model it makes serves photo
@@ -179,9 +205,12 @@ class Mapper {
   // Resuming a stored map (before the new session's first AddKeyframe): each stored keyframe with
   // its features, depth (full size or already 1/depth_downscale) and optimised pose, in id order
   // from 0, then the stored links. Restored keyframes are not registered again; each link joins
-  // the segments of its ends without moving poses. Returns the keyframe's mapper id.
+  // the segments of its ends without moving poses. With its full-size colour (optional) a
+  // restored keyframe's links to the new session are densely refined too. Returns the keyframe's
+  // mapper id.
   int64_t RestoreKeyframe(TimestampNs timestamp_ns, Features features, const cv::Mat& depth_mm,
-                          const Eigen::Isometry3d& world_from_cam);
+                          const Eigen::Isometry3d& world_from_cam,
+                          const cv::Mat& color = cv::Mat());
   void RestoreLink(const MapperLink& link);
   // The next keyframe starts a new segment (a new session, or a jump the caller knows of): it is
   // relocalised against the map through place recognition instead of registered to the last one.
@@ -219,6 +248,7 @@ class Mapper {
     int walk = -1;
     Features features;
     cv::Mat depth_small;  // depth_downscale x smaller, nearest samples
+    DenseImage dense;     // empty when dense refinement is off or the colour is unknown
     bool indexed = false;
     BowVector bow;
   };
@@ -237,9 +267,18 @@ class Mapper {
   const Keyframe& Get(int64_t id) const;
   int Root(int segment) const;
   void AddLink(const MapperLink& link, KeyframeReport* report);
+  // Registers by features and refines densely; the result's information is floored for the pose
+  // graph (link_min_sigma_*, or dense_link_min_sigma_* when refined). With `require_dense` a
+  // registration dense alignment cannot confirm fails (when both keyframes have dense images).
   RegistrationResult Register(const Keyframe& source, const Keyframe& target,
-                              MapperStageTimes* times,
-                              const Eigen::Isometry3d* target_from_source_prior = nullptr) const;
+                              MapperStageTimes* times, const Eigen::Isometry3d* prior,
+                              bool require_dense) const;
+  // Refines `target_from_source` and replaces `information` (floored) by dense alignment from
+  // it; false, leaving both as they were, when either keyframe has no dense image or the
+  // alignment failed or moved the pose beyond dense_max_correction_*.
+  bool RefineDensely(const Keyframe& source, const Keyframe& target,
+                     Eigen::Isometry3d* target_from_source,
+                     Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times) const;
   void TrainVocabulary(MapperStageTimes* times);
   void IndexKeyframe(Keyframe& keyframe);
   // Looks up `keyframe` for loop closures (same segment) or relocalisation (other segments);
@@ -259,6 +298,7 @@ class Mapper {
   std::vector<Keyframe> keyframes_;  // id = index
   std::vector<MapperLink> links_;    // links_[i] is the pose graph's edge i
   PoseGraph graph_;
+  std::unique_ptr<DenseAligner> aligner_;  // null when dense refinement is off
   std::shared_ptr<const Vocabulary> vocabulary_;
   PlaceIndex index_;
   std::vector<int> segment_parent_;  // union-find over segments

@@ -9,6 +9,7 @@
 
 #include "core/check.h"
 #include "core/rotation.h"
+#include "core/statistics.h"
 #include "sim/simulator.h"
 #include "slam/sim_walk_testing.h"
 #include "slam/trajectory_eval.h"
@@ -67,6 +68,35 @@ TEST(Mapper, TracksTheHandheldWalkWithCentimetreAccuracy) {
     EXPECT_LT(off.translation().norm(), 0.10) << link.from << " -> " << link.to;
     EXPECT_LT(RotationAngleDeg(off), 3.0) << link.from << " -> " << link.to;
   }
+}
+
+// The median translation error of the mapper's odometry links against the ground truth [m].
+double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
+  Mapper mapper(walk.camera, options);
+  for (const RgbdFrame& frame : walk.frames) {
+    mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+  }
+  std::vector<double> errors;
+  for (const MapperLink& link : mapper.Links()) {
+    if (link.type != MapperLinkType::kOdometry) continue;
+    const Eigen::Isometry3d truth =
+        walk.frames[static_cast<size_t>(link.from)].world_from_cam_gt->inverse() *
+        *walk.frames[static_cast<size_t>(link.to)].world_from_cam_gt;
+    errors.push_back((truth.inverse() * link.from_from_to).translation().norm());
+  }
+  return Percentile(errors, 0.5);
+}
+
+TEST(Mapper, DenseRefinementMakesTheOdometryLinksMillimetreAccurate) {
+  const Walk& walk = HandheldWalk();
+  MapperOptions features_only = SmallVocabulary();
+  features_only.dense_refinement = false;
+  const double features_m = MedianOdometryLinkError(walk, features_only);
+  const double refined_m = MedianOdometryLinkError(walk, SmallVocabulary());
+  std::printf("median odometry link error: features %.4f m, refined %.4f m\n", features_m,
+              refined_m);
+  EXPECT_LT(refined_m, 0.004);
+  EXPECT_LT(refined_m, 0.6 * features_m);
 }
 
 TEST(Mapper, RelocalisesAfterAJumpAndJoinsTheSegments) {

@@ -150,6 +150,9 @@ bool PoseGraphOptions::Check(std::string* error) const {
   if (max_iterations <= 0) return fail("max_iterations must be positive");
   if (!(max_solver_time_s > 0.0)) return fail("max_solver_time_s must be positive");
   if (num_threads <= 0) return fail("num_threads must be positive");
+  if (!(odometry_loss_scale >= 0.0) || !std::isfinite(odometry_loss_scale)) {
+    return fail("odometry_loss_scale must be finite and not negative (0: no robust loss)");
+  }
   if (!(loop_loss_scale > 0.0) || !std::isfinite(loop_loss_scale)) {
     return fail("loop_loss_scale must be positive and finite");
   }
@@ -293,6 +296,10 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
 
   ceres::EigenQuaternionManifold quaternion_manifold;
   ceres::CauchyLoss loop_loss(options.loop_loss_scale);
+  ceres::CauchyLoss odometry_loss(options.odometry_loss_scale > 0.0 ? options.odometry_loss_scale
+                                                                    : 1.0);
+  ceres::LossFunction* const odometry_loss_or_none =
+      options.odometry_loss_scale > 0.0 ? &odometry_loss : nullptr;
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -310,9 +317,10 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
     for (size_t e = 0; e < edges_.size(); ++e) {
       if (!active_[e] || !selected[e]) continue;
       const auto [a, b] = ends[e];
-      problem.AddResidualBlock(EdgeCost::Create(edges_[e].from_from_to, sqrt_information[e]),
-                               edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : nullptr,
-                               parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
+      problem.AddResidualBlock(
+          EdgeCost::Create(edges_[e].from_from_to, sqrt_information[e]),
+          edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : odometry_loss_or_none,
+          parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
       in_problem[a] = in_problem[b] = true;
       // An edge without information does not tie its poses together.
       if (!edges_[e].information.isZero()) components.Join(a, b);

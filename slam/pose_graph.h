@@ -46,6 +46,9 @@ struct PoseGraphOptions {
   // switched off by the test below (4.74 = sqrt(22.46), the default max_loop_chi2). A correct
   // loop still closes from far away (one lap of 40 noisy steps: chi-square 2967 at the start).
   double loop_loss_scale = 4.74;
+  // The same for odometry edges; 0 (the default) gives them a plain squared loss. See
+  // MapperOptions::pose_graph for why the mapper uses one.
+  double odometry_loss_scale = 0.0;
 
   // After a solve, an active loop edge whose chi-square r^T W r exceeds this is inconsistent
   // with the rest of the graph. 22.46 is the 99.9% quantile of the chi-square distribution with

@@ -125,8 +125,7 @@ KeyframeFeed TrackedFrames(sim::Simulator& simulator, const TrackerOptions& opti
     TrackedKeyframe keyframe = std::move(pending->front());
     pending->pop_front();
     *truth = *keyframe.frame.world_from_cam_gt;
-    return mapper.AddTrackedKeyframe(keyframe.frame.timestamp_ns, std::move(keyframe.features),
-                                     keyframe.depth_small, keyframe.motion);
+    return mapper.AddTrackedKeyframe(std::move(keyframe));
   };
 }
 
@@ -244,6 +243,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
         {"matching", &MapperStageTimes::matching_s},
         {"ransac+refine", &MapperStageTimes::ransac_s},
         {"verification", &MapperStageTimes::verification_s},
+        {"dense refinement", &MapperStageTimes::dense_s},
         {"place recognition", &MapperStageTimes::place_recognition_s},
         {"optimisation", &MapperStageTimes::optimisation_s},
         {"total", &MapperStageTimes::total_s}};

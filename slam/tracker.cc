@@ -3,11 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
-#include <opencv2/rgbd.hpp>
 
 #include "core/check.h"
 #include "core/rotation.h"
@@ -95,10 +93,8 @@ bool TrackerOptions::Check(std::string* error) const {
   }
   if (!(min_keyframe_interval_s >= 0.0)) return fail("min_keyframe_interval_s must be >= 0");
   if (!(richer_reference_ratio >= 1.0)) return fail("richer_reference_ratio must be >= 1");
-  if (depth_downscale < 1 || dense_downscale < 1) {
-    return fail("depth_downscale and dense_downscale must be at least 1");
-  }
-  if (!(dense_max_depth_m > 0.0)) return fail("dense_max_depth_m must be positive");
+  if (depth_downscale < 1) return fail("depth_downscale must be at least 1");
+  if (!dense.Check(error)) return false;
   if (!(dense_max_deviation_mps > 0.0) || !(dense_max_deviation_dps > 0.0) ||
       !(dense_slack_m >= 0.0) || !(dense_slack_deg >= 0.0)) {
     return fail("the dense deviation bounds must be positive and the slacks not negative");
@@ -129,10 +125,9 @@ struct Tracker::Placed {
   Matrix6 blind_start_covariance = Matrix6::Zero();  // the covariance when the blind time began
 };
 
-// What OpenCV's dense odometry caches per frame (pyramids, normals), computed on demand.
 struct Tracker::DenseFrame {
   int64_t index = -1;
-  cv::Ptr<cv::rgbd::OdometryFrame> frame;
+  DenseImage image;
 };
 
 namespace {
@@ -146,15 +141,13 @@ KeyframeSamplerOptions RateOf(const TrackerOptions& options) {
 }  // namespace
 
 Tracker::Tracker(const Intrinsics& camera, const TrackerOptions& options)
-    : camera_(camera), options_(options), rate_(RateOf(options)) {
+    : camera_(camera), options_(options), rate_(RateOf(options)), aligner_(camera, options.dense) {
   SIGHTMAP_CHECK_OPTIONS(options_);
   SIGHTMAP_CHECK_OPTIONS(camera_);
-  SIGHTMAP_CHECK(camera_.width % options_.depth_downscale == 0 &&
-                     camera_.height % options_.depth_downscale == 0 &&
-                     camera_.width % options_.dense_downscale == 0 &&
-                     camera_.height % options_.dense_downscale == 0,
-                 "the depth and dense downscales must divide the " << camera_.width << "x"
-                                                                   << camera_.height << " image");
+  SIGHTMAP_CHECK(
+      camera_.width % options_.depth_downscale == 0 &&
+          camera_.height % options_.depth_downscale == 0,
+      "the depth downscale must divide the " << camera_.width << "x" << camera_.height << " image");
 }
 
 Tracker::~Tracker() = default;
@@ -214,25 +207,10 @@ bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predic
 bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                               TrackResult* result) {
   const Clock::time_point start = Clock::now();
-  const int factor = options_.dense_downscale;
-  const Intrinsics small = camera_.Scaled(camera_.width / factor, camera_.height / factor);
-  const cv::Matx33d camera_matrix(small.fx, 0, small.cx, 0, small.fy, small.cy, 0, 0, 1);
-  cv::rgbd::RgbdICPOdometry odometry(cv::Mat(camera_matrix), 0.4f,
-                                     static_cast<float>(options_.dense_max_depth_m));
   const auto make = [&](const RgbdFrame& source) {
-    cv::Mat gray;
-    cv::Mat gray_small;
-    cv::cvtColor(source.color, gray, cv::COLOR_BGR2GRAY);
-    cv::resize(gray, gray_small, cv::Size(small.width, small.height), 0.0, 0.0, cv::INTER_AREA);
-    cv::Mat depth_small;
-    cv::resize(source.depth, depth_small, cv::Size(small.width, small.height), 0.0, 0.0,
-               cv::INTER_NEAREST);
-    cv::Mat depth_m;
-    depth_small.convertTo(depth_m, CV_32F, 1e-3);
-    depth_m.setTo(std::numeric_limits<float>::quiet_NaN(), depth_small == 0);
     DenseFrame dense;
     dense.index = source.index;
-    dense.frame = cv::makePtr<cv::rgbd::OdometryFrame>(gray_small, depth_m);
+    dense.image = MakeDenseImage(source.color, source.depth, camera_, options_.dense);
     return dense;
   };
   if (!last_dense_ || last_dense_->index != last_->frame.index) {
@@ -241,27 +219,13 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   DenseFrame current = make(frame.frame);
   // Predicted step from the last frame: last_from_cam.
   const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
-  cv::Mat init(4, 4, CV_64F);
-  cv::Mat rt;
-  for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 4; ++c) init.at<double>(r, c) = step_guess.matrix()(r, c);
-  }
-  bool ok = false;
-  try {
-    ok = odometry.compute(current.frame, last_dense_->frame, rt, init);
-  } catch (const cv::Exception&) {
-    ok = false;  // too few valid pixels for OpenCV's solver: the view is blind
-  }
+  const DenseAlignment aligned = aligner_.Align(current.image, last_dense_->image, step_guess);
   result->dense_s = SecondsSince(start);
   last_dense_ = std::make_unique<DenseFrame>(std::move(current));
-  if (!ok || rt.empty()) return false;
-  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 4; ++c) step.matrix()(r, c) = rt.at<double>(r, c);
-  }
+  if (!aligned.success) return false;
+  const Eigen::Isometry3d& step = aligned.target_from_source;
   const Eigen::Isometry3d deviation = step_guess.inverse() * step;
-  if (!step.matrix().allFinite() ||
-      deviation.translation().norm() >
+  if (deviation.translation().norm() >
           options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m ||
       RotationAngleDeg(deviation) >
           options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) {

@@ -32,6 +32,7 @@
 #include "capture/keyframe_sampler.h"
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
+#include "slam/dense_alignment.h"
 #include "slam/features.h"
 #include "slam/registration.h"
 
@@ -67,10 +68,9 @@ struct TrackerOptions {
   double deviation_slack_m = 0.05;
   double deviation_slack_deg = 3.0;
 
-  // Dense fallback on consecutive frames, at 1/dense_downscale of the image.
+  // Dense fallback on consecutive frames (dense_alignment.h).
   bool dense_fallback = true;
-  int dense_downscale = 2;
-  double dense_max_depth_m = 6.0;  // farther depth is too noisy for ICP [m]
+  DenseAlignmentOptions dense;
   // A dense step is refused when it differs from the constant-velocity prediction by more than
   // these rates times the frame interval (plus the slack): ICP on a bare wall slides along it
   // [m/s], [deg/s], [m], [deg].
@@ -195,7 +195,8 @@ class Tracker {
   double velocity_dt_s_ = 0.0;
   KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
   TrackerCounters counters_;
-  std::unique_ptr<DenseFrame> last_dense_;  // the dense odometry's cache of last_
+  DenseAligner aligner_;
+  std::unique_ptr<DenseFrame> last_dense_;  // last_'s dense image, made when first needed
 };
 
 }  // namespace sightmap

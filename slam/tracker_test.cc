@@ -162,9 +162,7 @@ TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
   Mapper mapper(walk.camera, mapper_options);
   const auto feed = [&](const RgbdFrame& frame) {
     for (TrackedKeyframe& keyframe : tracker.Track(frame).keyframes) {
-      const KeyframeReport report =
-          mapper.AddTrackedKeyframe(keyframe.frame.timestamp_ns, std::move(keyframe.features),
-                                    keyframe.depth_small, keyframe.motion);
+      const KeyframeReport report = mapper.AddTrackedKeyframe(std::move(keyframe));
       EXPECT_NE(report.state, TrackingState::kLost) << "keyframe " << report.id;
     }
   };
@@ -193,7 +191,7 @@ TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
   options.keyframe_rate_hz = -1.0;
   EXPECT_FALSE(options.Check(&error));
   options = TrackerOptions();
-  options.dense_downscale = 0;
+  options.dense.downscale = 0;
   EXPECT_FALSE(options.Check(&error));
   options = TrackerOptions();
   options.prior_sigma_m = 0.0;

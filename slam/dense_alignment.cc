@@ -1,0 +1,214 @@
+#include "slam/dense_alignment.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/rgbd.hpp>
+
+#include "core/check.h"
+#include "core/rotation.h"
+
+namespace sightmap {
+namespace {
+
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+Intrinsics Reduced(const Intrinsics& camera, int downscale) {
+  return downscale == 1 ? camera
+                        : camera.Scaled(camera.width / downscale, camera.height / downscale);
+}
+
+cv::Ptr<cv::rgbd::OdometryFrame> MakeOdometryFrame(const DenseImage& image,
+                                                   const DenseAlignmentOptions& options) {
+  cv::Mat depth_m;
+  image.depth_mm.convertTo(depth_m, CV_32F, 1e-3);
+  // OpenCV's odometry takes NaN, not 0, for a missing depth; its own range limits apply too, but
+  // masking here keeps the information below on the same pixels.
+  depth_m.setTo(std::numeric_limits<float>::quiet_NaN(), (image.depth_mm == 0) |
+                                                             (depth_m < options.min_depth_m) |
+                                                             (depth_m > options.max_depth_m));
+  return cv::makePtr<cv::rgbd::OdometryFrame>(image.gray, depth_m);
+}
+
+Eigen::Vector3f PixelVector(const cv::Mat& image, int row, int col) {
+  if (image.channels() == 3) {
+    const cv::Vec3f v = image.at<cv::Vec3f>(row, col);
+    return {v[0], v[1], v[2]};
+  }
+  const cv::Vec4f v = image.at<cv::Vec4f>(row, col);
+  return {v[0], v[1], v[2]};
+}
+
+// Sum of J^T J / sigma^2 over the point-to-plane residuals r = n . (T p - q) of source pixels
+// that land on the target's surface, with J = [n^T, ((T p) x n)^T] for a perturbation applied on
+// the left of T.
+void PointToPlaneInformation(const cv::Mat& source_depth_m, const cv::Mat& target_depth_m,
+                             const cv::Mat& target_normals, const Intrinsics& camera,
+                             const DenseAlignmentOptions& options, DenseAlignment* result) {
+  const Eigen::Isometry3d& target_from_source = result->target_from_source;
+  Matrix6 information = Matrix6::Zero();
+  int pairs = 0;
+  int landed = 0;
+  double squared = 0.0;
+  const int stride = options.information_stride_px;
+  for (int row = 0; row < source_depth_m.rows; row += stride) {
+    for (int col = 0; col < source_depth_m.cols; col += stride) {
+      const float z = source_depth_m.at<float>(row, col);
+      if (!std::isfinite(z)) continue;
+      const Eigen::Vector3d moved = target_from_source * camera.Unproject(col, row, z);
+      if (!(moved.z() > 0.0)) continue;
+      const Eigen::Vector2d pixel = camera.Project(moved);
+      const int u = static_cast<int>(std::lround(pixel.x()));
+      const int v = static_cast<int>(std::lround(pixel.y()));
+      if (u < 0 || v < 0 || u >= target_depth_m.cols || v >= target_depth_m.rows) continue;
+      ++landed;
+      const float target_z = target_depth_m.at<float>(v, u);
+      if (!std::isfinite(target_z)) continue;
+      const Eigen::Vector3d normal = PixelVector(target_normals, v, u).cast<double>();
+      if (!normal.allFinite() || normal.squaredNorm() < 0.25) continue;
+      const Eigen::Vector3d target_point = camera.Unproject(u, v, target_z);
+      const Eigen::Vector3d offset = moved - target_point;
+      if (offset.norm() > options.max_pair_distance_m) continue;
+      const double sigma = options.depth_noise_coeff * target_z * target_z;
+      Eigen::Matrix<double, 1, 6> jacobian;
+      jacobian.leftCols<3>() = normal.transpose();
+      jacobian.rightCols<3>() = moved.cross(normal).transpose();
+      information += jacobian.transpose() * jacobian / (sigma * sigma);
+      const double residual = normal.dot(offset) / sigma;
+      squared += residual * residual;
+      ++pairs;
+    }
+  }
+  result->information = information;
+  result->pairs = pairs;
+  result->pair_fraction = landed > 0 ? static_cast<double>(pairs) / landed : 0.0;
+  result->normalised_rms = pairs > 0 ? std::sqrt(squared / pairs) : 0.0;
+}
+
+}  // namespace
+
+bool DenseAlignmentOptions::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    if (error) *error = what;
+    return false;
+  };
+  if (downscale < 1) return fail("downscale must be at least 1");
+  if (!(min_depth_m >= 0.0) || !(max_depth_m > min_depth_m)) {
+    return fail("the depth range must satisfy 0 <= min_depth_m < max_depth_m");
+  }
+  if (iterations_per_level.empty() ||
+      *std::min_element(iterations_per_level.begin(), iterations_per_level.end()) < 1) {
+    return fail("iterations_per_level needs at least one level, each with at least 1 iteration");
+  }
+  if (information_stride_px < 1) return fail("information_stride_px must be at least 1");
+  if (!(max_pair_distance_m > 0.0)) return fail("max_pair_distance_m must be positive");
+  if (!(depth_noise_coeff > 0.0)) return fail("depth_noise_coeff must be positive");
+  if (min_pairs < 6) return fail("min_pairs must be at least 6 (six unknowns)");
+  return true;
+}
+
+DenseImage MakeDenseImage(const cv::Mat& color, const cv::Mat& depth_mm, const Intrinsics& camera,
+                          const DenseAlignmentOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  if (color.type() != CV_8UC3 || color.cols != camera.width || color.rows != camera.height ||
+      depth_mm.type() != CV_16UC1 || depth_mm.size() != color.size()) {
+    SIGHTMAP_THROW(InvalidArgument, "dense alignment needs 8-bit BGR colour and 16-bit depth of "
+                                        << camera.width << "x" << camera.height);
+  }
+  if (camera.width % options.downscale != 0 || camera.height % options.downscale != 0) {
+    SIGHTMAP_THROW(InvalidArgument, "the dense downscale " << options.downscale
+                                                           << " must divide the " << camera.width
+                                                           << "x" << camera.height << " image");
+  }
+  const cv::Size size(camera.width / options.downscale, camera.height / options.downscale);
+  DenseImage image;
+  cv::Mat gray;
+  cv::cvtColor(color, gray, cv::COLOR_BGR2GRAY);
+  if (options.downscale == 1) {
+    image.gray = gray;
+    image.depth_mm = depth_mm.clone();
+  } else {
+    cv::resize(gray, image.gray, size, 0.0, 0.0, cv::INTER_AREA);
+    cv::resize(depth_mm, image.depth_mm, size, 0.0, 0.0, cv::INTER_NEAREST);
+  }
+  return image;
+}
+
+struct DenseAligner::Impl {
+  Intrinsics small;
+  cv::Ptr<cv::rgbd::RgbdICPOdometry> odometry;
+};
+
+DenseAligner::DenseAligner(const Intrinsics& camera, const DenseAlignmentOptions& options)
+    : camera_(camera), options_(options), impl_(std::make_unique<Impl>()) {
+  SIGHTMAP_CHECK_OPTIONS(options_);
+  if (camera_.width % options_.downscale != 0 || camera_.height % options_.downscale != 0) {
+    SIGHTMAP_THROW(InvalidArgument, "the dense downscale " << options_.downscale
+                                                           << " must divide the " << camera_.width
+                                                           << "x" << camera_.height << " image");
+  }
+  impl_->small = Reduced(camera_, options_.downscale);
+  const Intrinsics& small = impl_->small;
+  const cv::Matx33d camera_matrix(small.fx, 0, small.cx, 0, small.fy, small.cy, 0, 0, 1);
+  impl_->odometry = cv::makePtr<cv::rgbd::RgbdICPOdometry>(
+      cv::Mat(camera_matrix), static_cast<float>(options_.min_depth_m),
+      static_cast<float>(options_.max_depth_m), cv::rgbd::Odometry::DEFAULT_MAX_DEPTH_DIFF(),
+      cv::rgbd::Odometry::DEFAULT_MAX_POINTS_PART(), options_.iterations_per_level,
+      std::vector<float>(options_.iterations_per_level.size(), 10.0f));
+}
+
+DenseAligner::~DenseAligner() = default;
+
+DenseAlignment DenseAligner::Align(const DenseImage& source, const DenseImage& target,
+                                   const Eigen::Isometry3d& initial) const {
+  const Intrinsics& small = impl_->small;
+  SIGHTMAP_CHECK(!source.empty() && !target.empty() && source.gray.cols == small.width &&
+                     source.gray.rows == small.height && target.gray.size() == source.gray.size() &&
+                     source.depth_mm.size() == source.gray.size() &&
+                     target.depth_mm.size() == target.gray.size(),
+                 "dense alignment needs two images made at 1/"
+                     << options_.downscale << " of " << camera_.width << "x" << camera_.height);
+  DenseAlignment result;
+  cv::Ptr<cv::rgbd::OdometryFrame> source_frame = MakeOdometryFrame(source, options_);
+  cv::Ptr<cv::rgbd::OdometryFrame> target_frame = MakeOdometryFrame(target, options_);
+  cv::Mat init(4, 4, CV_64F);
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) init.at<double>(r, c) = initial.matrix()(r, c);
+  }
+  cv::Mat rt;
+  bool converged = false;
+  try {
+    converged = impl_->odometry->compute(source_frame, target_frame, rt, init);
+  } catch (const cv::Exception&) {
+    converged = false;  // too few valid pixels for OpenCV's solver
+  }
+  if (!converged || rt.empty()) {
+    result.failure = "dense alignment did not converge";
+    return result;
+  }
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) pose.matrix()(r, c) = rt.at<double>(r, c);
+  }
+  if (!pose.matrix().allFinite()) {
+    result.failure = "dense alignment gave a non-finite pose";
+    return result;
+  }
+  if (target_frame->normals.empty()) {
+    result.failure = "dense alignment computed no normals";
+    return result;
+  }
+  result.target_from_source = Orthonormalised(pose);
+  PointToPlaneInformation(source_frame->depth, target_frame->depth, target_frame->normals, small,
+                          options_, &result);
+  if (result.pairs < options_.min_pairs) {
+    result.failure = "dense alignment paired too few pixels (" + std::to_string(result.pairs) + ")";
+    return result;
+  }
+  result.success = true;
+  return result;
+}
+
+}  // namespace sightmap

@@ -1,0 +1,133 @@
+// Dense alignment on frames of the synthetic building against its ground truth, and on a
+// hand-made bare wall whose geometry fixes only three of the six degrees of freedom.
+#include "slam/dense_alignment.h"
+
+#include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
+
+#include "core/check.h"
+#include "core/rotation.h"
+#include "sim/simulator.h"
+#include "slam/sim_walk_testing.h"
+
+namespace sightmap {
+namespace {
+
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+// Half a second of the hand-held walk at 10 Hz, 20 s in (a room with furniture).
+const testing::SimWalk& RoomWalk() {
+  static const testing::SimWalk* walk = [] {
+    sim::SimulatorOptions options;
+    options.fps = 10.0;
+    options.frames = 206;
+    options.seed = 11;
+    return new testing::SimWalk(testing::RenderSimWalk(options, 200));
+  }();
+  return *walk;
+}
+
+Eigen::Isometry3d TrueTargetFromSource(const RgbdFrame& source, const RgbdFrame& target) {
+  return target.world_from_cam_gt->inverse() * *source.world_from_cam_gt;
+}
+
+Eigen::Isometry3d Perturbed(const Eigen::Isometry3d& pose, const Eigen::Vector3d& offset_m,
+                            double turn_deg) {
+  Eigen::Isometry3d perturbation = Eigen::Isometry3d::Identity();
+  perturbation.linear() =
+      Eigen::AngleAxisd(turn_deg * M_PI / 180.0, Eigen::Vector3d(0.3, 1.0, 0.2).normalized())
+          .toRotationMatrix();
+  perturbation.translation() = offset_m;
+  return perturbation * pose;
+}
+
+TEST(DenseAlignment, RefinesAPoseOffByCentimetresToMillimetres) {
+  const testing::SimWalk& walk = RoomWalk();
+  const DenseAlignmentOptions options;
+  const RgbdFrame& source = walk.frames.back();
+  const RgbdFrame& target = walk.frames.front();
+  const Eigen::Isometry3d truth = TrueTargetFromSource(source, target);
+  // What feature registration leaves a second apart at worst, typically (p95 of odometry links).
+  const Eigen::Isometry3d start = Perturbed(truth, Eigen::Vector3d(0.03, -0.02, 0.02), 1.0);
+  const DenseAligner aligner(walk.camera, options);
+  const DenseAlignment aligned =
+      aligner.Align(MakeDenseImage(source.color, source.depth, walk.camera, options),
+                    MakeDenseImage(target.color, target.depth, walk.camera, options), start);
+  ASSERT_TRUE(aligned.success) << aligned.failure;
+  const Eigen::Isometry3d error = truth.inverse() * aligned.target_from_source;
+  EXPECT_LT(error.translation().norm(), 0.005);
+  EXPECT_LT(RotationAngleDeg(error), 0.2);
+  EXPECT_GT(aligned.pairs, 5000);
+  // A room's geometry fixes every direction: the covariance is finite and small.
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eigen(aligned.information);
+  EXPECT_GT(eigen.eigenvalues()(0), 0.0);
+  const Matrix6 covariance = aligned.information.inverse();
+  for (int i = 0; i < 3; ++i) EXPECT_LT(std::sqrt(covariance(i, i)), 0.01) << "axis " << i;
+}
+
+// A textured wall filling the view at 2 m, facing the camera.
+DenseImage Wall(const Intrinsics& camera, const DenseAlignmentOptions& options) {
+  cv::Mat color(camera.height, camera.width, CV_8UC3);
+  for (int row = 0; row < color.rows; ++row) {
+    for (int col = 0; col < color.cols; ++col) {
+      const auto shade =
+          static_cast<uchar>(128 + 100 * std::sin(0.05 * col) * std::cos(0.07 * row));
+      color.at<cv::Vec3b>(row, col) = cv::Vec3b(shade, shade, shade);
+    }
+  }
+  const cv::Mat depth(camera.height, camera.width, CV_16UC1, cv::Scalar(2000));
+  return MakeDenseImage(color, depth, camera, options);
+}
+
+TEST(DenseAlignment, ABareWallFixesOnlyItsDepthAndTilt) {
+  const Intrinsics camera = RoomWalk().camera;
+  const DenseAlignmentOptions options;
+  const DenseImage wall = Wall(camera, options);
+  const DenseAlignment aligned =
+      DenseAligner(camera, options).Align(wall, wall, Eigen::Isometry3d::Identity());
+  ASSERT_TRUE(aligned.success) << aligned.failure;
+  // Point-to-plane residuals against a plane z = 2 constrain z and the tilts about x and y;
+  // sliding along the wall and turning about its normal change no residual.
+  const Matrix6& information = aligned.information;
+  EXPECT_GT(information(2, 2), 1e6);
+  EXPECT_GT(information(3, 3), 1e5);
+  EXPECT_GT(information(4, 4), 1e5);
+  EXPECT_LT(information(0, 0), 1e-6 * information(2, 2));
+  EXPECT_LT(information(1, 1), 1e-6 * information(2, 2));
+  EXPECT_LT(information(5, 5), 1e-6 * information(2, 2));
+}
+
+TEST(DenseAlignment, RefusesFramesWithoutDepth) {
+  const testing::SimWalk& walk = RoomWalk();
+  const DenseAlignmentOptions options;
+  const RgbdFrame& frame = walk.frames.front();
+  const DenseImage image = MakeDenseImage(frame.color, frame.depth, walk.camera, options);
+  DenseImage blind = image;
+  blind.depth_mm = cv::Mat::zeros(image.depth_mm.size(), CV_16UC1);
+  const DenseAlignment aligned =
+      DenseAligner(walk.camera, options).Align(blind, image, Eigen::Isometry3d::Identity());
+  EXPECT_FALSE(aligned.success);
+  EXPECT_FALSE(aligned.failure.empty());
+}
+
+TEST(DenseAlignment, ChecksItsOptionsAndImages) {
+  const Intrinsics camera = RoomWalk().camera;
+  DenseAlignmentOptions options;
+  std::string error;
+  EXPECT_TRUE(options.Check(&error)) << error;
+  options.downscale = 0;
+  EXPECT_FALSE(options.Check(&error));
+  options = DenseAlignmentOptions();
+  options.max_depth_m = options.min_depth_m;
+  EXPECT_FALSE(options.Check(&error));
+  options = DenseAlignmentOptions();
+  options.downscale = 7;  // does not divide 640x480
+  const cv::Mat color(camera.height, camera.width, CV_8UC3, cv::Scalar::all(0));
+  const cv::Mat depth(camera.height, camera.width, CV_16UC1, cv::Scalar(0));
+  EXPECT_THROW(MakeDenseImage(color, depth, camera, options), InvalidArgument);
+  EXPECT_THROW(DenseAligner(camera, options), InvalidArgument);
+  EXPECT_THROW(MakeDenseImage(color, cv::Mat(), camera, DenseAlignmentOptions()), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace sightmap
