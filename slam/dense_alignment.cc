@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd.hpp>
@@ -161,18 +162,35 @@ DenseAligner::DenseAligner(const Intrinsics& camera, const DenseAlignmentOptions
 
 DenseAligner::~DenseAligner() = default;
 
+class DenseAligner::Frame {
+ public:
+  explicit Frame(cv::Ptr<cv::rgbd::OdometryFrame> frame) : frame_(std::move(frame)) {}
+  cv::Ptr<cv::rgbd::OdometryFrame>& get() { return frame_; }
+
+ private:
+  cv::Ptr<cv::rgbd::OdometryFrame> frame_;
+};
+
+std::shared_ptr<DenseAligner::Frame> DenseAligner::Prepare(const DenseImage& image) const {
+  const Intrinsics& small = impl_->small;
+  SIGHTMAP_CHECK(!image.empty() && image.gray.cols == small.width &&
+                     image.gray.rows == small.height && image.depth_mm.size() == image.gray.size(),
+                 "dense alignment needs images made at 1/"
+                     << options_.downscale << " of " << camera_.width << "x" << camera_.height);
+  return std::make_shared<Frame>(MakeOdometryFrame(image, options_));
+}
+
 DenseAlignment DenseAligner::Align(const DenseImage& source, const DenseImage& target,
                                    const Eigen::Isometry3d& initial) const {
+  return Align(*Prepare(source), *Prepare(target), initial);
+}
+
+DenseAlignment DenseAligner::Align(Frame& source, Frame& target,
+                                   const Eigen::Isometry3d& initial) const {
   const Intrinsics& small = impl_->small;
-  SIGHTMAP_CHECK(!source.empty() && !target.empty() && source.gray.cols == small.width &&
-                     source.gray.rows == small.height && target.gray.size() == source.gray.size() &&
-                     source.depth_mm.size() == source.gray.size() &&
-                     target.depth_mm.size() == target.gray.size(),
-                 "dense alignment needs two images made at 1/"
-                     << options_.downscale << " of " << camera_.width << "x" << camera_.height);
   DenseAlignment result;
-  cv::Ptr<cv::rgbd::OdometryFrame> source_frame = MakeOdometryFrame(source, options_);
-  cv::Ptr<cv::rgbd::OdometryFrame> target_frame = MakeOdometryFrame(target, options_);
+  cv::Ptr<cv::rgbd::OdometryFrame>& source_frame = source.get();
+  cv::Ptr<cv::rgbd::OdometryFrame>& target_frame = target.get();
   cv::Mat init(4, 4, CV_64F);
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) init.at<double>(r, c) = initial.matrix()(r, c);

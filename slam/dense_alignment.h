@@ -94,11 +94,17 @@ class DenseAligner {
   DenseAligner(const DenseAligner&) = delete;
   DenseAligner& operator=(const DenseAligner&) = delete;
 
+  // An image with what alignment computes of it (pyramids, points, normals, 3-4 MB at 320x240),
+  // so that a frame aligned several times (a keyframe against its neighbours) is prepared once.
+  class Frame;
+  std::shared_ptr<Frame> Prepare(const DenseImage& image) const;
+
   // Aligns `source` to `target` (both made with this aligner's options from frames of its
   // camera), starting from `initial` (target_from_source). Refusal is a result: too little valid
   // depth, no convergence, or too few pairs.
   DenseAlignment Align(const DenseImage& source, const DenseImage& target,
                        const Eigen::Isometry3d& initial) const;
+  DenseAlignment Align(Frame& source, Frame& target, const Eigen::Isometry3d& initial) const;
 
   const DenseAlignmentOptions& options() const { return options_; }
 

@@ -205,13 +205,29 @@ RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& targ
   return result;
 }
 
+std::shared_ptr<DenseAligner::Frame> Mapper::Prepared(const Keyframe& keyframe) const {
+  // The keyframe being inserted has the id keyframes_.size().
+  const int64_t oldest_kept = static_cast<int64_t>(keyframes_.size()) - options_.odometry_window;
+  if (keyframe.id < oldest_kept) return aligner_->Prepare(keyframe.dense);
+  auto found = prepared_.find(keyframe.id);
+  if (found == prepared_.end()) {
+    found = prepared_.emplace(keyframe.id, aligner_->Prepare(keyframe.dense)).first;
+  }
+  std::shared_ptr<DenseAligner::Frame> frame = found->second;
+  while (!prepared_.empty() && prepared_.begin()->first < oldest_kept) {
+    prepared_.erase(prepared_.begin());
+  }
+  return frame;
+}
+
 bool Mapper::RefineDensely(const Keyframe& source, const Keyframe& target,
                            Eigen::Isometry3d* target_from_source,
                            Eigen::Matrix<double, 6, 6>* information,
                            MapperStageTimes* times) const {
   if (!aligner_ || source.dense.empty() || target.dense.empty()) return false;
   const Clock::time_point start = Clock::now();
-  const DenseAlignment aligned = aligner_->Align(source.dense, target.dense, *target_from_source);
+  const DenseAlignment aligned =
+      aligner_->Align(*Prepared(source), *Prepared(target), *target_from_source);
   times->dense_s += SecondsSince(start);
   if (!aligned.success) return false;
   const Eigen::Isometry3d correction = target_from_source->inverse() * aligned.target_from_source;

@@ -276,6 +276,7 @@ class Mapper {
   // Refines `target_from_source` and replaces `information` (floored) by dense alignment from
   // it; false, leaving both as they were, when either keyframe has no dense image or the
   // alignment failed or moved the pose beyond dense_max_correction_*.
+  std::shared_ptr<DenseAligner::Frame> Prepared(const Keyframe& keyframe) const;
   bool RefineDensely(const Keyframe& source, const Keyframe& target,
                      Eigen::Isometry3d* target_from_source,
                      Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times) const;
@@ -299,6 +300,9 @@ class Mapper {
   std::vector<MapperLink> links_;    // links_[i] is the pose graph's edge i
   PoseGraph graph_;
   std::unique_ptr<DenseAligner> aligner_;  // null when dense refinement is off
+  // The newest keyframes prepared for alignment (each is aligned to its neighbours up to four
+  // times), by id; older ones, aligned only as loop candidates, are prepared each time.
+  mutable std::map<int64_t, std::shared_ptr<DenseAligner::Frame>> prepared_;
   std::shared_ptr<const Vocabulary> vocabulary_;
   PlaceIndex index_;
   std::vector<int> segment_parent_;  // union-find over segments
