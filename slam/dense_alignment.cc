@@ -5,6 +5,7 @@
 #include <limits>
 #include <utility>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd.hpp>
 
@@ -108,6 +109,27 @@ bool DenseAlignmentOptions::Check(std::string* error) const {
   if (!(depth_noise_coeff > 0.0)) return fail("depth_noise_coeff must be positive");
   if (min_pairs < 6) return fail("min_pairs must be at least 6 (six unknowns)");
   return true;
+}
+
+PackedDenseImage Pack(const DenseImage& image) {
+  SIGHTMAP_CHECK(!image.empty(), "an empty dense image cannot be packed");
+  // Fast compression: packing runs once per keyframe on the mapping thread.
+  const std::vector<int> fast = {cv::IMWRITE_PNG_COMPRESSION, 1};
+  PackedDenseImage packed;
+  SIGHTMAP_CHECK(cv::imencode(".png", image.gray, packed.gray_png, fast) &&
+                     cv::imencode(".png", image.depth_mm, packed.depth_png, fast),
+                 "could not encode a dense image");
+  return packed;
+}
+
+DenseImage Unpack(const PackedDenseImage& packed) {
+  DenseImage image;
+  image.gray = cv::imdecode(packed.gray_png, cv::IMREAD_UNCHANGED);
+  image.depth_mm = cv::imdecode(packed.depth_png, cv::IMREAD_UNCHANGED);
+  SIGHTMAP_CHECK(image.gray.type() == CV_8UC1 && image.depth_mm.type() == CV_16UC1 &&
+                     image.gray.size() == image.depth_mm.size(),
+                 "a packed dense image does not decode to 8-bit grey and 16-bit depth");
+  return image;
 }
 
 DenseImage MakeDenseImage(const cv::Mat& color, const cv::Mat& depth_mm, const Intrinsics& camera,

@@ -13,6 +13,7 @@
 // 320x240.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,6 +59,19 @@ struct DenseImage {
   bool empty() const { return gray.empty() || depth_mm.empty(); }
   size_t bytes() const { return gray.total() * gray.elemSize() + depth_mm.total() * 2; }
 };
+
+// A DenseImage stored losslessly as two PNGs (about half the size): how a map keeps the images
+// of keyframes it aligns only as loop candidates, decoded when one is.
+struct PackedDenseImage {
+  std::vector<uint8_t> gray_png;
+  std::vector<uint8_t> depth_png;
+
+  bool empty() const { return gray_png.empty() || depth_png.empty(); }
+  size_t bytes() const { return gray_png.size() + depth_png.size(); }
+};
+PackedDenseImage Pack(const DenseImage& image);
+// Throws sightmap::Error when the bytes are not a packed DenseImage.
+DenseImage Unpack(const PackedDenseImage& packed);
 
 // Reduces a colour (BGR 8-bit) and registered depth (16-bit mm) image of the camera's size.
 // Throws InvalidArgument for images that do not fit the camera or a downscale that does not divide

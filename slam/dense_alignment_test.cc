@@ -2,6 +2,8 @@
 // hand-made bare wall whose geometry fixes only three of the six degrees of freedom.
 #include "slam/dense_alignment.h"
 
+#include <cstdio>
+
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
 
@@ -108,6 +110,22 @@ TEST(DenseAlignment, RefusesFramesWithoutDepth) {
       DenseAligner(walk.camera, options).Align(blind, image, Eigen::Isometry3d::Identity());
   EXPECT_FALSE(aligned.success);
   EXPECT_FALSE(aligned.failure.empty());
+}
+
+TEST(DenseAlignment, APackedImageIsUnderSeventyPercentAndUnpacksExactly) {
+  const testing::SimWalk& walk = RoomWalk();
+  const RgbdFrame& frame = walk.frames.front();
+  const DenseImage image =
+      MakeDenseImage(frame.color, frame.depth, walk.camera, DenseAlignmentOptions());
+  const PackedDenseImage packed = Pack(image);
+  std::printf("dense image %zu bytes, packed %zu\n", image.bytes(), packed.bytes());
+  EXPECT_LT(packed.bytes(), 0.7 * static_cast<double>(image.bytes()));
+  const DenseImage unpacked = Unpack(packed);
+  EXPECT_EQ(cv::norm(unpacked.gray, image.gray, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(unpacked.depth_mm, image.depth_mm, cv::NORM_INF), 0.0);
+  PackedDenseImage damaged = packed;
+  damaged.depth_png.resize(10);
+  EXPECT_THROW(Unpack(damaged), Error);
 }
 
 TEST(DenseAlignment, ChecksItsOptionsAndImages) {

@@ -198,7 +198,7 @@ RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& targ
   result.information = FlooredInformation(result.information, options_);
   const bool refined =
       RefineDensely(source, target, &result.target_from_source, &result.information, times);
-  if (require_dense && !refined && !source.dense.empty() && !target.dense.empty()) {
+  if (require_dense && !refined && source.HasDense() && target.HasDense()) {
     result.success = false;
     result.failure = "dense alignment does not confirm the features' pose";
   }
@@ -208,7 +208,10 @@ RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& targ
 std::shared_ptr<DenseAligner::Frame> Mapper::Prepared(const Keyframe& keyframe) const {
   // The keyframe being inserted has the id keyframes_.size().
   const int64_t oldest_kept = static_cast<int64_t>(keyframes_.size()) - options_.odometry_window;
-  if (keyframe.id < oldest_kept) return aligner_->Prepare(keyframe.dense);
+  if (keyframe.id < oldest_kept) {
+    return aligner_->Prepare(keyframe.dense.empty() ? Unpack(keyframe.packed_dense)
+                                                    : keyframe.dense);
+  }
   auto found = prepared_.find(keyframe.id);
   if (found == prepared_.end()) {
     found = prepared_.emplace(keyframe.id, aligner_->Prepare(keyframe.dense)).first;
@@ -220,11 +223,22 @@ std::shared_ptr<DenseAligner::Frame> Mapper::Prepared(const Keyframe& keyframe) 
   return frame;
 }
 
+void Mapper::PackOldDenseImages() {
+  // Keyframes before the window are aligned only as loop candidates, a few times in a walk.
+  const int64_t oldest_kept = static_cast<int64_t>(keyframes_.size()) - options_.odometry_window;
+  for (int64_t id = oldest_kept - 1; id >= 0; --id) {
+    Keyframe& keyframe = keyframes_[static_cast<size_t>(id)];
+    if (keyframe.dense.empty()) break;
+    keyframe.packed_dense = Pack(keyframe.dense);
+    keyframe.dense = DenseImage();
+  }
+}
+
 bool Mapper::RefineDensely(const Keyframe& source, const Keyframe& target,
                            Eigen::Isometry3d* target_from_source,
                            Eigen::Matrix<double, 6, 6>* information,
                            MapperStageTimes* times) const {
-  if (!aligner_ || source.dense.empty() || target.dense.empty()) return false;
+  if (!aligner_ || !source.HasDense() || !target.HasDense()) return false;
   const Clock::time_point start = Clock::now();
   const DenseAlignment aligned =
       aligner_->Align(*Prepared(source), *Prepared(target), *target_from_source);
@@ -503,6 +517,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
   report->segment = Root(inserted.segment);
   report->state = state_;
   report->world_from_cam = graph_.Pose(inserted.id);
+  PackOldDenseImages();
 }
 
 int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
@@ -532,6 +547,7 @@ int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
   segment_parent_.push_back(keyframe.segment);
   graph_.AddPose(keyframe.id, world_from_cam);
   keyframes_.push_back(std::move(keyframe));
+  PackOldDenseImages();
   if (vocabulary_) IndexKeyframe(keyframes_.back());
   // The next new keyframe cannot be registered to a stored one by odometry: the camera was off.
   StartNewSegment();

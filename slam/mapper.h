@@ -248,7 +248,11 @@ class Mapper {
     int walk = -1;
     Features features;
     cv::Mat depth_small;  // depth_downscale x smaller, nearest samples
-    DenseImage dense;     // empty when dense refinement is off or the colour is unknown
+    // Empty when dense refinement is off or the colour is unknown; packed (and `dense` emptied)
+    // once the keyframe leaves the odometry window.
+    DenseImage dense;
+    PackedDenseImage packed_dense;
+    bool HasDense() const { return !dense.empty() || !packed_dense.empty(); }
     bool indexed = false;
     BowVector bow;
   };
@@ -277,6 +281,8 @@ class Mapper {
   // it; false, leaving both as they were, when either keyframe has no dense image or the
   // alignment failed or moved the pose beyond dense_max_correction_*.
   std::shared_ptr<DenseAligner::Frame> Prepared(const Keyframe& keyframe) const;
+  // Packs the dense image of the keyframe that just left the odometry window.
+  void PackOldDenseImages();
   bool RefineDensely(const Keyframe& source, const Keyframe& target,
                      Eigen::Isometry3d* target_from_source,
                      Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times) const;
