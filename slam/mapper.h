@@ -75,10 +75,10 @@ struct MapperOptions {
   // Loops closer than this to the last accepted loop (in keyframes) are not searched: one
   // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
   int loop_min_spacing = 3;
-  // With a Cauchy loss on odometry too: odometry is never switched off, but one link in twenty
-  // comes from a view without features (a bare wall) and errs by centimetres and degrees while its
-  // neighbours, refined densely, claim millimetres. The loss lets the links around it and the loops
-  // outvote it instead of bending the map.
+  // With a Cauchy loss on odometry too: odometry is never switched off, but a few links in a
+  // hundred come from views without features (a bare wall) and err by centimetres and degrees
+  // while their neighbours, refined densely, claim millimetres. The loss lets the links around it
+  // and the loops outvote it instead of bending the map.
   PoseGraphOptions pose_graph = [] {
     PoseGraphOptions options;
     options.odometry_loss_scale = options.loop_loss_scale;
@@ -106,7 +106,7 @@ struct MapperOptions {
 
   // Dense refinement (see dense_alignment.h): every link registration finds (odometry, the
   // tracker's motions, loops and relocalisations) is refined by dense RGB-D alignment from the
-  // features' pose, which costs about 10 ms a link and a 320x240 grey and depth image a keyframe.
+  // features' pose, which costs about 15 ms and a 320x240 grey and depth image a keyframe.
   // A refinement that moves the pose further than these bounds slid along a bare wall: an odometry
   // link keeps the features' pose, a place (loop or relocalisation) is refused, since a revisit has
   // other keyframes to close on and the loops refinement cannot confirm are the ones 10-30 cm off
@@ -149,7 +149,6 @@ struct MapperStageTimes {
   double optimisation_s = 0.0;
   double total_s = 0.0;
   int registrations = 0;  // pairs registered (odometry and place candidates), what matching costs
-  int dense_refined = 0;  // links whose pose dense alignment refined
 };
 
 struct KeyframeReport {
@@ -277,12 +276,13 @@ class Mapper {
   RegistrationResult Register(const Keyframe& source, const Keyframe& target,
                               MapperStageTimes* times, const Eigen::Isometry3d* prior,
                               bool require_dense) const;
-  // Refines `target_from_source` and replaces `information` (floored) by dense alignment from
-  // it; false, leaving both as they were, when either keyframe has no dense image or the
-  // alignment failed or moved the pose beyond dense_max_correction_*.
+  // The keyframe's dense image prepared for alignment (kept for the newest keyframes).
   std::shared_ptr<DenseAligner::Frame> Prepared(const Keyframe& keyframe) const;
   // Packs the dense image of the keyframe that just left the odometry window.
   void PackOldDenseImages();
+  // Refines `target_from_source` and replaces `information` (floored) by dense alignment from
+  // it; false, leaving both as they were, when either keyframe has no dense image or the
+  // alignment failed or moved the pose beyond dense_max_correction_*.
   bool RefineDensely(const Keyframe& source, const Keyframe& target,
                      Eigen::Isometry3d* target_from_source,
                      Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times) const;

@@ -13,9 +13,10 @@
 // r^T W r (the chi-square of a 6-dof error when W is the inverse covariance); Ceres is given
 // S r with S^T S = W.
 //
-// Loop-closure edges (kLoop) get a Cauchy loss, and after each solve the loop edge with the
-// largest chi-square above PoseGraphOptions::max_loop_chi2 is switched off and the graph solved
-// again from the poses it had when Optimize() was called, until every active loop edge passes.
+// Loop-closure edges (kLoop) get a Cauchy loss (odometry edges too, when odometry_loss_scale is
+// set), and after each solve the loop edge with the largest chi-square above
+// PoseGraphOptions::max_loop_chi2 is switched off and the graph solved again from the poses it
+// had when Optimize() was called, until every active loop edge passes.
 // Odometry edges are trusted and never switched off. Switched-off edges stay off in later calls
 // (they are not re-checked: an edge that flips in and out would make the map jump) until the
 // caller turns them back on with SetEdgeActive().
