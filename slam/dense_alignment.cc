@@ -236,7 +236,7 @@ DenseAlignment DenseAligner::Align(Frame& source, Frame& target,
     result.failure = "dense alignment gave a non-finite pose";
     return result;
   }
-  if (target_frame->normals.empty()) {
+  if (target_frame->normals.size() != target_frame->depth.size()) {
     result.failure = "dense alignment computed no normals";
     return result;
   }

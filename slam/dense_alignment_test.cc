@@ -60,6 +60,11 @@ TEST(DenseAlignment, RefinesAPoseOffByCentimetresToMillimetres) {
   EXPECT_LT(error.translation().norm(), 0.005);
   EXPECT_LT(RotationAngleDeg(error), 0.2);
   EXPECT_GT(aligned.pairs, 5000);
+  // Most of what lands in the target's view finds its surface, and it agrees with it to about the
+  // depth noise.
+  EXPECT_GT(aligned.pair_fraction, 0.6);
+  EXPECT_GT(aligned.normalised_rms, 0.3);
+  EXPECT_LT(aligned.normalised_rms, 3.0);
   // A room's geometry fixes every direction: the covariance is finite and small.
   const Eigen::SelfAdjointEigenSolver<Matrix6> eigen(aligned.information);
   EXPECT_GT(eigen.eigenvalues()(0), 0.0);
