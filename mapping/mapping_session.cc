@@ -244,7 +244,9 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     std::map<int64_t, int64_t> mapper_id_of;  // store id -> mapper id
     for (const KeyframeInfo& info : stored) {
       const cv::Mat depth = model.LoadDepth(info.id);
-      const cv::Mat color = model.LoadColor(info.id);
+      // The colour only when something uses it (a JPEG to decode per stored keyframe).
+      const cv::Mat color =
+          view || options_.mapper.dense_refinement ? model.LoadColor(info.id) : cv::Mat();
       const int64_t id =
           mapper.RestoreKeyframe(info.timestamp_ns, FromStoreFeatures(model.LoadFeatures(info.id)),
                                  depth, info.world_from_cam, color);

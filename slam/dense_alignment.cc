@@ -17,7 +17,14 @@ namespace {
 
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
 
+// The camera of the reduced images; throws InvalidArgument when the downscale does not divide
+// its size.
 Intrinsics Reduced(const Intrinsics& camera, int downscale) {
+  if (camera.width % downscale != 0 || camera.height % downscale != 0) {
+    SIGHTMAP_THROW(InvalidArgument, "the dense downscale " << downscale << " must divide the "
+                                                           << camera.width << "x" << camera.height
+                                                           << " image");
+  }
   return downscale == 1 ? camera
                         : camera.Scaled(camera.width / downscale, camera.height / downscale);
 }
@@ -140,12 +147,8 @@ DenseImage MakeDenseImage(const cv::Mat& color, const cv::Mat& depth_mm, const I
     SIGHTMAP_THROW(InvalidArgument, "dense alignment needs 8-bit BGR colour and 16-bit depth of "
                                         << camera.width << "x" << camera.height);
   }
-  if (camera.width % options.downscale != 0 || camera.height % options.downscale != 0) {
-    SIGHTMAP_THROW(InvalidArgument, "the dense downscale " << options.downscale
-                                                           << " must divide the " << camera.width
-                                                           << "x" << camera.height << " image");
-  }
-  const cv::Size size(camera.width / options.downscale, camera.height / options.downscale);
+  const Intrinsics small = Reduced(camera, options.downscale);
+  const cv::Size size(small.width, small.height);
   DenseImage image;
   cv::Mat gray;
   cv::cvtColor(color, gray, cv::COLOR_BGR2GRAY);
@@ -167,11 +170,6 @@ struct DenseAligner::Impl {
 DenseAligner::DenseAligner(const Intrinsics& camera, const DenseAlignmentOptions& options)
     : camera_(camera), options_(options), impl_(std::make_unique<Impl>()) {
   SIGHTMAP_CHECK_OPTIONS(options_);
-  if (camera_.width % options_.downscale != 0 || camera_.height % options_.downscale != 0) {
-    SIGHTMAP_THROW(InvalidArgument, "the dense downscale " << options_.downscale
-                                                           << " must divide the " << camera_.width
-                                                           << "x" << camera_.height << " image");
-  }
   impl_->small = Reduced(camera_, options_.downscale);
   const Intrinsics& small = impl_->small;
   const cv::Matx33d camera_matrix(small.fx, 0, small.cx, 0, small.fy, small.cy, 0, 0, 1);

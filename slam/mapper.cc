@@ -110,10 +110,6 @@ Mapper::Mapper(const Intrinsics& camera, const MapperOptions& options)
                      camera_.height % options_.depth_downscale == 0,
                  "depth_downscale " << options_.depth_downscale << " does not divide the "
                                     << camera_.width << "x" << camera_.height << " image");
-  SIGHTMAP_CHECK(camera_.width % options_.dense.downscale == 0 &&
-                     camera_.height % options_.dense.downscale == 0,
-                 "the dense downscale " << options_.dense.downscale << " does not divide the "
-                                        << camera_.width << "x" << camera_.height << " image");
   if (options_.dense_refinement) aligner_ = std::make_unique<DenseAligner>(camera_, options_.dense);
 }
 

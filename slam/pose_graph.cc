@@ -296,10 +296,9 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
 
   ceres::EigenQuaternionManifold quaternion_manifold;
   ceres::CauchyLoss loop_loss(options.loop_loss_scale);
-  ceres::CauchyLoss odometry_loss(options.odometry_loss_scale > 0.0 ? options.odometry_loss_scale
-                                                                    : 1.0);
-  ceres::LossFunction* const odometry_loss_or_none =
-      options.odometry_loss_scale > 0.0 ? &odometry_loss : nullptr;
+  const std::unique_ptr<ceres::LossFunction> odometry_loss(
+      options.odometry_loss_scale > 0.0 ? new ceres::CauchyLoss(options.odometry_loss_scale)
+                                        : nullptr);
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -319,7 +318,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
       const auto [a, b] = ends[e];
       problem.AddResidualBlock(
           EdgeCost::Create(edges_[e].from_from_to, sqrt_information[e]),
-          edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : odometry_loss_or_none,
+          edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : odometry_loss.get(),
           parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
       in_problem[a] = in_problem[b] = true;
       // An edge without information does not tie its poses together.

@@ -125,9 +125,11 @@ struct Tracker::Placed {
   Matrix6 blind_start_covariance = Matrix6::Zero();  // the covariance when the blind time began
 };
 
+// A frame prepared for dense alignment: in a dense chain each frame is aligned twice, as the
+// source and then as the target, and is prepared once.
 struct Tracker::DenseFrame {
   int64_t index = -1;
-  DenseImage image;
+  std::shared_ptr<DenseAligner::Frame> prepared;
 };
 
 namespace {
@@ -210,7 +212,8 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   const auto make = [&](const RgbdFrame& source) {
     DenseFrame dense;
     dense.index = source.index;
-    dense.image = MakeDenseImage(source.color, source.depth, camera_, options_.dense);
+    dense.prepared =
+        aligner_.Prepare(MakeDenseImage(source.color, source.depth, camera_, options_.dense));
     return dense;
   };
   if (!last_dense_ || last_dense_->index != last_->frame.index) {
@@ -219,7 +222,8 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   DenseFrame current = make(frame.frame);
   // Predicted step from the last frame: last_from_cam.
   const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
-  const DenseAlignment aligned = aligner_.Align(current.image, last_dense_->image, step_guess);
+  const DenseAlignment aligned =
+      aligner_.Align(*current.prepared, *last_dense_->prepared, step_guess);
   result->dense_s = SecondsSince(start);
   last_dense_ = std::make_unique<DenseFrame>(std::move(current));
   if (!aligned.success) return false;

@@ -196,7 +196,7 @@ class Tracker {
   KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
   TrackerCounters counters_;
   DenseAligner aligner_;
-  std::unique_ptr<DenseFrame> last_dense_;  // last_'s dense image, made when first needed
+  std::unique_ptr<DenseFrame> last_dense_;  // last_ prepared for alignment, when first needed
 };
 
 }  // namespace sightmap
