@@ -3,30 +3,30 @@
 // keyframe by keyframe, drawn by the preview or the progress images, and at the end the PLY, the
 // trajectory and a summary.
 //
-// Threads (each owned by the session and joined before Run returns):
-//   capture  source -> KeyframeSampler -> frame queue (bounded). A live sensor (or a recording
-//            played at its recorded pace) never waits: a keyframe the queue has no room for is
-//            dropped and counted. A recording, a folder or the simulator waits for room, so a
-//            replay drops nothing.
-//   SLAM     the calling thread: frame queue -> Mapper::AddKeyframe -> write queue (bounded,
-//            waits: keyframes are never dropped). Polls the stop conditions between keyframes.
-//   writer   write queue -> Model: each keyframe with its links in one transaction, every pose
-//            after an optimisation in one transaction (UpdatePoses), the vocabulary once
-//            trained; then the keyframe goes to the map view (which draws on its own thread and
-//            never blocks).
+// A pipeline of stages, each a class with its own thread (but the map stage) and its own test,
+// joined by bounded queues:
+//   capture (capture_stage.h)  source -> frames. A live sensor never waits (frames the tracker
+//                              cannot take are dropped and counted); a replay waits for room.
+//   track (track_stage.h)      frames -> Tracker -> keyframes (waits: keyframes are never dropped).
+//   map (map_stage.h)          keyframes -> Mapper -> write tasks, on the thread that calls Run(),
+//                              which polls the stop conditions between keyframes.
+//   write (write_stage.h)      write tasks -> Model, each in one transaction, then the map view
+//                              (which draws on its own thread and never blocks).
 //
 // Stopping (every reason ends the same way): the keyframe in hand is finished, frames still
 // queued are discarded, the writer commits what it holds and the final poses, the session is
 // ended (finished, or interrupted when the source failed), and the PLY and trajectory are
 // written from the model.
 //
-// Resuming: a model that already holds keyframes gives the Mapper its vocabulary, keyframes and
-// links; sessions left running by a crash are marked interrupted; the new session's keyframes
-// start a new segment that the Mapper relocalises into the stored map (or keeps apart, reported).
+// Resuming (model_restore.h): a model that already holds keyframes gives the Mapper its vocabulary,
+// keyframes and links; sessions left running by a crash are marked interrupted; the new session's
+// keyframes start a new segment that the Mapper relocalises into the stored map (or keeps apart,
+// reported).
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <optional>
 #include <ostream>
@@ -176,6 +176,20 @@ class MappingSession {
   void SetProgressCallback(ProgressCallback callback) { progress_ = std::move(callback); }
 
  private:
+  struct Pipeline;
+  MappingProgress Progress(const Pipeline& pipeline) const;
+  bool StopRequested(const Pipeline& pipeline);
+  // The map stage's loop on this thread: keyframes -> Mapper -> writer, until the keyframes end,
+  // a stop is requested or the writer failed.
+  void MapKeyframes(const Pipeline& pipeline);
+  // Stops and joins every stage in order, the writer last with the final poses; returns the
+  // tracking stage's error, if any.
+  std::exception_ptr DrainStages(const Pipeline& pipeline);
+  // Ends the model's session (interrupted after a failure) and rethrows the first failure; nothing
+  // mapped from a failed source is its error.
+  void EndSession(const Pipeline& pipeline, Model* model, SessionId session,
+                  const std::exception_ptr& map_error, StopReason reason);
+
   MappingOptions options_;
   const std::atomic<bool>* interrupt_flag_ = nullptr;
   ProgressCallback progress_;

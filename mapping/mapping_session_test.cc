@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
+#include "mapping/failing_source_testing.h"
 #include "sim/sim_source.h"
 #include "store/trajectory.h"
 #include "tests/test_data.h"
@@ -114,31 +115,12 @@ TEST(MappingSession, AnInterruptFinishesTheKeyframeInHandAndEndsTheSession) {
   EXPECT_TRUE(std::filesystem::file_size(dir + "/model.ply") > 0);
 }
 
-// The simulator, failing like an unplugged sensor after `fail_after` frames.
-class FailingSource : public RgbdSource {
- public:
-  FailingSource(std::unique_ptr<RgbdSource> inner, int fail_after)
-      : inner_(std::move(inner)), fail_after_(fail_after) {}
-  const SourceMetadata& metadata() const override { return inner_->metadata(); }
-  std::optional<RgbdFrame> Next() override {
-    if (delivered_++ == fail_after_) {
-      SIGHTMAP_THROW(Error, "the sensor stopped sending frames (unplugged?)");
-    }
-    return inner_->Next();
-  }
-  SourceStats stats() const override { return inner_->stats(); }
-
- private:
-  std::unique_ptr<RgbdSource> inner_;
-  int fail_after_;
-  int delivered_ = 0;
-};
-
 TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
-  RegisterSourceOpener(SourceSpec::Kind::kSim, [](const std::string& location,
-                                                  const SourceOptions&) {
-    return std::make_unique<FailingSource>(sim::OpenSimSource(sim::ParseSimLocation(location)), 5);
-  });
+  RegisterSourceOpener(SourceSpec::Kind::kSim,
+                       [](const std::string& location, const SourceOptions&) {
+                         return std::make_unique<testing::FailingSource>(
+                             sim::OpenSimSource(sim::ParseSimLocation(location)), 5);
+                       });
   const std::string dir = testing::MakeTempDir("mapping-unplugged");
   MappingSession session(SimOptions(dir, 20));
   const MappingSummary summary = session.Run();

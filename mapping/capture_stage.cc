@@ -1,0 +1,90 @@
+#include "mapping/capture_stage.h"
+
+#include <chrono>
+#include <exception>
+#include <utility>
+
+#include "core/check.h"
+
+namespace sightmap::mapping {
+
+using Clock = std::chrono::steady_clock;
+
+bool CaptureStageOptions::Check(std::string* error) const {
+  if (start_frame < 0) {
+    *error = "start_frame must be >= 0";
+    return false;
+  }
+  if (take_every < 1) {
+    *error = "take_every must be >= 1";
+    return false;
+  }
+  return sampler.Check(error);
+}
+
+CaptureStage::CaptureStage(RgbdSource* source, const CaptureStageOptions& options,
+                           BoundedQueue<RgbdFrame>* frames, MapViewFeed* view)
+    : source_(source), options_(options), frames_(frames), view_(view), sampler_(options.sampler) {
+  SIGHTMAP_CHECK_OPTIONS(options_);
+  SIGHTMAP_CHECK(source_ != nullptr && frames_ != nullptr,
+                 "the capture stage needs a source and a frame queue");
+  thread_ = std::thread([this] { Run(); });
+}
+
+CaptureStage::~CaptureStage() {
+  Stop();
+  Join();
+}
+
+void CaptureStage::Stop() {
+  stop_ = true;
+  frames_->Close();
+  frames_->Clear();
+}
+
+void CaptureStage::Join() {
+  if (thread_.joinable()) thread_.join();
+}
+
+bool CaptureStage::Wanted(const RgbdFrame& frame) {
+  if (options_.sample_keyframes) return sampler_.Accept(frame.timestamp_ns);
+  return (frame.index - options_.start_frame) % options_.take_every == 0;
+}
+
+bool CaptureStage::WaitWhilePaused() {
+  if (!view_ || !view_->paused()) return true;
+  if (options_.live) return false;
+  while (view_->paused() && !stop_ && !view_->stop_requested()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return true;
+}
+
+void CaptureStage::Run() {
+  try {
+    Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);
+    while (!stop_) {
+      std::optional<RgbdFrame> frame = source_->Next();
+      if (!frame) break;
+      ++frames_read_;
+      if (frame->index < options_.start_frame) continue;
+      if (view_ && Clock::now() - last_live_image > std::chrono::milliseconds(100)) {
+        view_->SetLiveImages(frame->color, frame->depth);
+        last_live_image = Clock::now();
+      }
+      if (!WaitWhilePaused() || !Wanted(*frame)) continue;
+      if (options_.live) {
+        if (frames_->TryPush(std::move(*frame))) continue;
+        if (frames_->closed()) break;  // nobody takes frames any more
+        ++dropped_;
+      } else if (!frames_->Push(std::move(*frame))) {
+        break;  // the queue was closed: nobody takes frames any more
+      }
+    }
+  } catch (const std::exception& e) {
+    error_ = e.what();
+  }
+  frames_->Close();
+}
+
+}  // namespace sightmap::mapping

@@ -1,0 +1,82 @@
+// The capture stage of `sightmap map`: a source's frames, read on this stage's own thread and put
+// on the frame queue for the tracking stage.
+//
+// A live sensor (or a recording played at its recorded pace) never waits: a frame the queue has no
+// room for is dropped and counted, so the tracker always gets the newest frame once it is free. A
+// recording, a folder or the simulator waits for room, so a replay drops nothing.
+//
+// Which frames go on: every `take_every`th from `start_frame` when the frames are tracked, or one
+// per keyframe period (`sampler`) when they are not, so that a live sensor then drops keyframes the
+// mapper cannot take rather than the frames in between.
+//
+// With a map view: about ten live images a second go to it, and while the view is paused a live
+// sensor's frames pass by unused and a replay waits for the user.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "capture/keyframe_sampler.h"
+#include "capture/rgbd_source.h"
+#include "mapping/bounded_queue.h"
+#include "mapping/map_view_feed.h"
+
+namespace sightmap::mapping {
+
+struct CaptureStageOptions {
+  // Frames with a lower index are read and skipped (continue a recording from frame N).
+  int64_t start_frame = 0;
+  // Never wait for room in the frame queue: drop the frame and count it.
+  bool live = false;
+  // Pass on one frame per keyframe period (sampler) instead of every take_every-th frame.
+  bool sample_keyframes = false;
+  KeyframeSamplerOptions sampler;
+  int take_every = 1;  // [frames]
+
+  bool Check(std::string* error) const;
+};
+
+class CaptureStage {
+ public:
+  // Starts the thread. `source`, `frames` and `view` (may be null) must outlive the stage; the
+  // frame queue is closed when the stage ends (the source ended or failed, or Stop()).
+  CaptureStage(RgbdSource* source, const CaptureStageOptions& options,
+               BoundedQueue<RgbdFrame>* frames, MapViewFeed* view = nullptr);
+  ~CaptureStage();  // Stop() and Join()
+  CaptureStage(const CaptureStage&) = delete;
+  CaptureStage& operator=(const CaptureStage&) = delete;
+
+  // The thread ends after the frame in hand (a blocking sensor read returns first); frames still
+  // queued are discarded.
+  void Stop();
+  void Join();
+
+  // Any thread.
+  int64_t frames_read() const { return frames_read_.load(); }
+  int64_t dropped_frames() const { return dropped_.load(); }
+  // Why the source failed (its one-line error), or nothing; valid after Join().
+  const std::optional<std::string>& error() const { return error_; }
+
+ private:
+  void Run();
+  bool Wanted(const RgbdFrame& frame);
+  // Waits while a view pauses a replay; false when a live frame should pass by unused.
+  bool WaitWhilePaused();
+
+  RgbdSource* source_;
+  CaptureStageOptions options_;
+  BoundedQueue<RgbdFrame>* frames_;
+  MapViewFeed* view_;
+  KeyframeSampler sampler_;
+  std::atomic<bool> stop_{false};
+  std::atomic<int64_t> frames_read_{0};
+  std::atomic<int64_t> dropped_{0};
+  std::optional<std::string> error_;  // written by the thread before it ends
+  std::thread thread_;
+};
+
+}  // namespace sightmap::mapping

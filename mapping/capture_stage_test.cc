@@ -1,0 +1,121 @@
+// The capture stage on the simulator: which frames go on, a replay that waits, a live sensor that
+// drops and counts, a failing source, and stopping while the stage waits for room.
+#include "mapping/capture_stage.h"
+
+#include <chrono>
+#include <memory>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/check.h"
+#include "mapping/failing_source_testing.h"
+#include "sim/sim_source.h"
+
+namespace sightmap::mapping {
+namespace {
+
+std::unique_ptr<RgbdSource> Walk(int frames, double fps = 10.0) {
+  sim::SimulatorOptions options;
+  options.fps = fps;
+  options.frames = frames;
+  return sim::OpenSimSource(options);
+}
+
+std::vector<int64_t> DrainIndices(BoundedQueue<RgbdFrame>* frames) {
+  std::vector<int64_t> indices;
+  while (std::optional<RgbdFrame> frame = frames->Pop()) indices.push_back(frame->index);
+  return indices;
+}
+
+TEST(CaptureStage, AReplayPassesEveryNthFrameFromTheStartFrameAndDropsNone) {
+  const std::unique_ptr<RgbdSource> source = Walk(20);
+  BoundedQueue<RgbdFrame> frames(1);  // the stage must wait for the slow reader below
+  CaptureStageOptions options;
+  options.start_frame = 3;
+  options.take_every = 2;
+  CaptureStage stage(source.get(), options, &frames);
+  std::vector<int64_t> indices;
+  while (std::optional<RgbdFrame> frame = frames.Pop()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    indices.push_back(frame->index);
+  }
+  stage.Join();
+  EXPECT_EQ(indices, (std::vector<int64_t>{3, 5, 7, 9, 11, 13, 15, 17, 19}));
+  EXPECT_EQ(stage.frames_read(), 20);
+  EXPECT_EQ(stage.dropped_frames(), 0);
+  EXPECT_FALSE(stage.error().has_value());
+}
+
+TEST(CaptureStage, WithoutTrackingOneFramePerKeyframePeriodGoesOn) {
+  const std::unique_ptr<RgbdSource> source = Walk(30);  // 3 s at 10 Hz
+  BoundedQueue<RgbdFrame> frames(4);
+  CaptureStageOptions options;
+  options.sample_keyframes = true;
+  options.sampler.rate_hz = 1.0;
+  CaptureStage stage(source.get(), options, &frames);
+  EXPECT_EQ(DrainIndices(&frames), (std::vector<int64_t>{0, 10, 20}));
+  stage.Join();
+  EXPECT_EQ(stage.frames_read(), 30);
+}
+
+TEST(CaptureStage, ALiveSensorNeverWaitsButDropsAndCountsWhatFindsNoRoom) {
+  const std::unique_ptr<RgbdSource> source = Walk(12);
+  BoundedQueue<RgbdFrame> frames(2);
+  CaptureStageOptions options;
+  options.live = true;
+  CaptureStage stage(source.get(), options, &frames);
+  stage.Join();  // nobody reads until the sensor's stream ended: it did not wait
+  EXPECT_EQ(stage.frames_read(), 12);
+  EXPECT_EQ(stage.dropped_frames(), 10);
+  EXPECT_EQ(DrainIndices(&frames), (std::vector<int64_t>{0, 1}));
+}
+
+TEST(CaptureStage, AFailingSourceEndsTheStreamWithItsReason) {
+  testing::FailingSource source(Walk(20), 4);
+  BoundedQueue<RgbdFrame> frames(8);
+  CaptureStage stage(&source, CaptureStageOptions(), &frames);
+  EXPECT_EQ(DrainIndices(&frames), (std::vector<int64_t>{0, 1, 2, 3}));
+  stage.Join();
+  ASSERT_TRUE(stage.error().has_value());
+  EXPECT_NE(stage.error()->find("unplugged"), std::string::npos) << *stage.error();
+}
+
+TEST(CaptureStage, StopEndsAReplayWaitingForRoomAndDiscardsWhatIsQueued) {
+  const std::unique_ptr<RgbdSource> source = Walk(50);
+  BoundedQueue<RgbdFrame> frames(1);
+  CaptureStage stage(source.get(), CaptureStageOptions(), &frames);
+  while (frames.size() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  stage.Stop();
+  stage.Join();
+  EXPECT_LT(stage.frames_read(), 5);  // it was waiting for room, not reading on
+  EXPECT_EQ(frames.size(), 0u);
+  EXPECT_FALSE(frames.Pop().has_value());
+}
+
+TEST(CaptureStage, ALiveSensorStopsReadingOnceNobodyTakesFrames) {
+  const std::unique_ptr<RgbdSource> source = Walk(50);
+  BoundedQueue<RgbdFrame> frames(1);
+  frames.Close();  // the tracking stage ended
+  CaptureStageOptions options;
+  options.live = true;
+  CaptureStage stage(source.get(), options, &frames);
+  stage.Join();
+  EXPECT_EQ(stage.frames_read(), 1);
+  EXPECT_EQ(stage.dropped_frames(), 0);
+}
+
+TEST(CaptureStage, BadOptionsAreRefused) {
+  const std::unique_ptr<RgbdSource> source = Walk(1);
+  BoundedQueue<RgbdFrame> frames(1);
+  CaptureStageOptions options;
+  options.take_every = 0;
+  EXPECT_THROW(CaptureStage(source.get(), options, &frames), InvalidArgument);
+  options = CaptureStageOptions();
+  options.start_frame = -1;
+  EXPECT_THROW(CaptureStage(source.get(), options, &frames), InvalidArgument);
+  EXPECT_THROW(CaptureStage(nullptr, CaptureStageOptions(), &frames), Error);
+}
+
+}  // namespace
+}  // namespace sightmap::mapping

@@ -1,0 +1,119 @@
+// The map stage on the simulator's 1 Hz walk: what each keyframe hands the writer, in order, the
+// anchor to ground truth, the accuracy figure, and a keyframe without the ground truth it needs.
+#include "mapping/map_stage.h"
+
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "sim/simulator.h"
+
+namespace sightmap::mapping {
+namespace {
+
+sim::Simulator Walk(int frames) {
+  sim::SimulatorOptions options;
+  options.fps = 1.0;
+  options.frames = frames;
+  options.seed = 11;
+  return sim::Simulator(options);
+}
+
+KeyframeItem Untracked(RgbdFrame frame) {
+  KeyframeItem item;
+  item.keyframe.frame = std::move(frame);
+  return item;
+}
+
+TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
+  sim::Simulator simulator = Walk(34);
+  const Intrinsics camera = simulator.options().camera;
+  Mapper mapper(camera);
+  MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());
+  int vocabularies = 0;
+  int pose_updates = 0;
+  std::vector<StampedPose> truths;
+  for (int64_t i = 0; i < simulator.num_frames(); ++i) {
+    RgbdFrame frame = simulator.RenderFrame(i);
+    truths.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
+    const std::vector<WriteTask> tasks = stage.Map(Untracked(std::move(frame)));
+    ASSERT_FALSE(tasks.empty());
+    const WriteTask& keyframe = tasks.front();
+    ASSERT_EQ(keyframe.kind, WriteTask::Kind::kKeyframe);
+    EXPECT_EQ(keyframe.mapper_id, i);
+    EXPECT_EQ(keyframe.record.session, SessionId(1));
+    EXPECT_EQ(keyframe.record.color.size(), cv::Size(camera.width, camera.height));
+    EXPECT_EQ(keyframe.record.depth.type(), CV_16UC1);
+    EXPECT_EQ(keyframe.record.features.keypoints.size(), mapper.FeaturesOf(i).size());
+    for (const MapperLink& link : keyframe.links) {
+      EXPECT_TRUE(link.to == i || link.from == i) << "a keyframe carries its own links";
+    }
+    if (i > 0 && mapper.SegmentOf(i) == mapper.SegmentOf(i - 1)) {
+      EXPECT_FALSE(keyframe.links.empty()) << "keyframe " << i << " continues without a link";
+    }
+    for (size_t t = 1; t < tasks.size(); ++t) {
+      if (tasks[t].kind == WriteTask::Kind::kPoses) {
+        ++pose_updates;
+        EXPECT_EQ(tasks[t].poses.size(), static_cast<size_t>(i + 1)) << "every pose, after it";
+      } else {
+        ASSERT_EQ(tasks[t].kind, WriteTask::Kind::kVocabulary);
+        EXPECT_FALSE(tasks[t].vocabulary.empty());
+        ++vocabularies;
+      }
+    }
+  }
+  EXPECT_EQ(vocabularies, 1) << "the vocabulary is written once, when trained";
+  EXPECT_EQ(stage.keyframes(), 34);
+  EXPECT_EQ(stage.keyframe_seconds().size(), 34u);
+  EXPECT_FALSE(stage.joined_stored_map());
+  // Anchored: the first keyframe sits at its true pose, so the accuracy is in the scene's frame.
+  EXPECT_TRUE(mapper.WorldFromCam(0).isApprox(truths.front().world_from_cam, 1e-9));
+  const std::optional<TrajectoryError> accuracy = stage.Accuracy();
+  ASSERT_TRUE(accuracy.has_value());
+  EXPECT_EQ(accuracy->matched_poses, 34);
+  EXPECT_DOUBLE_EQ(accuracy->ate_rmse_m, EvaluateTrajectory(truths, mapper.Trajectory()).ate_rmse_m)
+      << "this session's keyframes, each against its own ground truth";
+  const WriteTask all = stage.AllPoses();
+  EXPECT_EQ(all.kind, WriteTask::Kind::kPoses);
+  EXPECT_EQ(all.poses.size(), 34u);
+}
+
+TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {
+  sim::Simulator simulator = Walk(2);
+  const Intrinsics camera = simulator.options().camera;
+  Mapper mapper(camera);
+  MapStageOptions options;
+  options.ground_truth_poses = true;
+  MapStage stage(&mapper, SessionId(1), camera, options, RestoredModel());
+  RgbdFrame frame = simulator.RenderFrame(0);
+  const Eigen::Isometry3d truth = *frame.world_from_cam_gt;
+  stage.Map(Untracked(std::move(frame)));
+  EXPECT_TRUE(mapper.WorldFromCam(0).isApprox(truth, 1e-9));
+  RgbdFrame unknown = simulator.RenderFrame(1);
+  unknown.world_from_cam_gt.reset();
+  try {
+    stage.Map(Untracked(std::move(unknown)));
+    FAIL() << "a keyframe without ground truth was mapped";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--ground-truth-poses needs a source with ground truth"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(stage.keyframes(), 1);
+}
+
+TEST(MapStage, NoAccuracyWithoutGroundTruth) {
+  sim::Simulator simulator = Walk(4);
+  const Intrinsics camera = simulator.options().camera;
+  Mapper mapper(camera);
+  MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());
+  for (int64_t i = 0; i < 4; ++i) {
+    RgbdFrame frame = simulator.RenderFrame(i);
+    if (i == 2) frame.world_from_cam_gt.reset();
+    stage.Map(Untracked(std::move(frame)));
+  }
+  EXPECT_FALSE(stage.Accuracy().has_value()) << "one keyframe had no ground truth";
+}
+
+}  // namespace
+}  // namespace sightmap::mapping

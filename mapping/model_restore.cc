@@ -1,0 +1,73 @@
+#include "mapping/model_restore.h"
+
+#include <map>
+#include <memory>
+#include <set>
+
+#include "core/check.h"
+#include "mapping/feature_conversion.h"
+#include "mapping/write_stage.h"
+
+namespace sightmap::mapping {
+
+RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool load_color,
+                           Mapper* mapper, MapViewFeed* view) {
+  SIGHTMAP_CHECK(mapper != nullptr && mapper->NumKeyframes() == 0,
+                 "a model is restored into an empty mapper");
+  RestoredModel restored;
+  const std::vector<KeyframeInfo> stored = model.Keyframes();
+  if (stored.empty()) return restored;
+  const Intrinsics& first = stored.front().intrinsics;
+  SIGHTMAP_CHECK(first.width == camera.width && first.height == camera.height,
+                 "the model " << model.path() << " was mapped with a " << first.width << "x"
+                              << first.height << " camera but the source delivers " << camera.width
+                              << "x" << camera.height
+                              << " — map into a new model or use the same camera mode");
+  if (auto vocabulary = model.LoadVocabulary()) {
+    SIGHTMAP_CHECK(vocabulary->first == Vocabulary::kFormat,
+                   "the model's vocabulary is of format '"
+                       << vocabulary->first << "', this sightmap reads '" << Vocabulary::kFormat
+                       << "' — map into a new model");
+    mapper->SetVocabulary(
+        std::make_shared<const Vocabulary>(Vocabulary::Deserialize(vocabulary->second)));
+    restored.vocabulary_restored = true;
+  }
+
+  std::map<int64_t, int64_t> mapper_id_of;  // model id -> mapper id
+  for (const KeyframeInfo& info : stored) {
+    const cv::Mat depth = model.LoadDepth(info.id);
+    const cv::Mat color = load_color || view ? model.LoadColor(info.id) : cv::Mat();
+    const int64_t id =
+        mapper->RestoreKeyframe(info.timestamp_ns, FromStoreFeatures(model.LoadFeatures(info.id)),
+                                depth, info.world_from_cam, color);
+    SIGHTMAP_CHECK(id == static_cast<int64_t>(restored.store_ids.size()),
+                   "the mapper restored keyframe " << info.id.value() << " as " << id);
+    restored.store_ids.push_back(info.id);
+    mapper_id_of[info.id.value()] = id;
+    if (view) {
+      view->AddKeyframe(id, static_cast<int>(info.session.value()), info.world_from_cam, color,
+                        depth, info.intrinsics);
+    }
+  }
+  for (const LinkRecord& record : model.Links()) {
+    MapperLink link;
+    link.from = mapper_id_of.at(record.from.value());
+    link.to = mapper_id_of.at(record.to.value());
+    link.from_from_to = record.from_from_to;
+    link.information = record.information;
+    link.type = FromStoreLinkType(record.type);
+    link.active = record.active;
+    mapper->RestoreLink(link);
+    if (view && link.active && link.type != MapperLinkType::kOdometry) {
+      view->AddLoop(link.from, link.to);
+    }
+  }
+  std::set<int> segments;
+  for (int64_t id = 0; id < static_cast<int64_t>(restored.store_ids.size()); ++id) {
+    if (segments.insert(mapper->SegmentOf(id)).second) restored.segment_members.push_back(id);
+  }
+  mapper->StartNewSegment();
+  return restored;
+}
+
+}  // namespace sightmap::mapping

@@ -1,0 +1,135 @@
+#include "mapping/write_stage.h"
+
+#include <optional>
+
+#include "core/check.h"
+
+namespace sightmap::mapping {
+
+LinkType ToStoreLinkType(MapperLinkType type) {
+  switch (type) {
+    case MapperLinkType::kOdometry:
+      return LinkType::kOdometry;
+    case MapperLinkType::kLoopClosure:
+      return LinkType::kLoopClosure;
+    case MapperLinkType::kRelocalisation:
+      return LinkType::kRelocalisation;
+    case MapperLinkType::kPrior:
+      return LinkType::kPrior;
+  }
+  return LinkType::kOdometry;
+}
+
+MapperLinkType FromStoreLinkType(LinkType type) {
+  switch (type) {
+    case LinkType::kOdometry:
+      return MapperLinkType::kOdometry;
+    case LinkType::kRelocalisation:
+      return MapperLinkType::kRelocalisation;
+    case LinkType::kPrior:
+      return MapperLinkType::kPrior;
+    case LinkType::kLoopClosure:
+    case LinkType::kUser:
+      return MapperLinkType::kLoopClosure;
+  }
+  return MapperLinkType::kLoopClosure;
+}
+
+WriteStage::WriteStage(Model* model, MapViewFeed* view, int session_number,
+                       std::vector<KeyframeId> store_ids, size_t queue_capacity)
+    : model_(model),
+      view_(view),
+      session_number_(session_number),
+      store_ids_(std::move(store_ids)),
+      tasks_(queue_capacity) {
+  SIGHTMAP_CHECK(model_ != nullptr, "the write stage needs a model");
+  SIGHTMAP_CHECK(session_number_ >= 1, "session numbers start at 1, not " << session_number_);
+  thread_ = std::thread([this] { Run(); });
+}
+
+WriteStage::~WriteStage() { Finish(); }
+
+bool WriteStage::Push(WriteTask task) { return !failed_ && tasks_.Push(std::move(task)); }
+
+void WriteStage::Finish() {
+  tasks_.Close();
+  if (thread_.joinable()) thread_.join();
+}
+
+void WriteStage::Run() {
+  try {
+    while (std::optional<WriteTask> task = tasks_.Pop()) Write(*task);
+  } catch (...) {
+    error_ = std::current_exception();
+    failed_ = true;
+    // Whoever waits for room is let go; what is queued is not written.
+    tasks_.Close();
+    tasks_.Clear();
+  }
+}
+
+void WriteStage::Write(WriteTask& task) {
+  switch (task.kind) {
+    case WriteTask::Kind::kKeyframe:
+      WriteKeyframe(task);
+      break;
+    case WriteTask::Kind::kPoses:
+      WritePoses(task);
+      break;
+    case WriteTask::Kind::kVocabulary:
+      model_->SetVocabulary(Vocabulary::kFormat, task.vocabulary);
+      break;
+  }
+}
+
+KeyframeId WriteStage::StoreId(int64_t mapper_id) const {
+  SIGHTMAP_CHECK(mapper_id >= 0 && mapper_id < static_cast<int64_t>(store_ids_.size()),
+                 "keyframe " << mapper_id << " is not in the model yet");
+  return store_ids_[static_cast<size_t>(mapper_id)];
+}
+
+void WriteStage::WriteKeyframe(WriteTask& task) {
+  SIGHTMAP_CHECK(task.mapper_id == static_cast<int64_t>(store_ids_.size()),
+                 "keyframe " << task.mapper_id << " reached the writer out of order (expected "
+                             << store_ids_.size() << ")");
+  KeyframeRecord& record = task.record;
+  for (const MapperLink& link : task.links) {
+    LinkRecord stored;
+    // The new keyframe's own end is left unset: the model fills in the id it gives it.
+    stored.from = link.from == task.mapper_id ? KeyframeId() : StoreId(link.from);
+    stored.to = link.to == task.mapper_id ? KeyframeId() : StoreId(link.to);
+    stored.type = ToStoreLinkType(link.type);
+    stored.from_from_to = link.from_from_to;
+    stored.information = link.information;
+    stored.active = link.active;
+    record.links.push_back(stored);
+  }
+  store_ids_.push_back(model_->AddKeyframe(record));
+  ++committed_;
+  if (!view_) return;
+  view_->AddKeyframe(task.mapper_id, session_number_, record.world_from_cam, record.color,
+                     record.depth, record.intrinsics);
+  for (const MapperLink& link : task.links) {
+    if (link.active && link.type != MapperLinkType::kOdometry) view_->AddLoop(link.from, link.to);
+  }
+  view_->SetCamera(record.world_from_cam);
+  view_->SetStatus(task.status);
+}
+
+void WriteStage::WritePoses(const WriteTask& task) {
+  std::vector<std::pair<KeyframeId, Eigen::Isometry3d>> poses;
+  poses.reserve(task.poses.size());
+  for (const auto& [id, pose] : task.poses) {
+    if (id >= 0 && id < static_cast<int64_t>(store_ids_.size())) {
+      poses.emplace_back(store_ids_[static_cast<size_t>(id)], pose);
+    }
+  }
+  std::vector<LinkKey> deactivated;
+  for (const MapperLink& link : task.deactivated) {
+    deactivated.push_back({StoreId(link.from), StoreId(link.to), ToStoreLinkType(link.type)});
+  }
+  model_->UpdateGraph(poses, deactivated);
+  if (view_) view_->UpdatePoses(task.poses);
+}
+
+}  // namespace sightmap::mapping

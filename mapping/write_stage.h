@@ -1,0 +1,89 @@
+// The writing stage of `sightmap map`: what the mapping stage decided goes to the model on this
+// stage's own thread, in order, each task in its own transaction: a keyframe with its links, every
+// pose after an optimisation (with the stored links it switched off), the vocabulary once trained.
+// A written keyframe then goes to the map view, which draws on its own thread and never blocks.
+//
+// The mapper numbers keyframes 0, 1, ... and the model numbers them its own way; this stage holds
+// the one table between the two (restored keyframes first), since only it learns the model's ids.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <exception>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "mapping/bounded_queue.h"
+#include "mapping/map_view_feed.h"
+#include "slam/mapper.h"
+#include "store/model.h"
+
+namespace sightmap::mapping {
+
+// What the mapping stage hands the writer, in order.
+struct WriteTask {
+  enum class Kind { kKeyframe, kPoses, kVocabulary };
+  Kind kind = Kind::kKeyframe;
+  // kKeyframe: the record (links left empty) and its links with mapper ids at both ends (the new
+  // keyframe's own id among them).
+  int64_t mapper_id = -1;
+  KeyframeRecord record;
+  std::vector<MapperLink> links;
+  FeedStatus status;
+  // kPoses: optimised poses by mapper id (ids not written yet are skipped), and stored links the
+  // optimisation switched off.
+  std::vector<std::pair<int64_t, Eigen::Isometry3d>> poses;
+  std::vector<MapperLink> deactivated;
+  // kVocabulary: Vocabulary::Serialize()'s bytes.
+  std::vector<uint8_t> vocabulary;
+};
+
+LinkType ToStoreLinkType(MapperLinkType type);
+// A user's link constrains the graph like a verified loop.
+MapperLinkType FromStoreLinkType(LinkType type);
+
+class WriteStage {
+ public:
+  // Starts the thread. `store_ids` maps the mapper ids of the keyframes already in the model
+  // (restored, in mapper order) to their model ids; `session_number` (>= 1) colours the view's
+  // track. `model` and `view` (may be null) must outlive the stage.
+  WriteStage(Model* model, MapViewFeed* view, int session_number, std::vector<KeyframeId> store_ids,
+             size_t queue_capacity);
+  ~WriteStage();
+  WriteStage(const WriteStage&) = delete;
+  WriteStage& operator=(const WriteStage&) = delete;
+
+  // Queues a task, waiting for room; false once the stage failed (the task is not written).
+  bool Push(WriteTask task);
+  // Writes what is queued and ends the thread (idempotent).
+  void Finish();
+
+  // A write failed: the thread stopped and later tasks are refused (any thread).
+  bool failed() const { return failed_.load(); }
+  // The exception that stopped the stage; valid after Finish().
+  std::exception_ptr error() const { return error_; }
+  // Keyframes committed so far (any thread).
+  int64_t committed() const { return committed_.load(); }
+
+ private:
+  void Run();
+  void Write(WriteTask& task);
+  void WriteKeyframe(WriteTask& task);
+  void WritePoses(const WriteTask& task);
+  KeyframeId StoreId(int64_t mapper_id) const;
+
+  Model* model_;
+  MapViewFeed* view_;
+  int session_number_;
+  std::vector<KeyframeId> store_ids_;  // by mapper id; only the thread touches it once started
+  BoundedQueue<WriteTask> tasks_;
+  std::atomic<bool> failed_{false};
+  std::atomic<int64_t> committed_{0};
+  std::exception_ptr error_;  // written by the thread before it sets failed_
+  std::thread thread_;
+};
+
+}  // namespace sightmap::mapping
