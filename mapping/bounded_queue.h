@@ -1,6 +1,7 @@
 // A bounded multi-producer multi-consumer queue joining the stages of a mapping session (Basalt's
 // pipeline style): a producer either waits for room (a replay, which must not lose a frame) or
-// gives up at once when the queue is full (a live sensor, which drops and counts the frame).
+// never waits and drops the oldest item when the queue is full (a live sensor: the consumer gets
+// the newest frames, and the producer counts the drop).
 // Close() marks the end of the stream: producers stop, consumers drain what is left and then see
 // the end.
 #pragma once
@@ -37,14 +38,22 @@ class BoundedQueue {
     return true;
   }
 
-  // Never waits; false when the queue is full or closed (the caller counts the drop).
-  bool TryPush(T item) {
+  enum class PushResult { kQueued, kDroppedOldest, kClosed };
+
+  // Never waits: when the queue is full its oldest item is dropped to make room, so a consumer
+  // that falls behind a live sensor always gets the newest items (the caller counts the drop).
+  PushResult PushNewest(T item) {
     std::unique_lock<std::mutex> lock(mutex_);
-    if (closed_ || items_.size() >= capacity_) return false;
+    if (closed_) return PushResult::kClosed;
+    PushResult result = PushResult::kQueued;
+    if (items_.size() >= capacity_) {
+      items_.pop_front();
+      result = PushResult::kDroppedOldest;
+    }
     items_.push_back(std::move(item));
     lock.unlock();
     not_empty_.notify_one();
-    return true;
+    return result;
   }
 
   enum class PopResult { kItem, kTimeout, kEnd };

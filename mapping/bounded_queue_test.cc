@@ -11,16 +11,19 @@ namespace {
 
 using namespace std::chrono_literals;
 
-TEST(BoundedQueue, TryPushDropsWhenFullAndKeepsOrder) {
+TEST(BoundedQueue, PushNewestDropsTheOldestWhenFullAndKeepsOrder) {
+  using PushResult = BoundedQueue<int>::PushResult;
   BoundedQueue<int> queue(2);
-  EXPECT_TRUE(queue.TryPush(1));
-  EXPECT_TRUE(queue.TryPush(2));
-  EXPECT_FALSE(queue.TryPush(3)) << "a live frame must not wait for room";
+  EXPECT_EQ(queue.PushNewest(1), PushResult::kQueued);
+  EXPECT_EQ(queue.PushNewest(2), PushResult::kQueued);
+  EXPECT_EQ(queue.PushNewest(3), PushResult::kDroppedOldest) << "a live frame never waits";
   EXPECT_EQ(queue.size(), 2u);
-  EXPECT_EQ(queue.Pop(), 1);
-  EXPECT_TRUE(queue.TryPush(4));
   EXPECT_EQ(queue.Pop(), 2);
+  EXPECT_EQ(queue.PushNewest(4), PushResult::kQueued);
+  EXPECT_EQ(queue.Pop(), 3);
   EXPECT_EQ(queue.Pop(), 4);
+  queue.Close();
+  EXPECT_EQ(queue.PushNewest(5), PushResult::kClosed);
 }
 
 TEST(BoundedQueue, PushWaitsForRoomSoAReplayLosesNothing) {
@@ -53,7 +56,7 @@ TEST(BoundedQueue, CloseReleasesAWaitingProducerAndConsumersDrain) {
   EXPECT_EQ(queue.Pop(&item, 10ms), BoundedQueue<int>::PopResult::kItem);
   EXPECT_EQ(item, 7);
   EXPECT_EQ(queue.Pop(&item, 10ms), BoundedQueue<int>::PopResult::kEnd);
-  EXPECT_FALSE(queue.TryPush(9));
+  EXPECT_EQ(queue.PushNewest(9), BoundedQueue<int>::PushResult::kClosed);
 }
 
 TEST(BoundedQueue, PopTimesOutOnAnEmptyOpenQueue) {

@@ -74,9 +74,9 @@ void CaptureStage::Run() {
       }
       if (!WaitWhilePaused() || !Wanted(*frame)) continue;
       if (options_.live) {
-        if (frames_->TryPush(std::move(*frame))) continue;
-        if (frames_->closed()) break;  // nobody takes frames any more
-        ++dropped_;
+        const auto pushed = frames_->PushNewest(std::move(*frame));
+        if (pushed == BoundedQueue<RgbdFrame>::PushResult::kClosed) break;  // nobody takes frames
+        if (pushed == BoundedQueue<RgbdFrame>::PushResult::kDroppedOldest) ++dropped_;
       } else if (!frames_->Push(std::move(*frame))) {
         break;  // the queue was closed: nobody takes frames any more
       }

@@ -1,9 +1,9 @@
 // The capture stage of `sightmap map`: a source's frames, read on this stage's own thread and put
 // on the frame queue for the tracking stage.
 //
-// A live sensor (or a recording played at its recorded pace) never waits: a frame the queue has no
-// room for is dropped and counted, so the tracker always gets the newest frame once it is free. A
-// recording, a folder or the simulator waits for room, so a replay drops nothing.
+// A live sensor (or a recording played at its recorded pace) never waits: when the queue is full
+// its oldest frame is dropped and counted, so the tracker always gets the newest frames once it is
+// free. A recording, a folder or the simulator waits for room, so a replay drops nothing.
 //
 // Which frames go on: every `take_every`th from `start_frame` when the frames are tracked, or one
 // per keyframe period (`sampler`) when they are not, so that a live sensor then drops keyframes the
