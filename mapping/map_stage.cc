@@ -86,7 +86,8 @@ std::vector<WriteTask> MapStage::Map(KeyframeItem item) {
   tasks.push_back(KeyframeTask(report, frame, &deactivated));
   links_rejected_after_commit_ += static_cast<int64_t>(deactivated.size());
   if (report.optimised) {
-    tasks.push_back(AllPoses());
+    // A local optimisation moved a few keyframes: only those are written again.
+    tasks.push_back(report.optimised_locally ? PosesOf(report.moved) : AllPoses());
     tasks.back().deactivated = std::move(deactivated);
   }
   if (!vocabulary_sent_ && mapper_->vocabulary()) {
@@ -107,6 +108,14 @@ WriteTask MapStage::AllPoses() const {
   for (size_t id = 0; id < trajectory.size(); ++id) {
     poses.poses.emplace_back(static_cast<int64_t>(id), trajectory[id].world_from_cam);
   }
+  return poses;
+}
+
+WriteTask MapStage::PosesOf(const std::vector<int64_t>& ids) const {
+  WriteTask poses;
+  poses.kind = WriteTask::Kind::kPoses;
+  poses.poses.reserve(ids.size());
+  for (int64_t id : ids) poses.poses.emplace_back(id, mapper_->WorldFromCam(id));
   return poses;
 }
 

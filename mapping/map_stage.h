@@ -2,8 +2,8 @@
 // the Mapper (registration, loop closure, optimisation) on the session's own thread, and what
 // changed becomes write tasks for the writing stage, in order: the keyframe with the links it
 // made (stored with their state now, so a loop switched off in this very step is stored inactive),
-// every pose after an optimisation with the stored links it switched off, and the vocabulary once
-// trained.
+// the poses an optimisation moved (every one, or the few a local one did) with the stored links it
+// switched off, and the vocabulary once trained.
 #pragma once
 
 #include <cstdint>
@@ -57,6 +57,7 @@ class MapStage {
 
  private:
   KeyframeReport AddToMapper(KeyframeItem& item);
+  WriteTask PosesOf(const std::vector<int64_t>& ids) const;
   WriteTask KeyframeTask(const KeyframeReport& report, RgbdFrame& frame,
                          std::vector<MapperLink>* deactivated) const;
 

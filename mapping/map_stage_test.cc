@@ -54,7 +54,12 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
     for (size_t t = 1; t < tasks.size(); ++t) {
       if (tasks[t].kind == WriteTask::Kind::kPoses) {
         ++pose_updates;
-        EXPECT_EQ(tasks[t].poses.size(), static_cast<size_t>(i + 1)) << "every pose, after it";
+        // Every pose after an optimisation of the whole map, the few a local one moved.
+        EXPECT_FALSE(tasks[t].poses.empty());
+        EXPECT_LE(tasks[t].poses.size(), static_cast<size_t>(i + 1));
+        for (const auto& [id, pose] : tasks[t].poses) {
+          EXPECT_TRUE(pose.isApprox(mapper.WorldFromCam(id), 0.0)) << id;
+        }
       } else {
         ASSERT_EQ(tasks[t].kind, WriteTask::Kind::kVocabulary);
         EXPECT_FALSE(tasks[t].vocabulary.empty());

@@ -80,6 +80,10 @@ bool MapperOptions::Check(std::string* error) const {
   if (loop_min_inliers < 0) return fail("loop_min_inliers must not be negative");
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
+  if (local_loop_hops < 0) return fail("local_loop_hops must not be negative (0: never local)");
+  if (!(local_loop_max_border_chi2_rise >= 0.0)) {
+    return fail("local_loop_max_border_chi2_rise must not be negative");
+  }
   if (!(join_max_disagreement_m > 0.0) || !(join_max_disagreement_rad > 0.0)) {
     return fail("join_max_disagreement_m and join_max_disagreement_rad must be positive");
   }
@@ -664,7 +668,11 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     }
     AddLink(link, report);
     last_loop_keyframe_ = keyframe.id;
-    Optimise(keyframe.id, report);
+    if (link.type == MapperLinkType::kLoopClosure && options_.local_loop_hops > 0) {
+      OptimiseNear(links_.size() - 1, report);
+    } else {
+      Optimise(keyframe.id, report);
+    }
     const MapperLink& added = links_.back();
     report->loop_closed = added.active;
     return link.type == MapperLinkType::kRelocalisation;
@@ -726,7 +734,22 @@ void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link
 
 void Mapper::Optimise(int64_t around, KeyframeReport* report) {
   const Clock::time_point start = Clock::now();
-  const PoseGraphSummary summary = graph_.OptimizeAround(around, options_.pose_graph);
+  TakeOptimisation(graph_.OptimizeAround(around, options_.pose_graph), report);
+  report->times.optimisation_s += SecondsSince(start);
+}
+
+void Mapper::OptimiseNear(size_t link, KeyframeReport* report) {
+  const Clock::time_point start = Clock::now();
+  const PoseGraphSummary summary =
+      graph_.OptimizeNear(link, options_.local_loop_hops, options_.local_loop_max_border_chi2_rise,
+                          options_.pose_graph);
+  TakeOptimisation(summary, report);
+  report->optimised_locally = summary.local;
+  if (summary.local) report->moved = summary.moved_poses;
+  report->times.optimisation_s += SecondsSince(start);
+}
+
+void Mapper::TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* report) {
   for (size_t edge : summary.rejected_edges) {
     if (links_[edge].active) {
       links_[edge].active = false;
@@ -735,7 +758,6 @@ void Mapper::Optimise(int64_t around, KeyframeReport* report) {
     }
   }
   report->optimised = true;
-  report->times.optimisation_s += SecondsSince(start);
 }
 
 }  // namespace sightmap

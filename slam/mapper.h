@@ -75,6 +75,14 @@ struct MapperOptions {
   // Loops closer than this to the last accepted loop (in keyframes) are not searched: one
   // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
   int loop_min_spacing = 3;
+  // A loop moves only the keyframes within local_loop_hops links of its ends when that fits the
+  // rest of the map: it closes a cycle inside that window, and the links at the window's border
+  // rise by at most local_loop_max_border_chi2_rise in chi-square; else the window grows
+  // (PoseGraph::OptimizeNear). Most loops of a revisit fit a small window once its first loop
+  // tied the walk to the map, and their cost does not grow with the map. 0 hops: every loop over
+  // the whole part.
+  int local_loop_hops = 10;
+  double local_loop_max_border_chi2_rise = 1.0;
   // With a Cauchy loss on odometry too: odometry is never switched off, but a few links in a
   // hundred come from views without features (a bare wall) and err by centimetres and degrees
   // while their neighbours, refined densely, claim millimetres. The loss lets the links around it
@@ -159,6 +167,10 @@ struct KeyframeReport {
   std::vector<MapperLink> new_links;
   bool loop_closed = false;
   bool optimised = false;
+  // Of the poses, only those near the new loop moved (MapperOptions::local_loop_hops): the
+  // writer need not store the others again.
+  bool optimised_locally = false;
+  std::vector<int64_t> moved;          // the keyframes that moved, when optimised_locally
   int links_rejected = 0;              // loop links the pose graph switched off in this step
   std::vector<size_t> rejected_links;  // their indices in Links()
   std::string odometry_failure;        // why odometry failed, when state != kTracking
@@ -299,6 +311,11 @@ class Mapper {
   void JoinSegments(int older_root, int newer_root, const MapperLink& link);
   // Optimises the part of the map joined to keyframe `around` (where a link was just added).
   void Optimise(int64_t around, KeyframeReport* report);
+  // Optimises after link `link` (an index into links_) was added: the keyframes within
+  // local_loop_hops links of it when that fits the rest, else more (PoseGraph::OptimizeNear).
+  void OptimiseNear(size_t link, KeyframeReport* report);
+  // Marks the links an optimisation switched off and the report optimised.
+  void TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* report);
 
   Intrinsics camera_;
   MapperOptions options_;

@@ -1,6 +1,8 @@
 // The mapper on the synthetic building at 1 Hz, against the simulator's ground truth.
 #include "slam/mapper.h"
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -68,6 +70,65 @@ TEST(Mapper, TracksTheHandheldWalkWithCentimetreAccuracy) {
     EXPECT_LT(off.translation().norm(), 0.10) << link.from << " -> " << link.to;
     EXPECT_LT(RotationAngleDeg(off), 3.0) << link.from << " -> " << link.to;
   }
+}
+
+struct MappedWalk {
+  std::vector<StampedPose> ground_truth;
+  std::vector<StampedPose> trajectory;
+  int loops = 0;
+  int local_optimisations = 0;
+  int optimisations = 0;
+};
+
+// The walk there and back again (the way back closes loops with the way there), checking that
+// an optimisation kept local moved only the keyframes it reports.
+MappedWalk ThereAndBack(const Walk& walk, const MapperOptions& options) {
+  std::vector<const RgbdFrame*> frames;
+  for (const RgbdFrame& frame : walk.frames) frames.push_back(&frame);
+  for (auto it = walk.frames.rbegin(); it != walk.frames.rend(); ++it) frames.push_back(&*it);
+  Mapper mapper(walk.camera, options);
+  MappedWalk mapped;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const TimestampNs timestamp_ns = 1'000'000'000 + static_cast<TimestampNs>(i) * 200'000'000;
+    const std::vector<StampedPose> before = mapper.Trajectory();
+    const KeyframeReport report =
+        mapper.AddKeyframe(timestamp_ns, frames[i]->color, frames[i]->depth);
+    mapped.ground_truth.push_back({timestamp_ns, *frames[i]->world_from_cam_gt});
+    if (!report.optimised) continue;
+    ++(report.optimised_locally ? mapped.local_optimisations : mapped.optimisations);
+    if (!report.optimised_locally) continue;
+    EXPECT_FALSE(report.moved.empty());
+    // The new keyframe and some of the others: at least one was held.
+    EXPECT_LE(report.moved.size(), before.size()) << "keyframe " << report.id;
+    for (size_t id = 0; id < before.size(); ++id) {
+      if (std::find(report.moved.begin(), report.moved.end(), static_cast<int64_t>(id)) !=
+          report.moved.end()) {
+        continue;
+      }
+      EXPECT_TRUE(
+          mapper.WorldFromCam(static_cast<int64_t>(id)).isApprox(before[id].world_from_cam, 0.0))
+          << "keyframe " << id << " moved but is not reported";
+    }
+  }
+  mapped.trajectory = mapper.Trajectory();
+  mapped.loops = mapper.NumLoopClosures();
+  return mapped;
+}
+
+TEST(Mapper, LoopsThatFitTheMapMoveOnlyTheKeyframesNearThem) {
+  const Walk& walk = HandheldWalk();
+  const MappedWalk local = ThereAndBack(walk, SmallVocabulary());
+  MapperOptions whole_options = SmallVocabulary();
+  whole_options.local_loop_hops = 0;
+  const MappedWalk whole = ThereAndBack(walk, whole_options);
+  ASSERT_GE(local.loops, 3);
+  EXPECT_GE(local.local_optimisations, 1);
+  EXPECT_EQ(whole.local_optimisations, 0);
+  const double local_m = EvaluateTrajectory(local.ground_truth, local.trajectory).ate_rmse_m;
+  const double whole_m = EvaluateTrajectory(whole.ground_truth, whole.trajectory).ate_rmse_m;
+  std::printf("there and back, %d loops: %d optimised locally, ATE %.4f m (whole part: %.4f m)\n",
+              local.loops, local.local_optimisations, local_m, whole_m);
+  EXPECT_LT(std::abs(local_m - whole_m), 0.003);
 }
 
 // The median translation error of the mapper's odometry links against the ground truth [m].

@@ -3,8 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <memory>
 #include <numeric>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
@@ -111,6 +116,47 @@ double Chi2(const PoseGraphEdge& edge, const PoseParameters& from, const PosePar
   return error.dot(edge.information * error);
 }
 
+using Neighbours = std::unordered_map<int64_t, std::vector<std::pair<int64_t, size_t>>>;
+
+// The poses within `hops` edges of `start`.
+std::unordered_set<int64_t> PosesWithinHops(const Neighbours& neighbours,
+                                            const std::vector<int64_t>& start, int hops) {
+  std::unordered_set<int64_t> reached(start.begin(), start.end());
+  std::vector<int64_t> frontier(reached.begin(), reached.end());
+  for (int hop = 0; hop < hops && !frontier.empty(); ++hop) {
+    std::vector<int64_t> next;
+    for (int64_t pose : frontier) {
+      const auto found = neighbours.find(pose);
+      if (found == neighbours.end()) continue;
+      for (const auto& [neighbour, edge] : found->second) {
+        if (reached.insert(neighbour).second) next.push_back(neighbour);
+      }
+    }
+    frontier = std::move(next);
+  }
+  return reached;
+}
+
+// Whether `a` reaches `b` through poses of `within` only, without edge `skipped`.
+bool ConnectedWithout(const Neighbours& neighbours, const std::unordered_set<int64_t>& within,
+                      int64_t a, int64_t b, size_t skipped) {
+  std::unordered_set<int64_t> seen{a};
+  std::vector<int64_t> stack{a};
+  while (!stack.empty()) {
+    const int64_t pose = stack.back();
+    stack.pop_back();
+    if (pose == b) return true;
+    const auto found = neighbours.find(pose);
+    if (found == neighbours.end()) continue;
+    for (const auto& [neighbour, edge] : found->second) {
+      if (edge != skipped && within.count(neighbour) > 0 && seen.insert(neighbour).second) {
+        stack.push_back(neighbour);
+      }
+    }
+  }
+  return false;
+}
+
 // Disjoint sets over pose indices.
 class Components {
  public:
@@ -150,6 +196,9 @@ bool PoseGraphOptions::Check(std::string* error) const {
   if (max_iterations <= 0) return fail("max_iterations must be positive");
   if (!(max_solver_time_s > 0.0)) return fail("max_solver_time_s must be positive");
   if (num_threads <= 0) return fail("num_threads must be positive");
+  if (!(function_tolerance > 0.0 && function_tolerance < 1.0)) {
+    return fail("function_tolerance must be in (0, 1)");
+  }
   if (!(odometry_loss_scale >= 0.0) || !std::isfinite(odometry_loss_scale)) {
     return fail("odometry_loss_scale must be finite and not negative (0: no robust loss)");
   }
@@ -237,16 +286,84 @@ double PoseGraph::EdgeChi2(size_t index) const {
 }
 
 PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options) {
-  return OptimizeEdges(options, std::nullopt);
+  return OptimizeEdges(options, Scope(), nullptr, nullptr);
 }
 
 PoseGraphSummary PoseGraph::OptimizeAround(int64_t id, const PoseGraphOptions& options) {
   SIGHTMAP_CHECK(nodes_.count(id) > 0, "pose " << id << " is not in the pose graph");
-  return OptimizeEdges(options, id);
+  Scope scope;
+  scope.around = id;
+  return OptimizeEdges(options, scope, nullptr, nullptr);
 }
 
-PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
-                                          const std::optional<int64_t>& around) {
+PoseGraphSummary PoseGraph::OptimizeNear(size_t edge, int hops, double max_border_chi2_rise,
+                                         const PoseGraphOptions& options) {
+  SIGHTMAP_CHECK(edge < edges_.size(), "edge index " << edge << " is out of range");
+  SIGHTMAP_CHECK(hops >= 0, "hops must be >= 0, not " << hops);
+  SIGHTMAP_CHECK(max_border_chi2_rise >= 0.0, "max_border_chi2_rise must not be negative");
+  const auto start = std::chrono::steady_clock::now();
+  const int64_t from = edges_[edge].from;
+  const int64_t to = edges_[edge].to;
+  // Active edges by pose: (neighbour, edge index).
+  std::unordered_map<int64_t, std::vector<std::pair<int64_t, size_t>>> neighbours;
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    if (!active_[e]) continue;
+    neighbours[edges_[e].from].emplace_back(edges_[e].to, e);
+    neighbours[edges_[e].to].emplace_back(edges_[e].from, e);
+  }
+  // Nothing is switched off in a window: an edge a window cannot satisfy may fit a larger one.
+  PoseGraphOptions window_options = options;
+  window_options.max_loop_chi2 = std::numeric_limits<double>::infinity();
+  int iterations = 0;
+  for (int64_t window = hops; active_[edge] && window > 0 && window < (int64_t{1} << 30);
+       window *= 4) {
+    Scope scope;
+    scope.around = to;
+    scope.free = PosesWithinHops(neighbours, {from, to}, static_cast<int>(window));
+    // The new edge must close a cycle inside the window: then the window holds the path the edge
+    // is checked against, and the correction is shared along it as the whole part would share it.
+    // Without one (the first loop of a revisit) the correction belongs to a longer cycle.
+    if (!ConnectedWithout(neighbours, *scope.free, from, to, edge)) continue;
+    std::map<int64_t, Eigen::Isometry3d> before;
+    std::vector<std::pair<size_t, double>> border;
+    PoseGraphSummary summary = OptimizeEdges(window_options, scope, &before, &border);
+    if (border.empty()) break;  // the window is the whole part: solved below, with switch-offs
+    iterations += summary.iterations;
+    if (WindowFits(summary, border, max_border_chi2_rise, options.max_loop_chi2)) {
+      summary.local = true;
+      summary.iterations = iterations;
+      summary.time_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      return summary;
+    }
+    for (const auto& [id, pose] : before) nodes_.at(id).world_from_cam = pose;
+  }
+  PoseGraphSummary summary = OptimizeAround(to, options);
+  summary.iterations += iterations;
+  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+bool PoseGraph::WindowFits(const PoseGraphSummary& summary,
+                           const std::vector<std::pair<size_t, double>>& border,
+                           double max_border_chi2_rise, double max_loop_chi2) const {
+  if (!summary.usable) return false;
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    if (active_[e] && edges_[e].type == PoseGraphEdgeType::kLoop &&
+        summary.edge_chi2[e] > max_loop_chi2) {
+      return false;
+    }
+  }
+  // The poses held at the border would move to share a correction meant for more than the window.
+  for (const auto& [edge, chi2_before] : border) {
+    if (summary.edge_chi2[edge] > chi2_before + max_border_chi2_rise) return false;
+  }
+  return true;
+}
+
+PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const Scope& scope,
+                                          std::map<int64_t, Eigen::Isometry3d>* before,
+                                          std::vector<std::pair<size_t, double>>* border) {
   SIGHTMAP_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   PoseGraphSummary summary;
@@ -254,10 +371,12 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
 
   // Poses by index (in id order) and edges as index pairs.
   std::vector<Node*> nodes;
+  std::vector<int64_t> ids;
   std::map<int64_t, size_t> index_of;
   for (auto& [id, node] : nodes_) {
     index_of[id] = nodes.size();
     nodes.push_back(&node);
+    ids.push_back(id);
   }
   std::vector<std::pair<size_t, size_t>> ends(edges_.size());
   for (size_t e = 0; e < edges_.size(); ++e) {
@@ -265,14 +384,23 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
   }
   // The edges in play: every active one, or those that active edges tie to `around`.
   std::vector<bool> selected(active_);
-  if (around) {
+  if (scope.around) {
     Components tied(nodes.size());
     for (size_t e = 0; e < edges_.size(); ++e) {
       if (active_[e]) tied.Join(ends[e].first, ends[e].second);
     }
-    const size_t part = tied.Find(index_of.at(*around));
+    const size_t part = tied.Find(index_of.at(*scope.around));
     for (size_t e = 0; e < edges_.size(); ++e) {
       selected[e] = active_[e] && tied.Find(ends[e].first) == part;
+    }
+  }
+  // The poses that may move: all, or those of `free`; an edge with no free end has nothing to
+  // move.
+  std::vector<bool> free(nodes.size(), true);
+  if (scope.free) {
+    for (size_t i = 0; i < nodes.size(); ++i) free[i] = scope.free->count(ids[i]) > 0;
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      selected[e] = selected[e] && (free[ends[e].first] || free[ends[e].second]);
     }
   }
   std::vector<Matrix6d> sqrt_information(edges_.size());
@@ -281,6 +409,15 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
   }
   std::vector<PoseParameters> initial(nodes.size());
   for (size_t i = 0; i < nodes.size(); ++i) initial[i].Set(nodes[i]->world_from_cam);
+  if (border) {
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      if (selected[e] && free[ends[e].first] != free[ends[e].second]) {
+        border->emplace_back(e, Chi2(edges_[e], initial[ends[e].first], initial[ends[e].second]));
+      }
+    }
+    // A window without a border is its whole part: the caller solves that itself.
+    if (border->empty()) return summary;
+  }
 
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = SparseSolver();
@@ -288,9 +425,8 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
   solver_options.max_solver_time_in_seconds = options.max_solver_time_s;
   solver_options.num_threads = options.num_threads;
   solver_options.logging_type = ceres::SILENT;
-  // Tighter than Ceres' defaults (1e-6, 1e-10, 1e-8): near the optimum LM converges
-  // quadratically on a pose graph, so the last digits cost an iteration or two.
-  solver_options.function_tolerance = 1e-10;
+  solver_options.function_tolerance = options.function_tolerance;
+  // Tighter than Ceres' defaults (1e-10, 1e-8), so that the cost decides when to stop.
   solver_options.gradient_tolerance = 1e-12;
   solver_options.parameter_tolerance = 1e-10;
 
@@ -332,12 +468,14 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
     // Gauge: every component holds its fixed poses, or else its lowest id (first in id order).
     std::vector<bool> component_held(nodes.size(), false);
     for (size_t i = 0; i < nodes.size(); ++i) {
-      if (in_problem[i] && nodes[i]->fixed) component_held[components.Find(i)] = true;
+      if (in_problem[i] && (nodes[i]->fixed || !free[i])) {
+        component_held[components.Find(i)] = true;
+      }
     }
     for (size_t i = 0; i < nodes.size(); ++i) {
       if (!in_problem[i]) continue;
       problem.SetManifold(parameters[i].q, &quaternion_manifold);
-      bool hold = nodes[i]->fixed;
+      bool hold = nodes[i]->fixed || !free[i];
       if (!component_held[components.Find(i)]) {
         component_held[components.Find(i)] = true;
         hold = true;
@@ -382,7 +520,10 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options,
 
   // Poses that did not take part keep their exact input (no round trip through a quaternion).
   for (size_t i = 0; i < nodes.size(); ++i) {
-    if (moved[i]) nodes[i]->world_from_cam = parameters[i].Get();
+    if (!moved[i]) continue;
+    if (before) before->emplace(ids[i], nodes[i]->world_from_cam);
+    nodes[i]->world_from_cam = parameters[i].Get();
+    summary.moved_poses.push_back(ids[i]);
   }
   for (size_t e = 0; e < edges_.size(); ++e) {
     if (active_[e]) {

@@ -27,6 +27,8 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -39,6 +41,10 @@ struct PoseGraphOptions {
   int max_iterations = 100;
   double max_solver_time_s = 0.5;  // per solve [s]
   int num_threads = 1;
+  // A solve stops when an iteration lowers the cost by less than this fraction. With Cauchy losses
+  // and a large correction, LM creeps over the last digits: on a 600 s walk, 1e-10 took 2-3 times
+  // the iterations of 1e-6 (Ceres' default) and moved no keyframe by more than 0.1 mm.
+  double function_tolerance = 1e-6;
 
   // Scale a of the Cauchy loss on loop edges, in units of the whitened residual |S r| (sigmas):
   // an edge with chi-square s is weighted by 1 / (1 + s / a^2). With a^2 = 22.46 a consistent
@@ -92,6 +98,10 @@ struct PoseGraphSummary {
   double time_s = 0.0;  // wall time of the whole call
   // Indices (into PoseGraph::Edges()) of the loop edges switched off by this call, in order.
   std::vector<size_t> rejected_edges;
+  // OptimizeNear kept a window's solution (the rest of the part did not move).
+  bool local = false;
+  // Ids of the poses the call moved (free in the last solve), in id order.
+  std::vector<int64_t> moved_poses;
   // Chi-square of each edge with the final poses (0 for inactive edges), by edge index.
   std::vector<double> edge_chi2;
 };
@@ -120,6 +130,16 @@ class PoseGraph {
   // no new edge and stays as it is. What a new link needs, at a cost that follows its part of
   // the map rather than the whole (a map of many unjoined segments).
   PoseGraphSummary OptimizeAround(int64_t id, const PoseGraphOptions& options = PoseGraphOptions());
+  // What a new edge (index `edge`) needs: OptimizeAround its end, but moving only the poses
+  // within `hops` active edges of its ends when that fits the rest. Such a window is tried when
+  // the edge closes a cycle inside it (else its correction belongs to a longer cycle), with the
+  // rest of the part held, and kept when no active loop edge is then inconsistent (chi-square
+  // above max_loop_chi2) and no edge at its border rose by more than `max_border_chi2_rise`.
+  // Otherwise the window grows fourfold and is tried again, up to the whole part. A loop in the
+  // middle of a revisit moves the poses near it, at a cost that does not grow with the map; the
+  // first loop of a revisit bends as much of the map as it must.
+  PoseGraphSummary OptimizeNear(size_t edge, int hops, double max_border_chi2_rise,
+                                const PoseGraphOptions& options = PoseGraphOptions());
 
   const Eigen::Isometry3d& Pose(int64_t id) const;  // throws when the id is unknown
   bool HasPose(int64_t id) const;
@@ -134,9 +154,22 @@ class PoseGraph {
     Eigen::Isometry3d world_from_cam;
     bool fixed = false;
   };
-  // Optimize() over every active edge, or only those active edges tie to pose `around`.
-  PoseGraphSummary OptimizeEdges(const PoseGraphOptions& options,
-                                 const std::optional<int64_t>& around);
+  // What an optimisation covers: every active edge, or those active edges tie to pose `around`;
+  // with `free`, only those poses move.
+  struct Scope {
+    std::optional<int64_t> around;
+    std::optional<std::unordered_set<int64_t>> free;
+  };
+  // `before` (may be null) gets the poses it moved as they were; `border` (may be null) the edges
+  // with one end free and one held, with their chi-square before (none: nothing was solved, the
+  // window is its whole part).
+  PoseGraphSummary OptimizeEdges(const PoseGraphOptions& options, const Scope& scope,
+                                 std::map<int64_t, Eigen::Isometry3d>* before,
+                                 std::vector<std::pair<size_t, double>>* border);
+  // Whether a window's solution fits the rest of its part (see OptimizeNear).
+  bool WindowFits(const PoseGraphSummary& summary,
+                  const std::vector<std::pair<size_t, double>>& border, double max_border_chi2_rise,
+                  double max_loop_chi2) const;
 
   std::map<int64_t, Node> nodes_;  // by id: references stay valid, components find lowest ids
   std::vector<PoseGraphEdge> edges_;

@@ -72,6 +72,8 @@ struct RunResult {
   int largest_keyframes = 0;
   TrajectoryError largest_error;
   double mapping_s = 0.0;
+  int optimisations = 0;        // over the whole part of the map
+  int local_optimisations = 0;  // near a loop that agreed with the map
 };
 
 // Gives the mapper its next keyframe (and that keyframe's true pose); nullopt at the end.
@@ -147,6 +149,8 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
     times.push_back(report.times);
     run.mapping_s += report.times.total_s;
     run.loops_rejected += report.links_rejected;
+    if (report.optimised)
+      ++(report.optimised_locally ? run.local_optimisations : run.optimisations);
     if (verbose && (report.state != TrackingState::kTracking || report.loop_closed ||
                     report.links_rejected > 0)) {
       std::fprintf(stderr, "keyframe %lld: %s%s%s %s\n", static_cast<long long>(report.id),
@@ -296,6 +300,8 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
           mean(100, 200, registrations), mean(n - 100, n, registrations), mean(100, 200, points),
           mean(n - 100, n, points));
     }
+    std::printf("optimisations       %d over the whole part, %d near a loop that agreed\n",
+                run.optimisations, run.local_optimisations);
     std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
     std::printf("segments            %d\n", run.segments);
     std::printf(
@@ -459,6 +465,7 @@ int Main(int argc, char** argv) {
   bool overlap = false;
   double fps = 1.0;
   bool no_walk_check = false;
+  int local_loop_hops = MapperOptions().local_loop_hops;
   int laps = 1;
   bool track = false;
   app.add_option("--trajectory", trajectory, "handheld or robot")
@@ -473,6 +480,10 @@ int Main(int argc, char** argv) {
                "registration bridges");
   app.add_option("--fps", fps,
                  "frames per second of the walk; every frame is mapped as a keyframe");
+  app.add_option("--local-loop-hops", local_loop_hops,
+                 "optimise a loop over the keyframes this many links from its ends first (0: "
+                 "always over the whole map)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-walk-check", no_walk_check,
                "join segments without checking that the walk stays possible (for comparison)");
   app.add_option("--laps", laps,
@@ -496,6 +507,7 @@ int Main(int argc, char** argv) {
   const Intrinsics camera = simulator.options().camera;
   MapperOptions options;
   if (no_walk_check) options.walk_max_gap_s = 0.0;
+  options.local_loop_hops = local_loop_hops;
   if (track) return RunTrackedBenchmark(sim_options, options, false_loop);
   std::vector<Frame> frames;
   const auto render_start = std::chrono::steady_clock::now();
