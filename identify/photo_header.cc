@@ -67,4 +67,30 @@ std::optional<PhotoHeader> ReadPhotoHeader(const uint8_t* data, size_t size) {
   return ReadJpeg(data, size);
 }
 
+bool PhotoIsComplete(const uint8_t* data, size_t size, PhotoFormat format) {
+  if (data == nullptr || size < 4) return false;
+  if (format == PhotoFormat::kPng) {
+    // The IEND chunk whole (length 0, "IEND", its 4-byte CRC); a few trailing bytes are tolerated.
+    for (size_t i = size > 64 ? size - 64 : 0; i + 8 <= size; ++i) {
+      if (data[i] == 'I' && data[i + 1] == 'E' && data[i + 2] == 'N' && data[i + 3] == 'D') {
+        return true;
+      }
+    }
+    return false;
+  }
+  // Entropy-coded data stuffs every FF with 00, so FF DA and FF D9 there are markers.
+  size_t last_scan = size;
+  for (size_t i = size - 1; i > 0; --i) {
+    if (data[i - 1] == 0xFF && data[i] == 0xDA) {
+      last_scan = i + 1;
+      break;
+    }
+  }
+  if (last_scan == size) return false;
+  for (size_t i = last_scan; i + 1 < size; ++i) {
+    if (data[i] == 0xFF && data[i + 1] == 0xD9) return true;
+  }
+  return false;
+}
+
 }  // namespace sightmap

@@ -24,4 +24,11 @@ struct PhotoHeader {
 // never reads past `size` (the bytes may be any HTTP body).
 std::optional<PhotoHeader> ReadPhotoHeader(const uint8_t* data, size_t size);
 
+// Whether the photo's bytes run to their end marker: for a JPEG, an end-of-image marker (FF D9)
+// after its last start-of-scan (an EXIF thumbnail's own end marker comes before the image's
+// scans); for a PNG, the IEND chunk in its last bytes. A cut upload fails this while decoders
+// still return an image (libjpeg fills the missing rows with grey), which would then be matched
+// on invented pixels. Never reads past `size`.
+bool PhotoIsComplete(const uint8_t* data, size_t size, PhotoFormat format);
+
 }  // namespace sightmap

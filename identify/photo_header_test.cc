@@ -16,6 +16,53 @@ std::vector<uint8_t> Encode(const std::string& extension, int width, int height,
   return bytes;
 }
 
+std::vector<uint8_t> Cut(const std::vector<uint8_t>& bytes, size_t size) {
+  return std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(size));
+}
+
+TEST(PhotoIsComplete, WholePhotosPassAndCutOnesFail) {
+  const std::vector<uint8_t> jpeg = Encode(".jpg", 640, 480);
+  const std::vector<uint8_t> progressive =
+      Encode(".jpg", 640, 480, {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
+  const std::vector<uint8_t> png = Encode(".png", 640, 480);
+  for (const auto& [bytes, format] :
+       {std::pair{jpeg, PhotoFormat::kJpeg}, std::pair{progressive, PhotoFormat::kJpeg},
+        std::pair{png, PhotoFormat::kPng}}) {
+    EXPECT_TRUE(PhotoIsComplete(bytes.data(), bytes.size(), format));
+    for (const size_t size : {bytes.size() / 3, 2 * bytes.size() / 3, bytes.size() - 1}) {
+      const std::vector<uint8_t> cut = Cut(bytes, size);
+      EXPECT_FALSE(PhotoIsComplete(cut.data(), cut.size(), format)) << size << " bytes";
+    }
+    // Bytes after the end (some cameras append a trailer) do not matter.
+    std::vector<uint8_t> trailer = bytes;
+    trailer.insert(trailer.end(), 16, 0);
+    EXPECT_TRUE(PhotoIsComplete(trailer.data(), trailer.size(), format));
+  }
+  const std::vector<uint8_t> text = {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd'};
+  EXPECT_FALSE(PhotoIsComplete(text.data(), text.size(), PhotoFormat::kJpeg));
+  EXPECT_FALSE(PhotoIsComplete(text.data(), text.size(), PhotoFormat::kPng));
+  EXPECT_FALSE(PhotoIsComplete(nullptr, 0, PhotoFormat::kJpeg));
+}
+
+TEST(PhotoIsComplete, AThumbnailsEndMarkerDoesNotMakeACutPhotoWhole) {
+  // An EXIF-like APP1 segment right after SOI carrying a whole little JPEG (its own scan and end
+  // marker), as phones embed their thumbnail; then the photo, cut in its scan.
+  const std::vector<uint8_t> thumbnail = Encode(".jpg", 16, 12);
+  const std::vector<uint8_t> photo = Encode(".jpg", 640, 480);
+  std::vector<uint8_t> app1 = {0xFF, 0xE1, 0, 0, 'E', 'x', 'i', 'f', 0, 0};
+  app1.insert(app1.end(), thumbnail.begin(), thumbnail.end());
+  const size_t length = app1.size() - 2;
+  app1[2] = static_cast<uint8_t>(length >> 8);
+  app1[3] = static_cast<uint8_t>(length & 0xFF);
+  std::vector<uint8_t> with_thumbnail(photo.begin(), photo.begin() + 2);
+  with_thumbnail.insert(with_thumbnail.end(), app1.begin(), app1.end());
+  with_thumbnail.insert(with_thumbnail.end(), photo.begin() + 2, photo.end());
+  ASSERT_TRUE(ReadPhotoHeader(with_thumbnail.data(), with_thumbnail.size()).has_value());
+  EXPECT_TRUE(PhotoIsComplete(with_thumbnail.data(), with_thumbnail.size(), PhotoFormat::kJpeg));
+  const std::vector<uint8_t> cut = Cut(with_thumbnail, with_thumbnail.size() - 200);
+  EXPECT_FALSE(PhotoIsComplete(cut.data(), cut.size(), PhotoFormat::kJpeg));
+}
+
 TEST(PhotoHeader, ReadsJpegAndPngSizes) {
   for (const auto& [w, h] : std::vector<std::pair<int, int>>{{37, 23}, {1280, 960}, {1, 1}}) {
     const std::vector<uint8_t> jpeg = Encode(".jpg", w, h);
