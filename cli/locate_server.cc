@@ -1,11 +1,20 @@
 #include "cli/locate_server.h"
 
+#include <netdb.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
+#include <cctype>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <deque>
 #include <iostream>
 #include <mutex>
 #include <optional>
@@ -17,6 +26,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
+#include "core/statistics.h"
 #include "identify/exif.h"
 #include "identify/photo_header.h"
 #include "store/model.h"
@@ -128,6 +138,49 @@ std::optional<Intrinsics> IntrinsicsFromQuery(const httplib::Request& request, i
   return intrinsics;
 }
 
+// When the request on this worker thread reached routing (httplib hands a connection's requests
+// to one worker, and calls the pre-routing handler and the logger on it).
+thread_local std::optional<std::chrono::steady_clock::time_point> request_start;
+
+// A declared Content-Length that is not a plain decimal number: "-5", "12abc", "" or one too long
+// to be a size. Requests without the header have no body or a chunked one.
+std::optional<uint64_t> ParseContentLength(const std::string& text) {
+  if (text.empty() || text.size() > 18) return std::nullopt;
+  for (const char c : text) {
+    if (!std::isdigit(static_cast<unsigned char>(c))) return std::nullopt;
+  }
+  return std::stoull(text);
+}
+
+// Why binding host:port fails, as errno (0 when it does not, or the address does not resolve):
+// httplib only says that it failed.
+int BindErrno(const std::string& host, int port) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* found = nullptr;
+  if (getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) != 0) return 0;
+  int error = 0;
+  const int socket_fd = socket(found->ai_family, found->ai_socktype, found->ai_protocol);
+  if (socket_fd >= 0) {
+    const int yes = 1;
+    setsockopt(socket_fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+    if (bind(socket_fd, found->ai_addr, found->ai_addrlen) != 0) error = errno;
+    close(socket_fd);
+  }
+  freeaddrinfo(found);
+  return error;
+}
+
+std::string UtcNow() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
 }  // namespace
 
 bool LocateServerOptions::Check(std::string* error) const {
@@ -164,6 +217,11 @@ struct LocateServer::Impl {
   std::atomic<bool> stop_requested{false};
   std::atomic<int64_t> located{0};
   std::atomic<int64_t> refused{0};
+  // Every answered request, for /health: counts and the time of the newest ones.
+  mutable std::mutex requests_mutex;
+  int64_t requests = 0;
+  int64_t errors = 0;  // answered 4xx or 5xx
+  std::deque<double> recent_ms;
   std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
   // The label watcher sleeps on this until the next refresh or Stop().
   std::mutex watch_mutex;
@@ -179,7 +237,20 @@ struct LocateServer::Impl {
     watch_wakeup.notify_all();
   }
 
-  void HandleLocate(const httplib::Request& request, httplib::Response& response);
+  // Refuses a declared body length that is malformed (400) or over the limit (413) before the
+  // body is read; starts the request's clock.
+  httplib::Server::HandlerResponse PreRoute(const httplib::Request& request,
+                                            httplib::Response& response);
+  // The upload's bytes: the body as sent (whatever its Content-Type), or from a multipart form
+  // (a browser's) the field "photo" or else its first file. False with the response set when
+  // there is none or it is over the limit.
+  bool ReadUpload(const httplib::Request& request, const httplib::ContentReader& reader,
+                  std::string* photo, httplib::Response& response);
+  void HandleLocate(const httplib::Request& request, const std::string& body,
+                    httplib::Response& response);
+  // One line per request on stderr (time, client, method, path, status, bytes, ms) and the
+  // figures /health reports.
+  void LogRequest(const httplib::Request& request, const httplib::Response& response);
   void HandleAppliances(httplib::Response& response) const;
   void HandleHealth(httplib::Response& response) const;
   void RefuseCounted(httplib::Response& response, int status, const std::string& message) {
@@ -188,9 +259,8 @@ struct LocateServer::Impl {
   }
 };
 
-void LocateServer::Impl::HandleLocate(const httplib::Request& request,
+void LocateServer::Impl::HandleLocate(const httplib::Request& request, const std::string& body,
                                       httplib::Response& response) {
-  const std::string& body = request.body;
   if (body.empty()) {
     return RefuseCounted(response, 400, "empty body: POST a JPEG or PNG photo as the request body");
   }
@@ -206,6 +276,12 @@ void LocateServer::Impl::HandleLocate(const httplib::Request& request,
             << std::lround(megapixels) << " megapixels), the limit is " << options.max_megapixels
             << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
     return RefuseCounted(response, 413, message.str());
+  }
+  if (!PhotoIsComplete(bytes, body.size(), header->format)) {
+    return RefuseCounted(response, 400,
+                         std::string("the ") + ToString(header->format) +
+                             " is truncated (it has no end marker): the upload was cut short, "
+                             "send the whole file");
   }
   std::optional<Intrinsics> intrinsics;
   IntrinsicsSource source = IntrinsicsSource::kGiven;
@@ -241,6 +317,116 @@ void LocateServer::Impl::HandleLocate(const httplib::Request& request,
   answer["photo"] = {
       {"width", photo.cols}, {"height", photo.rows}, {"format", ToString(header->format)}};
   Reply(response, 200, answer);
+}
+
+httplib::Server::HandlerResponse LocateServer::Impl::PreRoute(const httplib::Request& request,
+                                                              httplib::Response& response) {
+  request_start = std::chrono::steady_clock::now();
+  if (!request.has_header("Content-Length")) return httplib::Server::HandlerResponse::Unhandled;
+  const std::string declared = request.get_header_value("Content-Length");
+  const std::optional<uint64_t> length = ParseContentLength(declared);
+  const auto max_bytes = static_cast<uint64_t>(options.max_body_mb * 1024 * 1024);
+  if (length && *length <= max_bytes) return httplib::Server::HandlerResponse::Unhandled;
+  // Answered before the body is read, and the connection closed: its bytes are never read.
+  response.set_header("Connection", "close");
+  if (!length) {
+    RefuseCounted(response, 400, "malformed Content-Length: '" + declared + "'");
+  } else {
+    std::ostringstream message;
+    message << "request body of " << *length << " bytes is larger than " << options.max_body_mb
+            << " MiB: send the photo downscaled (a 1280x960 JPEG is plenty)";
+    RefuseCounted(response, 413, message.str());
+  }
+  return httplib::Server::HandlerResponse::Handled;
+}
+
+bool LocateServer::Impl::ReadUpload(const httplib::Request& request,
+                                    const httplib::ContentReader& reader, std::string* photo,
+                                    httplib::Response& response) {
+  const auto max_bytes = static_cast<size_t>(options.max_body_mb * 1024 * 1024);
+  bool too_large = false;
+  size_t received = 0;
+  const auto append = [&](std::string* to, const char* data, size_t length) {
+    received += length;
+    if (received > max_bytes) {
+      too_large = true;
+      return false;
+    }
+    to->append(data, length);
+    return true;
+  };
+  bool complete = true;
+  if (request.is_multipart_form_data()) {
+    // The field "photo", or else the form's first file; other fields are skipped.
+    std::string first_file;
+    std::string* target = nullptr;
+    bool first_seen = false;
+    complete = reader(
+        [&](const httplib::MultipartFormData& part) {
+          target = nullptr;
+          if (part.name == "photo") {
+            photo->clear();
+            target = photo;
+          } else if (!part.filename.empty() && !first_seen) {
+            first_seen = true;
+            target = &first_file;
+          }
+          return true;
+        },
+        [&](const char* data, size_t length) {
+          return target == nullptr || append(target, data, length);
+        });
+    if (photo->empty()) photo->swap(first_file);
+    if (complete && photo->empty()) {
+      RefuseCounted(response, 400,
+                    "no photo in the form upload: send it as the file field 'photo' (or as the "
+                    "request body, Content-Type: image/jpeg)");
+      return false;
+    }
+  } else {
+    complete = reader([&](const char* data, size_t length) { return append(photo, data, length); });
+  }
+  if (too_large) {
+    std::ostringstream message;
+    message << "request body larger than " << options.max_body_mb << " MiB";
+    RefuseCounted(response, 413, message.str());
+    return false;
+  }
+  if (!complete) {
+    RefuseCounted(response, 400, "the upload was cut short: send the whole photo");
+    return false;
+  }
+  return true;
+}
+
+void LocateServer::Impl::LogRequest(const httplib::Request& request,
+                                    const httplib::Response& response) {
+  double ms = -1.0;
+  if (request_start) {
+    ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - *request_start)
+            .count();
+    request_start.reset();
+  }
+  {
+    const std::lock_guard<std::mutex> lock(requests_mutex);
+    ++requests;
+    if (response.status >= 400) ++errors;
+    if (ms >= 0.0) {
+      recent_ms.push_back(ms);
+      if (recent_ms.size() > 1000) recent_ms.pop_front();
+    }
+  }
+  if (!options.log_requests) return;
+  std::ostringstream line;
+  line << UtcNow() << ' ' << request.remote_addr << ' ' << request.method << ' ' << request.path
+       << ' ' << response.status << ' ' << response.body.size() << " B ";
+  if (ms >= 0.0) {
+    line << std::lround(ms) << " ms\n";
+  } else {
+    line << "- ms\n";
+  }
+  std::cerr << line.str() << std::flush;
 }
 
 // What decides whether the labels changed: every label's name, type, point count and update time.
@@ -295,6 +481,15 @@ void LocateServer::Impl::HandleAppliances(httplib::Response& response) const {
 void LocateServer::Impl::HandleHealth(httplib::Response& response) const {
   const double uptime_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  int64_t answered = 0;
+  int64_t failed = 0;
+  std::vector<double> times;
+  {
+    const std::lock_guard<std::mutex> lock(requests_mutex);
+    answered = requests;
+    failed = errors;
+    times.assign(recent_ms.begin(), recent_ms.end());
+  }
   Reply(response, 200,
         {{"status", "ok"},
          {"model", model_path},
@@ -303,6 +498,10 @@ void LocateServer::Impl::HandleHealth(httplib::Response& response) const {
          {"locate_threads", locate_threads},
          {"located", located.load()},
          {"refused", refused.load()},
+         {"requests", answered},
+         {"errors", failed},
+         {"request_p50_ms", times.empty() ? 0.0 : Percentile(times, 0.5)},
+         {"request_p95_ms", times.empty() ? 0.0 : Percentile(times, 0.95)},
          {"uptime_s", uptime_s}});
 }
 
@@ -323,7 +522,7 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   impl.locate_slots = std::make_unique<Slots>(impl.locate_threads);
   const int connection_threads = options.connection_threads > 0
                                      ? options.connection_threads
-                                     : std::max(8, 4 * impl.locate_threads);
+                                     : std::max(32, 8 * impl.locate_threads);
   const size_t max_pending =
       static_cast<size_t>(connection_threads) + static_cast<size_t>(options.max_queued_connections);
   impl.server.new_task_queue = [connection_threads, max_pending] {
@@ -334,9 +533,29 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   impl.server.set_write_timeout(options.write_timeout_s, 0);
   impl.server.set_keep_alive_timeout(options.keep_alive_timeout_s);
 
+  // Without SO_REUSEPORT (httplib's default sets it): a second server on the same port must fail
+  // at start, not share the port's connections with the first.
+  impl.server.set_socket_options([](socket_t socket) {
+    const int yes = 1;
+    setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
   httplib::Server& server = impl.server;
-  server.Post("/locate", [&impl](const httplib::Request& request, httplib::Response& response) {
-    impl.HandleLocate(request, response);
+  server.set_pre_routing_handler(
+      [&impl](const httplib::Request& request, httplib::Response& response) {
+        return impl.PreRoute(request, response);
+      });
+  server.set_logger([&impl](const httplib::Request& request, const httplib::Response& response) {
+    impl.LogRequest(request, response);
+  });
+  // With a content reader httplib leaves the body to the handler: a photo is taken whatever its
+  // Content-Type (curl --data-binary says form-urlencoded, which httplib would cap at 8 KiB), and a
+  // browser's multipart form too.
+  server.Post("/locate", [&impl](const httplib::Request& request, httplib::Response& response,
+                                 const httplib::ContentReader& reader) {
+    std::string photo;
+    if (impl.ReadUpload(request, reader, &photo, response)) {
+      impl.HandleLocate(request, photo, response);
+    }
   });
   server.Get("/appliances", [&impl](const httplib::Request&, httplib::Response& response) {
     impl.HandleAppliances(response);
@@ -349,14 +568,7 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
       [&impl](const httplib::Request& request, httplib::Response& response) {
         if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
         std::string message;
-        if (response.status == 413 &&
-            request.get_header_value("Content-Type") == "application/x-www-form-urlencoded") {
-          // httplib caps form bodies at 8 KiB; curl --data-binary sends a photo as a form unless
-          // told otherwise.
-          message =
-              "a form-encoded body is limited to 8 KiB: send the photo with Content-Type: "
-              "image/jpeg or image/png";
-        } else if (response.status == 413) {
+        if (response.status == 413) {
           std::ostringstream text;
           text << "request body larger than " << impl.options.max_body_mb << " MiB";
           message = text.str();
@@ -393,9 +605,16 @@ void LocateServer::Bind() {
     impl.port =
         impl.server.bind_to_port(impl.options.host, impl.options.port) ? impl.options.port : -1;
   }
-  SIGHTMAP_CHECK(impl.port > 0, "cannot listen on " << impl.options.host << ":" << impl.options.port
-                                                    << " (in use by another program, or not an "
-                                                       "address of this machine?) — try --port 0");
+  if (impl.port > 0) return;
+  const int error = BindErrno(impl.options.host, impl.options.port);
+  if (error == EADDRINUSE) {
+    SIGHTMAP_THROW(Error, "port " << impl.options.port << " on " << impl.options.host
+                                  << " is in use (another sightmap serve?): stop it, or pick "
+                                     "another port (--port 0 takes a free one)");
+  }
+  SIGHTMAP_THROW(Error, "cannot listen on " << impl.options.host << ":" << impl.options.port << " ("
+                                            << (error != 0 ? std::strerror(error) : "unknown error")
+                                            << "): is it an address of this machine?");
 }
 
 int LocateServer::port() const { return impl_->port; }

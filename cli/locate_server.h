@@ -3,11 +3,14 @@
 //
 //   POST /locate[?fx=&fy=&cx=&cy=]  body: a JPEG or PNG photo -> the Locator's JSON (ToJson)
 //   GET  /appliances                the model's labels with their world points
-//   GET  /health                    status, keyframes, labels, counters
+//   GET  /health                    status, keyframes, labels, counters, request times
 //
-// Bad uploads are answered with 4xx and {"error": "...", "status": N}: an empty body 400, a body
-// that is not a JPEG or PNG 415, a photo whose header states more than max_megapixels 413 (read
-// from its header, before decoding), one that does not decode 400, a body over max_body_mb 413.
+// The photo is the request body whatever its Content-Type, or the file field "photo" (else the
+// first file) of a multipart form. Bad uploads are answered with 4xx and {"error": "...",
+// "status": N}: an empty body 400, a body that is not a JPEG or PNG 415, a photo whose header
+// states more than max_megapixels 413 (read from its header, before decoding), one cut short (no
+// end marker) or that does not decode 400, a declared Content-Length that is malformed 400 or over
+// max_body_mb 413 (at once, before the body is read).
 #pragma once
 
 #include <memory>
@@ -24,18 +27,22 @@ struct LocateServerOptions {
   // cores only queues in memory. 0 = the hardware's threads.
   int locate_threads = 0;
   // HTTP connections served at once (a keep-alive connection holds a worker while idle); 0 =
-  // max(8, 4 x locate_threads). Connections beyond this and max_queued_connections wait in the
-  // kernel's listen backlog instead of in memory.
+  // max(32, 8 x locate_threads): threads are cheap, and a slow client holds one. Connections beyond
+  // this and max_queued_connections wait in the kernel's listen backlog instead of in memory.
   int connection_threads = 0;
   int max_queued_connections = 64;
   double max_body_mb = 20.0;     // request bodies above this are refused with 413 [MiB]
   double max_megapixels = 25.0;  // photos above this are refused from their header [Mpx]
-  int read_timeout_s = 20;       // a client that stops sending for this long is dropped [s]
+  // A client that stops sending for this long is dropped: short, so that clients which send
+  // their headers and then nothing cannot hold the connection threads for long [s].
+  int read_timeout_s = 5;
   int write_timeout_s = 20;      // [s]
   int keep_alive_timeout_s = 2;  // idle keep-alive connections are closed after this [s]
   // The model's labels are re-read this often while serving, so a `sightmap label add` on the
   // served model answers phones without a restart (0 = never) [s].
   double label_refresh_s = 2.0;
+  // One line per request on stderr: time, client, method, path, status, bytes, milliseconds.
+  bool log_requests = true;
 
   bool Check(std::string* error) const;
 };

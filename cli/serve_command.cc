@@ -35,12 +35,17 @@ class StopSignalWatcher {
     pthread_sigmask(SIG_BLOCK, &signals_, &previous_mask_);
   }
   ~StopSignalWatcher() {
-    done_ = true;
-    if (thread_.joinable()) thread_.join();
+    Finish();
     pthread_sigmask(SIG_SETMASK, &previous_mask_, nullptr);
   }
   StopSignalWatcher(const StopSignalWatcher&) = delete;
   StopSignalWatcher& operator=(const StopSignalWatcher&) = delete;
+
+  // Ends the watcher thread: `on_stop` is not called after this returns (idempotent).
+  void Finish() {
+    done_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
 
   void Start(std::function<void()> on_stop) {
     thread_ = std::thread([this, on_stop = std::move(on_stop)] {
@@ -108,6 +113,12 @@ int RunServe(int argc, char** argv) {
   std::cerr << "sightmap serve: loading " << model_path << "\n" << std::flush;
   LocateServer server(model_path, options);
   server.Bind();
+  // Declared after the server, so destroyed first however this returns: the watcher never calls
+  // Stop() on a server that is gone.
+  struct FinishWatcher {
+    StopSignalWatcher& watcher;
+    ~FinishWatcher() { watcher.Finish(); }
+  } finish_watcher{watcher};
   watcher.Start([&server] { server.Stop(); });
   std::cout << "sightmap serve: listening on http://" << options.host << ":" << server.port()
             << " (" << server.NumKeyframes() << " keyframes, " << server.NumLabels()

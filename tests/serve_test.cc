@@ -2,9 +2,12 @@
 // the simulator's walk, real session-2 phone photos, and cpp-httplib clients. Covers the health
 // and appliance endpoints, photos located by 4 clients at once, every kind of bad upload (the
 // server must answer 4xx and keep serving), and a clean stop on SIGTERM.
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -132,6 +135,9 @@ nlohmann::json Json(const httplib::Result& result) {
 class ServeTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
+    // A server that refuses a body before reading it closes the connection under a client that is
+    // still sending: the write fails with EPIPE, which must not kill the test.
+    ::signal(SIGPIPE, SIG_IGN);
     dir_ = new fs::path(testing::MakeTempDir("serve-test"));
     SimModelOptions options;
     options.keyframes = 60;
@@ -334,19 +340,14 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
       {"empty body", "/locate", "", 400},
       {"text", "/locate", "{\"photo\": \"not really\"}", 415},
       {"truncated png", "/locate", png.substr(0, png.size() / 3), 400},
+      // libjpeg decodes a cut JPEG, grey where the bytes ran out: refused, not matched.
+      {"truncated jpeg", "/locate", jpeg.substr(0, jpeg.size() / 3), 400},
       {"100 MP png", "/locate", huge_png, 413},
       {"100 MP jpeg header", "/locate", huge_jpeg, 413},
-      {"3 MiB over the 2 MiB limit", "/locate", std::string(3 << 20, 'x'), 413},
       {"three of four intrinsics", "/locate?fx=1000&fy=1000&cx=640", jpeg, 400},
       {"intrinsics not numbers", "/locate?fx=a&fy=1000&cx=640&cy=480", jpeg, 400},
       {"unknown endpoint", "/nothing", jpeg, 404},
   };
-  // A JPEG cut anywhere after its headers still decodes (libjpeg fills the missing rows with
-  // grey): it is located (unmatched), not refused, and must not disturb the server.
-  const httplib::Result cut =
-      Client().Post("/locate", jpeg.substr(0, jpeg.size() / 3), "image/jpeg");
-  ASSERT_TRUE(cut);
-  EXPECT_EQ(cut->status, 200) << cut->body;
   for (const Case& c : cases) {
     const httplib::Result result = Client().Post(c.path, c.body, "application/octet-stream");
     ASSERT_TRUE(result) << c.what << ": " << httplib::to_string(result.error());
@@ -356,15 +357,126 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
     EXPECT_EQ(answer["status"], c.status) << c.what;
     ExpectStillServing();
   }
-  // curl --data-binary's default content type: httplib caps form bodies at 8 KiB; the answer
-  // says what to send instead.
-  const httplib::Result form = Client().Post("/locate", jpeg, "application/x-www-form-urlencoded");
-  ASSERT_TRUE(form);
-  EXPECT_EQ(form->status, 413);
-  EXPECT_NE(form->body.find("Content-Type: image/jpeg"), std::string::npos) << form->body;
+  // A body over the limit is refused from its declared length, before it is read, and the
+  // connection closed: a client still sending it may see the 413 or only the closed connection.
+  const httplib::Result over = Client().Post("/locate", std::string(3 << 20, 'x'), "image/jpeg");
+  if (over) {
+    EXPECT_EQ(over->status, 413) << over->body;
+  }
   ExpectStillServing();
   const nlohmann::json health = Json(Client().Get("/health"));
   EXPECT_GE(health["refused"].get<int>(), static_cast<int>(cases.size()));
+}
+
+// What a user's tools send: curl --data-binary says form-urlencoded, a browser's form (curl -F)
+// sends multipart; both carry the photo and get the same answer as a plain image body.
+TEST_F(ServeTest, FormAndMultipartUploadsAreLocatedLikeAPlainBody) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const std::string jpeg = Photos().at(1);
+  const httplib::Result plain = Client().Post("/locate", jpeg, "image/jpeg");
+  ASSERT_TRUE(plain);
+  ASSERT_EQ(plain->status, 200) << plain->body;
+  const nlohmann::json expected = Json(plain)["matched"];
+  const httplib::Result form = Client().Post("/locate", jpeg, "application/x-www-form-urlencoded");
+  ASSERT_TRUE(form);
+  EXPECT_EQ(form->status, 200) << form->body;
+  EXPECT_EQ(Json(form)["matched"], expected);
+  const httplib::MultipartFormDataItems items = {{"note", "kitchen", "", ""},
+                                                 {"photo", jpeg, "q.jpg", "image/jpeg"}};
+  const httplib::Result multipart = Client().Post("/locate", items);
+  ASSERT_TRUE(multipart);
+  EXPECT_EQ(multipart->status, 200) << multipart->body;
+  EXPECT_EQ(Json(multipart)["matched"], expected);
+  EXPECT_EQ(Json(multipart)["photo"]["width"], Json(plain)["photo"]["width"]);
+  const httplib::MultipartFormDataItems no_file = {{"note", "kitchen", "", ""}};
+  const httplib::Result nothing = Client().Post("/locate", no_file);
+  ASSERT_TRUE(nothing);
+  EXPECT_EQ(nothing->status, 400);
+  EXPECT_NE(nothing->body.find("field 'photo'"), std::string::npos) << nothing->body;
+}
+
+// The status line of what the server answers to `request` sent as raw bytes, within `timeout`
+// ("" when it did not answer in time).
+std::string RawStatusLine(int port, const std::string& request, std::chrono::seconds timeout) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string answer;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+      ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) ==
+          static_cast<ssize_t>(request.size())) {
+    const Clock::time_point deadline = Clock::now() + timeout;
+    while (answer.find("\r\n") == std::string::npos && Clock::now() < deadline) {
+      pollfd ready{fd, POLLIN, 0};
+      if (::poll(&ready, 1, 50) <= 0) continue;
+      char buffer[256];
+      const ssize_t n = ::recv(fd, buffer, sizeof(buffer), 0);
+      if (n <= 0) break;
+      answer.append(buffer, static_cast<size_t>(n));
+    }
+  }
+  ::close(fd);
+  return answer.substr(0, answer.find("\r\n"));
+}
+
+// A declared length is judged before any body byte arrives: over the limit 413, malformed 400,
+// at once (the server would otherwise wait for the body until its read timeout).
+TEST_F(ServeTest, ADeclaredLengthIsRefusedBeforeTheBody) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const auto status_for = [](const std::string& length) {
+    return RawStatusLine(server_->port(),
+                         "POST /locate HTTP/1.1\r\nHost: x\r\nContent-Type: image/jpeg\r\n"
+                         "Content-Length: " +
+                             length + "\r\n\r\n",
+                         std::chrono::seconds(2));
+  };
+  EXPECT_EQ(status_for("99999999999"), "HTTP/1.1 413 Payload Too Large");
+  EXPECT_EQ(status_for("-5"), "HTTP/1.1 400 Bad Request");
+  EXPECT_EQ(status_for("12abc"), "HTTP/1.1 400 Bad Request");
+  ExpectStillServing();
+}
+
+// Clients that send half their headers and then nothing (16 of them, twice the old pool) do not
+// keep /health from answering, and each request is counted with its time.
+TEST_F(ServeTest, SlowClientsDoNotStarveHealth) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  std::vector<int> slow;
+  for (int i = 0; i < 16; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<uint16_t>(server_->port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
+    const std::string half = "GET /health HTTP/1.1\r\nHost: x\r\n";
+    ::send(fd, half.data(), half.size(), MSG_NOSIGNAL);
+    slow.push_back(fd);
+  }
+  const nlohmann::json before = Json(Client().Get("/health"));
+  EXPECT_EQ(RawStatusLine(server_->port(), "GET /health HTTP/1.1\r\nHost: x\r\n\r\n",
+                          std::chrono::seconds(3)),
+            "HTTP/1.1 200 OK");
+  // The half-sent requests are still open: counted are the first /health and the raw one.
+  const nlohmann::json after = Json(Client().Get("/health"));
+  for (const int fd : slow) ::close(fd);
+  EXPECT_EQ(after["requests"].get<int>(), before["requests"].get<int>() + 2) << after.dump();
+  EXPECT_GT(after["request_p95_ms"].get<double>(), 0.0) << after.dump();
+  EXPECT_GE(after["request_p95_ms"].get<double>(), after["request_p50_ms"].get<double>());
+}
+
+// A second server on the suite's port fails at start, saying so: the port is not shared.
+TEST_F(ServeTest, ASecondServerOnTheSamePortFailsAtStart) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const testing::CommandResult second =
+      testing::RunCommand(SIGHTMAP_BINARY, "serve --model " + (*dir_ / "model.db").string() +
+                                               " --port " + std::to_string(server_->port()));
+  EXPECT_EQ(second.exit_code, 1);
+  EXPECT_NE(second.err.find("port " + std::to_string(server_->port()) + " on 127.0.0.1 is in use"),
+            std::string::npos)
+      << second.err;
+  ExpectStillServing();
 }
 
 // `sightmap eval identify` on the same model and photos (the binary, as scripts run it).
