@@ -11,12 +11,14 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
 #include "store/schema.h"
 #include "store/sqlite_util.h"
+#include "store/writer_lock.h"
 
 namespace sightmap {
 
@@ -173,6 +175,7 @@ bool ModelOptions::Check(std::string* error) const {
 struct Model::Impl {
   std::string path;
   ModelOptions options;
+  std::optional<WriterLock> writer_lock;  // held while open for writing (a file, not :memory:)
   sqlite3* db = nullptr;
   int schema_version = 0;
 
@@ -356,6 +359,12 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
   if (memory) {
     rc = connect(":memory:", SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
   } else if (!options.read_only) {
+    if (exists && access(path.c_str(), W_OK) != 0) {
+      SIGHTMAP_THROW(Error, "model " << what
+                                     << " is read-only: make it writable (chmod u+w) or copy it "
+                                        "to a writable folder");
+    }
+    impl->writer_lock.emplace(path);
     rc = connect(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
     // SQLite silently falls back to read-only when the OS refuses writes; say so now rather than
     // at the first keyframe.
