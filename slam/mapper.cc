@@ -735,6 +735,8 @@ void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link
 void Mapper::Optimise(int64_t around, KeyframeReport* report) {
   const Clock::time_point start = Clock::now();
   TakeOptimisation(graph_.OptimizeAround(around, options_.pose_graph), report);
+  report->optimised_locally = false;  // whatever moved before, the writer needs every pose
+  report->moved.clear();
   report->times.optimisation_s += SecondsSince(start);
 }
 
@@ -743,9 +745,11 @@ void Mapper::OptimiseNear(size_t link, KeyframeReport* report) {
   const PoseGraphSummary summary =
       graph_.OptimizeNear(link, options_.local_loop_hops, options_.local_loop_max_border_chi2_rise,
                           options_.pose_graph);
+  // Only a step's first optimisation can leave the others where they were.
+  const bool first = !report->optimised;
   TakeOptimisation(summary, report);
-  report->optimised_locally = summary.local;
-  if (summary.local) report->moved = summary.moved_poses;
+  report->optimised_locally = first && summary.local;
+  if (report->optimised_locally) report->moved = summary.moved_poses;
   report->times.optimisation_s += SecondsSince(start);
 }
 
