@@ -305,7 +305,7 @@ PoseGraphSummary PoseGraph::OptimizeNear(size_t edge, int hops, double max_borde
   const int64_t from = edges_[edge].from;
   const int64_t to = edges_[edge].to;
   // Active edges by pose: (neighbour, edge index).
-  std::unordered_map<int64_t, std::vector<std::pair<int64_t, size_t>>> neighbours;
+  Neighbours neighbours;
   for (size_t e = 0; e < edges_.size(); ++e) {
     if (!active_[e]) continue;
     neighbours[edges_[e].from].emplace_back(edges_[e].to, e);
@@ -315,11 +315,14 @@ PoseGraphSummary PoseGraph::OptimizeNear(size_t edge, int hops, double max_borde
   PoseGraphOptions window_options = options;
   window_options.max_loop_chi2 = std::numeric_limits<double>::infinity();
   int iterations = 0;
+  size_t reached = 0;
   for (int64_t window = hops; active_[edge] && window > 0 && window < (int64_t{1} << 30);
        window *= 4) {
     Scope scope;
     scope.around = to;
     scope.free = PosesWithinHops(neighbours, {from, to}, static_cast<int>(window));
+    if (scope.free->size() == reached) break;  // the window stopped growing: it is the whole part
+    reached = scope.free->size();
     // The new edge must close a cycle inside the window: then the window holds the path the edge
     // is checked against, and the correction is shared along it as the whole part would share it.
     // Without one (the first loop of a revisit) the correction belongs to a longer cycle.
