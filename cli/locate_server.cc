@@ -152,6 +152,13 @@ std::optional<uint64_t> ParseContentLength(const std::string& text) {
   return std::stoull(text);
 }
 
+// SO_REUSEADDR (a restarted server binds at once) without httplib's default SO_REUSEPORT: a second
+// server on the same port must fail at start, not share the port's connections with the first.
+void ReuseAddressOnly(int socket) {
+  const int yes = 1;
+  setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+}
+
 // Why binding host:port fails, as errno (0 when it does not, or the address does not resolve):
 // httplib only says that it failed.
 int BindErrno(const std::string& host, int port) {
@@ -163,8 +170,7 @@ int BindErrno(const std::string& host, int port) {
   int error = 0;
   const int socket_fd = socket(found->ai_family, found->ai_socktype, found->ai_protocol);
   if (socket_fd >= 0) {
-    const int yes = 1;
-    setsockopt(socket_fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+    ReuseAddressOnly(socket_fd);
     if (bind(socket_fd, found->ai_addr, found->ai_addrlen) != 0) error = errno;
     close(socket_fd);
   }
@@ -253,6 +259,12 @@ struct LocateServer::Impl {
   void LogRequest(const httplib::Request& request, const httplib::Response& response);
   void HandleAppliances(httplib::Response& response) const;
   void HandleHealth(httplib::Response& response) const;
+  size_t MaxBodyBytes() const { return static_cast<size_t>(options.max_body_mb * 1024 * 1024); }
+  std::string BodyTooLarge() const {
+    std::ostringstream message;
+    message << "request body larger than " << options.max_body_mb << " MiB";
+    return message.str();
+  }
   void RefuseCounted(httplib::Response& response, int status, const std::string& message) {
     ++refused;
     Refuse(response, status, message);
@@ -325,8 +337,7 @@ httplib::Server::HandlerResponse LocateServer::Impl::PreRoute(const httplib::Req
   if (!request.has_header("Content-Length")) return httplib::Server::HandlerResponse::Unhandled;
   const std::string declared = request.get_header_value("Content-Length");
   const std::optional<uint64_t> length = ParseContentLength(declared);
-  const auto max_bytes = static_cast<uint64_t>(options.max_body_mb * 1024 * 1024);
-  if (length && *length <= max_bytes) return httplib::Server::HandlerResponse::Unhandled;
+  if (length && *length <= MaxBodyBytes()) return httplib::Server::HandlerResponse::Unhandled;
   // Answered before the body is read, and the connection closed: its bytes are never read.
   response.set_header("Connection", "close");
   if (!length) {
@@ -343,7 +354,7 @@ httplib::Server::HandlerResponse LocateServer::Impl::PreRoute(const httplib::Req
 bool LocateServer::Impl::ReadUpload(const httplib::Request& request,
                                     const httplib::ContentReader& reader, std::string* photo,
                                     httplib::Response& response) {
-  const auto max_bytes = static_cast<size_t>(options.max_body_mb * 1024 * 1024);
+  const size_t max_bytes = MaxBodyBytes();
   bool too_large = false;
   size_t received = 0;
   const auto append = [&](std::string* to, const char* data, size_t length) {
@@ -387,9 +398,7 @@ bool LocateServer::Impl::ReadUpload(const httplib::Request& request,
     complete = reader([&](const char* data, size_t length) { return append(photo, data, length); });
   }
   if (too_large) {
-    std::ostringstream message;
-    message << "request body larger than " << options.max_body_mb << " MiB";
-    RefuseCounted(response, 413, message.str());
+    RefuseCounted(response, 413, BodyTooLarge());
     return false;
   }
   if (!complete) {
@@ -528,17 +537,12 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   impl.server.new_task_queue = [connection_threads, max_pending] {
     return new BoundedTaskQueue(static_cast<size_t>(connection_threads), max_pending);
   };
-  impl.server.set_payload_max_length(static_cast<size_t>(options.max_body_mb * 1024 * 1024));
+  impl.server.set_payload_max_length(impl.MaxBodyBytes());
   impl.server.set_read_timeout(options.read_timeout_s, 0);
   impl.server.set_write_timeout(options.write_timeout_s, 0);
   impl.server.set_keep_alive_timeout(options.keep_alive_timeout_s);
 
-  // Without SO_REUSEPORT (httplib's default sets it): a second server on the same port must fail
-  // at start, not share the port's connections with the first.
-  impl.server.set_socket_options([](socket_t socket) {
-    const int yes = 1;
-    setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-  });
+  impl.server.set_socket_options(ReuseAddressOnly);
   httplib::Server& server = impl.server;
   server.set_pre_routing_handler(
       [&impl](const httplib::Request& request, httplib::Response& response) {
@@ -569,9 +573,7 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
         if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
         std::string message;
         if (response.status == 413) {
-          std::ostringstream text;
-          text << "request body larger than " << impl.options.max_body_mb << " MiB";
-          message = text.str();
+          message = impl.BodyTooLarge();
         } else if (response.status == 404) {
           message = "no such endpoint " + request.method + " " + request.path +
                     ": use POST /locate, GET /appliances or GET /health";

@@ -189,11 +189,11 @@ void NoteResumed(const MappingOptions& options, const RestoredModel& restored, i
 // The figures of the map, its tracking and its accuracy, once every stage has ended.
 void Summarise(const Mapper& mapper, const MapStage& map, const TrackStage& track, bool tracked,
                const CaptureStage& capture, const Model& model, MappingSummary* summary) {
+  const ModelSummary model_summary = model.Summary();
   summary->keyframes = map.keyframes();
-  summary->model_keyframes = model.NumKeyframes();
+  summary->model_keyframes = model_summary.keyframes;
   summary->loops = mapper.NumLoopClosures();
   summary->segments = mapper.NumSegments();
-  const ModelSummary model_summary = model.Summary();
   summary->largest_segment_keyframes = model_summary.largest_segment_keyframes;
   summary->largest_part_ratio = model_summary.keyframes > 0
                                     ? static_cast<double>(model_summary.largest_segment_keyframes) /
