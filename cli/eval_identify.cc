@@ -181,18 +181,18 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   Progress progress(truths.size());
   int matched = 0;
   for (const QueryTruth& truth : truths) {
-    const cv::Mat photo = cv::imread(truth.image_path, cv::IMREAD_COLOR);
-    SIGHTMAP_CHECK(!photo.empty(), "cannot read photo " << truth.image_path
-                                                        << " listed in queries.json (was the "
-                                                           "query set copied whole?)");
-    std::optional<Intrinsics> intrinsics = truth.intrinsics;
-    if (intrinsics && (intrinsics->width != photo.cols || intrinsics->height != photo.rows)) {
-      // queries.json gives them at the written size; a resized copy keeps the same camera.
-      intrinsics = intrinsics->Scaled(photo.cols, photo.rows);
+    Photo photo;
+    try {
+      photo = ReadPhotoFile(truth.image_path, kMaxPhotoMegapixels);
+    } catch (const InvalidArgument& e) {
+      SIGHTMAP_THROW(InvalidArgument,
+                     e.what() << " (listed in queries.json; was the query set copied whole?)");
     }
+    // queries.json gives the intrinsics at the written size; a resized copy keeps the camera.
+    IntrinsicsHint hint;
+    hint.upright = truth.intrinsics;
     const Clock::time_point start = Clock::now();
-    const LocateResult result = locator->Locate(
-        photo, intrinsics, intrinsics ? IntrinsicsSource::kGiven : IntrinsicsSource::kEstimated);
+    const LocateResult result = locator->Locate(photo, hint);
     const double wall_ms = SecondsSince(start) * 1e3;
     PhotoAnswer answer = ToPhotoAnswer(result);
     if (answer.timings.total_ms <= 0.0) answer.timings.total_ms = wall_ms;

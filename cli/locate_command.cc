@@ -11,13 +11,11 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "capture/calibration.h"
 #include "cli/command_util.h"
 #include "cli/commands.h"
 #include "core/check.h"
-#include "identify/exif.h"
 #include "identify/locator.h"
 #include "store/model.h"
 
@@ -112,39 +110,30 @@ int RunLocate(int argc, char** argv) {
   bool json = false;
   app.add_option("--model", model_path, "the model's SQLite file")->required();
   app.add_option("PHOTO", photo_path, "the photo (JPEG or PNG)")->required();
-  auto* intrinsics_option = app.add_option("--intrinsics", intrinsics_text,
-                                           "FX,FY,CX,CY of the photo at its own resolution [px]");
+  auto* intrinsics_option = app.add_option(
+      "--intrinsics", intrinsics_text,
+      "FX,FY,CX,CY of the photo as a viewer shows it (EXIF orientation applied), at its "
+      "own resolution [px]");
   app.add_option("--calib", calib_path,
-                 "calibration file (JSON, see capture/calibration.h); its colour intrinsics are "
-                 "scaled to the photo")
+                 "calibration file (JSON, see capture/calibration.h); its colour intrinsics (the "
+                 "sensor's, as the file stores the pixels) are scaled to the photo and turned with "
+                 "its EXIF orientation")
       ->excludes(intrinsics_option);
   app.add_flag("--json", json, "print the answer as one JSON object (stable keys)");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
   // The photo first: a typo in its name should not wait for the model to load.
-  std::error_code error;
-  SIGHTMAP_CHECK(std::filesystem::is_regular_file(photo_path, error),
-                 "cannot read photo " << photo_path << ": no such file");
-  const cv::Mat photo = cv::imread(photo_path, cv::IMREAD_COLOR);
-  SIGHTMAP_CHECK(!photo.empty(), photo_path << " is not an image sightmap can read (JPEG or PNG "
-                                               "expected)");
-
-  std::optional<Intrinsics> intrinsics;
-  IntrinsicsSource source = IntrinsicsSource::kEstimated;
+  const Photo photo = ReadPhotoFile(photo_path, kMaxPhotoMegapixels);
+  IntrinsicsHint hint;
   if (!intrinsics_text.empty()) {
-    intrinsics = ParseIntrinsics(intrinsics_text, photo.cols, photo.rows);
-    source = IntrinsicsSource::kGiven;
+    hint.upright = ParseIntrinsics(intrinsics_text, photo.width(), photo.height());
   } else if (!calib_path.empty()) {
     const RgbdCalibration calibration = ReadCalibrationFile(calib_path);
     SIGHTMAP_CHECK(calibration.color.has_value(),
                    "calibration file " << calib_path
                                        << " has no \"color\" block: the photo's intrinsics go "
                                           "there");
-    intrinsics = calibration.color->Scaled(photo.cols, photo.rows);
-    source = IntrinsicsSource::kCalibration;
-  } else if (const std::optional<double> focal = ExifFocalLength35mmOfFile(photo_path)) {
-    intrinsics = IntrinsicsFromFocal35mm(photo.cols, photo.rows, *focal);
-    source = IntrinsicsSource::kExif;
+    hint.sensor = calibration.color;
   }
 
   ModelOptions model_options;
@@ -152,7 +141,7 @@ int RunLocate(int argc, char** argv) {
   model_options.create_if_missing = false;
   const Model model = Model::Open(model_path, model_options);
   const Locator locator(model);
-  const LocateResult result = locator.Locate(photo, intrinsics, source);
+  const LocateResult result = locator.Locate(photo, hint);
   if (json) {
     std::cout << ToJson(result).dump(2) << "\n";
   } else {

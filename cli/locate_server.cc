@@ -23,12 +23,10 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
 #include "core/statistics.h"
-#include "identify/exif.h"
-#include "identify/photo_header.h"
+#include "identify/photo.h"
 #include "store/model.h"
 
 // Last: httplib.h pulls in <resolv.h>, whose `_res` macro breaks Eigen headers included after it.
@@ -113,6 +111,20 @@ void Refuse(httplib::Response& response, int status, const std::string& message)
   Reply(response, status, {{"error", message}, {"status", status}});
 }
 
+// The answer to a refused photo: 415 when it is no image, 413 when too large, else 400.
+int StatusFor(PhotoProblem problem) {
+  switch (problem) {
+    case PhotoProblem::kNotAnImage:
+      return 415;
+    case PhotoProblem::kTooLarge:
+      return 413;
+    case PhotoProblem::kTruncated:
+    case PhotoProblem::kCorrupt:
+      return 400;
+  }
+  return 400;
+}
+
 int HardwareThreads() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 // fx, fy, cx, cy from the query string: all four or none. Throws InvalidArgument with the reason.
@@ -122,19 +134,23 @@ std::optional<Intrinsics> IntrinsicsFromQuery(const httplib::Request& request, i
   int given = 0;
   for (const char* name : names) given += request.has_param(name) ? 1 : 0;
   if (given == 0) return std::nullopt;
-  SIGHTMAP_CHECK(given == 4, "give all of fx, fy, cx, cy (pixels of the uploaded photo) or none");
+  if (given != 4) {
+    SIGHTMAP_THROW(InvalidArgument,
+                   "give all of fx, fy, cx, cy (pixels of the photo as shown upright) or none");
+  }
   double values[4];
   for (int i = 0; i < 4; ++i) {
     const std::string text = request.get_param_value(names[i]);
     char* end = nullptr;
     values[i] = std::strtod(text.c_str(), &end);
-    SIGHTMAP_CHECK(!text.empty() && end == text.c_str() + text.size() && std::isfinite(values[i]),
-                   names[i] << "=" << text << " is not a number");
+    if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(values[i])) {
+      SIGHTMAP_THROW(InvalidArgument, names[i] << "=" << text << " is not a number");
+    }
   }
   const Intrinsics intrinsics =
       Intrinsics::FromPinhole(width, height, values[0], values[1], values[2], values[3]);
   std::string why;
-  SIGHTMAP_CHECK(intrinsics.Check(&why), "bad intrinsics: " << why);
+  if (!intrinsics.Check(&why)) SIGHTMAP_THROW(InvalidArgument, "bad intrinsics: " << why);
   return intrinsics;
 }
 
@@ -276,58 +292,29 @@ void LocateServer::Impl::HandleLocate(const httplib::Request& request, const std
   if (body.empty()) {
     return RefuseCounted(response, 400, "empty body: POST a JPEG or PNG photo as the request body");
   }
-  const auto* bytes = reinterpret_cast<const uint8_t*>(body.data());
-  const std::optional<PhotoHeader> header = ReadPhotoHeader(bytes, body.size());
-  if (!header) {
-    return RefuseCounted(response, 415, "the body is not a JPEG or PNG image");
-  }
-  const double megapixels = static_cast<double>(header->pixels()) * 1e-6;
-  if (megapixels > options.max_megapixels) {
-    std::ostringstream message;
-    message << "photo too large: " << header->width << "x" << header->height << " ("
-            << std::lround(megapixels) << " megapixels), the limit is " << options.max_megapixels
-            << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
-    return RefuseCounted(response, 413, message.str());
-  }
-  if (!PhotoIsComplete(bytes, body.size(), header->format)) {
-    return RefuseCounted(response, 400,
-                         std::string("the ") + ToString(header->format) +
-                             " is truncated (it has no end marker): the upload was cut short, "
-                             "send the whole file");
-  }
-  std::optional<Intrinsics> intrinsics;
-  IntrinsicsSource source = IntrinsicsSource::kGiven;
-  try {
-    intrinsics = IntrinsicsFromQuery(request, header->width, header->height);
-  } catch (const Error& e) {
-    return RefuseCounted(response, 400, e.what());
-  }
-  if (!intrinsics && header->format == PhotoFormat::kJpeg) {
-    if (const std::optional<double> focal = ExifFocalLength35mm(bytes, body.size())) {
-      intrinsics = IntrinsicsFromFocal35mm(header->width, header->height, *focal);
-      source = IntrinsicsSource::kExif;
-    }
-  }
   // Decoding inside the slot bounds the decoded images in memory as well as the CPU.
   const Slots::Hold hold(*locate_slots);
-  const cv::Mat encoded(1, static_cast<int>(body.size()), CV_8UC1, const_cast<char*>(body.data()));
-  cv::Mat photo;
+  Photo photo;
   try {
-    photo = cv::imdecode(encoded, cv::IMREAD_COLOR);
-  } catch (const cv::Exception&) {
-    photo.release();
+    photo = DecodePhoto(reinterpret_cast<const uint8_t*>(body.data()), body.size(),
+                        options.max_megapixels);
+  } catch (const PhotoRejected& e) {
+    return RefuseCounted(response, StatusFor(e.problem()), e.what());
   }
-  if (photo.empty()) {
-    return RefuseCounted(response, 400,
-                         std::string("the ") + ToString(header->format) +
-                             " body does not decode (truncated or corrupt?)");
+  IntrinsicsHint hint;
+  LocateResult result;
+  try {
+    hint.upright = IntrinsicsFromQuery(request, photo.width(), photo.height());
+    result = locator->Locate(photo, hint);
+  } catch (const InvalidArgument& e) {
+    return RefuseCounted(response, 400, e.what());
   }
-  const LocateResult result =
-      locator->Locate(photo, intrinsics, intrinsics ? source : IntrinsicsSource::kEstimated);
   ++located;
   nlohmann::json answer = ToJson(result);
-  answer["photo"] = {
-      {"width", photo.cols}, {"height", photo.rows}, {"format", ToString(header->format)}};
+  answer["photo"] = {{"width", photo.width()},
+                     {"height", photo.height()},
+                     {"format", ToString(photo.stored.format)},
+                     {"exif_orientation", photo.orientation.exif_code}};
   Reply(response, 200, answer);
 }
 

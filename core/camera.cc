@@ -1,5 +1,6 @@
 #include "core/camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/check.h"
@@ -64,14 +65,28 @@ Eigen::Vector2d Intrinsics::Project(const Eigen::Vector3d& cam_point) const {
 
 double Intrinsics::HorizontalFieldOfView() const { return 2.0 * std::atan(width / (2.0 * fx)); }
 
+namespace {
+constexpr int kMaxImageSide = 100000;
+}  // namespace
+
 bool Intrinsics::Check(std::string* error) const {
   auto fail = [error](const char* what) {
     if (error) *error = what;
     return false;
   };
   if (width <= 0 || height <= 0) return fail("image size must be positive");
-  if (!(fx > 0.0) || !(fy > 0.0)) return fail("focal lengths must be positive");
-  if (!std::isfinite(cx) || !std::isfinite(cy)) return fail("principal point must be finite");
+  if (width > kMaxImageSide || height > kMaxImageSide) {
+    return fail("image sides must be at most 100000 px");
+  }
+  // A field of view under 0.6 degrees, or a principal point more than an image away from the
+  // image, is a typo or a unit mix-up, not a camera.
+  const double max_focal = 100.0 * std::max(width, height);
+  if (!(fx > 0.0) || !(fy > 0.0) || !(fx <= max_focal) || !(fy <= max_focal)) {
+    return fail("focal lengths must be positive and at most 100 x the image's larger side [px]");
+  }
+  if (!(cx >= -width && cx <= 2.0 * width) || !(cy >= -height && cy <= 2.0 * height)) {
+    return fail("the principal point must lie within an image's size of the image [px]");
+  }
   return true;
 }
 

@@ -1,6 +1,7 @@
 #include "core/camera.h"
 
 #include <cmath>
+#include <limits>
 
 #include <gtest/gtest.h>
 
@@ -77,6 +78,27 @@ TEST(Intrinsics, CheckRejectsNonPositiveFocalLength) {
   EXPECT_FALSE(error.empty());
   k.fx = k.fy = 500.0;
   EXPECT_TRUE(k.Check(&error));
+}
+
+TEST(Intrinsics, CheckRejectsAbsurdValues) {
+  const Intrinsics good = Intrinsics::FromPinhole(640, 480, 525.0, 525.0, 319.5, 239.5);
+  std::string error;
+  ASSERT_TRUE(good.Check(&error)) << error;
+  auto with = [&](auto change) {
+    Intrinsics k = good;
+    change(k);
+    return k;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(with([](Intrinsics& k) { k.fx = 1e300; }).Check(&error));
+  EXPECT_NE(error.find("at most 100 x"), std::string::npos) << error;
+  EXPECT_FALSE(with([&](Intrinsics& k) { k.fy = nan; }).Check(&error));
+  EXPECT_FALSE(with([](Intrinsics& k) { k.cx = 1e300; }).Check(&error));
+  EXPECT_FALSE(with([&](Intrinsics& k) { k.cy = nan; }).Check(&error));
+  EXPECT_FALSE(with([](Intrinsics& k) { k.width = 1000000; }).Check(&error));
+  // Long lenses and off-centre principal points within reason stay valid.
+  EXPECT_TRUE(with([](Intrinsics& k) { k.fx = k.fy = 60000.0; }).Check(&error)) << error;
+  EXPECT_TRUE(with([](Intrinsics& k) { k.cx = -100.0; }).Check(&error)) << error;
 }
 
 }  // namespace

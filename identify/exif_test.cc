@@ -14,98 +14,16 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
+#include "identify/exif_testing.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
 namespace {
 
+using testing::ExifFields;
+using testing::JpegWithExif;
+
 const double kFilmDiagonalMm = std::hypot(36.0, 24.0);
-
-// The EXIF entries a test photo carries; absent ones are not written.
-struct ExifFields {
-  std::optional<int> focal_35mm;             // SHORT [mm]
-  std::optional<double> focal_mm;            // RATIONAL
-  std::optional<double> plane_x_resolution;  // RATIONAL, pixels per unit
-  std::optional<double> plane_y_resolution;
-  std::optional<int> plane_unit;  // SHORT: 2 inch, 3 cm, 4 mm
-  std::optional<int> pixel_x;     // LONG
-  std::optional<int> pixel_y;
-  ExifByteOrder order = EXIF_BYTE_ORDER_INTEL;
-};
-
-void AddEntry(ExifData* exif, ExifTag tag, ExifFormat format, const ExifFields& fields,
-              double value) {
-  ExifEntry* entry = exif_entry_new();
-  entry->tag = tag;
-  entry->format = format;
-  entry->components = 1;
-  entry->size = exif_format_get_size(format);
-  ExifMem* mem = exif_mem_new_default();
-  entry->data = static_cast<unsigned char*>(exif_mem_alloc(mem, entry->size));
-  exif_mem_unref(mem);
-  if (format == EXIF_FORMAT_SHORT) {
-    exif_set_short(entry->data, fields.order, static_cast<ExifShort>(value));
-  } else if (format == EXIF_FORMAT_LONG) {
-    exif_set_long(entry->data, fields.order, static_cast<ExifLong>(value));
-  } else {
-    const ExifRational rational{static_cast<ExifLong>(std::lround(value * 1000.0)), 1000};
-    exif_set_rational(entry->data, fields.order, rational);
-  }
-  exif_content_add_entry(exif->ifd[EXIF_IFD_EXIF], entry);
-  exif_entry_unref(entry);
-}
-
-// A real JPEG (cv::imencode) with an APP1 EXIF segment (libexif) spliced in after its SOI.
-std::vector<uint8_t> JpegWithExif(int width, int height, const ExifFields& fields) {
-  cv::Mat image(height, width, CV_8UC3);
-  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
-  std::vector<uint8_t> jpeg;
-  EXPECT_TRUE(cv::imencode(".jpg", image, jpeg));
-
-  ExifData* exif = exif_data_new();
-  exif_data_unset_option(exif, EXIF_DATA_OPTION_FOLLOW_SPECIFICATION);
-  exif_data_set_byte_order(exif, fields.order);
-  if (fields.focal_35mm) {
-    AddEntry(exif, EXIF_TAG_FOCAL_LENGTH_IN_35MM_FILM, EXIF_FORMAT_SHORT, fields,
-             *fields.focal_35mm);
-  }
-  if (fields.focal_mm) {
-    AddEntry(exif, EXIF_TAG_FOCAL_LENGTH, EXIF_FORMAT_RATIONAL, fields, *fields.focal_mm);
-  }
-  if (fields.plane_x_resolution) {
-    AddEntry(exif, EXIF_TAG_FOCAL_PLANE_X_RESOLUTION, EXIF_FORMAT_RATIONAL, fields,
-             *fields.plane_x_resolution);
-  }
-  if (fields.plane_y_resolution) {
-    AddEntry(exif, EXIF_TAG_FOCAL_PLANE_Y_RESOLUTION, EXIF_FORMAT_RATIONAL, fields,
-             *fields.plane_y_resolution);
-  }
-  if (fields.plane_unit) {
-    AddEntry(exif, EXIF_TAG_FOCAL_PLANE_RESOLUTION_UNIT, EXIF_FORMAT_SHORT, fields,
-             *fields.plane_unit);
-  }
-  if (fields.pixel_x) {
-    AddEntry(exif, EXIF_TAG_PIXEL_X_DIMENSION, EXIF_FORMAT_LONG, fields, *fields.pixel_x);
-  }
-  if (fields.pixel_y) {
-    AddEntry(exif, EXIF_TAG_PIXEL_Y_DIMENSION, EXIF_FORMAT_LONG, fields, *fields.pixel_y);
-  }
-  unsigned char* block = nullptr;
-  unsigned int block_size = 0;
-  exif_data_save_data(exif, &block, &block_size);  // "Exif\0\0" + TIFF header + IFDs
-  exif_data_unref(exif);
-  EXPECT_NE(block, nullptr);
-  EXPECT_GT(block_size, 6u);
-  EXPECT_LT(block_size, 65000u);
-
-  const size_t segment_length = block_size + 2;  // the length field counts itself
-  std::vector<uint8_t> app1 = {0xFF, 0xE1, static_cast<uint8_t>(segment_length >> 8),
-                               static_cast<uint8_t>(segment_length & 0xFF)};
-  app1.insert(app1.end(), block, block + block_size);
-  std::free(block);
-  jpeg.insert(jpeg.begin() + 2, app1.begin(), app1.end());
-  return jpeg;
-}
 
 TEST(Exif, ReadsFocalLengthIn35mmFilm) {
   ExifFields fields;

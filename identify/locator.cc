@@ -23,20 +23,6 @@
 
 namespace sightmap {
 
-const char* ToString(IntrinsicsSource source) {
-  switch (source) {
-    case IntrinsicsSource::kGiven:
-      return "given";
-    case IntrinsicsSource::kCalibration:
-      return "calibration";
-    case IntrinsicsSource::kExif:
-      return "exif";
-    case IntrinsicsSource::kEstimated:
-      return "estimated";
-  }
-  return "unknown";
-}
-
 bool LocatorOptions::Check(std::string* error) const {
   std::ostringstream why;
   if (!features.Check(error)) return false;
@@ -950,6 +936,15 @@ nlohmann::json ToJson(const LocateResult& result) {
       {"matching", result.timings.matching_ms},     {"pnp", result.timings.pnp_ms},
       {"visibility", result.timings.visibility_ms}, {"total", result.timings.total_ms}};
   return out;
+}
+
+LocateResult Locator::Locate(const Photo& photo, const IntrinsicsHint& hint) const {
+  const ChosenIntrinsics chosen = ChooseIntrinsics(photo, hint);
+  LocateResult result = Locate(photo.upright, chosen.intrinsics, chosen.source);
+  for (ApplianceInView& appliance : result.appliances) {
+    appliance.pixel = photo.DisplayPixel(appliance.pixel);
+  }
+  return result;
 }
 
 }  // namespace sightmap

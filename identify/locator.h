@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "identify/photo.h"
 #include "slam/features.h"
 #include "store/model.h"
 
@@ -122,10 +123,6 @@ struct LocatorOptions {
   bool Check(std::string* error) const;
 };
 
-// Where a photo's intrinsics came from.
-enum class IntrinsicsSource { kGiven, kCalibration, kExif, kEstimated };
-const char* ToString(IntrinsicsSource source);
-
 struct ApplianceInView {
   std::string name;
   std::string type;
@@ -187,6 +184,10 @@ class Locator {
   // (then intrinsics_source is kEstimated). Thread-safe: concurrent calls share the loaded model.
   LocateResult Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                       IntrinsicsSource source = IntrinsicsSource::kGiven) const;
+  // Locates a decoded photo with intrinsics by ChooseIntrinsics(photo, hint); the appliances'
+  // pixels are in the picture a viewer shows (Photo::DisplayPixel). Throws InvalidArgument when
+  // the hint does not fit the photo.
+  LocateResult Locate(const Photo& photo, const IntrinsicsHint& hint) const;
 
   // Re-reads the labels (after `label add` on a served model).
   void ReloadLabels(const Model& model);

@@ -17,6 +17,7 @@
 
 #include "core/check.h"
 #include "core/rotation.h"
+#include "identify/exif_testing.h"
 #include "identify/sim_model_testing.h"
 #include "identify/visibility.h"
 #include "sim/simulator.h"
@@ -213,6 +214,44 @@ TEST_F(LocatorTest, LargePhotosAreDownscaledAndAnswerInTheirOwnPixels) {
 
 // Against the simulator's ground truth: what is reported visible is really there, and occluded
 // instances are not reported as visible.
+// A phone held upright stores its pixels sideways and says so in EXIF (orientation 6: turn a
+// quarter clockwise to show). Located through the one photo path, with the sensor's (landscape)
+// calibration or the upright intrinsics, it must land where the upright photo does.
+TEST_F(LocatorTest, APortraitPhotoStoredSidewaysLandsWhereTheUprightOneDoes) {
+  int compared = 0;
+  for (const sim::QueryPhoto& query : *seen_photos_) {
+    const LocateResult upright = locator_->Locate(query.image, query.intrinsics);
+    if (!upright.matched) continue;
+    cv::Mat sideways;
+    cv::rotate(query.image, sideways, cv::ROTATE_90_COUNTERCLOCKWISE);
+    testing::ExifFields fields;
+    fields.orientation = 6;
+    const std::vector<uint8_t> jpeg = testing::JpegWithExif(sideways, fields);
+    const Photo photo = DecodePhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels);
+    ASSERT_EQ(photo.width(), query.image.cols);
+    ASSERT_EQ(photo.height(), query.image.rows);
+
+    IntrinsicsHint from_calibration;
+    from_calibration.sensor = TurnClockwise(query.intrinsics, 3);  // the sideways sensor's
+    IntrinsicsHint given;
+    given.upright = query.intrinsics;
+    for (const IntrinsicsHint& hint : {from_calibration, given}) {
+      const LocateResult result = locator_->Locate(photo, hint);
+      ASSERT_TRUE(result.matched) << "photo " << query.index << ": " << result.reason;
+      EXPECT_NEAR(result.intrinsics.fx, query.intrinsics.fx, 1e-9);
+      EXPECT_NEAR(result.intrinsics.fy, query.intrinsics.fy, 1e-9);
+      EXPECT_NEAR(result.intrinsics.cx, query.intrinsics.cx, 1e-9);
+      EXPECT_NEAR(result.intrinsics.cy, query.intrinsics.cy, 1e-9);
+      // JPEG compression moves a few features: centimetres, not the metres of a skewed camera.
+      EXPECT_LT(PositionError(result.world_from_cam, upright.world_from_cam), 0.03);
+      EXPECT_LT(RotationAngleDeg(result.world_from_cam.linear(), upright.world_from_cam.linear()),
+                1.0);
+    }
+    if (++compared == 3) break;
+  }
+  EXPECT_EQ(compared, 3);
+}
+
 TEST_F(LocatorTest, AppliancesInViewAgreeWithTheGroundTruth) {
   int reported_visible = 0;
   int wrongly_visible = 0;  // reported visible, truth not visible or occluded

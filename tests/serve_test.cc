@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "identify/exif_testing.h"
 #include "identify/sim_model_testing.h"
 #include "tests/command_runner.h"
 #include "tests/test_data.h"
@@ -309,6 +310,53 @@ TEST_F(ServeTest, ExifFocalLengthGivesTheIntrinsics) {
   // 26 mm on the 35 mm diagonal (43.27 mm) over the photo's 1600 px diagonal.
   EXPECT_NEAR(answer["intrinsics"]["fx"].get<double>(), 26.0 * 1600.0 / std::hypot(36.0, 24.0),
               0.5);
+}
+
+// A phone held upright writes its pixels sideways and EXIF orientation 6. The server turns the
+// pixels and the EXIF camera together: square pixels on the upright photo, and the pose of the
+// photo sent upright.
+TEST_F(ServeTest, ASidewaysStoredPortraitPhotoIsLocatedUpright) {
+  ASSERT_GT(server_->port(), 0) << server_->output();
+  const auto post = [&](const std::vector<uint8_t>& jpeg) {
+    const httplib::Result result =
+        Client().Post("/locate", std::string(jpeg.begin(), jpeg.end()), "image/jpeg");
+    EXPECT_TRUE(result);
+    EXPECT_EQ(result ? result->status : 0, 200) << (result ? result->body : "no answer");
+    return result ? Json(result) : nlohmann::json();
+  };
+  const auto position = [](const nlohmann::json& json) {
+    const auto p = json["pose"]["world_from_cam"]["position"];
+    return Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+  };
+  testing::ExifFields fields;
+  fields.focal_35mm = 26;
+  int compared = 0;
+  for (const std::string& plain : Photos()) {
+    const cv::Mat upright =
+        cv::imdecode(std::vector<uint8_t>(plain.begin(), plain.end()), cv::IMREAD_COLOR);
+    fields.orientation = 1;
+    const nlohmann::json expected = post(testing::JpegWithExif(upright, fields));
+    if (!expected.value("matched", false)) continue;
+
+    cv::Mat sideways;
+    cv::rotate(upright, sideways, cv::ROTATE_90_COUNTERCLOCKWISE);
+    fields.orientation = 6;
+    const nlohmann::json answer = post(testing::JpegWithExif(sideways, fields));
+    EXPECT_EQ(answer["photo"]["width"], 1280) << answer;
+    EXPECT_EQ(answer["photo"]["height"], 960) << answer;
+    EXPECT_EQ(answer["photo"]["exif_orientation"], 6) << answer;
+    EXPECT_EQ(answer["intrinsics"]["source"], "exif");
+    EXPECT_EQ(answer["intrinsics"]["width"], 1280);
+    EXPECT_DOUBLE_EQ(answer["intrinsics"]["fx"].get<double>(),
+                     expected["intrinsics"]["fx"].get<double>());
+    EXPECT_DOUBLE_EQ(answer["intrinsics"]["fy"].get<double>(),
+                     expected["intrinsics"]["fy"].get<double>());
+    ASSERT_TRUE(answer.value("matched", false)) << answer;
+    // Re-encoding moves a few features: centimetres, not the metres of a stretched camera.
+    EXPECT_LT((position(answer) - position(expected)).norm(), 0.05) << answer;
+    if (++compared == 2) break;
+  }
+  EXPECT_EQ(compared, 2) << "too few photos matched at the EXIF focal length";
 }
 
 TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {

@@ -1,0 +1,214 @@
+#include "identify/photo.h"
+
+#include <libexif/exif-data.h>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <sstream>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "identify/exif.h"
+
+namespace sightmap {
+namespace {
+
+struct ExifDataUnref {
+  void operator()(ExifData* data) const { exif_data_unref(data); }
+};
+
+// Aspect ratios closer than this are the same camera at another resolution; farther, a crop or
+// another camera, which no scaling turns into the photo's.
+constexpr double kAspectTolerance = 0.01;
+
+bool SameAspect(int width_a, int height_a, int width_b, int height_b) {
+  const double a = static_cast<double>(width_a) / height_a;
+  const double b = static_cast<double>(width_b) / height_b;
+  return std::abs(a - b) <= kAspectTolerance * b;
+}
+
+std::string SizeText(int width, int height) {
+  return std::to_string(width) + "x" + std::to_string(height);
+}
+
+void CheckCamera(const Intrinsics& intrinsics, const char* what) {
+  std::string why;
+  if (!intrinsics.Check(&why)) SIGHTMAP_THROW(InvalidArgument, what << ": " << why);
+}
+
+// `intrinsics` at the size (width, height), or an error naming `what` when the aspect differs.
+Intrinsics FitTo(const Intrinsics& intrinsics, int width, int height, const std::string& what) {
+  CheckCamera(intrinsics, what.c_str());
+  if (intrinsics.width == width && intrinsics.height == height) return intrinsics;
+  if (!SameAspect(intrinsics.width, intrinsics.height, width, height))
+    SIGHTMAP_THROW(InvalidArgument,
+                   what << " describe a " << SizeText(intrinsics.width, intrinsics.height)
+                        << " image but the photo is " << SizeText(width, height)
+                        << ": another aspect ratio is another camera or a crop, not a scaling");
+  return intrinsics.Scaled(width, height);
+}
+
+}  // namespace
+
+const char* ToString(IntrinsicsSource source) {
+  switch (source) {
+    case IntrinsicsSource::kGiven:
+      return "given";
+    case IntrinsicsSource::kCalibration:
+      return "calibration";
+    case IntrinsicsSource::kExif:
+      return "exif";
+    case IntrinsicsSource::kEstimated:
+      return "estimated";
+  }
+  return "unknown";
+}
+
+PhotoOrientation PhotoOrientation::FromExif(int code) {
+  // Codes 1-8 as clockwise quarter turns then a mirror: 2 mirror; 3 half turn; 4 half turn and
+  // mirror (a vertical flip); 5 a quarter and mirror (transpose); 6 a quarter; 7 three quarters
+  // and mirror (transverse); 8 three quarters.
+  static constexpr int kTurns[9] = {0, 0, 0, 2, 2, 1, 1, 3, 3};
+  static constexpr bool kMirrored[9] = {false, false, true, false, true, true, false, true, false};
+  PhotoOrientation orientation;
+  if (code < 1 || code > 8) return orientation;
+  orientation.exif_code = code;
+  orientation.quarter_turns_cw = kTurns[code];
+  orientation.mirrored = kMirrored[code];
+  return orientation;
+}
+
+int ExifOrientation(const uint8_t* data, size_t size) {
+  if (!data || size < 4 || data[0] != 0xFF || data[1] != 0xD8) return 1;
+  std::unique_ptr<ExifData, ExifDataUnref> exif(exif_data_new());
+  if (!exif) return 1;
+  exif_data_unset_option(exif.get(), EXIF_DATA_OPTION_FOLLOW_SPECIFICATION);
+  exif_data_load_data(exif.get(), data,
+                      static_cast<unsigned int>(std::min<size_t>(size, UINT_MAX)));
+  const ExifEntry* entry = exif_content_get_entry(exif->ifd[EXIF_IFD_0], EXIF_TAG_ORIENTATION);
+  if (!entry || !entry->data || entry->format != EXIF_FORMAT_SHORT || entry->size < 2) return 1;
+  const int code = exif_get_short(entry->data, exif_data_get_byte_order(exif.get()));
+  return code >= 1 && code <= 8 ? code : 1;
+}
+
+cv::Mat TurnClockwise(const cv::Mat& stored, int quarter_turns) {
+  cv::Mat turned;
+  switch (((quarter_turns % 4) + 4) % 4) {
+    case 0:
+      return stored;
+    case 1:
+      cv::rotate(stored, turned, cv::ROTATE_90_CLOCKWISE);
+      break;
+    case 2:
+      cv::rotate(stored, turned, cv::ROTATE_180);
+      break;
+    default:
+      cv::rotate(stored, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+      break;
+  }
+  return turned;
+}
+
+Intrinsics TurnClockwise(const Intrinsics& stored, int quarter_turns) {
+  Intrinsics k = stored;
+  for (int turn = 0; turn < ((quarter_turns % 4) + 4) % 4; ++turn) {
+    // A quarter turn clockwise sends pixel (u, v) of a W x H image to (H - 1 - v, u).
+    const Intrinsics before = k;
+    k.width = before.height;
+    k.height = before.width;
+    k.fx = before.fy;
+    k.fy = before.fx;
+    k.cx = (before.height - 1) - before.cy;
+    k.cy = before.cx;
+  }
+  return k;
+}
+
+Eigen::Vector2d Photo::DisplayPixel(const Eigen::Vector2d& upright_pixel) const {
+  if (!orientation.mirrored) return upright_pixel;
+  return {(width() - 1) - upright_pixel.x(), upright_pixel.y()};
+}
+
+Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
+  const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size);
+  if (!header) {
+    throw PhotoRejected(PhotoProblem::kNotAnImage, "the photo is not a JPEG or PNG image");
+  }
+  const double megapixels = static_cast<double>(header->pixels()) * 1e-6;
+  if (megapixels > max_megapixels) {
+    std::ostringstream message;
+    message << "photo too large: " << SizeText(header->width, header->height) << " ("
+            << std::lround(megapixels) << " megapixels), the limit is " << max_megapixels
+            << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
+    throw PhotoRejected(PhotoProblem::kTooLarge, message.str());
+  }
+  if (!PhotoIsComplete(data, size, header->format)) {
+    throw PhotoRejected(PhotoProblem::kTruncated,
+                        std::string("the ") + ToString(header->format) +
+                            " is truncated (it has no end marker): the upload or copy was cut "
+                            "short, send the whole file");
+  }
+  Photo photo;
+  photo.stored = *header;
+  if (header->format == PhotoFormat::kJpeg) {
+    photo.orientation = PhotoOrientation::FromExif(ExifOrientation(data, size));
+    photo.exif_focal_35mm = ExifFocalLength35mm(data, size);
+  }
+  // The orientation is applied here, explicitly, so the pixels and the intrinsics turn together.
+  const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT_MAX)), CV_8UC1,
+                        const_cast<uint8_t*>(data));
+  cv::Mat stored;
+  try {
+    stored = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+  } catch (const cv::Exception&) {
+    stored.release();
+  }
+  if (stored.empty() || stored.cols != header->width || stored.rows != header->height) {
+    throw PhotoRejected(PhotoProblem::kCorrupt, std::string("the ") + ToString(header->format) +
+                                                    " does not decode (corrupt data)");
+  }
+  photo.upright = TurnClockwise(stored, photo.orientation.quarter_turns_cw);
+  return photo;
+}
+
+Photo ReadPhotoFile(const std::string& path, double max_megapixels) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in.is_open())
+    SIGHTMAP_THROW(InvalidArgument,
+                   "cannot read photo " << path << ": no such file or no permission");
+  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                   std::istreambuf_iterator<char>());
+  if (in.bad()) SIGHTMAP_THROW(InvalidArgument, "cannot read photo " << path << ": read error");
+  try {
+    return DecodePhoto(bytes.data(), bytes.size(), max_megapixels);
+  } catch (const PhotoRejected& e) {
+    throw PhotoRejected(e.problem(), path + ": " + e.what());
+  }
+}
+
+ChosenIntrinsics ChooseIntrinsics(const Photo& photo, const IntrinsicsHint& hint) {
+  ChosenIntrinsics chosen;
+  if (hint.upright) {
+    chosen.intrinsics = FitTo(*hint.upright, photo.width(), photo.height(), "the intrinsics");
+    chosen.source = IntrinsicsSource::kGiven;
+  } else if (hint.sensor) {
+    // A calibration describes the sensor's pixels, which the file stores unturned.
+    const Intrinsics stored = FitTo(*hint.sensor, photo.stored.width, photo.stored.height,
+                                    "the calibration's colour intrinsics");
+    chosen.intrinsics = TurnClockwise(stored, photo.orientation.quarter_turns_cw);
+    chosen.source = IntrinsicsSource::kCalibration;
+  } else if (photo.exif_focal_35mm) {
+    chosen.intrinsics =
+        IntrinsicsFromFocal35mm(photo.width(), photo.height(), *photo.exif_focal_35mm);
+    chosen.source = IntrinsicsSource::kExif;
+  }
+  return chosen;
+}
+
+}  // namespace sightmap
