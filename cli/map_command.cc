@@ -2,11 +2,8 @@
 // a sensor, recording, folder or the simulator into a model (resuming it when it holds keyframes),
 // with a status line on stderr and a summary on stdout. Ctrl-C or SIGTERM stops gracefully (exit
 // 0 with the summary); a second one exits at once, the model keeping every committed keyframe.
-#include <unistd.h>
-
 #include <algorithm>
 #include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -19,52 +16,12 @@
 
 #include "cli/command_util.h"
 #include "cli/commands.h"
+#include "cli/stop_signals.h"
 #include "core/check.h"
 #include "mapping/mapping_session.h"
 
 namespace sightmap::cli {
 namespace {
-
-// Set by the signal handler (lock-free atomics are async-signal-safe).
-std::atomic<bool> g_stop_requested{false};
-std::atomic<int> g_signals{0};
-
-extern "C" void OnStopSignal(int signal_number) {
-  if (g_signals.fetch_add(1) >= 1) {
-    // The second signal: leave now. Committed keyframes are safe in the WAL.
-    static const char kMessage[] = "\nsightmap map: second signal, exiting at once\n";
-    const ssize_t ignored = write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
-    static_cast<void>(ignored);
-    _exit(128 + signal_number);
-  }
-  g_stop_requested = true;
-  static const char kMessage[] =
-      "\nsightmap map: stopping after the keyframe in hand (Ctrl-C again to exit at once)\n";
-  const ssize_t ignored = write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
-  static_cast<void>(ignored);
-}
-
-// Installs the handlers for the command's lifetime and restores the previous ones.
-class StopSignals {
- public:
-  StopSignals() {
-    struct sigaction action {};
-    action.sa_handler = OnStopSignal;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &previous_int_);
-    sigaction(SIGTERM, &action, &previous_term_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &previous_int_, nullptr);
-    sigaction(SIGTERM, &previous_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction previous_int_ {};
-  struct sigaction previous_term_ {};
-};
 
 std::string Megabytes(int64_t bytes) {
   std::ostringstream out;
@@ -272,6 +229,11 @@ int RunMap(int argc, char** argv) {
                "1 Hz capture)");
   app.add_flag("--json", json, "print the summary as one JSON object (stable keys)");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  // Before any thread exists; a Ctrl-C from here on waits for the session to take it.
+  std::atomic<bool> stop_requested{false};
+  StopSignalWatcher watcher(
+      "sightmap map",
+      "\nsightmap map: stopping after the keyframe in hand (Ctrl-C again to exit at once)\n");
 
   options.live = options.source_options.realtime;
   options.tracking.track = !no_tracking;
@@ -296,10 +258,8 @@ int RunMap(int argc, char** argv) {
   }
 
   mapping::MappingSession session(options);
-  g_stop_requested = false;
-  g_signals = 0;
-  StopSignals signals;
-  session.SetInterruptFlag(&g_stop_requested);
+  session.SetInterruptFlag(&stop_requested);
+  watcher.Start([&stop_requested] { stop_requested = true; });
   StatusLine status;
   session.SetProgressCallback(
       [&status](const mapping::MappingProgress& progress) { status.Update(progress); });

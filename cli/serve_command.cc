@@ -2,80 +2,17 @@
 // [--max-megapixels 25] [--timeout S]: answers phones over HTTP (see cli/locate_server.h for the
 // endpoints). Prints the URL it listens on (with --port 0, the port the system chose) and serves
 // until Ctrl-C or SIGTERM, then finishes the requests in hand and exits 0.
-#include <pthread.h>
-#include <unistd.h>
 
-#include <atomic>
-#include <csignal>
-#include <ctime>
-#include <functional>
 #include <iostream>
 #include <string>
-#include <thread>
 
 #include "cli/command_util.h"
 #include "cli/commands.h"
 #include "cli/locate_server.h"
+#include "cli/stop_signals.h"
 #include "core/check.h"
 
 namespace sightmap::cli {
-namespace {
-
-// Takes SIGINT and SIGTERM away from every thread (they inherit the mask, so it must be built
-// before any thread starts, OpenCV's and the server's included) and hands them to one watcher
-// thread, which may call anything, unlike a signal handler. After the first signal it calls
-// `on_stop` every 100 ms until destroyed (a stop that raced the server's start is repeated); a
-// second signal exits at once.
-class StopSignalWatcher {
- public:
-  StopSignalWatcher() {
-    sigemptyset(&signals_);
-    sigaddset(&signals_, SIGINT);
-    sigaddset(&signals_, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &signals_, &previous_mask_);
-  }
-  ~StopSignalWatcher() {
-    Finish();
-    pthread_sigmask(SIG_SETMASK, &previous_mask_, nullptr);
-  }
-  StopSignalWatcher(const StopSignalWatcher&) = delete;
-  StopSignalWatcher& operator=(const StopSignalWatcher&) = delete;
-
-  // Ends the watcher thread: `on_stop` is not called after this returns (idempotent).
-  void Finish() {
-    done_ = true;
-    if (thread_.joinable()) thread_.join();
-  }
-
-  void Start(std::function<void()> on_stop) {
-    thread_ = std::thread([this, on_stop = std::move(on_stop)] {
-      int received = 0;
-      while (!done_) {
-        const timespec poll{0, 100'000'000};
-        const int signal_number = sigtimedwait(&signals_, nullptr, &poll);
-        if (signal_number > 0) {
-          if (++received >= 2) {
-            static const char kMessage[] = "sightmap serve: second signal, exiting at once\n";
-            [[maybe_unused]] const ssize_t ignored = ::write(2, kMessage, sizeof(kMessage) - 1);
-            _exit(128 + signal_number);
-          }
-          std::cerr << "sightmap serve: stopping (finishing the requests in hand; again to exit "
-                       "at once)\n"
-                    << std::flush;
-        }
-        if (received > 0) on_stop();
-      }
-    });
-  }
-
- private:
-  sigset_t signals_{};
-  sigset_t previous_mask_{};
-  std::atomic<bool> done_{false};
-  std::thread thread_;
-};
-
-}  // namespace
 
 int RunServe(int argc, char** argv) {
   CLI::App app(
@@ -109,7 +46,9 @@ int RunServe(int argc, char** argv) {
   options.read_timeout_s = timeout_s;
   options.write_timeout_s = timeout_s;
 
-  StopSignalWatcher watcher;  // before any thread exists
+  StopSignalWatcher watcher(
+      "sightmap serve",
+      "sightmap serve: stopping (finishing the requests in hand; again to exit at once)\n");
   std::cerr << "sightmap serve: loading " << model_path << "\n" << std::flush;
   LocateServer server(model_path, options);
   server.Bind();
