@@ -106,6 +106,9 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["keyframe_p95_ms"] = summary.keyframe_p95_ms;
   json["dropped_frames"] = summary.dropped_frames;
   json["frames_read"] = summary.frames_read;
+  json["frames_skipped"] = summary.frames_skipped;
+  json["continued_after_s"] =
+      summary.continued_after_s ? nlohmann::json(*summary.continued_after_s) : nlohmann::json();
   json["links_rejected_after_commit"] = summary.links_rejected_after_commit;
   json["ate_rmse_m"] = summary.ate_rmse_m ? nlohmann::json(*summary.ate_rmse_m) : nlohmann::json();
   json["ate_max_m"] = summary.ate_max_m ? nlohmann::json(*summary.ate_max_m) : nlohmann::json();
@@ -143,6 +146,11 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
                 : "this session did not relocalise into the stored map: its keyframes "
                   "are kept as a separate segment")
         << "\n";
+  }
+  if (summary.continued_after_s) {
+    out << std::setprecision(3) << "  continued   after the last stored frame of this source (t = "
+        << *summary.continued_after_s << " s; " << summary.frames_skipped << " frames skipped)\n"
+        << std::setprecision(1);
   }
   out << "  loops       " << summary.loops << "\n";
   out << "  segments    " << summary.segments;
@@ -207,9 +215,11 @@ int RunMap(int argc, char** argv) {
   app.add_flag("--realtime", options.source_options.realtime,
                "play a recording at its recorded pace, as a live sensor (frames the mapper cannot "
                "keep up with are dropped)");
-  app.add_option("--start-frame", options.start_frame,
-                 "skip the source's first N frames (continue a recording or walk from frame N)")
-      ->check(CLI::NonNegativeNumber);
+  auto* start_frame_option =
+      app.add_option("--start-frame", options.start_frame,
+                     "skip the source's first N frames (default: from 0, or when resuming a model "
+                     "from the same recording or walk, after its last stored frame)")
+          ->check(CLI::NonNegativeNumber);
   app.add_option("--max-keyframes", options.max_keyframes,
                  "stop after N keyframes of this session (0: no limit)")
       ->check(CLI::NonNegativeNumber);
@@ -235,6 +245,7 @@ int RunMap(int argc, char** argv) {
       "sightmap map",
       "\nsightmap map: stopping after the keyframe in hand (Ctrl-C again to exit at once)\n");
 
+  options.continue_replay = start_frame_option->count() == 0;
   options.live = options.source_options.realtime;
   options.tracking.track = !no_tracking;
   options.view.choice = preview    ? mapping::ViewChoice::kPreview

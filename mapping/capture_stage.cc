@@ -46,6 +46,11 @@ void CaptureStage::Join() {
   if (thread_.joinable()) thread_.join();
 }
 
+bool CaptureStage::BeforeStart(const RgbdFrame& frame) const {
+  return frame.index < options_.start_frame ||
+         (options_.after_timestamp_ns && frame.timestamp_ns <= *options_.after_timestamp_ns);
+}
+
 bool CaptureStage::Wanted(const RgbdFrame& frame) {
   if (options_.sample_keyframes) return sampler_.Accept(frame.timestamp_ns);
   return (frame.index - options_.start_frame) % options_.take_every == 0;
@@ -67,7 +72,10 @@ void CaptureStage::Run() {
       std::optional<RgbdFrame> frame = source_->Next();
       if (!frame) break;
       ++frames_read_;
-      if (frame->index < options_.start_frame) continue;
+      if (BeforeStart(*frame)) {
+        ++frames_skipped_;
+        continue;
+      }
       if (view_ && Clock::now() - last_live_image > std::chrono::milliseconds(100)) {
         view_->SetLiveImages(frame->color, frame->depth);
         last_live_image = Clock::now();

@@ -22,6 +22,7 @@
 
 #include "capture/keyframe_sampler.h"
 #include "capture/rgbd_source.h"
+#include "core/rgbd_frame.h"
 #include "mapping/bounded_queue.h"
 #include "mapping/map_view_feed.h"
 
@@ -30,6 +31,9 @@ namespace sightmap::mapping {
 struct CaptureStageOptions {
   // Frames with a lower index are read and skipped (continue a recording from frame N).
   int64_t start_frame = 0;
+  // Frames stamped at or before this are read and skipped too: a resumed replay continues after
+  // the last frame the model stored from it [ns, the source's clock].
+  std::optional<TimestampNs> after_timestamp_ns;
   // Never wait for room in the frame queue: drop the frame and count it.
   bool live = false;
   // Pass on one frame per keyframe period (sampler) instead of every take_every-th frame.
@@ -57,12 +61,15 @@ class CaptureStage {
 
   // Any thread.
   int64_t frames_read() const { return frames_read_.load(); }
+  // Frames read and skipped as before the start (start_frame, after_timestamp_ns).
+  int64_t frames_skipped() const { return frames_skipped_.load(); }
   int64_t dropped_frames() const { return dropped_.load(); }
   // Why the source failed (its one-line error), or nothing; valid after Join().
   const std::optional<std::string>& error() const { return error_; }
 
  private:
   void Run();
+  bool BeforeStart(const RgbdFrame& frame) const;
   bool Wanted(const RgbdFrame& frame);
   // Waits while a view pauses a replay; false when a live frame should pass by unused.
   bool WaitWhilePaused();
@@ -74,6 +81,7 @@ class CaptureStage {
   KeyframeSampler sampler_;
   std::atomic<bool> stop_{false};
   std::atomic<int64_t> frames_read_{0};
+  std::atomic<int64_t> frames_skipped_{0};
   std::atomic<int64_t> dropped_{0};
   std::optional<std::string> error_;  // written by the thread before it ends
   std::thread thread_;

@@ -2,8 +2,10 @@
 
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
+#include <iomanip>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -46,6 +48,7 @@ nlohmann::json OptionsJson(const MappingOptions& options) {
   json["source"] = options.source;
   json["rate_hz"] = options.sampler.rate_hz;
   json["start_frame"] = options.start_frame;
+  json["continue_replay"] = options.continue_replay;
   json["max_keyframes"] = options.max_keyframes;
   json["live"] = options.live;
   json["realtime"] = options.source_options.realtime;
@@ -152,9 +155,11 @@ TrackStageOptions TrackingOptions(const MappingOptions& options) {
   return tracking;
 }
 
-CaptureStageOptions CaptureOptions(const MappingOptions& options, bool live, bool track) {
+CaptureStageOptions CaptureOptions(const MappingOptions& options, bool live, bool track,
+                                   std::optional<TimestampNs> continue_after) {
   CaptureStageOptions capture;
   capture.start_frame = options.start_frame;
+  capture.after_timestamp_ns = continue_after;
   capture.live = live;
   // Without tracking only keyframes are needed: sampled at capture, a live sensor drops keyframes
   // the mapper cannot take, not frames in between.
@@ -173,6 +178,61 @@ SessionRecord MakeSessionRecord(const MappingOptions& options, const SourceMetad
   record.intrinsics = meta.intrinsics;
   record.options_json = OptionsJson(options).dump();
   return record;
+}
+
+// The last frame the model stored from this very source (the same SOURCE string), for a resumed
+// replay to continue after; nullopt when no session mapped it.
+std::optional<TimestampNs> LastStoredTimestamp(const Model& model, const std::string& source) {
+  std::vector<SessionId> same_source;
+  for (const SessionRecord& session : model.Sessions()) {
+    if (session.source == source) same_source.push_back(session.id);
+  }
+  if (same_source.empty()) return std::nullopt;
+  std::optional<TimestampNs> last;
+  for (const KeyframeInfo& keyframe : model.Keyframes()) {
+    if (std::find(same_source.begin(), same_source.end(), keyframe.session) == same_source.end()) {
+      continue;
+    }
+    if (!last || keyframe.timestamp_ns > *last) last = keyframe.timestamp_ns;
+  }
+  return last;
+}
+
+// A start frame past a recording's known end is said before the model is touched.
+void CheckStartFrame(const MappingOptions& options, const SourceMetadata& meta) {
+  const std::optional<int64_t> frames = meta.depth_frame_count;
+  if (frames && options.start_frame >= *frames) {
+    SIGHTMAP_THROW(InvalidArgument, "the start frame " << options.start_frame
+                                                       << " is past the end of " << options.source
+                                                       << ", which has " << *frames
+                                                       << " frames (0.." << *frames - 1 << ")");
+  }
+}
+
+// A session that got no frame at all mapped nothing: that is said, not reported as a success.
+void CheckFramesCame(const MappingOptions& options, const CaptureStage& capture, StopReason reason,
+                     std::optional<TimestampNs> continue_after) {
+  if (reason != StopReason::kSourceEnded || capture.frames_read() > capture.frames_skipped()) {
+    return;
+  }
+  if (continue_after) {
+    SIGHTMAP_THROW(Error, "nothing left to map: the model already holds "
+                              << options.source << " up to its last frame (t = " << std::fixed
+                              << std::setprecision(3) << 1e-9 * *continue_after
+                              << " s); --start-frame 0 maps it again from the start");
+  }
+  SIGHTMAP_THROW(Error, "nothing to map: " << options.source << " has " << capture.frames_read()
+                                           << " frames, none from frame " << options.start_frame
+                                           << " on");
+}
+
+void NoteContinued(const MappingOptions& options, TimestampNs continue_after,
+                   std::ostream* notices) {
+  if (!notices) return;
+  *notices << "continuing " << options.source << " after its last stored frame (t = " << std::fixed
+           << std::setprecision(3) << 1e-9 * continue_after
+           << " s); --start-frame 0 maps it from the start\n"
+           << std::defaultfloat;
 }
 
 void NoteResumed(const MappingOptions& options, const RestoredModel& restored, int64_t interrupted,
@@ -212,6 +272,7 @@ void Summarise(const Mapper& mapper, const MapStage& map, const TrackStage& trac
   summary->keyframe_p95_ms = 1e3 * Percentile(map.keyframe_seconds(), 0.95);
   summary->dropped_frames = capture.dropped_frames();
   summary->frames_read = capture.frames_read();
+  summary->frames_skipped = capture.frames_skipped();
   summary->links_rejected_after_commit = map.links_rejected_after_commit();
   summary->joined_stored_map = map.joined_stored_map();
   if (const std::optional<TrajectoryError> error = map.Accuracy()) {
@@ -345,6 +406,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   if (options_.ground_truth_poses && !meta.has_ground_truth) {
     throw NoGroundTruthError("this " + meta.kind + " source");
   }
+  CheckStartFrame(options_, meta);
   std::unique_ptr<MapViewFeed> view = OpenView(options_, meta, notices);
 
   Model model = Model::Open(options_.model_path, options_.model);
@@ -360,6 +422,15 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   if (summary.resumed) {
     NoteResumed(options_, restored, summary.interrupted_sessions_marked, notices);
   }
+  // A live sensor's clock restarts; a replay's frames keep their times.
+  std::optional<TimestampNs> continue_after;
+  if (summary.resumed && options_.continue_replay && meta.kind != "openni") {
+    continue_after = LastStoredTimestamp(model, options_.source);
+  }
+  if (continue_after) {
+    summary.continued_after_s = 1e-9 * static_cast<double>(*continue_after);
+    NoteContinued(options_, *continue_after, notices);
+  }
 
   summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;
   const SessionId session = model.BeginSession(MakeSessionRecord(options_, meta));
@@ -374,8 +445,8 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   WriteStage writer(&model, view.get(), static_cast<int>(summary.session_number),
                     restored.store_ids, static_cast<size_t>(options_.write_queue_capacity));
   TrackStage track(camera, tracking, &frames, &keyframes);
-  CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track), &frames,
-                       view.get());
+  CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track, continue_after),
+                       &frames, view.get());
   MapStage map(mapper.get(), session, camera,
                {options_.anchor_to_ground_truth, options_.ground_truth_poses}, restored);
   const Pipeline pipeline{meta,      *mapper, view.get(), capture, track,
@@ -396,6 +467,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     summary.reason_detail = *capture.error();
   }
   EndSession(pipeline, &model, session, map_error, summary.reason);
+  CheckFramesCame(options_, capture, summary.reason, continue_after);
 
   if (progress_) {
     MappingProgress last = Progress(pipeline);

@@ -49,6 +49,10 @@ struct MappingOptions {
   std::string trajectory_path;  // TUM trajectory of every keyframe in the model; empty = none
   // Frames of the source skipped before mapping starts (continue a recording from frame N).
   int64_t start_frame = 0;
+  // Resuming a model from a recording, folder or simulated walk (not a live sensor) that it already
+  // holds keyframes of (the same SOURCE string): skip the frames up to the last one stored, so a
+  // walk interrupted by a crash is continued, not mapped twice. Off when a start frame is chosen.
+  bool continue_replay = true;
   // Stop after this many keyframes of this session; 0 = until the source ends or a stop.
   int64_t max_keyframes = 0;
   // Treat the source as live (drop keyframes the mapper cannot keep up with) even when it is a
@@ -140,6 +144,9 @@ struct MappingSummary {
   double keyframe_p95_ms = 0.0;
   int64_t dropped_frames = 0;
   int64_t frames_read = 0;
+  int64_t frames_skipped = 0;  // read before the start frame or the continued replay's start
+  // The source time this session continued after (the last stored frame of the same replay) [s].
+  std::optional<double> continued_after_s;
   int64_t links_rejected_after_commit = 0;  // loop links switched off after being stored
   std::optional<double> ate_rmse_m;         // this session's keyframes vs. ground truth
   std::optional<double> ate_max_m;

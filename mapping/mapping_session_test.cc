@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -132,6 +133,62 @@ TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
   EXPECT_EQ(model.NumKeyframes(), 5);
   EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kInterrupted);
   EXPECT_EQ(CountLines(dir + "/trajectory.txt"), 5);
+}
+
+// Killed halfway and run again with the same command, a replay continues after its last stored
+// frame instead of mapping the walk twice; once it is all in, a further run says so.
+TEST(MappingSession, AResumedReplayContinuesAfterItsLastStoredFrame) {
+  sim::RegisterSimSource();
+  const std::string dir = testing::MakeTempDir("mapping-continue");
+  MappingOptions first = SimOptions(dir, 20);
+  first.max_keyframes = 8;
+  ASSERT_EQ(MappingSession(first).Run().keyframes, 8);
+
+  const MappingSummary second = MappingSession(SimOptions(dir, 20)).Run();
+  EXPECT_TRUE(second.resumed);
+  ASSERT_TRUE(second.continued_after_s.has_value());
+  EXPECT_NEAR(*second.continued_after_s, 7.0, 1e-6);  // frame 7 at 1 Hz
+  EXPECT_EQ(second.frames_skipped, 8);
+  EXPECT_EQ(second.frames_read, 20);
+  EXPECT_EQ(second.keyframes, 12);
+  {
+    const Model model = Model::Open(dir + "/model.db", ReadOnly());
+    std::set<TimestampNs> stamps;
+    for (const KeyframeInfo& keyframe : model.Keyframes()) stamps.insert(keyframe.timestamp_ns);
+    EXPECT_EQ(model.NumKeyframes(), 20);
+    EXPECT_EQ(stamps.size(), 20u) << "a frame was mapped twice";
+  }
+
+  try {
+    MappingSession(SimOptions(dir, 20)).Run();
+    FAIL() << "a third run of a walk that is all in the model reported success";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing left to map"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--start-frame 0"), std::string::npos) << e.what();
+  }
+  // Another walk (another SOURCE string) into the same model starts from its frame 0.
+  const MappingSummary other = MappingSession(SimOptions(dir, 3)).Run();
+  EXPECT_FALSE(other.continued_after_s.has_value());
+  EXPECT_EQ(other.frames_skipped, 0);
+  EXPECT_EQ(other.keyframes, 3);
+}
+
+TEST(MappingSession, AStartFramePastTheEndIsRefusedBeforeTheModelIsTouched) {
+  sim::RegisterSimSource();
+  const std::string dir = testing::MakeTempDir("mapping-start-past-end");
+  MappingOptions options = SimOptions(dir, 10);
+  options.start_frame = 10;
+  options.continue_replay = false;
+  try {
+    MappingSession(options).Run();
+    FAIL() << "mapped nothing and reported success";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("past the end"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("10 frames"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/model.db"));
+  options.start_frame = 9;  // the last frame is still a walk of one keyframe
+  EXPECT_EQ(MappingSession(options).Run().keyframes, 1);
 }
 
 TEST(MappingSession, BadOptionsAreRefused) {

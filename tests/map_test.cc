@@ -230,6 +230,39 @@ TEST(Map, ASimSummaryAsJsonHasAnAte) {
             Info(dir + "/m.db").at("largest_segment_keyframes"));
 }
 
+// The same command again continues the walk after its last stored frame, says so, and once the
+// walk is all in says there is nothing left; --start-frame overrides the continuation.
+TEST(Map, TheSameCommandAgainContinuesTheWalkAndStartFrameOverrides) {
+  const std::string dir = testing::MakeTempDir("sim-continue");
+  const std::string command =
+      "map --source 'sim:office?frames=12&fps=1' --model " + dir + "/m.db --headless --json";
+  const CommandResult first = Sightmap(command + " --max-keyframes 5");
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  const CommandResult second = Sightmap(command);
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_NE(second.err.find("continuing sim:office?frames=12&fps=1 after its last stored frame "
+                            "(t = 4.000 s)"),
+            std::string::npos)
+      << second.err;
+  const nlohmann::json summary = nlohmann::json::parse(second.out);
+  EXPECT_EQ(summary.at("keyframes"), 7);
+  EXPECT_EQ(summary.at("frames_skipped"), 5);
+  EXPECT_DOUBLE_EQ(summary.at("continued_after_s").get<double>(), 4.0);
+
+  const CommandResult third = Sightmap(command);
+  EXPECT_EQ(third.exit_code, 1);
+  EXPECT_NE(third.err.find("nothing left to map"), std::string::npos) << third.err;
+  EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), 12);
+
+  const CommandResult again = Sightmap(command + " --start-frame 10");
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(nlohmann::json::parse(again.out).at("keyframes"), 2);
+  EXPECT_EQ(again.err.find("continuing"), std::string::npos) << again.err;
+  const CommandResult past = Sightmap(command + " --start-frame 12");
+  EXPECT_EQ(past.exit_code, 2);  // a usage error
+  EXPECT_NE(past.err.find("past the end"), std::string::npos) << past.err;
+}
+
 TEST(Map, TracksEveryFrameAtTenHertzAndKeepsOneKeyframeASecondInOnePart) {
   const std::string dir = testing::MakeTempDir("sim-10hz");
   const CommandResult run =
