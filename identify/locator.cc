@@ -448,7 +448,29 @@ struct Locator::Impl {
   }
 
   void FindNeighbours();
+  // Retrieval candidates for a photo's descriptors, best first: the inverted index's, and in a
+  // model of no more keyframes than retrieval_candidates every keyframe (a few keyframes are
+  // cheaper to verify than to rank, and a vocabulary trained on them ranks poorly).
+  std::vector<PlaceCandidate> Retrieve(const cv::Mat& descriptors) const;
 };
+
+std::vector<PlaceCandidate> Locator::Impl::Retrieve(const cv::Mat& descriptors) const {
+  std::vector<PlaceCandidate> candidates;
+  if (!vocabulary.empty()) {
+    candidates = index.Query(vocabulary.Transform(descriptors), options.retrieval_candidates);
+  }
+  if (keyframes.size() <= static_cast<size_t>(options.retrieval_candidates)) {
+    for (size_t slot = 0; slot < keyframes.size(); ++slot) {
+      const bool listed =
+          std::any_of(candidates.begin(), candidates.end(),
+                      [&](const PlaceCandidate& c) { return c.id == static_cast<int64_t>(slot); });
+      if (!listed && !keyframes[slot].world_points.empty()) {
+        candidates.push_back(PlaceCandidate{static_cast<int64_t>(slot), 0.0});
+      }
+    }
+  }
+  return candidates;
+}
 
 void Locator::Impl::FindNeighbours() {
   // Quadratic once at load (3,000 keyframes: 9M cheap tests); retrieval itself never scans.
@@ -471,6 +493,34 @@ void Locator::Impl::FindNeighbours() {
   }
 }
 
+namespace {
+
+// The model's vocabulary; a model of fewer keyframes than the mapper trains its vocabulary on
+// (a short recording) has none, and gets one trained here from its keyframes (empty when fewer
+// than two have features: retrieval then tries every keyframe).
+Vocabulary LoadOrTrainVocabulary(const Model& model, const std::vector<KeyframeInfo>& infos) {
+  const auto stored = model.LoadVocabulary();
+  if (stored) {
+    SIGHTMAP_CHECK(stored->first == Vocabulary::kFormat, "the model's vocabulary is in format '"
+                                                             << stored->first
+                                                             << "', this sightmap reads '"
+                                                             << Vocabulary::kFormat << "'");
+    return Vocabulary::Deserialize(stored->second);
+  }
+  std::vector<cv::Mat> descriptors;
+  for (const KeyframeInfo& info : infos) {
+    const KeyframeFeatures features = model.LoadFeatures(info.id);
+    if (features.descriptors.rows > 0 && features.descriptors.type() == CV_8U &&
+        features.descriptors.cols == 32) {
+      descriptors.push_back(features.descriptors);
+    }
+  }
+  if (descriptors.size() < 2) return Vocabulary();
+  return Vocabulary::Train(descriptors);
+}
+
+}  // namespace
+
 Locator::Locator(const Model& model, const LocatorOptions& options)
     : impl_(std::make_unique<Impl>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
@@ -479,16 +529,7 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
   SIGHTMAP_CHECK(!infos.empty(), "the model " << model.path()
                                               << " has no keyframes: map a building into it "
                                                  "first ('sightmap map')");
-  const auto vocabulary = model.LoadVocabulary();
-  SIGHTMAP_CHECK(vocabulary.has_value(),
-                 "the model " << model.path()
-                              << " has no visual vocabulary: it was not written by a complete "
-                                 "'sightmap map' run; map again");
-  SIGHTMAP_CHECK(vocabulary->first == Vocabulary::kFormat, "the model's vocabulary is in format '"
-                                                               << vocabulary->first
-                                                               << "', this sightmap reads '"
-                                                               << Vocabulary::kFormat << "'");
-  impl_->vocabulary = Vocabulary::Deserialize(vocabulary->second);
+  impl_->vocabulary = LoadOrTrainVocabulary(model, infos);
 
   OcclusionCloudBuilder cloud(options.occlusion_voxel_m);
   impl_->keyframes.reserve(infos.size());
@@ -502,8 +543,10 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
     // Every descriptor votes in retrieval; only those with a 3D point can be matched for PnP.
     if (features.descriptors.rows > 0 && features.descriptors.type() == CV_8U &&
         features.descriptors.cols == 32) {
-      impl_->index.Add(static_cast<int64_t>(slot),
-                       impl_->vocabulary.Transform(features.descriptors));
+      if (!impl_->vocabulary.empty()) {
+        impl_->index.Add(static_cast<int64_t>(slot),
+                         impl_->vocabulary.Transform(features.descriptors));
+      }
       std::vector<int> rows;
       for (size_t i = 0; i < features.cam_points.size(); ++i) {
         const Eigen::Vector3f& p = features.cam_points[i];
@@ -517,7 +560,7 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
       keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
       for (size_t r = 0; r < rows.size(); ++r) {
         features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
-        if (options.match_node_level > 0) {
+        if (options.match_node_level > 0 && !impl_->vocabulary.empty()) {
           keyframe.nodes.push_back(impl_->vocabulary.NodeOf(
               keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
         }
@@ -623,9 +666,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
 
   // Retrieval through the inverted index.
   stage = Clock::now();
-  const BowVector bow = impl_->vocabulary.Transform(features.descriptors);
-  const std::vector<PlaceCandidate> candidates =
-      impl_->index.Query(bow, options.retrieval_candidates);
+  const std::vector<PlaceCandidate> candidates = impl_->Retrieve(features.descriptors);
   result.timings.retrieval_ms = MsSince(stage);
   if (candidates.empty()) {
     return finish("no keyframe of the model shares a visual word with the photo.");
@@ -682,7 +723,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   // Poses with min_inliers that a check refused: inliers and pose.
   std::vector<std::pair<int, Eigen::Isometry3d>> refused;
   // Vocabulary nodes only for matching bounded by them; exhaustive matching needs none.
-  const bool bounded = options.match_node_level > 0;
+  const bool bounded = options.match_node_level > 0 && !impl_->vocabulary.empty();
   stage = Clock::now();
   std::vector<int> photo_nodes;
   for (int r = 0; bounded && r < features.descriptors.rows; ++r) {

@@ -174,7 +174,9 @@ nlohmann::json ToJson(const LocateResult& result);
 class Locator {
  public:
   // Reads the model's keyframes (features, poses, depth for the occlusion cloud), vocabulary and
-  // labels. Throws Error with one line when the model has no keyframe or no vocabulary.
+  // labels. A model without a vocabulary (fewer keyframes than the mapper trains one on) gets one
+  // trained from its keyframes, and a model of at most retrieval_candidates keyframes verifies
+  // every one of them. Throws Error with one line when the model has no keyframe.
   Locator(const Model& model, const LocatorOptions& options = LocatorOptions());
   ~Locator();
   Locator(const Locator&) = delete;

@@ -354,6 +354,36 @@ TEST(LocatorModelTest, AModelWithoutKeyframesIsAClearError) {
   }
 }
 
+// A short recording leaves a model of a few keyframes and no vocabulary (the mapper trains one
+// on its first 30): photos must still be located, by a vocabulary trained on what there is, or
+// with a single keyframe by trying it.
+TEST(LocatorModelTest, AFewKeyframesWithoutAVocabularyStillLocatePhotos) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sightmap-locator-small-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  for (const int keyframes : {6, 2}) {
+    const std::string path = (dir / ("model-" + std::to_string(keyframes) + ".db")).string();
+    SimModelOptions options;
+    options.keyframes = keyframes;
+    options.write_vocabulary = false;
+    const SimModelSummary summary = BuildSimulatorModel(path, options);
+    const Model model = Model::Open(path);
+    ASSERT_FALSE(model.LoadVocabulary().has_value());
+    const Locator locator(model);
+    EXPECT_EQ(locator.NumKeyframes(), static_cast<size_t>(keyframes));
+    // The last keyframe's own view, downscaled: another image of the same place.
+    const KeyframeInfo info = model.Keyframes().back();
+    cv::Mat photo;
+    cv::resize(model.LoadColor(info.id), photo, cv::Size(), 0.75, 0.75, cv::INTER_AREA);
+    const LocateResult result =
+        locator.Locate(photo, info.intrinsics.Scaled(photo.cols, photo.rows));
+    ASSERT_TRUE(result.matched) << keyframes << " keyframes: " << result.reason;
+    EXPECT_LT(PositionError(result.world_from_cam, summary.world_from_cam.back()), 0.05);
+  }
+  std::error_code ignored;
+  fs::remove_all(dir, ignored);
+}
+
 // Hand-built scenes: a camera at the origin looking along +z (the world frame is the camera's).
 class VisibilityTest : public ::testing::Test {
  protected:

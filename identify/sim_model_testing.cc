@@ -71,8 +71,10 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
     }
     summary.world_from_cam.push_back(world_from_cam);
   }
-  model.SetVocabulary(Vocabulary::kFormat,
-                      Vocabulary::Train(training, options.vocabulary).Serialize());
+  if (options.write_vocabulary) {
+    model.SetVocabulary(Vocabulary::kFormat,
+                        Vocabulary::Train(training, options.vocabulary).Serialize());
+  }
   if (options.label_appliances) {
     for (const sim::Appliance& appliance : simulator.scene().appliances) {
       LabelRecord label;

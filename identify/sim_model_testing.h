@@ -29,6 +29,9 @@ struct SimModelOptions {
   // mapper trains from its first 30); 0 = all keyframes.
   int vocabulary_keyframes = 30;
   VocabularyOptions vocabulary;
+  // false: the model stores no vocabulary, as a map run of fewer keyframes than the mapper trains
+  // on leaves it.
+  bool write_vocabulary = true;
   // Every scene appliance as a label (its points in the world frame).
   bool label_appliances = true;
 

@@ -193,6 +193,24 @@ TEST(Map, TheOpenNi2RecordingGivesAKeyframePerPairedFrame) {
   ExpectRecordingMapsEveryFrame(path, paired);
 }
 
+// Five real frames make a model too small for the mapper's vocabulary (it trains on 30): its
+// photos must still be located, not refused as "not written by a complete map run".
+TEST(Map, AFiveFrameRealModelLocatesItsPhotos) {
+  SIGHTMAP_REQUIRE_SHARED_DATA(folder, "rgbd/3dmatch-lounge/seq-01");
+  const std::string dir = testing::MakeTempDir("lounge-locate");
+  const CommandResult run = Sightmap("map --source 3dmatch:" + folder + " --rate 30 --model " +
+                                     dir + "/m.db --headless --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  ASSERT_EQ(nlohmann::json::parse(run.out).at("keyframes"), 5);
+  const CommandResult located = Sightmap("locate --model " + dir + "/m.db " + folder +
+                                         "/frame-000001.color.png --intrinsics "
+                                         "570.342205,570.342205,320,240 --json");
+  ASSERT_EQ(located.exit_code, 0) << located.err;
+  const nlohmann::json answer = nlohmann::json::parse(located.out);
+  EXPECT_EQ(answer.at("matched"), true) << located.out;
+  EXPECT_EQ(answer.at("intrinsics").at("source"), "given");
+}
+
 TEST(Map, ASimWalkWritesProgressImageTrajectoryAndAte) {
   const std::string dir = testing::MakeTempDir("sim");
   const CommandResult run = Sightmap("map --source 'sim:office?frames=40&fps=1' --model " + dir +
