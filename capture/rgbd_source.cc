@@ -130,6 +130,12 @@ std::unique_ptr<RgbdSource> OpenSource(const std::string& source, const SourceOp
     case SourceSpec::Kind::kThreeDMatch:
       return OpenThreeDMatchFolder(spec.location, options);
     case SourceSpec::Kind::kSim:
+      if (!options.calibration_file.empty()) {
+        SIGHTMAP_THROW(InvalidArgument,
+                       "--calib " << options.calibration_file
+                                  << " does not apply to the simulator, whose camera is exact "
+                                     "(set in the scene file); drop --calib");
+      }
       if (const SourceOpener opener = FindOpener(spec.kind)) return opener(spec.location, options);
       SIGHTMAP_THROW(Error,
                      "sim:" << spec.location

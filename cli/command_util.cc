@@ -1,7 +1,18 @@
 #include "cli/command_util.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <iostream>
+#include <sstream>
+
+#include "core/check.h"
 
 namespace sightmap::cli {
 
@@ -19,6 +30,101 @@ int ParseOrExit(CLI::App& app, int argc, char** argv) {
     return kExitUsage;
   }
   return -1;
+}
+
+void AddModelArgument(CLI::App& app, std::string& path) {
+  auto* positional = app.add_option("MODEL", path, "the model's SQLite file");
+  auto* named = app.add_option("--model", path, "the model's SQLite file (the same as MODEL)");
+  positional->excludes(named);
+}
+
+int RequireModelArgument(const CLI::App& app, const std::string& path) {
+  if (!path.empty()) return -1;
+  PrintError("give the model: '" + app.get_name() + " MODEL' or '" + app.get_name() +
+             " --model MODEL'");
+  return kExitUsage;
+}
+
+ImageSize ParseImageSize(const std::string& text, const std::string& option, ImageSize min,
+                         int max_side) {
+  ImageSize size;
+  char x = 0;
+  char rest = 0;
+  const int read = std::sscanf(text.c_str(), "%d%c%d%c", &size.width, &x, &size.height, &rest);
+  if (read != 3 || x != 'x' || size.width < min.width || size.height < min.height ||
+      size.width > max_side || size.height > max_side) {
+    SIGHTMAP_THROW(InvalidArgument, option << " must be WxH in pixels, from " << min.width << "x"
+                                           << min.height << " to " << max_side << "x" << max_side
+                                           << ", got '" << text << "'");
+  }
+  return size;
+}
+
+CLI::Validator Within(double min, double max, const std::string& unit) {
+  std::ostringstream range;
+  range << "from " << min << " to " << max << (unit.empty() ? "" : " ") << unit;
+  const std::string text = range.str();
+  return CLI::Validator(
+      [min, max, text](std::string& input) -> std::string {
+        char* end = nullptr;
+        const double value = std::strtod(input.c_str(), &end);
+        const bool number = !input.empty() && end == input.c_str() + input.size();
+        if (!number || !std::isfinite(value)) return "'" + input + "' is not a number " + text;
+        if (value < min || value > max) return input + " is out of range: must be " + text;
+        return std::string();
+      },
+      "NUMBER " + text);
+}
+
+void CheckOutputFile(const std::string& path, const std::string& option) {
+  if (path.empty()) return;
+  namespace fs = std::filesystem;
+  std::error_code error;
+  if (fs::is_directory(path, error)) {
+    SIGHTMAP_THROW(InvalidArgument,
+                   option << " " << path << " is a folder: give a file name in it");
+  }
+  const fs::path folder = fs::path(path).parent_path();
+  if (!folder.empty()) {
+    fs::create_directories(folder, error);
+    if (error) {
+      SIGHTMAP_THROW(Error, "cannot write " << option << " " << path
+                                            << ": cannot create its folder (" << error.message()
+                                            << ")");
+    }
+  }
+  const bool existed = fs::exists(path, error);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    const int reason = errno;
+    SIGHTMAP_THROW(Error,
+                   "cannot write " << option << " " << path << ": " << std::strerror(reason));
+  }
+  ::close(fd);
+  if (!existed) fs::remove(path, error);
+}
+
+void CheckOutputFolder(const std::string& dir, const std::string& option) {
+  if (dir.empty()) return;
+  namespace fs = std::filesystem;
+  std::error_code error;
+  if (fs::exists(dir, error) && !fs::is_directory(dir, error)) {
+    SIGHTMAP_THROW(InvalidArgument, option << " " << dir << " is a file, not a folder");
+  }
+  fs::create_directories(dir, error);
+  if (error) {
+    SIGHTMAP_THROW(Error, "cannot create " << option << " " << dir << ": " << error.message());
+  }
+  const std::string probe = (fs::path(dir) / ".sightmap-write-test").string();
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    const int reason = errno;
+    if (reason == EEXIST) return;  // a probe left by a killed run: the folder is writable
+    SIGHTMAP_THROW(Error,
+                   "cannot write in " << option << " " << dir << ": " << std::strerror(reason));
+  }
+  ::close(fd);
+  fs::remove(probe, error);
 }
 
 void PrintError(const std::string& message) {

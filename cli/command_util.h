@@ -16,6 +16,34 @@ constexpr int kExitUsage = 2;    // bad command line
 // (0 after --help, kExitUsage after a usage error, which it prints).
 int ParseOrExit(CLI::App& app, int argc, char** argv);
 
+// The model a read command works on, as `MODEL` (positional) or `--model MODEL` like every other
+// command; RequireModelArgument after parsing returns kExitUsage (printed) when neither or both
+// were given, else -1.
+void AddModelArgument(CLI::App& app, std::string& path);
+int RequireModelArgument(const CLI::App& app, const std::string& path);
+
+// "WxH" [px] for `option`, each side from min to max; throws InvalidArgument naming the option,
+// the form and the limits (an image of 100000x100000 would need 30 GB before anything is drawn).
+struct ImageSize {
+  int width = 0;
+  int height = 0;
+};
+ImageSize ParseImageSize(const std::string& text, const std::string& option, ImageSize min,
+                         int max_side);
+
+// A number option's check: a finite number from `min` to `max` (both included), in `unit` when
+// given. The message names the range as a person would ("must be a number from 0 to 1000 Hz");
+// CLI11's own Range lets NaN through and NonNegativeNumber prints DBL_MAX in 300 digits.
+CLI::Validator Within(double min, double max, const std::string& unit = "");
+
+// Checks, before any work, that `path` (given by `option`, e.g. "--ply") can be written: not a
+// folder, its folder made if missing, and the file creatable or writable. Probes with an
+// append-open that changes no existing file and removes a file it created. Throws InvalidArgument
+// for a folder given as a file, Error with the system's reason otherwise. No-op for "".
+void CheckOutputFile(const std::string& path, const std::string& option);
+// The same for an output folder: made if missing, and a file can be created in it.
+void CheckOutputFolder(const std::string& dir, const std::string& option);
+
 // Prints `error: <message>` as one line on stderr.
 void PrintError(const std::string& message);
 

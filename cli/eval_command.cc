@@ -21,6 +21,7 @@
 #include "cli/commands.h"
 #include "cli/eval_identify.h"
 #include "core/check.h"
+#include "render/image_file.h"
 #include "slam/trajectory_eval.h"
 #include "slam/trajectory_plot.h"
 #include "store/trajectory.h"
@@ -34,35 +35,6 @@ std::vector<StampedPose> ReadPoses(const std::string& path, const char* what) {
                                       << " has no poses: expected lines 'timestamp tx ty tz qx qy "
                                          "qz qw' (TUM trajectory format)");
   return poses;
-}
-
-// Encodes the plot as PNG, writes it beside `path` and renames it into place, so a reader never
-// sees a half-written file and a failure leaves any previous plot untouched.
-void WritePngAtomically(const cv::Mat& image, const std::string& path) {
-  std::vector<uchar> png;
-  SIGHTMAP_CHECK(cv::imencode(".png", image, png), "cannot encode the plot as PNG");
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  std::FILE* file = std::fopen(temporary.c_str(), "wb");
-  SIGHTMAP_CHECK(file != nullptr, "cannot write plot " << path << ": " << std::strerror(errno)
-                                                       << " (check that its folder exists and is "
-                                                          "writable)");
-  bool written = std::fwrite(png.data(), 1, png.size(), file) == png.size();
-  written = std::fflush(file) == 0 && written;
-  written = ::fsync(::fileno(file)) == 0 && written;
-  const int write_errno = errno;
-  written = std::fclose(file) == 0 && written;
-  if (!written) {
-    std::remove(temporary.c_str());
-    SIGHTMAP_THROW(Error, "cannot write plot "
-                              << path << ": "
-                              << (write_errno ? std::strerror(write_errno) : "write failed")
-                              << " (is the disk full?)");
-  }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-    const int rename_errno = errno;
-    std::remove(temporary.c_str());
-    SIGHTMAP_THROW(Error, "cannot write plot " << path << ": " << std::strerror(rename_errno));
-  }
 }
 
 std::string Fixed(double value, int digits) {
@@ -149,17 +121,17 @@ int RunEval(int argc, char** argv) {
       ->add_option("--max-time-diff", max_time_diff_s,
                    "match poses whose timestamps differ by at most this [s]")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(Within(0, 1e6, "s"));
   trajectory
       ->add_option("--rpe-distance", options.rpe_distance_m,
                    "RPE per metre compares motions over this ground-truth distance [m]")
       ->capture_default_str()
-      ->check(CLI::Range(1e-6, 1e6));
+      ->check(Within(1e-6, 1e6, "m"));
   trajectory
       ->add_option("--rpe-interval", options.rpe_interval_s,
                    "RPE per second compares motions over this time [s]")
       ->capture_default_str()
-      ->check(CLI::Range(1e-6, 1e6));
+      ->check(Within(1e-6, 1e6, "s"));
   EvalIdentifyArgs identify_args;
   CLI::App* identify = AddEvalIdentify(app, identify_args);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
@@ -174,20 +146,17 @@ int RunEval(int argc, char** argv) {
     plot.up_axis = up.back() - 'x';
   }
   if (!plot_path.empty()) {
-    char x = 0;
-    char rest = 0;
-    if (std::sscanf(plot_size.c_str(), "%d%c%d%c", &plot.width_px, &x, &plot.height_px, &rest) !=
-            3 ||
-        x != 'x') {
-      SIGHTMAP_THROW(InvalidArgument, "--plot-size must be WxH, e.g. 1000x800, got " << plot_size);
-    }
+    const ImageSize size = ParseImageSize(plot_size, "--plot-size", {200, 200}, 8000);
+    plot.width_px = size.width;
+    plot.height_px = size.height;
     SIGHTMAP_CHECK_OPTIONS(plot);
+    CheckOutputFile(plot_path, "--plot");
   }
 
   const std::vector<StampedPose> ground_truth = ReadPoses(gt_path, "ground truth");
   const std::vector<StampedPose> estimate = ReadPoses(est_path, "estimate");
   const TrajectoryError error = EvaluateTrajectory(ground_truth, estimate, options);
-  if (!plot_path.empty()) WritePngAtomically(DrawTrajectoryPlot(error, plot), plot_path);
+  if (!plot_path.empty()) WriteImageAtomically(plot_path, DrawTrajectoryPlot(error, plot));
 
   if (json) {
     const Eigen::Quaterniond rotation(error.gt_from_est.rotation());

@@ -140,7 +140,7 @@ CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
                        "write the category table and recall/precision histograms (PNG)");
   identify->add_option("--plot-size", args.plot_size, "plot size WxH [px]")->capture_default_str();
   identify->add_option("--limit", args.limit, "locate only the first N photos (0: all)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(Within(0, 1e9))
       ->capture_default_str();
   return identify;
 }
@@ -149,15 +149,10 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   int plot_width = 0;
   int plot_height = 0;
   if (!args.plot_path.empty()) {
-    char x = 0;
-    char rest = 0;
-    if (std::sscanf(args.plot_size.c_str(), "%d%c%d%c", &plot_width, &x, &plot_height, &rest) !=
-            3 ||
-        x != 'x' || plot_width < 600 || plot_height < 360) {
-      SIGHTMAP_THROW(
-          InvalidArgument,
-          "--plot-size must be WxH of at least 600x360, e.g. 1200x560, got " << args.plot_size);
-    }
+    const ImageSize size = ParseImageSize(args.plot_size, "--plot-size", {600, 360}, 8000);
+    plot_width = size.width;
+    plot_height = size.height;
+    CheckOutputFile(args.plot_path, "--plot");
   }
   std::vector<QueryTruth> truths = ReadQueryTruths(args.queries_path);
   SIGHTMAP_CHECK(!truths.empty(), "the query set " << args.queries_path << " holds no photo");

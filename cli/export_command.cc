@@ -20,17 +20,17 @@ int RunExport(int argc, char** argv) {
   std::string labels_dir;
   bool odometry = false;
   PlyExportOptions ply;
-  app.add_option("MODEL", path, "the model's SQLite file")->required();
+  AddModelArgument(app, path);
   app.add_option("--ply", ply_path, "write the point cloud as binary PLY (x y z red green blue)");
   app.add_option("--voxel", ply.voxel_size_m, "voxel grid leaf size [m], 0 keeps every point")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(Within(0, 10, "m"));
   app.add_option("--pixel-step", ply.pixel_step, "back-project every Nth depth pixel")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(Within(1, 64));
   app.add_option("--max-depth", ply.max_depth_m, "ignore depth beyond this [m]")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(Within(0.1, 100, "m"));
   app.add_flag("--remove-outliers", ply.remove_outliers,
                "drop isolated points (statistical outlier removal)");
   app.add_option("--trajectory", trajectory_path,
@@ -38,10 +38,14 @@ int RunExport(int argc, char** argv) {
   app.add_flag("--odometry", odometry, "with --trajectory: the raw odometry, not optimised poses");
   app.add_option("--labels", labels_dir, "write one point-list file per label to this folder");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (const int code = RequireModelArgument(app, path); code >= 0) return code;
   if (ply_path.empty() && trajectory_path.empty() && labels_dir.empty()) {
     PrintError("nothing to export: pass --ply FILE, --trajectory FILE or --labels DIR");
     return kExitUsage;
   }
+  CheckOutputFile(ply_path, "--ply");
+  CheckOutputFile(trajectory_path, "--trajectory");
+  CheckOutputFolder(labels_dir, "--labels");
 
   ModelOptions options;
   options.read_only = true;

@@ -15,9 +15,10 @@ int RunInfo(int argc, char** argv) {
                "sightmap info");
   std::string path;
   bool json = false;
-  app.add_option("MODEL", path, "the model's SQLite file")->required();
+  AddModelArgument(app, path);
   app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (const int code = RequireModelArgument(app, path); code >= 0) return code;
 
   ModelOptions options;
   options.read_only = true;

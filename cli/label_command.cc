@@ -143,6 +143,7 @@ int RunLabel(int argc, char** argv) {
       add->add_option("--point", point_text, "X,Y,Z: a point in world coordinates [m]");
   add->add_option("--max-depth-search", pixel_options.max_depth_search_px,
                   "when the pixel has no depth, use the nearest within this radius [px]")
+      ->check(Within(0, 1000, "px"))
       ->capture_default_str();
   keyframe_option->needs(pixel_option);
   pixel_option->needs(keyframe_option);
@@ -271,6 +272,7 @@ int RunLabel(int argc, char** argv) {
     return kExitSuccess;
   }
 
+  CheckOutputFolder(dir, "--dir");
   const Model model = OpenExisting(model_path, /*read_only=*/true);
   const int count = ExportLabels(model, dir);
   std::cout << "labels         " << dir << ": " << count << " files\n";

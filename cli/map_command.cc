@@ -201,8 +201,9 @@ int RunMap(int argc, char** argv) {
   app.add_option("--model", options.model_path, "the model file (SQLite), created or resumed")
       ->required();
   app.add_option("--ply", options.ply_path, "write the point cloud here at the end");
-  app.add_option("--rate", options.sampler.rate_hz, "keyframes per second of source time [Hz]")
-      ->check(CLI::NonNegativeNumber)
+  app.add_option("--rate", options.sampler.rate_hz,
+                 "keyframes per second of source time [Hz]; 0 makes every frame a keyframe")
+      ->check(Within(0, 1000, "Hz"))
       ->capture_default_str();
   auto* preview_flag = app.add_flag("--preview", preview, "show the preview window (fail without)");
   auto* headless_flag =
@@ -219,10 +220,10 @@ int RunMap(int argc, char** argv) {
       app.add_option("--start-frame", options.start_frame,
                      "skip the source's first N frames (default: from 0, or when resuming a model "
                      "from the same recording or walk, after its last stored frame)")
-          ->check(CLI::NonNegativeNumber);
+          ->check(Within(0, 1e12));
   app.add_option("--max-keyframes", options.max_keyframes,
                  "stop after N keyframes of this session (0: no limit)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(Within(0, 1e12));
   app.add_option("--calib", options.source_options.calibration_file,
                  "JSON calibration overriding intrinsics and depth-to-colour registration")
       ->check(CLI::ExistingFile);
@@ -232,7 +233,7 @@ int RunMap(int argc, char** argv) {
   bool no_tracking = false;
   app.add_option("--track-every", options.track_every,
                  "track every Nth frame of the source (1: every frame)")
-      ->check(CLI::PositiveNumber)
+      ->check(Within(1, 1000))
       ->capture_default_str();
   app.add_flag("--no-tracking", no_tracking,
                "register keyframes to each other only, not the frames in between (the paper's "
@@ -257,16 +258,20 @@ int RunMap(int argc, char** argv) {
     options.show_view = false;
   }
 
-  // The output files' folders are made as needed (out/ in the README's command).
-  for (const std::string& file :
-       {options.model_path, options.ply_path, options.view.progress_png, options.trajectory_path}) {
-    const std::filesystem::path folder = std::filesystem::path(file).parent_path();
-    if (file.empty() || folder.empty()) continue;
+  // The outputs are checked (their folders made) before any work: a typo in --ply must not cost
+  // a mapping run.
+  const std::filesystem::path model_folder =
+      std::filesystem::path(options.model_path).parent_path();
+  if (!model_folder.empty()) {
     std::error_code error;
-    std::filesystem::create_directories(folder, error);
-    SIGHTMAP_CHECK(!error, "cannot create the folder " << folder.string() << " for " << file << ": "
+    std::filesystem::create_directories(model_folder, error);
+    SIGHTMAP_CHECK(!error, "cannot create the folder " << model_folder.string() << " for "
+                                                       << options.model_path << ": "
                                                        << error.message());
   }
+  CheckOutputFile(options.ply_path, "--ply");
+  CheckOutputFile(options.trajectory_path, "--trajectory-out");
+  CheckOutputFile(options.view.progress_png, "--progress-png");
 
   mapping::MappingSession session(options);
   session.SetInterruptFlag(&stop_requested);

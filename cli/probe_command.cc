@@ -70,28 +70,29 @@ int RunProbe(int argc, char** argv) {
   app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
   auto* dump_option =
       app.add_option("--dump", dump, "write the first N frames as PNG (3DMatch layout) to --out")
-          ->check(CLI::PositiveNumber);
+          ->check(Within(1, 1e9));
   auto* out_option = app.add_option("--out", out_dir, "folder for --dump (created if missing)");
   dump_option->needs(out_option);
   out_option->needs(dump_option);
   app.add_option("--max-frames", max_frames,
                  "stop after N frames (default: all of a recording, 30 from a live sensor)")
-      ->check(CLI::PositiveNumber);
+      ->check(Within(1, 1e12));
   app.add_flag("--realtime", options.realtime, "replay a recording at its recorded pace");
   app.add_option("--calib", options.calibration_file,
                  "JSON calibration overriding intrinsics and depth-to-colour registration")
       ->check(CLI::ExistingFile);
-  app.add_option("--width", options.width, "live sensor: image width [px]")->capture_default_str();
-  app.add_option("--height", options.height, "live sensor: image height [px]")
+  app.add_option("--width", options.width, "live sensor: image width [px]")
+      ->check(Within(1, 10000, "px"))
       ->capture_default_str();
-  app.add_option("--fps", options.fps, "live sensor: frame rate [Hz]")->capture_default_str();
+  app.add_option("--height", options.height, "live sensor: image height [px]")
+      ->check(Within(1, 10000, "px"))
+      ->capture_default_str();
+  app.add_option("--fps", options.fps, "live sensor: frame rate [Hz]")
+      ->check(Within(1, 120, "Hz"))
+      ->capture_default_str();
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
-  if (dump > 0) {
-    std::error_code ec;
-    std::filesystem::create_directories(out_dir, ec);
-    SIGHTMAP_CHECK(!ec, "cannot create " << out_dir << ": " << ec.message());
-  }
+  if (dump > 0) CheckOutputFolder(out_dir, "--out");
 
   std::unique_ptr<RgbdSource> rgbd = OpenSource(source, options);
   const SourceMetadata& meta = rgbd->metadata();

@@ -25,22 +25,22 @@ int RunServe(int argc, char** argv) {
   app.add_option("--model", model_path, "the model (from 'sightmap map', with labels)")->required();
   app.add_option("--host", options.host, "address to listen on")->capture_default_str();
   app.add_option("--port", options.port, "port; 0 picks a free one (printed)")
-      ->check(CLI::Range(0, 65535))
+      ->check(Within(0, 65535))
       ->capture_default_str();
   app.add_option("--threads", options.locate_threads,
                  "photos located at once (0: one per hardware thread)")
-      ->check(CLI::Range(0, 256))
+      ->check(Within(0, 256))
       ->capture_default_str();
   app.add_option("--max-body-mb", options.max_body_mb, "larger uploads get 413 [MiB]")
-      ->check(CLI::Range(0.001, 4096.0))
+      ->check(Within(0.001, 4096, "MiB"))
       ->capture_default_str();
   app.add_option("--max-megapixels", options.max_megapixels,
                  "photos larger than this get 413, judged from their header before decoding")
-      ->check(CLI::Range(0.01, 1000.0))
+      ->check(Within(0.01, 1000, "megapixels"))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "a client that stops sending or receiving for this long is dropped [s]")
-      ->check(CLI::Range(1, 3600))
+      ->check(Within(1, 3600, "s"))
       ->capture_default_str();
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
   options.read_timeout_s = timeout_s;

@@ -30,7 +30,7 @@ int RunSim(int argc, char** argv) {
   generate
       ->add_option("--session", options.simulator.session,
                    "another day: lighting, chairs and start differ")
-      ->check(CLI::PositiveNumber)
+      ->check(Within(1, 1000))
       ->capture_default_str();
   generate->add_option("--seed", options.simulator.seed, "same arguments and seed, same bytes")
       ->capture_default_str();
@@ -38,25 +38,23 @@ int RunSim(int argc, char** argv) {
   generate
       ->add_option("--frames", options.simulator.frames,
                    "frames to write (default: 300 s of walk at --fps)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(Within(0, 1e7));
   generate->add_option("--queries", options.queries, "phone photos to write")
-      ->check(CLI::NonNegativeNumber)
+      ->check(Within(0, 1e6))
       ->capture_default_str();
   generate
       ->add_option("--fps", options.simulator.fps,
                    "frame rate [Hz]; 1 renders only the frames a 1 Hz capture keeps")
-      ->check(CLI::Range(0.01, 120.0))
+      ->check(Within(0.01, 120, "Hz"))
       ->capture_default_str();
   generate->add_option("--query-size", query_size, "phone photo size WxH")->capture_default_str();
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
   options.simulator.trajectory = sim::ParseTrajectoryKind(trajectory);
-  char x = 0;
-  if (std::sscanf(query_size.c_str(), "%d%c%d", &options.query.width, &x, &options.query.height) !=
-          3 ||
-      x != 'x') {
-    SIGHTMAP_THROW(InvalidArgument, "--query-size must be WxH, e.g. 1280x960, got " << query_size);
-  }
+  const ImageSize photo_size = ParseImageSize(query_size, "--query-size", {64, 48}, 8000);
+  options.query.width = photo_size.width;
+  options.query.height = photo_size.height;
+  CheckOutputFolder(options.out_dir, "--out");
   const sim::GenerateSummary summary = sim::GenerateDataset(options, &std::cerr);
   std::cout << "wrote " << summary.frames << " frames and " << summary.queries << " photos to "
             << options.out_dir << " in " << summary.seconds << " s (" << summary.frames_per_second

@@ -61,6 +61,6 @@ class MessageBuilder {
     std::string sightmap_options_error_;                                   \
     if (!(options).Check(&sightmap_options_error_)) {                      \
       SIGHTMAP_THROW(::sightmap::InvalidArgument,                          \
-                     "invalid " #options ": " << sightmap_options_error_); \
+                     "invalid options: " << sightmap_options_error_);      \
     }                                                                      \
   } while (false)

@@ -77,19 +77,38 @@ std::string LabelFileName(const std::string& label_name) {
 }
 
 int ExportLabels(const Model& model, const std::string& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  SIGHTMAP_CHECK(!ec, "cannot create " << dir << ": " << ec.message());
+  // Every file name is settled before anything is written, so a collision writes nothing.
   const std::vector<LabelRecord> labels = model.Labels();
   std::map<std::string, std::string> written;  // file name -> label, to refuse collisions
   for (const LabelRecord& label : labels) {
     const std::string name = LabelFileName(label.name);
     SIGHTMAP_CHECK(written.emplace(name, label.name).second,
                    "labels '" << written[name] << "' and '" << label.name << "' would both be "
-                              << name << ": rename one of them");
-    std::vector<Eigen::Vector3d> points;
-    for (const LabelPoint& point : label.points) points.push_back(point.world);
-    WritePointList((std::filesystem::path(dir) / name).string(), points);
+                              << name << ": rename one of them; nothing was written");
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  SIGHTMAP_CHECK(!ec, "cannot create " << dir << ": " << ec.message());
+  // Each file goes to a hidden temporary first and all are renamed at the end: a failure (a full
+  // disk) leaves the folder as it was.
+  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> staged;
+  try {
+    for (const LabelRecord& label : labels) {
+      const std::filesystem::path final_path =
+          std::filesystem::path(dir) / LabelFileName(label.name);
+      const std::filesystem::path temporary =
+          std::filesystem::path(dir) / ("." + LabelFileName(label.name) + ".partial");
+      staged.emplace_back(temporary, final_path);
+      std::vector<Eigen::Vector3d> points;
+      for (const LabelPoint& point : label.points) points.push_back(point.world);
+      WritePointList(temporary.string(), points);
+    }
+    for (const auto& [temporary, final_path] : staged) {
+      std::filesystem::rename(temporary, final_path);
+    }
+  } catch (const std::exception& e) {
+    for (const auto& [temporary, final_path] : staged) std::filesystem::remove(temporary, ec);
+    SIGHTMAP_THROW(Error, e.what());
   }
   return static_cast<int>(labels.size());
 }

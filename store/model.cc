@@ -22,6 +22,55 @@
 
 namespace sightmap {
 
+namespace {
+// No building is 20 km across: a coordinate beyond this is a typo or a unit mix-up [m].
+constexpr double kMaxLabelCoordinateM = 10000.0;
+constexpr size_t kMaxLabelNameBytes = 100;
+
+std::string Escaped(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (byte < 0x20 || byte == 0x7F) {
+      static const char kHex[] = "0123456789abcdef";
+      out += std::string("\\x") + kHex[byte >> 4] + kHex[byte & 15];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+}  // namespace
+
+bool ValidLabelName(const std::string& name, std::string* why, const char* what) {
+  auto fail = [&](const std::string& reason) {
+    if (why) *why = std::string("a label ") + what + " " + reason;
+    return false;
+  };
+  const std::string quoted = "'" + Escaped(name) + "'";
+  const bool is_type = std::string(what) == "type";
+  if (name.empty()) return is_type || fail("cannot be empty");
+  if (name.size() > kMaxLabelNameBytes) {
+    return fail("is limited to " + std::to_string(kMaxLabelNameBytes) + " bytes, " +
+                quoted.substr(0, 40) + "... has " + std::to_string(name.size()));
+  }
+  for (const char c : name) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7F) {
+      return fail("cannot hold control characters (a newline, a tab): " + quoted);
+    }
+  }
+  if (name.find_first_not_of(' ') == std::string::npos) return fail("cannot be only spaces");
+  if (name.front() == ' ' || name.back() == ' ') {
+    return fail("cannot start or end with a space: " + quoted);
+  }
+  return true;
+}
+
 using store_internal::Exec;
 using store_internal::Statement;
 using store_internal::Transaction;
@@ -231,8 +280,20 @@ struct Model::Impl {
   }
 
   void CheckLabel(const LabelRecord& label) const {
-    SIGHTMAP_CHECK(!label.name.empty(), "a label needs a name");
-    SIGHTMAP_CHECK(!label.points.empty(), "label '" << label.name << "' needs at least one point");
+    std::string why;
+    if (!ValidLabelName(label.name, &why)) SIGHTMAP_THROW(InvalidArgument, why);
+    if (!ValidLabelName(label.type, &why, "type")) SIGHTMAP_THROW(InvalidArgument, why);
+    if (label.points.empty()) {
+      SIGHTMAP_THROW(InvalidArgument, "label '" << label.name << "' needs at least one point");
+    }
+    for (const LabelPoint& point : label.points) {
+      if (!point.world.allFinite() || point.world.cwiseAbs().maxCoeff() > kMaxLabelCoordinateM) {
+        SIGHTMAP_THROW(InvalidArgument, "label '" << label.name
+                                                  << "': a point's coordinates must be "
+                                                  << "finite and within " << kMaxLabelCoordinateM
+                                                  << " m of the model's origin");
+      }
+    }
   }
 
   std::vector<LabelRecord> QueryLabels(const std::string& where, const std::string* name) const {

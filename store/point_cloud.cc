@@ -162,8 +162,9 @@ void WritePly(const std::string& path, const std::vector<ColoredPoint>& points) 
   }
   std::filesystem::rename(partial, path, ec);
   if (ec) {
+    const std::string reason = ec.message();  // before remove() overwrites ec
     std::filesystem::remove(partial, ec);
-    SIGHTMAP_THROW(Error, "cannot write " << path << ": " << ec.message());
+    SIGHTMAP_THROW(Error, "cannot write " << path << ": " << reason);
   }
 }
 

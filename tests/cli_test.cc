@@ -249,10 +249,59 @@ TEST(Cli, BadModelFilesExitOneWithOneLine) {
   ExpectOneLineError(Sightmap("export " + dir + "/notes.txt --ply " + dir + "/x.ply"), 1,
                      "not a SQLite database");
   const std::string model = MakeSmallModel("cli_bad_models_ok");
-  ExpectOneLineError(Sightmap("export " + model + " --ply " + dir + "/no/such/dir/x.ply"), 1,
-                     "cannot write");
+  ExpectOneLineError(Sightmap("export " + model + " --ply /proc/no/such/dir/x.ply"), 1,
+                     "cannot write --ply");
   ExpectOneLineError(Sightmap("export " + model), 2, "nothing to export");
   ExpectOneLineError(Sightmap("info"), 2, "MODEL");
+}
+
+// Numbers, sizes and outputs are judged before any work, each with the option's own name and
+// a range a person can read.
+TEST(Cli, BadNumbersSizesAndOutputsAreRefusedBeforeTheWork) {
+  const std::string model = MakeSmallModel("cli_bad_inputs");
+  const std::string dir = testing::MakeTempDir("cli_bad_inputs_out");
+  const std::string map = "map --source 'sim:office?frames=3&fps=1' --headless --model " + dir;
+  ExpectOneLineError(Sightmap(map + "/a.db --rate nan"), 2, "--rate: 'nan' is not a number");
+  ExpectOneLineError(Sightmap(map + "/a.db --rate -1"), 2, "must be from 0 to 1000 Hz");
+  ExpectOneLineError(Sightmap(map + "/a.db --rate 1e300"), 2, "must be from 0 to 1000 Hz");
+  ExpectOneLineError(Sightmap(map + "/a.db --start-frame -3"), 2, "--start-frame");
+  ExpectOneLineError(Sightmap(map + "/a.db --track-every 0"), 2, "must be from 1 to 1000");
+  ExpectOneLineError(Sightmap("export " + model + " --ply " + dir + "/x.ply --voxel nan"), 2,
+                     "--voxel: 'nan' is not a number from 0 to 10 m");
+  ExpectOneLineError(Sightmap("serve --model " + model + " --port 99999"), 2,
+                     "must be from 0 to 65535");
+  ExpectOneLineError(Sightmap("sim generate --out " + dir + "/g --query-size 100000x100000"), 2,
+                     "from 64x48 to 8000x8000");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/g"));
+  // No message prints DBL_MAX's 309 digits.
+  EXPECT_LT(Sightmap(map + "/a.db --max-keyframes -1").err.size(), 200u);
+
+  // Outputs that cannot be written fail before mapping starts, and no model is made.
+  ExpectOneLineError(Sightmap(map + "/b.db --ply /proc/x.ply"), 1,
+                     "cannot write --ply /proc/x.ply");
+  ExpectOneLineError(Sightmap(map + "/b.db --trajectory-out " + dir), 2, "is a folder");
+  ExpectOneLineError(Sightmap(map + "/b.db --progress-png /proc/x.png"), 1,
+                     "cannot write --progress-png");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/b.db"));
+  ExpectOneLineError(Sightmap("export " + model + " --ply " + dir), 2, "is a folder");
+  ExpectOneLineError(Sightmap(map + "/b.db --calib " + model), 2,
+                     "does not apply to the simulator");
+}
+
+// info and export take the model as MODEL or --model, like every other command.
+TEST(Cli, ReadCommandsTakeTheModelEitherWay) {
+  const std::string model = MakeSmallModel("cli_model_flag");
+  const CommandResult positional = Sightmap("info " + model + " --json");
+  const CommandResult named = Sightmap("info --model " + model + " --json");
+  ASSERT_EQ(named.exit_code, 0) << named.err;
+  EXPECT_EQ(positional.out, named.out);
+  const std::string out = testing::MakeTempDir("cli_model_flag_out");
+  const CommandResult exported =
+      Sightmap("export --model " + model + " --trajectory " + out + "/t.txt");
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_EQ(ReadTumTrajectory(out + "/t.txt").size(), 4u);
+  ExpectOneLineError(Sightmap("info " + model + " --model " + model), 2, "excludes");
+  ExpectOneLineError(Sightmap("export --trajectory " + out + "/u.txt"), 2, "give the model");
 }
 
 // sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,
@@ -468,11 +517,16 @@ TEST(Cli, EvalTrajectoryErrorsExitWithOneLine) {
           .exit_code,
       0);
 
-  // An unwritable plot path fails after evaluating, and leaves nothing behind.
-  ExpectOneLineError(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/gt.txt --plot " +
-                              dir + "/no/such/folder/plot.png"),
-                     1, "cannot write plot");
-  EXPECT_FALSE(std::filesystem::exists(dir + "/no"));
+  // An unwritable plot path fails before evaluating; a missing folder is made, as for every
+  // output.
+  ExpectOneLineError(
+      Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/gt.txt --plot /proc/no/plot.png"),
+      1, "cannot write --plot /proc/no/plot.png");
+  ASSERT_EQ(Sightmap("eval trajectory" + gt_arg + " --est " + dir + "/gt.txt --plot " + dir +
+                     "/new/folder/plot.png")
+                .exit_code,
+            0);
+  EXPECT_FALSE(cv::imread(dir + "/new/folder/plot.png").empty());
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // `sightmap label` end to end: the real binary on a real model file (add from a pixel and from a
 // typed point, list --json, remove, imports, export), and its one-line errors and exit codes.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -179,6 +180,38 @@ TEST(LabelCommand, ErrorsAreOneLineWithExitCodes) {
   const nlohmann::json list = ListJson(model);
   ASSERT_EQ(list.at("labels").size(), 1u);
   EXPECT_EQ(list["labels"][0].at("name"), "tv");
+}
+
+// Names a person would not mean, and coordinates no building has, are refused with the reason;
+// an export that would collide writes nothing.
+TEST(LabelCommand, BadNamesAndPointsAreRefusedAndExportIsAllOrNothing) {
+  const std::string dir = testing::MakeTempDir("label_cli_names");
+  const std::string model = MakeModel(dir);
+  const std::string add = "label add --model " + model + " --point 1,2,3 --name ";
+  ExpectOneLineError(Sightmap(add + "'   '"), 2, "cannot be only spaces");
+  ExpectOneLineError(Sightmap(add + "\"$(printf 'a\\nb')\""), 2, "control characters");
+  ExpectOneLineError(Sightmap(add + "\"$(printf 'tab\\there')\""), 2, "'tab\\there'");
+  ExpectOneLineError(Sightmap(add + "' lamp'"), 2, "start or end with a space");
+  ExpectOneLineError(Sightmap(add + std::string(101, 'x')), 2, "limited to 100 bytes");
+  ExpectOneLineError(Sightmap("label add --model " + model + " --name lamp --point 1e300,1,1"), 2,
+                     "within 10000 m");
+  ExpectOneLineError(Sightmap("label add --model " + model + " --name lamp --point nan,1,1"), 2,
+                     "--point must be X,Y,Z");
+  ExpectOneLineError(Sightmap("label add --model " + model +
+                              " --name lamp --point 1,2,3 --type \"$(printf 'a\\nb')\""),
+                     2, "label type");
+  EXPECT_TRUE(ListJson(model).at("labels").empty());
+
+  // a/b and a_b would both be a_b.txt: the export refuses before writing any file.
+  ASSERT_EQ(Sightmap(add + "zebra").exit_code, 0);
+  ASSERT_EQ(Sightmap(add + "a/b").exit_code, 0);
+  ASSERT_EQ(Sightmap(add + "a_b").exit_code, 0);
+  const std::string out = dir + "/labels";
+  ExpectOneLineError(Sightmap("label export --model " + model + " --dir " + out), 1,
+                     "nothing was written");
+  EXPECT_FALSE(std::filesystem::exists(out + "/zebra.txt"));
+  ExpectOneLineError(Sightmap("label export --model " + model + " --dir /proc/labels"), 1,
+                     "cannot create --dir /proc/labels");
 }
 
 }  // namespace
