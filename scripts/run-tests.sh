@@ -6,3 +6,6 @@ scripts/setup.sh
 scripts/build.sh
 cd build
 ctest --output-on-failure --timeout 600 -j"$(nproc)"
+cd ..
+# A short run of every fuzzer (clang, ASan and UBSan; seeds written by the tests above).
+scripts/fuzz.sh 10

@@ -21,6 +21,7 @@ packages=(
   xvfb xauth                                # a virtual display for the preview's tests
   opencv-doc                                # real photographs the simulator textures its scene with
   libgtest-dev libbenchmark-dev             # tests and benchmarks
+  clang-14 libclang-rt-14-dev libfuzzer-14-dev  # the fuzzers (fuzz/, scripts/fuzz.sh)
 )
 
 missing=()

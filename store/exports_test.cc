@@ -86,6 +86,33 @@ TEST(Ply, RoundTripThroughPcl) {
   EXPECT_EQ(coloured, static_cast<int>(points.size()));
 }
 
+// Found by ply_fuzzer: a header whose element is not "vertex" read as an empty cloud that PCL's
+// typed conversion then indexed (undefined behaviour), and PCL's reader aborts the process on some
+// colour layouts. The header is checked first: each of these is an error, never a crash.
+TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
+  const std::string dir = ::testing::TempDir();
+  auto write = [&](const std::string& name, const std::string& element,
+                   const std::string& first_field, size_t data_bytes) {
+    std::ofstream out(dir + "/" + name, std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\nelement " << element << " 2\nproperty float "
+        << first_field << "\nproperty float y\nproperty float z\nend_header\n"
+        << std::string(data_bytes, '\0');
+    return dir + "/" + name;
+  };
+  EXPECT_THROW(ReadPly(write("veruex.ply", "veruex", "x", 24)), Error);
+  EXPECT_EQ(ReadPly(write("good.ply", "vertex", "x", 24)).size(), 2u);
+  EXPECT_THROW(ReadPly(write("cut.ply", "vertex", "x", 12)), Error);
+  EXPECT_THROW(ReadPly(write("no-x.ply", "vertex", "w", 24)), Error);
+  // Red and green without blue: PCL's reader asserted on this one.
+  {
+    std::ofstream out(dir + "/two-colours.ply", std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty "
+           "float y\nproperty float z\nproperty uchar red\nproperty uchar green\nend_header\n"
+        << std::string(14, '\0');
+  }
+  EXPECT_THROW(ReadPly(dir + "/two-colours.ply"), Error);
+}
+
 TEST(Ply, VoxelSizeAndOutlierRemoval) {
   Model model = Model::Open(":memory:");
   const SessionId session = model.BeginSession({});

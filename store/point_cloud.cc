@@ -2,7 +2,10 @@
 // here keeps PCL a private dependency of sightmap_store.
 #include "store/point_cloud.h"
 
+#include <pcl/PCLPointCloud2.h>
+#include <pcl/common/io.h>
 #include <pcl/console/print.h>
+#include <pcl/conversions.h>
 #include <pcl/filters/statistical_outlier_removal.h>
 #include <pcl/io/ply_io.h>
 #include <pcl/point_cloud.h>
@@ -14,7 +17,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <optional>
+#include <set>
+#include <sstream>
 
 #include "core/check.h"
 #include "core/voxel_key.h"
@@ -267,17 +273,127 @@ PlyExportStats ExportPly(const Model& model, const std::string& path,
   return stats;
 }
 
+namespace {
+
+// Bytes of a PLY scalar type, 0 for an unknown name.
+size_t PlyTypeBytes(const std::string& type) {
+  static const std::map<std::string, size_t> kBytes = {
+      {"char", 1},  {"uchar", 1},   {"int8", 1},   {"uint8", 1},  {"short", 2}, {"ushort", 2},
+      {"int16", 2}, {"uint16", 2},  {"int", 4},    {"uint", 4},   {"int32", 4}, {"uint32", 4},
+      {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
+  const auto it = kBytes.find(type);
+  return it == kBytes.end() ? 0 : it->second;
+}
+
+// A point cloud's PLY header as ReadPly takes it: one `vertex` element of scalar properties with
+// x, y and z, and red, green and blue all three as uchar or none. Checked before PCL sees the
+// file: PCL's reader asserts (aborts the process) on some colour layouts, which the fuzzer found.
+void CheckPointCloudPlyHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  SIGHTMAP_CHECK(in.is_open(), "cannot read " << path);
+  auto fail = [&](const std::string& why) {
+    SIGHTMAP_THROW(Error, "cannot read " << path << " as a point cloud PLY: " << why);
+  };
+  std::string line;
+  if (!std::getline(in, line) || (line != "ply" && line != "ply\r"))
+    fail("it does not start with 'ply'");
+  bool binary = false;
+  uint64_t vertices = 0;
+  int elements = 0;
+  size_t vertex_bytes = 0;
+  std::set<std::string> names;
+  std::map<std::string, std::string> types;
+  size_t header_bytes = line.size() + 1;
+  constexpr size_t kMaxHeaderBytes = 64 * 1024;
+  while (std::getline(in, line)) {
+    header_bytes += line.size() + 1;
+    if (header_bytes > kMaxHeaderBytes) fail("its header runs past 64 KiB");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
+    std::string keyword;
+    words >> keyword;
+    if (keyword == "end_header") {
+      if (elements != 1) fail("it holds no vertex element");
+      for (const char* axis : {"x", "y", "z"}) {
+        if (!names.count(axis)) fail(std::string("its vertices have no ") + axis);
+      }
+      const int colours =
+          static_cast<int>(names.count("red") + names.count("green") + names.count("blue"));
+      if (colours != 0 && colours != 3) fail("it has some of red, green and blue but not all");
+      for (const char* colour : {"red", "green", "blue"}) {
+        if (names.count(colour) && types[colour] != "uchar" && types[colour] != "uint8") {
+          fail(std::string(colour) + " is not uchar");
+        }
+      }
+      if (binary) {
+        std::error_code ec;
+        const uint64_t file_bytes = std::filesystem::file_size(path, ec);
+        if (ec || file_bytes < header_bytes + vertices * vertex_bytes) {
+          fail("it holds fewer bytes than its header says");
+        }
+      }
+      return;
+    }
+    if (keyword == "comment" || keyword == "obj_info" || keyword.empty()) continue;
+    if (keyword == "format") {
+      std::string format;
+      std::string version;
+      words >> format >> version;
+      if (format == "binary_little_endian") {
+        binary = true;
+      } else if (format != "ascii") {
+        fail("format '" + format + "' is not read (ascii or binary_little_endian)");
+      }
+    } else if (keyword == "element") {
+      std::string name;
+      words >> name >> vertices;
+      if (name != "vertex" || !words || elements > 0) fail("its only element must be 'vertex N'");
+      if (vertices > 1000000000) fail("it claims more than a billion vertices");
+      ++elements;
+    } else if (keyword == "property") {
+      std::string type;
+      std::string name;
+      words >> type >> name;
+      const size_t bytes = PlyTypeBytes(type);
+      if (elements != 1 || bytes == 0 || name.empty() || !names.insert(name).second) {
+        fail("property line '" + line + "' is not a scalar vertex property");
+      }
+      types[name] = type;
+      vertex_bytes += bytes;
+    } else {
+      fail("unknown header line '" + line.substr(0, 40) + "'");
+    }
+  }
+  fail("its header has no end_header");
+}
+
+}  // namespace
+
 std::vector<ColoredPoint> ReadPly(const std::string& path) {
   std::error_code ec;
   SIGHTMAP_CHECK(std::filesystem::is_regular_file(path, ec),
                  "cannot read " << path << ": no such file");
-  Cloud cloud;
+  // Read untyped first: PCL's typed conversion indexes the first point of an empty cloud (a PLY
+  // whose element is not named "vertex" reads as one), which the fuzzer caught as undefined
+  // behaviour; and the fields are checked before they are trusted.
+  CheckPointCloudPlyHeader(path);
+  pcl::PCLPointCloud2 blob;
   pcl::PLYReader reader;
   const pcl::console::VERBOSITY_LEVEL verbosity = pcl::console::getVerbosityLevel();
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
-  const int rc = reader.read(path, cloud);
+  const int rc = reader.read(path, blob);
   pcl::console::setVerbosityLevel(verbosity);
   SIGHTMAP_CHECK(rc == 0, "cannot read " << path << " as PLY: it is damaged or not a PLY file");
+  const uint64_t points = static_cast<uint64_t>(blob.width) * blob.height;
+  if (points == 0) return {};
+  for (const char* name : {"x", "y", "z"}) {
+    SIGHTMAP_CHECK(pcl::getFieldIndex(blob, name) >= 0,
+                   "cannot read " << path << " as a point cloud: its vertices have no " << name);
+  }
+  SIGHTMAP_CHECK(blob.data.size() >= points * blob.point_step,
+                 "cannot read " << path << " as PLY: it holds fewer bytes than its header says");
+  Cloud cloud;
+  pcl::fromPCLPointCloud2(blob, cloud);
   return ToColoredPoints(cloud);
 }
 

@@ -1,0 +1,30 @@
+// libFuzzer harness: a phone photo's bytes as `locate` and `serve` take them: the header reader,
+// the end-marker check, the EXIF focal length and orientation, and the decoder with the
+// intrinsics rule. Photos above 4 megapixels are refused from their header, which keeps the
+// decoder's allocations small. A sightmap::Error is the right answer to bad bytes; anything else
+// is a finding.
+#include <cstddef>
+#include <cstdint>
+
+#include "core/check.h"
+#include "identify/exif.h"
+#include "identify/photo.h"
+#include "identify/photo_header.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  using namespace sightmap;
+  if (const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size)) {
+    PhotoIsComplete(data, size, header->format);
+  }
+  ExifFocalLength35mm(data, size);
+  ExifOrientation(data, size);
+  try {
+    const Photo photo = DecodePhoto(data, size, 4.0);
+    ChooseIntrinsics(photo, IntrinsicsHint());
+    IntrinsicsHint sensor;
+    sensor.sensor = Intrinsics::FromPinhole(640, 480, 525.0, 525.0, 319.5, 239.5);
+    ChooseIntrinsics(photo, sensor);
+  } catch (const Error&) {
+  }
+  return 0;
+}

@@ -1,0 +1,49 @@
+// libFuzzer harness: a 3DMatch sequence's text files (`3dmatch:DIR`). The input is
+// camera-intrinsics.txt, frame-000000.pose.txt and frame-000001.pose.txt joined by NUL bytes
+// (fuzz_inputs.h); both frames' images exist. The folder is opened and played to its end. A
+// sightmap::Error is the right answer to a bad folder; anything else is a finding.
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "capture/folder_source.h"
+#include "core/check.h"
+#include "fuzz/fuzz_inputs.h"
+
+namespace {
+
+const std::string& Folder() {
+  static const std::string dir = [] {
+    const std::string root = sightmap::fuzz::ScratchDir() + "/3dmatch";
+    std::filesystem::create_directories(root);
+    for (const char* frame : {"frame-000000", "frame-000001"}) {
+      cv::imwrite(root + "/" + frame + ".color.png",
+                  cv::Mat(12, 16, CV_8UC3, cv::Scalar(9, 99, 199)));
+      cv::imwrite(root + "/" + frame + ".depth.png", cv::Mat(12, 16, CV_16UC1, cv::Scalar(5000)));
+    }
+    return root;
+  }();
+  return dir;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::vector<std::string> parts = sightmap::fuzz::SplitParts(data, size, 3);
+  const std::string& dir = Folder();
+  sightmap::fuzz::WriteFile(dir + "/camera-intrinsics.txt", parts[0]);
+  sightmap::fuzz::WriteFile(dir + "/frame-000000.pose.txt", parts[1]);
+  sightmap::fuzz::WriteFile(dir + "/frame-000001.pose.txt", parts[2]);
+  try {
+    std::unique_ptr<sightmap::RgbdSource> source =
+        sightmap::OpenThreeDMatchFolder(dir, sightmap::SourceOptions());
+    for (int frames = 0; frames < 4 && source->Next(); ++frames) {
+    }
+  } catch (const sightmap::Error&) {
+  }
+  return 0;
+}

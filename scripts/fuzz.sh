@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# fuzz.sh [SECONDS]: builds the libFuzzer harnesses (fuzz/) with clang, AddressSanitizer and
+# UndefinedBehaviorSanitizer into build-fuzz/, and runs each for SECONDS (default 10: the test
+# command's short run; a long run is e.g. `scripts/fuzz.sh 1800`). Needs the seed corpora that
+# the ordinary build's tests write (build/fuzz-seeds). Findings land in build-fuzz/findings/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=${1:-10}
+cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
+  -DCMAKE_CXX_COMPILER=clang++-14 -DSIGHTMAP_FUZZ=ON -DSIGHTMAP_BUILD_TESTS=OFF \
+  -DSIGHTMAP_FUZZ_SECONDS="$seconds" -DSIGHTMAP_FUZZ_SEEDS="$PWD/build/fuzz-seeds" >/dev/null
+cmake --build build-fuzz --target fuzzers -j"$(nproc)"
+cd build-fuzz
+rm -f findings/*.log
+ctest --output-on-failure -L fuzz -j"$(nproc)" --timeout $((seconds * 2 + 600)) || status=$?
+echo "fuzzing, ${seconds} s each:"
+for log in findings/*.log; do
+  awk -v name="$(basename "$log" .log)" '
+    /^stat::number_of_executed_units/ { runs = $NF }
+    /^stat::average_exec_per_sec/ { rate = $NF }
+    /^stat::new_units_added/ { added = $NF }
+    END { printf "  %-20s %10s inputs %6s/s %5s new\n", name, runs, rate, added }' "$log"
+done
+exit "${status:-0}"
