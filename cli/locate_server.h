@@ -10,7 +10,8 @@
 // "status": N}: an empty body 400, a body that is not a JPEG or PNG 415, a photo whose header
 // states more than max_megapixels 413 (read from its header, before decoding), one cut short (no
 // end marker) or that does not decode 400, a declared Content-Length that is malformed 400 or over
-// max_body_mb 413 (at once, before the body is read).
+// max_body_mb 413 (at once, before the body is read), a POST with neither a Content-Length nor
+// chunked encoding 411.
 #pragma once
 
 #include <memory>

@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <opencv2/imgcodecs.hpp>
+
 namespace sightmap::fuzz {
 
 std::string JoinParts(const std::vector<std::string>& parts) {
@@ -30,6 +32,20 @@ std::vector<std::string> SplitParts(const uint8_t* data, size_t size, size_t cou
     }
   }
   return parts;
+}
+
+void WriteParts(const uint8_t* data, size_t size, const std::string& dir,
+                const std::vector<std::string>& names) {
+  const std::vector<std::string> parts = SplitParts(data, size, names.size());
+  for (size_t i = 0; i < names.size(); ++i) WriteFile(dir + "/" + names[i], parts[i]);
+}
+
+void WriteTinyFrame(const std::string& color_path, const std::string& depth_path) {
+  if (!cv::imwrite(color_path, cv::Mat(12, 16, CV_8UC3, cv::Scalar(9, 99, 199))) ||
+      !cv::imwrite(depth_path, cv::Mat(12, 16, CV_16UC1, cv::Scalar(5000)))) {
+    std::fprintf(stderr, "fuzz harness: cannot write %s\n", color_path.c_str());
+    std::abort();
+  }
 }
 
 const std::string& ScratchDir() {

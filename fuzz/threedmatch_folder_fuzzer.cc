@@ -8,8 +8,6 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "capture/folder_source.h"
 #include "core/check.h"
 #include "fuzz/fuzz_inputs.h"
@@ -20,10 +18,9 @@ const std::string& Folder() {
   static const std::string dir = [] {
     const std::string root = sightmap::fuzz::ScratchDir() + "/3dmatch";
     std::filesystem::create_directories(root);
-    for (const char* frame : {"frame-000000", "frame-000001"}) {
-      cv::imwrite(root + "/" + frame + ".color.png",
-                  cv::Mat(12, 16, CV_8UC3, cv::Scalar(9, 99, 199)));
-      cv::imwrite(root + "/" + frame + ".depth.png", cv::Mat(12, 16, CV_16UC1, cv::Scalar(5000)));
+    for (const std::string frame : {"frame-000000", "frame-000001"}) {
+      sightmap::fuzz::WriteTinyFrame(root + "/" + frame + ".color.png",
+                                     root + "/" + frame + ".depth.png");
     }
     return root;
   }();
@@ -33,11 +30,9 @@ const std::string& Folder() {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  const std::vector<std::string> parts = sightmap::fuzz::SplitParts(data, size, 3);
   const std::string& dir = Folder();
-  sightmap::fuzz::WriteFile(dir + "/camera-intrinsics.txt", parts[0]);
-  sightmap::fuzz::WriteFile(dir + "/frame-000000.pose.txt", parts[1]);
-  sightmap::fuzz::WriteFile(dir + "/frame-000001.pose.txt", parts[2]);
+  sightmap::fuzz::WriteParts(
+      data, size, dir, {"camera-intrinsics.txt", "frame-000000.pose.txt", "frame-000001.pose.txt"});
   try {
     std::unique_ptr<sightmap::RgbdSource> source =
         sightmap::OpenThreeDMatchFolder(dir, sightmap::SourceOptions());

@@ -8,8 +8,6 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "capture/folder_source.h"
 #include "core/check.h"
 #include "fuzz/fuzz_inputs.h"
@@ -21,8 +19,8 @@ const std::string& Folder() {
     const std::string root = sightmap::fuzz::ScratchDir() + "/tum";
     for (const char* sub : {"rgb", "depth"}) std::filesystem::create_directories(root + "/" + sub);
     for (const char* name : {"0", "1"}) {
-      cv::imwrite(root + "/rgb/" + name + ".png", cv::Mat(12, 16, CV_8UC3, cv::Scalar(9, 99, 199)));
-      cv::imwrite(root + "/depth/" + name + ".png", cv::Mat(12, 16, CV_16UC1, cv::Scalar(5000)));
+      sightmap::fuzz::WriteTinyFrame(root + "/rgb/" + name + ".png",
+                                     root + "/depth/" + name + ".png");
     }
     return root;
   }();
@@ -32,11 +30,8 @@ const std::string& Folder() {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  const std::vector<std::string> parts = sightmap::fuzz::SplitParts(data, size, 3);
   const std::string& dir = Folder();
-  sightmap::fuzz::WriteFile(dir + "/rgb.txt", parts[0]);
-  sightmap::fuzz::WriteFile(dir + "/depth.txt", parts[1]);
-  sightmap::fuzz::WriteFile(dir + "/groundtruth.txt", parts[2]);
+  sightmap::fuzz::WriteParts(data, size, dir, {"rgb.txt", "depth.txt", "groundtruth.txt"});
   try {
     std::unique_ptr<sightmap::RgbdSource> source =
         sightmap::OpenTumFolder(dir, sightmap::SourceOptions());

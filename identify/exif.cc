@@ -71,6 +71,9 @@ std::optional<double> Positive(std::optional<double> value) {
 // Millimetres per FocalPlaneResolutionUnit (EXIF: 2 inch, the default; 3 cm; 4 mm, a common
 // extension).
 std::optional<double> UnitMm(std::optional<double> unit) {
+  // Range-checked before the cast: a LONG or RATIONAL unit of billions is undefined behaviour as
+  // an int (found by photo_fuzzer).
+  if (unit && !(*unit >= 0.0 && *unit <= 16.0)) return std::nullopt;
   const int code = unit ? static_cast<int>(*unit) : 2;
   switch (code) {
     case 2:

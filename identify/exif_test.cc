@@ -92,6 +92,19 @@ TEST(Exif, NothingToReadGivesNullopt) {
   EXPECT_FALSE(ExifFocalLength35mm(JpegWithExif(64, 48, odd_unit)));
 }
 
+// Found by photo_fuzzer: a resolution unit stored as a LONG of billions was cast to int
+// (undefined behaviour). An unknown unit gives no derived focal length.
+TEST(Exif, AnAbsurdResolutionUnitIsUnknownNotUndefined) {
+  ExifFields fields;
+  fields.focal_mm = 4.25;
+  fields.plane_x_resolution = 4000.0;
+  fields.plane_unit = 2718960000.0;
+  fields.plane_unit_format = EXIF_FORMAT_LONG;
+  EXPECT_FALSE(ExifFocalLength35mm(JpegWithExif(64, 48, fields)).has_value());
+  fields.plane_unit = 3.0;  // cm: the same file with a sane unit gives a focal length
+  EXPECT_TRUE(ExifFocalLength35mm(JpegWithExif(64, 48, fields)).has_value());
+}
+
 TEST(Exif, GarbageAndTruncatedBytesNeverCrash) {
   std::mt19937 random(5);
   std::uniform_int_distribution<int> byte(0, 255);

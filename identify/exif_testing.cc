@@ -50,7 +50,8 @@ std::vector<uint8_t> JpegWithExif(const cv::Mat& image, const ExifFields& fields
       fields.plane_x_resolution);
   add(EXIF_IFD_EXIF, EXIF_TAG_FOCAL_PLANE_Y_RESOLUTION, EXIF_FORMAT_RATIONAL,
       fields.plane_y_resolution);
-  add(EXIF_IFD_EXIF, EXIF_TAG_FOCAL_PLANE_RESOLUTION_UNIT, EXIF_FORMAT_SHORT, fields.plane_unit);
+  add(EXIF_IFD_EXIF, EXIF_TAG_FOCAL_PLANE_RESOLUTION_UNIT, fields.plane_unit_format,
+      fields.plane_unit);
   add(EXIF_IFD_EXIF, EXIF_TAG_PIXEL_X_DIMENSION, EXIF_FORMAT_LONG, fields.pixel_x);
   add(EXIF_IFD_EXIF, EXIF_TAG_PIXEL_Y_DIMENSION, EXIF_FORMAT_LONG, fields.pixel_y);
   add(EXIF_IFD_0, EXIF_TAG_ORIENTATION, EXIF_FORMAT_SHORT, fields.orientation);

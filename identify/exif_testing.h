@@ -18,8 +18,9 @@ struct ExifFields {
   std::optional<double> focal_mm;            // RATIONAL
   std::optional<double> plane_x_resolution;  // RATIONAL, pixels per unit
   std::optional<double> plane_y_resolution;
-  std::optional<int> plane_unit;  // SHORT: 2 inch, 3 cm, 4 mm
-  std::optional<int> pixel_x;     // LONG
+  std::optional<double> plane_unit;  // 2 inch, 3 cm, 4 mm; written as plane_unit_format
+  ExifFormat plane_unit_format = EXIF_FORMAT_SHORT;
+  std::optional<int> pixel_x;  // LONG
   std::optional<int> pixel_y;
   std::optional<int> orientation;  // SHORT in IFD0: 1-8 as the EXIF standard numbers them
   ExifByteOrder order = EXIF_BYTE_ORDER_INTEL;

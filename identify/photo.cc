@@ -135,7 +135,15 @@ Eigen::Vector2d Photo::DisplayPixel(const Eigen::Vector2d& upright_pixel) const 
   return {(width() - 1) - upright_pixel.x(), upright_pixel.y()};
 }
 
-Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
+int Photo::width() const {
+  return orientation.quarter_turns_cw % 2 == 0 ? stored.width : stored.height;
+}
+
+int Photo::height() const {
+  return orientation.quarter_turns_cw % 2 == 0 ? stored.height : stored.width;
+}
+
+Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
   const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size);
   if (!header) {
     throw PhotoRejected(PhotoProblem::kNotAnImage, "the photo is not a JPEG or PNG image");
@@ -160,6 +168,11 @@ Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
     photo.orientation = PhotoOrientation::FromExif(ExifOrientation(data, size));
     photo.exif_focal_35mm = ExifFocalLength35mm(data, size);
   }
+  return photo;
+}
+
+Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
+  Photo photo = InspectPhoto(data, size, max_megapixels);
   // The orientation is applied here, explicitly, so the pixels and the intrinsics turn together.
   const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT_MAX)), CV_8UC1,
                         const_cast<uint8_t*>(data));
@@ -169,9 +182,10 @@ Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
   } catch (const cv::Exception&) {
     stored.release();
   }
-  if (stored.empty() || stored.cols != header->width || stored.rows != header->height) {
-    throw PhotoRejected(PhotoProblem::kCorrupt, std::string("the ") + ToString(header->format) +
-                                                    " does not decode (corrupt data)");
+  if (stored.empty() || stored.cols != photo.stored.width || stored.rows != photo.stored.height) {
+    throw PhotoRejected(
+        PhotoProblem::kCorrupt,
+        std::string("the ") + ToString(photo.stored.format) + " does not decode (corrupt data)");
   }
   photo.upright = TurnClockwise(stored, photo.orientation.quarter_turns_cw);
   return photo;

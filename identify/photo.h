@@ -64,8 +64,9 @@ struct Photo {
   // The EXIF 35 mm-equivalent focal length [mm], when the file has one.
   std::optional<double> exif_focal_35mm;
 
-  int width() const { return upright.cols; }
-  int height() const { return upright.rows; }
+  // The upright picture's size [px] (known from the header, before decoding).
+  int width() const;
+  int height() const;
   // A pixel of `upright` in the picture a viewer shows (mirrored when the orientation says so).
   Eigen::Vector2d DisplayPixel(const Eigen::Vector2d& upright_pixel) const;
 };
@@ -73,6 +74,11 @@ struct Photo {
 // The largest photo `locate` and `eval identify` decode [megapixels]: a 200-megapixel phone's
 // full-size shot, 600 MB decoded. `serve` takes its limit from --max-megapixels.
 constexpr double kMaxPhotoMegapixels = 200.0;
+
+// Everything DecodePhoto learns without decoding (`upright` stays empty): the cheap refusals
+// (not an image, too large, cut short) and the upright size, so a server can answer bad uploads
+// without waiting for a decoder. Throws PhotoRejected as DecodePhoto does.
+Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels);
 
 // Decodes a JPEG or PNG from memory. Throws PhotoRejected with one line: not a JPEG or PNG (by its
 // bytes, whatever a file name or Content-Type says), more than max_megapixels (checked on the

@@ -112,6 +112,12 @@ TEST(DecodePhoto, AnOrientationSixJpegIsTurnedUpright) {
   const std::vector<uint8_t> jpeg = JpegWithExif(stored, fields);
   EXPECT_EQ(ExifOrientation(jpeg.data(), jpeg.size()), 6);
 
+  // Inspection alone knows the upright size: a server judges the query's intrinsics with it.
+  const Photo inspected = InspectPhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels);
+  EXPECT_TRUE(inspected.upright.empty());
+  EXPECT_EQ(inspected.width(), 300);
+  EXPECT_EQ(inspected.height(), 400);
+
   const Photo photo = DecodePhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels);
   EXPECT_EQ(photo.stored.width, 400);
   EXPECT_EQ(photo.stored.height, 300);
