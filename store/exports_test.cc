@@ -111,6 +111,14 @@ TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
         << std::string(14, '\0');
   }
   EXPECT_THROW(ReadPly(dir + "/two-colours.ply"), Error);
+  // A form feed before obj_info: PCL's header parser asserted on it.
+  {
+    std::ofstream out(dir + "/form-feed.ply", std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty "
+           "float y\nproperty float z\n\fobj_info uchar red\nend_header\n"
+        << std::string(12, '\0');
+  }
+  EXPECT_THROW(ReadPly(dir + "/form-feed.ply"), Error);
 }
 
 TEST(Ply, VoxelSizeAndOutlierRemoval) {

@@ -309,6 +309,15 @@ void CheckPointCloudPlyHeader(const std::string& path) {
     header_bytes += line.size() + 1;
     if (header_bytes > kMaxHeaderBytes) fail("its header runs past 64 KiB");
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    // PCL splits header lines on single spaces and asserts on what it did not expect, e.g. a
+    // form feed before "obj_info" (found by ply_fuzzer).
+    const bool printable = std::all_of(line.begin(), line.end(), [](char c) {
+      const auto byte = static_cast<unsigned char>(c);
+      return byte >= 0x20 && byte != 0x7F;
+    });
+    if (!printable || (!line.empty() && line.front() == ' ')) {
+      fail("its header has a line with control characters or a leading space");
+    }
     std::istringstream words(line);
     std::string keyword;
     words >> keyword;
