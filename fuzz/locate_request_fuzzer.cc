@@ -130,7 +130,7 @@ extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
   sightmap::cli::LocateServerOptions options;
   options.port = 0;
   options.log_requests = false;
-  options.read_timeout_s = 1;
+  options.read_timeout_s = 5;
   options.locate_threads = 1;
   options.max_megapixels = 2.0;
   options.max_body_mb = 4.0;
@@ -145,7 +145,14 @@ extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   FuzzedDataProvider in(data, size);
-  const std::string answer = Exchange(BuildRequest(in));
+  const std::string request = BuildRequest(in);
+  std::string answer = Exchange(request);
+  if (answer.empty()) {
+    // Once seen under three fuzzers on two cores, and not again when the input was replayed: a
+    // starved client. Only a request that gets no answer twice is a finding.
+    std::fprintf(stderr, "no answer; asking again\n");
+    answer = Exchange(request);
+  }
   if (answer.rfind("HTTP/1.1 ", 0) != 0) {
     std::fprintf(stderr, "no HTTP answer (got %zu bytes)\n", answer.size());
     std::abort();

@@ -435,7 +435,6 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;
   const SessionId session = model.BeginSession(MakeSessionRecord(options_, meta));
   summary.session = session.value();
-  if (view) summary.view = view->description();
 
   // capture -> frames -> track -> keyframes -> map (this thread) -> writer.
   const TrackStageOptions tracking = TrackingOptions(options_);
@@ -480,6 +479,8 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   // Nothing writes to the model after this (the PLY and the trajectory only read it).
   Summarise(*mapper, map, track, tracking.track, capture, model, &summary);
 
+  // After the view finished: its description counts the images that could not be written.
+  if (view) summary.view = view->description();
   // Nothing below uses the mapper or the view.
   mapper.reset();
   view.reset();

@@ -58,8 +58,13 @@ void ProgressWriter::Finish() {
 void ProgressWriter::Flush() { mailbox_.WaitDone(); }
 
 std::string ProgressWriter::description() const {
-  return options_.png_path.empty() ? std::string("off-screen rendering (no image file)")
-                                   : "progress images (" + options_.png_path + ")";
+  std::string text = options_.png_path.empty() ? std::string("off-screen rendering (no image file)")
+                                               : "progress images (" + options_.png_path + ")";
+  const ProgressWriterStats now = stats();
+  if (now.write_failures > 0) {
+    text += "; " + std::to_string(now.write_failures) + " failed, the last: " + now.last_error;
+  }
+  return text;
 }
 
 ProgressWriterStats ProgressWriter::stats() const {

@@ -168,6 +168,9 @@ TEST(ProgressWriter, AnUnwritableFileIsReportedNotThrown) {
   EXPECT_EQ(stats.pngs_written, 0);
   EXPECT_GE(stats.write_failures, 1);
   EXPECT_NE(stats.last_error.find("/nonexistent-dir/progress.png"), std::string::npos);
+  // The summary `map` prints names the failure too.
+  EXPECT_NE(writer.description().find("failed, the last: "), std::string::npos)
+      << writer.description();
 }
 
 }  // namespace
