@@ -94,7 +94,8 @@ void CheckOutputFile(const std::string& path, const std::string& option) {
     }
   }
   const bool existed = fs::exists(path, error);
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  // O_NONBLOCK: a named pipe without a reader fails at once instead of blocking here.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_NONBLOCK | O_CLOEXEC, 0644);
   if (fd < 0) {
     const int reason = errno;
     SIGHTMAP_THROW(Error,
@@ -115,11 +116,11 @@ void CheckOutputFolder(const std::string& dir, const std::string& option) {
   if (error) {
     SIGHTMAP_THROW(Error, "cannot create " << option << " " << dir << ": " << error.message());
   }
-  const std::string probe = (fs::path(dir) / ".sightmap-write-test").string();
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  const std::string probe =
+      (fs::path(dir) / (".sightmap-write-test-" + std::to_string(::getpid()))).string();
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) {
     const int reason = errno;
-    if (reason == EEXIST) return;  // a probe left by a killed run: the folder is writable
     SIGHTMAP_THROW(Error,
                    "cannot write in " << option << " " << dir << ": " << std::strerror(reason));
   }

@@ -138,8 +138,8 @@ TEST(FuzzSeeds, Ply) {
 }
 
 // locate_request_fuzzer reads its input with FuzzedDataProvider: the query string (ended by a
-// backslash and one more byte), the body, and from the end the Content-Length mode and the
-// Content-Type (one byte each, modulo 5).
+// backslash and one more byte), the body, and from the end the length mode (Content-Length, none,
+// -5, huge, chunked) and the Content-Type (one byte each, modulo 5).
 std::string LocateRequestSeed(const std::string& query, const std::string& body, int type,
                               int length_mode) {
   return query + "\\q" + body + static_cast<char>(length_mode) + static_cast<char>(type);
@@ -157,7 +157,7 @@ TEST(FuzzSeeds, LocateRequests) {
   fuzz::WriteFile(dir + "/png-untyped", LocateRequestSeed("", Bytes(png), 0, 0));
   fuzz::WriteFile(dir + "/multipart", LocateRequestSeed("", Bytes(jpeg), 3, 0));
   fuzz::WriteFile(dir + "/cut", LocateRequestSeed("", Bytes(jpeg).substr(0, 2000), 1, 0));
-  fuzz::WriteFile(dir + "/short-length", LocateRequestSeed("fx=1", Bytes(jpeg), 2, 4));
+  fuzz::WriteFile(dir + "/chunked", LocateRequestSeed("fx=1", Bytes(jpeg), 2, 4));
 }
 
 }  // namespace
