@@ -97,6 +97,18 @@ class RgbdSource {
   // corrupt file); the message says what happened and what to do.
   virtual std::optional<RgbdFrame> Next() = 0;
 
+  // The index and timestamp Next() would return, when the source knows them without producing the
+  // frame (the simulator renders each frame, so skipping the first hours of a walk by Next()
+  // would render them all); nullopt when it does not, or at the end. With SkipNext(), lets a
+  // resumed replay pass over frames it already mapped.
+  struct FrameStamp {
+    int64_t index = 0;
+    TimestampNs timestamp_ns = 0;
+  };
+  virtual std::optional<FrameStamp> PeekStamp() const { return std::nullopt; }
+  // Passes over the frame PeekStamp() described; only valid after it returned one.
+  virtual void SkipNext() {}
+
   virtual SourceStats stats() const = 0;
 };
 

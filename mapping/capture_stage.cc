@@ -46,9 +46,19 @@ void CaptureStage::Join() {
   if (thread_.joinable()) thread_.join();
 }
 
-bool CaptureStage::BeforeStart(const RgbdFrame& frame) const {
-  return frame.index < options_.start_frame ||
-         (options_.after_timestamp_ns && frame.timestamp_ns <= *options_.after_timestamp_ns);
+bool CaptureStage::BeforeStart(int64_t index, TimestampNs timestamp_ns) const {
+  return index < options_.start_frame ||
+         (options_.after_timestamp_ns && timestamp_ns <= *options_.after_timestamp_ns);
+}
+
+void CaptureStage::SkipCheaply() {
+  for (std::optional<RgbdSource::FrameStamp> stamp = source_->PeekStamp();
+       !stop_ && stamp && BeforeStart(stamp->index, stamp->timestamp_ns);
+       stamp = source_->PeekStamp()) {
+    source_->SkipNext();
+    ++frames_read_;
+    ++frames_skipped_;
+  }
 }
 
 bool CaptureStage::Wanted(const RgbdFrame& frame) {
@@ -67,12 +77,13 @@ bool CaptureStage::WaitWhilePaused() {
 
 void CaptureStage::Run() {
   try {
+    SkipCheaply();
     Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);
     while (!stop_) {
       std::optional<RgbdFrame> frame = source_->Next();
       if (!frame) break;
       ++frames_read_;
-      if (BeforeStart(*frame)) {
+      if (BeforeStart(frame->index, frame->timestamp_ns)) {
         ++frames_skipped_;
         continue;
       }

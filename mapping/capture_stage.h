@@ -69,7 +69,10 @@ class CaptureStage {
 
  private:
   void Run();
-  bool BeforeStart(const RgbdFrame& frame) const;
+  bool BeforeStart(int64_t index, TimestampNs timestamp_ns) const;
+  // Passes over the frames before the start without producing them, as far as the source can
+  // tell their stamps (PeekStamp); the rest are read and skipped in Run().
+  void SkipCheaply();
   bool Wanted(const RgbdFrame& frame);
   // Waits while a view pauses a replay; false when a live frame should pass by unused.
   bool WaitWhilePaused();

@@ -47,6 +47,52 @@ TEST(CaptureStage, AReplayPassesEveryNthFrameFromTheStartFrameAndDropsNone) {
   EXPECT_FALSE(stage.error().has_value());
 }
 
+// A real source behind a counter of the frames it produced; `can_peek` false hides PeekStamp, as
+// a source that cannot tell a frame's stamp without decoding it.
+class CountingSource : public RgbdSource {
+ public:
+  CountingSource(std::unique_ptr<RgbdSource> source, bool can_peek)
+      : source_(std::move(source)), can_peek_(can_peek) {}
+  const SourceMetadata& metadata() const override { return source_->metadata(); }
+  std::optional<RgbdFrame> Next() override {
+    std::optional<RgbdFrame> frame = source_->Next();
+    produced += frame ? 1 : 0;
+    return frame;
+  }
+  std::optional<FrameStamp> PeekStamp() const override {
+    return can_peek_ ? source_->PeekStamp() : std::nullopt;
+  }
+  void SkipNext() override { source_->SkipNext(); }
+  SourceStats stats() const override { return source_->stats(); }
+  int produced = 0;
+
+ private:
+  std::unique_ptr<RgbdSource> source_;
+  bool can_peek_;
+};
+
+// A resumed replay starts after the last stored frame's time: the simulator passes over the
+// mapped frames without rendering them; a source that cannot peek reads and drops them.
+TEST(CaptureStage, AResumedReplayPassesOverMappedFramesWithoutProducingThem) {
+  std::unique_ptr<RgbdSource> probe = Walk(40);
+  for (int i = 0; i < 24; ++i) probe->SkipNext();
+  const TimestampNs last_stored = probe->PeekStamp()->timestamp_ns;  // frame 24's
+  for (const bool can_peek : {true, false}) {
+    CountingSource source(Walk(40), can_peek);
+    BoundedQueue<RgbdFrame> frames(4);
+    CaptureStageOptions options;
+    options.after_timestamp_ns = last_stored;
+    CaptureStage stage(&source, options, &frames);
+    const std::vector<int64_t> indices = DrainIndices(&frames);
+    stage.Join();
+    ASSERT_EQ(indices.size(), 15u) << can_peek;
+    EXPECT_EQ(indices.front(), 25) << can_peek;
+    EXPECT_EQ(stage.frames_skipped(), 25) << can_peek;
+    EXPECT_EQ(stage.frames_read(), 40) << can_peek;
+    EXPECT_EQ(source.produced, can_peek ? 15 : 40) << can_peek;
+  }
+}
+
 TEST(CaptureStage, WithoutTrackingOneFramePerKeyframePeriodGoesOn) {
   const std::unique_ptr<RgbdSource> source = Walk(30);  // 3 s at 10 Hz
   BoundedQueue<RgbdFrame> frames(4);

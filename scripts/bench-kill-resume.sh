@@ -3,7 +3,8 @@
 #   scripts/bench-kill-resume.sh [SECONDS] [KILL_AFTER_S] [OUT_DIR] [FPS] [SEED]
 # Maps SECONDS (default 600) of the hand-held walk at FPS (default 10, every frame tracked,
 # keyframes at 1 Hz) once uninterrupted, once killed with SIGKILL after KILL_AFTER_S seconds
-# (default: random 30-150) and resumed from the frame after the last committed keyframe; then
+# (default: random 30-150) and resumed with the same command (which continues after the last
+# stored frame); then
 # prints, for both models, keyframes, parts and the whole-model ATE against the walk's ground
 # truth (rendered once with `sim generate`, which at 10 Hz takes minutes of its own).
 # Environment: SIGHTMAP (the binary, default build/sightmap).

@@ -42,6 +42,13 @@ class SimSource : public RgbdSource {
     return frame;
   }
 
+  std::optional<FrameStamp> PeekStamp() const override {
+    if (next_ >= simulator_.num_frames()) return std::nullopt;
+    return FrameStamp{next_, simulator_.TimestampOf(next_)};
+  }
+
+  void SkipNext() override { ++next_; }
+
   SourceStats stats() const override { return stats_; }
 
  private:
