@@ -2,9 +2,12 @@
 // [--max-megapixels 25] [--timeout S]: answers phones over HTTP (see cli/locate_server.h for the
 // endpoints). Prints the URL it listens on (with --port 0, the port the system chose) and serves
 // until Ctrl-C or SIGTERM, then finishes the requests in hand and exits 0.
+#include <malloc.h>
 
+#include <algorithm>
 #include <iostream>
 #include <string>
+#include <thread>
 
 #include "cli/command_util.h"
 #include "cli/commands.h"
@@ -46,6 +49,13 @@ int RunServe(int argc, char** argv) {
   options.read_timeout_s = timeout_s;
   options.write_timeout_s = timeout_s;
 
+  // glibc gives threads up to 8 x cores malloc arenas and does not hand memory freed in one to
+  // another: with 32 connection threads the resident size grew with every new thread that
+  // allocated a photo (194 -> 216 MiB over 1,000 requests). Two arenas per locate slot.
+  mallopt(M_ARENA_MAX,
+          2 * std::max(1, options.locate_threads > 0
+                              ? options.locate_threads
+                              : static_cast<int>(std::thread::hardware_concurrency())));
   StopSignalWatcher watcher(
       "sightmap serve",
       "sightmap serve: stopping (finishing the requests in hand; again to exit at once)\n");
