@@ -56,11 +56,10 @@ class MessageBuilder {
   } while (false)
 
 // Throws InvalidArgument when an options struct fails its Check().
-#define SIGHTMAP_CHECK_OPTIONS(options)                                    \
-  do {                                                                     \
-    std::string sightmap_options_error_;                                   \
-    if (!(options).Check(&sightmap_options_error_)) {                      \
-      SIGHTMAP_THROW(::sightmap::InvalidArgument,                          \
-                     "invalid options: " << sightmap_options_error_);      \
-    }                                                                      \
+#define SIGHTMAP_CHECK_OPTIONS(options)                                                            \
+  do {                                                                                             \
+    std::string sightmap_options_error_;                                                           \
+    if (!(options).Check(&sightmap_options_error_)) {                                              \
+      SIGHTMAP_THROW(::sightmap::InvalidArgument, "invalid options: " << sightmap_options_error_); \
+    }                                                                                              \
   } while (false)
