@@ -293,23 +293,18 @@ void LocateServer::Impl::HandleLocate(const httplib::Request& request, const std
     return RefuseCounted(response, 400, "empty body: POST a JPEG or PNG photo as the request body");
   }
   const auto* bytes = reinterpret_cast<const uint8_t*>(body.data());
-  // The cheap refusals and the query's intrinsics first: a bad upload never waits for a slot.
-  IntrinsicsHint hint;
-  try {
-    const Photo inspected = InspectPhoto(bytes, body.size(), options.max_megapixels);
-    hint.upright = IntrinsicsFromQuery(request, inspected.width(), inspected.height());
-  } catch (const PhotoRejected& e) {
-    return RefuseCounted(response, StatusFor(e.problem()), e.what());
-  } catch (const InvalidArgument& e) {
-    return RefuseCounted(response, 400, e.what());
-  }
-  // Decoding inside the slot bounds the decoded images in memory as well as the CPU.
-  const Slots::Hold hold(*locate_slots);
   Photo photo;
   LocateResult result;
   try {
-    photo = DecodePhoto(bytes, body.size(), options.max_megapixels);
+    // The cheap refusals and the query's intrinsics first: a bad upload never waits for a slot.
+    photo = InspectPhoto(bytes, body.size(), options.max_megapixels);
+    IntrinsicsHint hint;
+    hint.upright = IntrinsicsFromQuery(request, photo.width(), photo.height());
+    // Decoding inside the slot bounds the decoded images in memory as well as the CPU.
+    const Slots::Hold hold(*locate_slots);
+    DecodePixels(bytes, body.size(), &photo);
     result = locator->Locate(photo, hint);
+    photo.upright.release();
   } catch (const PhotoRejected& e) {
     return RefuseCounted(response, StatusFor(e.problem()), e.what());
   } catch (const InvalidArgument& e) {

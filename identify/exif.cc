@@ -117,11 +117,12 @@ std::optional<double> DerivedFocal35mm(ExifData* exif, const uint8_t* data, size
 
 }  // namespace
 
-std::optional<double> ExifFocalLength35mm(const uint8_t* data, size_t size) {
+ExifFacts ReadExifFacts(const uint8_t* data, size_t size) {
+  ExifFacts facts;
   // Only JPEGs (SOI first): anything else is not worth handing to libexif's scanner.
-  if (!data || size < 4 || data[0] != 0xFF || data[1] != 0xD8) return std::nullopt;
+  if (!data || size < 4 || data[0] != 0xFF || data[1] != 0xD8) return facts;
   std::unique_ptr<ExifData, ExifDataUnref> exif(exif_data_new());
-  if (!exif) return std::nullopt;
+  if (!exif) return facts;
   // Read what the file says; "following the specification" would add mandatory tags with
   // made-up defaults.
   exif_data_unset_option(exif.get(), EXIF_DATA_OPTION_FOLLOW_SPECIFICATION);
@@ -129,11 +130,30 @@ std::optional<double> ExifFocalLength35mm(const uint8_t* data, size_t size) {
   exif_data_load_data(exif.get(), data,
                       static_cast<unsigned int>(std::min<size_t>(size, UINT_MAX)));
 
+  const ExifEntry* orientation =
+      exif_content_get_entry(exif->ifd[EXIF_IFD_0], EXIF_TAG_ORIENTATION);
+  if (orientation && orientation->data && orientation->format == EXIF_FORMAT_SHORT &&
+      orientation->size >= 2) {
+    const int code = exif_get_short(orientation->data, exif_data_get_byte_order(exif.get()));
+    if (code >= 1 && code <= 8) facts.orientation = code;
+  }
+
   const std::optional<double> recorded = TagValue(exif.get(), EXIF_TAG_FOCAL_LENGTH_IN_35MM_FILM);
-  if (recorded && Plausible(*recorded)) return recorded;  // 0 means "unknown" in EXIF
-  const std::optional<double> derived = DerivedFocal35mm(exif.get(), data, size);
-  if (derived && Plausible(*derived)) return derived;
-  return std::nullopt;
+  if (recorded && Plausible(*recorded)) {  // 0 means "unknown" in EXIF
+    facts.focal_35mm = recorded;
+  } else if (const std::optional<double> derived = DerivedFocal35mm(exif.get(), data, size);
+             derived && Plausible(*derived)) {
+    facts.focal_35mm = derived;
+  }
+  return facts;
+}
+
+std::optional<double> ExifFocalLength35mm(const uint8_t* data, size_t size) {
+  return ReadExifFacts(data, size).focal_35mm;
+}
+
+int ExifOrientation(const uint8_t* data, size_t size) {
+  return ReadExifFacts(data, size).orientation;
 }
 
 std::optional<double> ExifFocalLength35mm(const std::vector<uint8_t>& jpeg) {

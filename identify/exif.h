@@ -12,6 +12,19 @@
 
 namespace sightmap {
 
+// What sightmap reads from a JPEG's EXIF, in one pass over its bytes: never throws on bad input
+// (the bytes may be any HTTP body), and gives the defaults when they are not a JPEG with EXIF.
+struct ExifFacts {
+  // The Orientation tag (0x0112, IFD0): 1-8, or 1 when it is absent or out of range.
+  int orientation = 1;
+  // As ExifFocalLength35mm below [mm].
+  std::optional<double> focal_35mm;
+};
+ExifFacts ReadExifFacts(const uint8_t* data, size_t size);
+
+// The EXIF Orientation of a JPEG (ReadExifFacts(...).orientation).
+int ExifOrientation(const uint8_t* data, size_t size);
+
 // The 35 mm-equivalent focal length [mm] recorded in a JPEG's EXIF: FocalLengthIn35mmFilm (0xA405)
 // when present and non-zero; else derived from FocalLength (0x920A) and the sensor's size,
 // FocalPlaneX/YResolution (0xA20E/0xA20F) in FocalPlaneResolutionUnit (0xA210, inch by default)

@@ -495,6 +495,11 @@ void Locator::Impl::FindNeighbours() {
 
 namespace {
 
+// Descriptors the vocabulary and the matcher take: 32-byte binary (ORB) rows, at least one.
+bool IsOrbDescriptors(const cv::Mat& descriptors) {
+  return descriptors.rows > 0 && descriptors.type() == CV_8U && descriptors.cols == 32;
+}
+
 // The model's vocabulary; a model of fewer keyframes than the mapper trains its vocabulary on
 // (a short recording) has none, and gets one trained here from its keyframes (empty when fewer
 // than two have features: retrieval then tries every keyframe).
@@ -510,10 +515,7 @@ Vocabulary LoadOrTrainVocabulary(const Model& model, const std::vector<KeyframeI
   std::vector<cv::Mat> descriptors;
   for (const KeyframeInfo& info : infos) {
     const KeyframeFeatures features = model.LoadFeatures(info.id);
-    if (features.descriptors.rows > 0 && features.descriptors.type() == CV_8U &&
-        features.descriptors.cols == 32) {
-      descriptors.push_back(features.descriptors);
-    }
+    if (IsOrbDescriptors(features.descriptors)) descriptors.push_back(features.descriptors);
   }
   if (descriptors.size() < 2) return Vocabulary();
   return Vocabulary::Train(descriptors);
@@ -541,8 +543,7 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
     const KeyframeFeatures features = model.LoadFeatures(info.id);
     const size_t slot = impl_->keyframes.size();
     // Every descriptor votes in retrieval; only those with a 3D point can be matched for PnP.
-    if (features.descriptors.rows > 0 && features.descriptors.type() == CV_8U &&
-        features.descriptors.cols == 32) {
+    if (IsOrbDescriptors(features.descriptors)) {
       if (!impl_->vocabulary.empty()) {
         impl_->index.Add(static_cast<int64_t>(slot),
                          impl_->vocabulary.Transform(features.descriptors));

@@ -1,13 +1,10 @@
 #include "identify/photo.h"
 
-#include <libexif/exif-data.h>
-
 #include <algorithm>
 #include <climits>
 #include <cmath>
 #include <fstream>
 #include <iterator>
-#include <memory>
 #include <sstream>
 #include <vector>
 
@@ -18,10 +15,6 @@
 
 namespace sightmap {
 namespace {
-
-struct ExifDataUnref {
-  void operator()(ExifData* data) const { exif_data_unref(data); }
-};
 
 // Aspect ratios closer than this are the same camera at another resolution; farther, a crop or
 // another camera, which no scaling turns into the photo's.
@@ -82,19 +75,6 @@ PhotoOrientation PhotoOrientation::FromExif(int code) {
   orientation.quarter_turns_cw = kTurns[code];
   orientation.mirrored = kMirrored[code];
   return orientation;
-}
-
-int ExifOrientation(const uint8_t* data, size_t size) {
-  if (!data || size < 4 || data[0] != 0xFF || data[1] != 0xD8) return 1;
-  std::unique_ptr<ExifData, ExifDataUnref> exif(exif_data_new());
-  if (!exif) return 1;
-  exif_data_unset_option(exif.get(), EXIF_DATA_OPTION_FOLLOW_SPECIFICATION);
-  exif_data_load_data(exif.get(), data,
-                      static_cast<unsigned int>(std::min<size_t>(size, UINT_MAX)));
-  const ExifEntry* entry = exif_content_get_entry(exif->ifd[EXIF_IFD_0], EXIF_TAG_ORIENTATION);
-  if (!entry || !entry->data || entry->format != EXIF_FORMAT_SHORT || entry->size < 2) return 1;
-  const int code = exif_get_short(entry->data, exif_data_get_byte_order(exif.get()));
-  return code >= 1 && code <= 8 ? code : 1;
 }
 
 cv::Mat TurnClockwise(const cv::Mat& stored, int quarter_turns) {
@@ -165,14 +145,14 @@ Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
   Photo photo;
   photo.stored = *header;
   if (header->format == PhotoFormat::kJpeg) {
-    photo.orientation = PhotoOrientation::FromExif(ExifOrientation(data, size));
-    photo.exif_focal_35mm = ExifFocalLength35mm(data, size);
+    const ExifFacts exif = ReadExifFacts(data, size);
+    photo.orientation = PhotoOrientation::FromExif(exif.orientation);
+    photo.exif_focal_35mm = exif.focal_35mm;
   }
   return photo;
 }
 
-Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
-  Photo photo = InspectPhoto(data, size, max_megapixels);
+void DecodePixels(const uint8_t* data, size_t size, Photo* photo) {
   // The orientation is applied here, explicitly, so the pixels and the intrinsics turn together.
   const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT_MAX)), CV_8UC1,
                         const_cast<uint8_t*>(data));
@@ -182,12 +162,17 @@ Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
   } catch (const cv::Exception&) {
     stored.release();
   }
-  if (stored.empty() || stored.cols != photo.stored.width || stored.rows != photo.stored.height) {
+  if (stored.empty() || stored.cols != photo->stored.width || stored.rows != photo->stored.height) {
     throw PhotoRejected(
         PhotoProblem::kCorrupt,
-        std::string("the ") + ToString(photo.stored.format) + " does not decode (corrupt data)");
+        std::string("the ") + ToString(photo->stored.format) + " does not decode (corrupt data)");
   }
-  photo.upright = TurnClockwise(stored, photo.orientation.quarter_turns_cw);
+  photo->upright = TurnClockwise(stored, photo->orientation.quarter_turns_cw);
+}
+
+Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
+  Photo photo = InspectPhoto(data, size, max_megapixels);
+  DecodePixels(data, size, &photo);
   return photo;
 }
 

@@ -32,10 +32,6 @@ struct PhotoOrientation {
   static PhotoOrientation FromExif(int code);
 };
 
-// The EXIF Orientation (0x0112, IFD0) of a JPEG: 1-8, or 1 when it is absent, out of range, or
-// the bytes are not a JPEG with EXIF. Never throws, never reads past `size`.
-int ExifOrientation(const uint8_t* data, size_t size);
-
 // An image turned clockwise by quarter turns, and the same for the camera that took it: a point
 // projecting to (u, v) in `stored` projects to the turned pixel in the result.
 cv::Mat TurnClockwise(const cv::Mat& stored, int quarter_turns);
@@ -80,10 +76,14 @@ constexpr double kMaxPhotoMegapixels = 200.0;
 // without waiting for a decoder. Throws PhotoRejected as DecodePhoto does.
 Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels);
 
-// Decodes a JPEG or PNG from memory. Throws PhotoRejected with one line: not a JPEG or PNG (by its
-// bytes, whatever a file name or Content-Type says), more than max_megapixels (checked on the
-// header, before decoding allocates 3 bytes a pixel), cut short (no end marker: decoders would
-// fill the rest with grey), or undecodable.
+// Decodes the pixels of a photo InspectPhoto took from the same bytes into photo->upright.
+// Throws PhotoRejected (kCorrupt) when they do not decode.
+void DecodePixels(const uint8_t* data, size_t size, Photo* photo);
+
+// InspectPhoto and DecodePixels: decodes a JPEG or PNG from memory. Throws PhotoRejected with one
+// line: not a JPEG or PNG (by its bytes, whatever a file name or Content-Type says), more than
+// max_megapixels (checked on the header, before decoding allocates 3 bytes a pixel), cut short (no
+// end marker: decoders would fill the rest with grey), or undecodable.
 Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels);
 // The same for a file; also throws InvalidArgument when it cannot be read.
 Photo ReadPhotoFile(const std::string& path, double max_megapixels);
