@@ -76,6 +76,17 @@ CLI::Validator Within(double min, double max, const std::string& unit) {
       "NUMBER " + text);
 }
 
+void MakeParentFolder(const std::string& path, const std::string& option) {
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  if (folder.empty()) return;
+  std::error_code error;
+  std::filesystem::create_directories(folder, error);
+  if (error) {
+    SIGHTMAP_THROW(Error, "cannot write " << option << " " << path << ": cannot create its folder ("
+                                          << error.message() << ")");
+  }
+}
+
 void CheckOutputFile(const std::string& path, const std::string& option) {
   if (path.empty()) return;
   namespace fs = std::filesystem;
@@ -84,15 +95,7 @@ void CheckOutputFile(const std::string& path, const std::string& option) {
     SIGHTMAP_THROW(InvalidArgument,
                    option << " " << path << " is a folder: give a file name in it");
   }
-  const fs::path folder = fs::path(path).parent_path();
-  if (!folder.empty()) {
-    fs::create_directories(folder, error);
-    if (error) {
-      SIGHTMAP_THROW(Error, "cannot write " << option << " " << path
-                                            << ": cannot create its folder (" << error.message()
-                                            << ")");
-    }
-  }
+  MakeParentFolder(path, option);
   const bool existed = fs::exists(path, error);
   // O_NONBLOCK: a named pipe without a reader fails at once instead of blocking here.
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_NONBLOCK | O_CLOEXEC, 0644);

@@ -36,6 +36,10 @@ ImageSize ParseImageSize(const std::string& text, const std::string& option, Ima
 // CLI11's own Range lets NaN through and NonNegativeNumber prints DBL_MAX in 300 digits.
 CLI::Validator Within(double min, double max, const std::string& unit = "");
 
+// Makes the folder `path` (given by `option`) goes in, when it is missing; throws Error naming
+// the option when it cannot.
+void MakeParentFolder(const std::string& path, const std::string& option);
+
 // Checks, before any work, that `path` (given by `option`, e.g. "--ply") can be written: not a
 // folder, its folder made if missing, and the file creatable or writable. Probes with an
 // append-open that changes no existing file and removes a file it created. Throws InvalidArgument

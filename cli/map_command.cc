@@ -260,15 +260,7 @@ int RunMap(int argc, char** argv) {
 
   // The outputs are checked (their folders made) before any work: a typo in --ply must not cost
   // a mapping run.
-  const std::filesystem::path model_folder =
-      std::filesystem::path(options.model_path).parent_path();
-  if (!model_folder.empty()) {
-    std::error_code error;
-    std::filesystem::create_directories(model_folder, error);
-    SIGHTMAP_CHECK(!error, "cannot create the folder " << model_folder.string() << " for "
-                                                       << options.model_path << ": "
-                                                       << error.message());
-  }
+  MakeParentFolder(options.model_path, "--model");
   CheckOutputFile(options.ply_path, "--ply");
   CheckOutputFile(options.trajectory_path, "--trajectory-out");
   CheckOutputFile(options.view.progress_png, "--progress-png");

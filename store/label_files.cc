@@ -80,8 +80,10 @@ int ExportLabels(const Model& model, const std::string& dir) {
   // Every file name is settled before anything is written, so a collision writes nothing.
   const std::vector<LabelRecord> labels = model.Labels();
   std::map<std::string, std::string> written;  // file name -> label, to refuse collisions
+  std::vector<std::string> file_names;         // per label
   for (const LabelRecord& label : labels) {
-    const std::string name = LabelFileName(label.name);
+    file_names.push_back(LabelFileName(label.name));
+    const std::string& name = file_names.back();
     SIGHTMAP_CHECK(written.emplace(name, label.name).second,
                    "labels '" << written[name] << "' and '" << label.name << "' would both be "
                               << name << ": rename one of them; nothing was written");
@@ -93,15 +95,12 @@ int ExportLabels(const Model& model, const std::string& dir) {
   // disk) leaves the folder as it was.
   std::vector<std::pair<std::filesystem::path, std::filesystem::path>> staged;
   try {
-    for (const LabelRecord& label : labels) {
-      const std::filesystem::path final_path =
-          std::filesystem::path(dir) / LabelFileName(label.name);
-      const std::filesystem::path temporary =
-          std::filesystem::path(dir) / ("." + LabelFileName(label.name) + ".partial");
-      staged.emplace_back(temporary, final_path);
+    for (size_t i = 0; i < labels.size(); ++i) {
+      const std::filesystem::path folder(dir);
+      staged.emplace_back(folder / ("." + file_names[i] + ".partial"), folder / file_names[i]);
       std::vector<Eigen::Vector3d> points;
-      for (const LabelPoint& point : label.points) points.push_back(point.world);
-      WritePointList(temporary.string(), points);
+      for (const LabelPoint& point : labels[i].points) points.push_back(point.world);
+      WritePointList(staged.back().first.string(), points);
     }
     for (const auto& [temporary, final_path] : staged) {
       std::filesystem::rename(temporary, final_path);

@@ -46,14 +46,14 @@ std::string Escaped(const std::string& text) {
 }
 }  // namespace
 
-bool ValidLabelName(const std::string& name, std::string* why, const char* what) {
+bool ValidLabelText(const std::string& name, LabelField field, std::string* why) {
   auto fail = [&](const std::string& reason) {
-    if (why) *why = std::string("a label ") + what + " " + reason;
+    if (why)
+      *why = std::string("a label ") + (field == LabelField::kName ? "name " : "type ") + reason;
     return false;
   };
   const std::string quoted = "'" + Escaped(name) + "'";
-  const bool is_type = std::string(what) == "type";
-  if (name.empty()) return is_type || fail("cannot be empty");
+  if (name.empty()) return field == LabelField::kType || fail("cannot be empty");
   if (name.size() > kMaxLabelNameBytes) {
     return fail("is limited to " + std::to_string(kMaxLabelNameBytes) + " bytes, " +
                 quoted.substr(0, 40) + "... has " + std::to_string(name.size()));
@@ -281,8 +281,10 @@ struct Model::Impl {
 
   void CheckLabel(const LabelRecord& label) const {
     std::string why;
-    if (!ValidLabelName(label.name, &why)) SIGHTMAP_THROW(InvalidArgument, why);
-    if (!ValidLabelName(label.type, &why, "type")) SIGHTMAP_THROW(InvalidArgument, why);
+    if (!ValidLabelText(label.name, LabelField::kName, &why) ||
+        !ValidLabelText(label.type, LabelField::kType, &why)) {
+      SIGHTMAP_THROW(InvalidArgument, why);
+    }
     if (label.points.empty()) {
       SIGHTMAP_THROW(InvalidArgument, "label '" << label.name << "' needs at least one point");
     }

@@ -141,12 +141,12 @@ struct LabelRecord {
   TimestampNs updated_ns = 0;
 };
 
-// Whether `name` can name a label (or be a label's type, with what = "type", which may also be
-// empty): it is what a person sees in lists, on the phone's page and as an exported file name, so
-// it must be 1-100 bytes with something besides spaces, no control characters (a newline or tab),
-// and no spaces around it.
-// `why` says what is wrong, quoting the name with its control characters escaped.
-bool ValidLabelName(const std::string& name, std::string* why, const char* what = "name");
+// Whether `text` can be a label's name (or its type, which may also be empty): it is what a
+// person sees in lists, on the phone's page and as an exported file name, so it must be 1-100
+// bytes with something besides spaces, no control characters (a newline or tab), and no spaces
+// around it. `why` says what is wrong, quoting the text with its control characters escaped.
+enum class LabelField { kName, kType };
+bool ValidLabelText(const std::string& text, LabelField field, std::string* why);
 
 struct ModelOptions {
   // Open without writing; the model must exist. For inspection and export.
