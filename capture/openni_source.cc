@@ -15,6 +15,7 @@
 
 #include "capture/calibration.h"
 #include "capture/depth_registration.h"
+#include "capture/frame_gaps.h"
 #include "capture/frame_pairer.h"
 #include "capture/oni_file.h"
 #include "capture/openni_runtime.h"
@@ -129,10 +130,20 @@ std::optional<std::pair<double, double>> FieldOfView(openni::VideoStream& stream
   return std::make_pair(hfov, vfov > 0.05 && vfov < 3.0 ? vfov : 0.0);
 }
 
+// OpenNI's recorders (1 and 2) number a recording's frames from 1; a live device numbers from
+// wherever its count stands.
+std::optional<int64_t> FirstFrameNumber(bool is_file) {
+  return is_file ? std::optional<int64_t>(1) : std::nullopt;
+}
+
 class OpenNiSource final : public RgbdSource {
  public:
   OpenNiSource(const std::string& location, bool is_file, const SourceOptions& options)
-      : options_(options), is_file_(is_file), pairer_(options.sync_tolerance_ns) {
+      : options_(options),
+        is_file_(is_file),
+        pairer_(options.sync_tolerance_ns),
+        depth_gaps_(FirstFrameNumber(is_file)),
+        color_gaps_(FirstFrameNumber(is_file)) {
     SIGHTMAP_CHECK_OPTIONS(options_);
     if (is_file_) oni_info_ = ReadOniFileInfo(location);
     runtime_ = OpenNiRuntime::Acquire();
@@ -175,6 +186,8 @@ class OpenNiSource final : public RgbdSource {
   SourceStats stats() const override {
     SourceStats stats = stats_;
     stats.unpaired_frames = pairer_.unpaired_depth_frames();
+    stats.missed_depth_frames = depth_gaps_.missed();
+    stats.missed_color_frames = color_gaps_.missed();
     return stats;
   }
 
@@ -187,9 +200,10 @@ class OpenNiSource final : public RgbdSource {
     while (true) {
       if (auto pair = pairer_.PopPair()) return MakeFrame(std::move(pair->first), pair->second);
       if (finished_) return std::nullopt;
-      if (is_file_ && stats_.depth_frames >= *metadata_.depth_frame_count &&
-          stats_.color_frames >= *metadata_.color_frame_count) {
-        // Every frame the file holds has been read; OpenNI2 would only time out from here on.
+      if (is_file_ && stats_.depth_frames + depth_gaps_.missed() >= *metadata_.depth_frame_count &&
+          stats_.color_frames + color_gaps_.missed() >= *metadata_.color_frame_count) {
+        // Every frame the file holds was read or passed (a replay at the recorded pace misses
+        // frames when the reader falls behind); OpenNI2 would only time out from here on.
         pairer_.Finish();
         finished_ = true;
         continue;
@@ -453,11 +467,13 @@ class OpenNiSource final : public RgbdSource {
     TimedImage image{static_cast<TimestampNs>(frame.getTimestamp()) * 1000, cv::Mat()};
     if (ready == 0) {
       ++stats_.depth_frames;
+      depth_gaps_.Add(frame.getFrameIndex());
       image.image = DepthToMat(frame);
       if (mirror_) cv::flip(image.image, image.image, 1);
       pairer_.AddDepth(std::move(image));
     } else {
       ++stats_.color_frames;
+      color_gaps_.Add(frame.getFrameIndex());
       image.image = ColorToBgr(frame);
       if (mirror_) cv::flip(image.image, image.image, 1);
       pairer_.AddColor(std::move(image));
@@ -482,6 +498,8 @@ class OpenNiSource final : public RgbdSource {
   SourceMetadata metadata_;
   SourceStats stats_;
   FramePairer pairer_;
+  FrameGaps depth_gaps_;
+  FrameGaps color_gaps_;
   bool finished_ = false;
   bool mirror_ = false;
   bool reproject_ = false;

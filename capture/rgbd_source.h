@@ -81,6 +81,10 @@ struct SourceStats {
   int64_t color_frames = 0;
   int64_t paired_frames = 0;    // frames returned by Next()
   int64_t unpaired_frames = 0;  // depth or colour frames dropped for lack of a partner in time
+  // Frames the device numbered but the reader never got: it fell behind a live sensor, or a
+  // recording played at its recorded pace, and the driver kept only the newest frame.
+  int64_t missed_depth_frames = 0;
+  int64_t missed_color_frames = 0;
 };
 
 class RgbdSource {

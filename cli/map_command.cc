@@ -46,7 +46,7 @@ class StatusLine {
     std::ostringstream line;
     if (progress.frames_total && *progress.frames_total > 0) {
       const double done = std::clamp(
-          static_cast<double>(progress.frames_read) / static_cast<double>(*progress.frames_total),
+          static_cast<double>(progress.frames_passed) / static_cast<double>(*progress.frames_total),
           0.0, 1.0);
       constexpr int kWidth = 20;
       const int filled = static_cast<int>(done * kWidth);
@@ -105,6 +105,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["keyframe_median_ms"] = summary.keyframe_median_ms;
   json["keyframe_p95_ms"] = summary.keyframe_p95_ms;
   json["dropped_frames"] = summary.dropped_frames;
+  json["unpaired_frames"] = summary.unpaired_frames;
   json["frames_read"] = summary.frames_read;
   json["frames_skipped"] = summary.frames_skipped;
   json["continued_after_s"] =
@@ -168,7 +169,9 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
   }
   out << std::setprecision(1) << "  keyframe    " << summary.keyframe_median_ms << " ms median, "
       << summary.keyframe_p95_ms << " ms p95 to map\n";
-  out << "  dropped     " << summary.dropped_frames << " frames\n";
+  out << "  dropped     " << summary.dropped_frames << " frames";
+  if (summary.unpaired_frames > 0) out << " (" << summary.unpaired_frames << " more unpaired)";
+  out << "\n";
   if (summary.ate_rmse_m) {
     out << std::setprecision(3) << "  ATE         " << *summary.ate_rmse_m << " m rmse (max "
         << *summary.ate_max_m << " m) over " << summary.ate_poses << " keyframes\n";

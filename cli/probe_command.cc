@@ -154,6 +154,8 @@ int RunProbe(int argc, char** argv) {
         {"color_frames", stats.color_frames},
         {"rgbd_frames", summary.frames},
         {"unpaired_frames", stats.unpaired_frames},
+        {"missed_depth_frames", stats.missed_depth_frames},
+        {"missed_color_frames", stats.missed_color_frames},
         {"depth_width", meta.depth_width},
         {"depth_height", meta.depth_height},
         {"color_width", meta.color_width},
@@ -192,6 +194,10 @@ int RunProbe(int argc, char** argv) {
             << meta.color_height << "\n";
   std::cout << "rgbd frames   " << summary.frames << " at " << k.width << "x" << k.height
             << " (unpaired " << stats.unpaired_frames << "), " << duration_s << " s\n";
+  if (stats.missed_depth_frames + stats.missed_color_frames > 0) {
+    std::cout << "missed        " << stats.missed_depth_frames << " depth and "
+              << stats.missed_color_frames << " colour frames (the reader fell behind)\n";
+  }
   std::cout << "intrinsics    fx " << k.fx << "  fy " << k.fy << "  cx " << k.cx << "  cy " << k.cy
             << "  (" << meta.intrinsics_origin << ")\n";
   std::cout << "registration  " << ToString(meta.registration) << "\n";

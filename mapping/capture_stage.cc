@@ -75,12 +75,19 @@ bool CaptureStage::WaitWhilePaused() {
   return true;
 }
 
+void CaptureStage::NoteSourceStats() {
+  const SourceStats stats = source_->stats();
+  source_missed_ = stats.missed_depth_frames;
+  unpaired_ = stats.unpaired_frames;
+}
+
 void CaptureStage::Run() {
   try {
     SkipCheaply();
     Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);
     while (!stop_) {
       std::optional<RgbdFrame> frame = source_->Next();
+      NoteSourceStats();
       if (!frame) break;
       ++frames_read_;
       if (BeforeStart(frame->index, frame->timestamp_ns)) {
@@ -103,6 +110,7 @@ void CaptureStage::Run() {
   } catch (const std::exception& e) {
     error_ = e.what();
   }
+  NoteSourceStats();
   frames_->Close();
 }
 

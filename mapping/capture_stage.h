@@ -61,9 +61,15 @@ class CaptureStage {
 
   // Any thread.
   int64_t frames_read() const { return frames_read_.load(); }
+  // Frames read, or missed by the source behind a live pace: how far through the source it is.
+  int64_t frames_passed() const { return frames_read_.load() + source_missed_.load(); }
   // Frames read and skipped as before the start (start_frame, after_timestamp_ns).
   int64_t frames_skipped() const { return frames_skipped_.load(); }
-  int64_t dropped_frames() const { return dropped_.load(); }
+  // Frames lost because the pipeline fell behind a live source: replaced in the driver before
+  // they were read (the source's missed depth frames), or dropped from the full frame queue.
+  int64_t dropped_frames() const { return dropped_.load() + source_missed_.load(); }
+  // Depth frames the source dropped for lack of a colour frame in time.
+  int64_t unpaired_frames() const { return unpaired_.load(); }
   // Why the source failed (its one-line error), or nothing; valid after Join().
   const std::optional<std::string>& error() const { return error_; }
 
@@ -76,6 +82,8 @@ class CaptureStage {
   bool Wanted(const RgbdFrame& frame);
   // Waits while a view pauses a replay; false when a live frame should pass by unused.
   bool WaitWhilePaused();
+  // Copies the source's own losses for other threads to read.
+  void NoteSourceStats();
 
   RgbdSource* source_;
   CaptureStageOptions options_;
@@ -86,6 +94,8 @@ class CaptureStage {
   std::atomic<int64_t> frames_read_{0};
   std::atomic<int64_t> frames_skipped_{0};
   std::atomic<int64_t> dropped_{0};
+  std::atomic<int64_t> source_missed_{0};
+  std::atomic<int64_t> unpaired_{0};
   std::optional<std::string> error_;  // written by the thread before it ends
   std::thread thread_;
 };

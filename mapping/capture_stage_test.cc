@@ -117,6 +117,43 @@ TEST(CaptureStage, ALiveSensorNeverWaitsAndTheTrackerGetsTheNewestFrames) {
   EXPECT_EQ(DrainIndices(&frames), (std::vector<int64_t>{10, 11})) << "the oldest were dropped";
 }
 
+// A source that loses every third frame before it is read, as OpenNI2 does behind a live pace.
+class MissingSource : public RgbdSource {
+ public:
+  explicit MissingSource(std::unique_ptr<RgbdSource> source) : source_(std::move(source)) {}
+  const SourceMetadata& metadata() const override { return source_->metadata(); }
+  std::optional<RgbdFrame> Next() override {
+    std::optional<RgbdFrame> frame = source_->Next();
+    if (frame && frame->index % 3 == 2) {
+      ++missed_;
+      frame = source_->Next();
+    }
+    return frame;
+  }
+  SourceStats stats() const override {
+    SourceStats stats = source_->stats();
+    stats.missed_depth_frames = missed_;
+    return stats;
+  }
+
+ private:
+  std::unique_ptr<RgbdSource> source_;
+  int64_t missed_ = 0;
+};
+
+TEST(CaptureStage, FramesTheSourceMissedCountAsDroppedAndAsPassed) {
+  MissingSource source(Walk(12));
+  BoundedQueue<RgbdFrame> frames(16);
+  CaptureStageOptions options;
+  options.live = true;
+  CaptureStage stage(&source, options, &frames);
+  stage.Join();
+  EXPECT_EQ(DrainIndices(&frames), (std::vector<int64_t>{0, 1, 3, 4, 6, 7, 9, 10}));
+  EXPECT_EQ(stage.frames_read(), 8);
+  EXPECT_EQ(stage.dropped_frames(), 4) << "none from the queue, four in the source";
+  EXPECT_EQ(stage.frames_passed(), 12);
+}
+
 TEST(CaptureStage, AFailingSourceEndsTheStreamWithItsReason) {
   testing::FailingSource source(Walk(20), 4);
   BoundedQueue<RgbdFrame> frames(8);

@@ -271,6 +271,7 @@ void Summarise(const Mapper& mapper, const MapStage& map, const TrackStage& trac
   summary->keyframe_median_ms = 1e3 * Percentile(map.keyframe_seconds(), 0.5);
   summary->keyframe_p95_ms = 1e3 * Percentile(map.keyframe_seconds(), 0.95);
   summary->dropped_frames = capture.dropped_frames();
+  summary->unpaired_frames = capture.unpaired_frames();
   summary->frames_read = capture.frames_read();
   summary->frames_skipped = capture.frames_skipped();
   summary->links_rejected_after_commit = map.links_rejected_after_commit();
@@ -309,7 +310,7 @@ MappingProgress MappingSession::Progress(const Pipeline& pipeline) const {
   progress.model_keyframes = static_cast<int64_t>(pipeline.mapper.NumKeyframes());
   progress.loops = pipeline.mapper.NumLoopClosures();
   progress.dropped_frames = pipeline.capture.dropped_frames();
-  progress.frames_read = pipeline.capture.frames_read();
+  progress.frames_passed = pipeline.capture.frames_passed();
   if (pipeline.meta.depth_frame_count) progress.frames_total = *pipeline.meta.depth_frame_count;
   progress.tracking = pipeline.mapper.tracking_state();
   progress.resumed = pipeline.resumed;

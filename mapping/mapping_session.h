@@ -106,7 +106,7 @@ struct MappingProgress {
   int64_t model_keyframes = 0;  // restored + this session's
   int64_t loops = 0;            // accepted loop closures in the map
   int64_t dropped_frames = 0;
-  int64_t frames_read = 0;
+  int64_t frames_passed = 0;            // how far through the source (CaptureStage::frames_passed)
   std::optional<int64_t> frames_total;  // when the source's length is known
   TrackingState tracking = TrackingState::kTracking;
   bool resumed = false;
@@ -142,7 +142,8 @@ struct MappingSummary {
   double track_p95_ms = 0.0;
   double keyframe_median_ms = 0.0;  // mapping time per keyframe
   double keyframe_p95_ms = 0.0;
-  int64_t dropped_frames = 0;
+  int64_t dropped_frames = 0;   // lost behind a live source (CaptureStage::dropped_frames)
+  int64_t unpaired_frames = 0;  // depth frames without a colour frame in time
   int64_t frames_read = 0;
   int64_t frames_skipped = 0;  // read before the start frame or the continued replay's start
   // The source time this session continued after (the last stored frame of the same replay) [s].
