@@ -54,18 +54,6 @@ Model OpenExisting(const std::string& path, bool read_only) {
   return Model::Open(path, options);
 }
 
-const char* SourceName(LabelPointSource source) {
-  switch (source) {
-    case LabelPointSource::kKeyframePixel:
-      return "keyframe_pixel";
-    case LabelPointSource::kImportedFile:
-      return "imported_file";
-    case LabelPointSource::kTyped:
-      return "typed";
-  }
-  return "unknown";
-}
-
 std::string FormatPoint(const Eigen::Vector3d& p) {
   std::ostringstream out;
   out << std::fixed << std::setprecision(3) << "[" << p.x() << ", " << p.y() << ", " << p.z()
@@ -87,29 +75,6 @@ void PrintImportReport(const LabelImportReport& report, const std::string& from)
     std::cout << "  replaced  " << JoinNames(report.replaced)
               << " (existing labels of these names: their points were replaced)\n";
   }
-}
-
-nlohmann::json LabelsJson(const std::vector<LabelRecord>& labels) {
-  nlohmann::json list = nlohmann::json::array();
-  for (const LabelRecord& label : labels) {
-    nlohmann::json points = nlohmann::json::array();
-    nlohmann::json sources = nlohmann::json::array();
-    for (const LabelPoint& point : label.points) {
-      points.push_back({point.world.x(), point.world.y(), point.world.z()});
-      nlohmann::json source = {{"source", SourceName(point.source)}};
-      if (point.source == LabelPointSource::kKeyframePixel) {
-        source["keyframe"] = point.keyframe.value();
-        source["pixel"] = {point.pixel.x(), point.pixel.y()};
-      }
-      if (!point.file.empty()) source["file"] = point.file;
-      sources.push_back(std::move(source));
-    }
-    list.push_back({{"name", label.name},
-                    {"type", label.type},
-                    {"points", std::move(points)},
-                    {"point_sources", std::move(sources)}});
-  }
-  return {{"labels", std::move(list)}};
 }
 
 }  // namespace
@@ -247,7 +212,7 @@ int RunLabel(int argc, char** argv) {
     const Model model = OpenExisting(model_path, /*read_only=*/true);
     const std::vector<LabelRecord> labels = model.Labels();
     if (json) {
-      std::cout << LabelsJson(labels).dump(2) << "\n";
+      std::cout << LabelsToJson(labels).dump(2) << "\n";
       return kExitSuccess;
     }
     if (labels.empty()) {

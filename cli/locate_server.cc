@@ -24,6 +24,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "cli/label_service.h"
+#include "cli/web_assets.h"
 #include "core/check.h"
 #include "core/statistics.h"
 #include "identify/photo.h"
@@ -203,6 +205,39 @@ std::string UtcNow() {
   return text;
 }
 
+// Compares in time independent of where the texts differ, so the token cannot be guessed byte by
+// byte from response times.
+bool SameSecret(const std::string& given, const std::string& secret) {
+  unsigned char differ = given.size() == secret.size() ? 0 : 1;
+  for (size_t i = 0; i < given.size(); ++i) {
+    differ |= static_cast<unsigned char>(given[i] ^ secret[i % std::max<size_t>(1, secret.size())]);
+  }
+  return differ == 0;
+}
+
+int64_t PathId(const httplib::Request& request) { return std::stoll(request.matches[1].str()); }
+
+// Runs `answer` and sends its JSON, or the ServiceError's status and message.
+template <typename Answer>
+void ReplyWith(httplib::Response& response, Answer answer) {
+  try {
+    Reply(response, 200, answer());
+  } catch (const ServiceError& e) {
+    Refuse(response, e.status(), e.what());
+  } catch (const InvalidArgument& e) {
+    Refuse(response, 400, e.what());
+  } catch (const Error& e) {
+    // The model could not be read or written: a writer holding its lock, a full disk.
+    Refuse(response, 503, std::string(e.what()) + ": try again");
+  }
+}
+
+nlohmann::json ParseBody(const httplib::Request& request) {
+  nlohmann::json body = nlohmann::json::parse(request.body, nullptr, /*allow_exceptions=*/false);
+  if (body.is_discarded()) throw ServiceError(400, "the request body is not JSON");
+  return body;
+}
+
 }  // namespace
 
 bool LocateServerOptions::Check(std::string* error) const {
@@ -223,6 +258,8 @@ bool LocateServerOptions::Check(std::string* error) const {
     why << "timeouts must be at least 1 s";
   else if (!(label_refresh_s >= 0.0))
     why << "label_refresh_s must not be negative";
+  else if (read_only && read_only_reason.empty())
+    why << "a read-only server needs a read_only_reason to give";
   if (why.tellp() == 0) return true;
   if (error != nullptr) *error = why.str();
   return false;
@@ -232,6 +269,7 @@ struct LocateServer::Impl {
   LocateServerOptions options;
   std::string model_path;
   std::unique_ptr<Locator> locator;
+  std::unique_ptr<LabelService> label_service;
   int locate_threads = 1;
   std::unique_ptr<Slots> locate_slots;
   httplib::Server server;
@@ -275,6 +313,11 @@ struct LocateServer::Impl {
   void LogRequest(const httplib::Request& request, const httplib::Response& response);
   void HandleAppliances(httplib::Response& response) const;
   void HandleHealth(httplib::Response& response) const;
+  // The pages, and what the labelling page reads and writes.
+  void AddPageRoutes();
+  void AddLabelRoutes();
+  // False with 403 (read-only) or 401 (no or a wrong token) set when `request` may not edit.
+  bool MayEdit(const httplib::Request& request, httplib::Response& response);
   size_t MaxBodyBytes() const { return static_cast<size_t>(options.max_body_mb * 1024 * 1024); }
   std::string BodyTooLarge() const {
     std::ostringstream message;
@@ -485,6 +528,98 @@ void LocateServer::Impl::HandleAppliances(httplib::Response& response) const {
   Reply(response, 200, {{"appliances", appliances}});
 }
 
+bool LocateServer::Impl::MayEdit(const httplib::Request& request, httplib::Response& response) {
+  if (options.read_only) {
+    RefuseCounted(response, 403, "this server is read-only (" + options.read_only_reason + ")");
+    return false;
+  }
+  if (options.edit_token.empty()) return true;
+  const std::string given = request.has_header("X-Sightmap-Token")
+                                ? request.get_header_value("X-Sightmap-Token")
+                                : request.get_param_value("token");
+  if (SameSecret(given, options.edit_token)) return true;
+  RefuseCounted(response, 401,
+                given.empty() ? "editing needs the token 'sightmap serve' printed at start"
+                              : "wrong edit token: use the one 'sightmap serve' printed at start");
+  return false;
+}
+
+void LocateServer::Impl::AddPageRoutes() {
+  auto page = [](const httplib::Request& request, httplib::Response& response) {
+    const std::optional<WebAsset> asset = FindWebAsset(request.path);
+    if (!asset) {
+      Refuse(response, 404, "no such page " + request.path + ": the pages are / and /label");
+      return;
+    }
+    response.set_content(asset->bytes.data(), asset->bytes.size(),
+                         std::string(asset->content_type).c_str());
+    // Embedded in this binary: a new build may change them, so browsers ask again each time.
+    response.set_header("Cache-Control", "no-cache");
+  };
+  server.Get("/", page);
+  server.Get("/index.html", page);
+  server.Get("/label", page);
+  server.Get("/label/", page);
+  server.Get(R"(/static/[A-Za-z0-9_.-]+)", page);
+}
+
+void LocateServer::Impl::AddLabelRoutes() {
+  LabelService& labels = *label_service;
+  server.Get("/api/status", [this, &labels](const httplib::Request&, httplib::Response& response) {
+    ReplyWith(response, [&] {
+      nlohmann::json status = labels.Status();
+      status["token_required"] = !options.edit_token.empty();
+      return status;
+    });
+  });
+  server.Get("/api/keyframes", [&labels](const httplib::Request&, httplib::Response& response) {
+    ReplyWith(response, [&] { return labels.Keyframes(); });
+  });
+  server.Get(R"(/api/keyframes/(\d{1,15})/image\.jpg)",
+             [&labels](const httplib::Request& request, httplib::Response& response) {
+               int max_side = 0;
+               if (request.has_param("max_side")) {
+                 const std::string text = request.get_param_value("max_side");
+                 const std::optional<uint64_t> value = ParseContentLength(text);
+                 if (!value || *value > 100000) {
+                   Refuse(response, 400, "max_side must be a number of pixels, got '" + text + "'");
+                   return;
+                 }
+                 max_side = static_cast<int>(*value);
+               }
+               try {
+                 const std::string jpeg = labels.KeyframeJpeg(PathId(request), max_side);
+                 response.set_content(jpeg, "image/jpeg");
+                 // A keyframe's image never changes once stored.
+                 response.set_header("Cache-Control", "max-age=86400");
+               } catch (const ServiceError& e) {
+                 Refuse(response, e.status(), e.what());
+               }
+             });
+  server.Get(R"(/api/keyframes/(\d{1,15})/labels)",
+             [&labels](const httplib::Request& request, httplib::Response& response) {
+               ReplyWith(response, [&] { return labels.KeyframeLabels(PathId(request)); });
+             });
+  server.Get("/api/labels", [&labels](const httplib::Request&, httplib::Response& response) {
+    ReplyWith(response, [&] { return labels.Labels(); });
+  });
+  server.Post("/api/labels",
+              [this, &labels](const httplib::Request& request, httplib::Response& response) {
+                if (!MayEdit(request, response)) return;
+                ReplyWith(response, [&] { return labels.AddPoint(ParseBody(request)); });
+              });
+  server.Patch(R"(/api/labels/(\d{1,15}))", [this, &labels](const httplib::Request& request,
+                                                            httplib::Response& response) {
+    if (!MayEdit(request, response)) return;
+    ReplyWith(response, [&] { return labels.Edit(PathId(request), ParseBody(request)); });
+  });
+  server.Delete(R"(/api/labels/(\d{1,15}))",
+                [this, &labels](const httplib::Request& request, httplib::Response& response) {
+                  if (!MayEdit(request, response)) return;
+                  ReplyWith(response, [&] { return labels.Remove(PathId(request)); });
+                });
+}
+
 void LocateServer::Impl::HandleHealth(httplib::Response& response) const {
   const double uptime_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
@@ -525,6 +660,13 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
     const Model model = Model::Open(model_path, model_options);
     impl.locator = std::make_unique<Locator>(model, locator_options);
   }
+  LabelServiceOptions label_options;
+  label_options.editable = !options.read_only;
+  label_options.read_only_reason = options.read_only_reason;
+  // An edit answers phones at once, not at the next label refresh.
+  impl.label_service = std::make_unique<LabelService>(
+      model_path, label_options,
+      [&impl](const Model& model) { impl.locator->ReloadLabels(model); });
   impl.locate_threads = options.locate_threads > 0 ? options.locate_threads : HardwareThreads();
   impl.locate_slots = std::make_unique<Slots>(impl.locate_threads);
   const int connection_threads = options.connection_threads > 0
@@ -565,6 +707,8 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   server.Get("/health", [&impl](const httplib::Request&, httplib::Response& response) {
     impl.HandleHealth(response);
   });
+  impl.AddPageRoutes();
+  impl.AddLabelRoutes();
   // httplib's own refusals (body over the limit, unknown path, wrong method) get a JSON body too.
   server.set_error_handler(httplib::Server::HandlerWithResponse(
       [&impl](const httplib::Request& request, httplib::Response& response) {
@@ -574,7 +718,8 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
           message = impl.BodyTooLarge();
         } else if (response.status == 404) {
           message = "no such endpoint " + request.method + " " + request.path +
-                    ": use POST /locate, GET /appliances or GET /health";
+                    ": the pages are / (phones) and /label; the API is POST /locate, GET "
+                    "/appliances, GET /health and /api/...";
         } else {
           message = "request refused (HTTP " + std::to_string(response.status) + ")";
         }

@@ -4,6 +4,11 @@
 //   POST /locate[?fx=&fy=&cx=&cy=]  body: a JPEG or PNG photo -> the Locator's JSON (ToJson)
 //   GET  /appliances                the model's labels with their world points
 //   GET  /health                    status, keyframes, labels, counters, request times
+//   GET  /  and  /label             the phone page and the labelling page (cli/web_assets.h)
+//   GET  /api/status | /api/keyframes | /api/keyframes/ID/image.jpg[?max_side=N]
+//        /api/keyframes/ID/labels | /api/labels          what the labelling page reads
+//   POST /api/labels, PATCH|DELETE /api/labels/ID        its edits (cli/label_service.h): 403
+//        when the server is read-only, 401 without the edit token when one is set
 //
 // The photo is the request body whatever its Content-Type, or the file field "photo" (else the
 // first file) of a multipart form. Bad uploads are answered with 4xx and {"error": "...",
@@ -44,6 +49,13 @@ struct LocateServerOptions {
   double label_refresh_s = 2.0;
   // One line per request on stderr: time, client, method, path, status, bytes, milliseconds.
   bool log_requests = true;
+  // Label edits are refused (403, with read_only_reason) and the labelling page hides its
+  // editing controls.
+  bool read_only = false;
+  std::string read_only_reason = "the server was started with --read-only";
+  // When set, label edits must carry it (header X-Sightmap-Token, or ?token=): for a server other
+  // machines can reach. Reading, and the phone page, need none.
+  std::string edit_token;
 
   bool Check(std::string* error) const;
 };

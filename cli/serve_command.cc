@@ -3,9 +3,13 @@
 // endpoints). Prints the URL it listens on (with --port 0, the port the system chose) and serves
 // until Ctrl-C or SIGTERM, then finishes the requests in hand and exits 0.
 #include <malloc.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <random>
 #include <string>
 #include <thread>
 
@@ -16,11 +20,37 @@
 #include "core/check.h"
 
 namespace sightmap::cli {
+namespace {
+
+bool IsLoopback(const std::string& host) {
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
+// Why label edits cannot be saved to `model_path` by this user, or "" when they can (SQLite also
+// writes its journal beside the file).
+std::string WhyNotWritable(const std::string& model_path) {
+  if (::access(model_path.c_str(), W_OK) != 0) return "the model file is not writable by this user";
+  const std::filesystem::path folder = std::filesystem::absolute(model_path).parent_path();
+  if (::access(folder.c_str(), W_OK) != 0) {
+    return "the model's folder is not writable by this user (SQLite writes its journal there)";
+  }
+  return "";
+}
+
+std::string MakeToken() {
+  std::random_device random;
+  char text[17];
+  std::snprintf(text, sizeof(text), "%08x%08x", random(), random());
+  return text;
+}
+
+}  // namespace
 
 int RunServe(int argc, char** argv) {
   CLI::App app(
-      "Serve appliance identification over HTTP: POST /locate (a JPEG or PNG photo; optional "
-      "?fx=&fy=&cx=&cy=), GET /appliances, GET /health.",
+      "Serve appliance identification over HTTP: the phone page at /, the labelling page at "
+      "/label, and the API: POST /locate (a JPEG or PNG photo; optional ?fx=&fy=&cx=&cy=), GET "
+      "/appliances, GET /health.",
       "sightmap serve");
   std::string model_path;
   LocateServerOptions options;
@@ -45,7 +75,23 @@ int RunServe(int argc, char** argv) {
                  "a client that stops sending or receiving for this long is dropped [s]")
       ->check(Within(1, 3600, "s"))
       ->capture_default_str();
+  app.add_flag("--read-only", options.read_only,
+               "the labelling page only shows; label edits are refused (the default when the "
+               "model file is not writable)");
+  app.add_option("--token", options.edit_token,
+                 "label edits must carry this token (made up and printed when --host is not a "
+                 "loopback address; the phone page needs none)");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (!options.read_only) {
+    const std::string why = WhyNotWritable(model_path);
+    if (!why.empty()) {
+      options.read_only = true;
+      options.read_only_reason = why;
+    }
+  }
+  if (!options.read_only && options.edit_token.empty() && !IsLoopback(options.host)) {
+    options.edit_token = MakeToken();
+  }
   options.read_timeout_s = timeout_s;
   options.write_timeout_s = timeout_s;
 
@@ -71,8 +117,19 @@ int RunServe(int argc, char** argv) {
   watcher.Start([&server] { server.Stop(); });
   std::cout << "sightmap serve: listening on http://" << options.host << ":" << server.port()
             << " (" << server.NumKeyframes() << " keyframes, " << server.NumLabels()
-            << " labels; POST /locate, GET /appliances, GET /health; Ctrl-C stops)\n"
-            << std::flush;
+            << " labels; POST /locate, GET /appliances, GET /health; Ctrl-C stops)\n";
+  const std::string url = "http://" + options.host + ":" + std::to_string(server.port());
+  std::cout << "sightmap serve: phone page " << url << "/\n";
+  if (options.read_only) {
+    std::cout << "sightmap serve: labelling page " << url
+              << "/label (read-only: " << options.read_only_reason << ")\n";
+  } else if (!options.edit_token.empty()) {
+    std::cout << "sightmap serve: labelling page " << url << "/label?token=" << options.edit_token
+              << " (edits need the token " << options.edit_token << ")\n";
+  } else {
+    std::cout << "sightmap serve: labelling page " << url << "/label\n";
+  }
+  std::cout << std::flush;
   server.Run();
   std::cout << "sightmap serve: stopped\n" << std::flush;
   return kExitSuccess;

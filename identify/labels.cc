@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <utility>
@@ -277,6 +278,129 @@ LabelImportReport ImportPointListLabels(Model& model, const std::vector<std::str
   CheckUniqueNames(labels, paths);
   const bool keep_existing_type = !type || type->empty();
   return WriteLabels(model, std::move(labels), keep_existing_type);
+}
+
+}  // namespace sightmap
+
+namespace sightmap {
+
+bool LabelViewOptions::Check(std::string* error) const {
+  if (!(max_distance_m > 0.0) || !(depth_margin_m >= 0.0) || !(depth_margin_ratio >= 0.0)) {
+    if (error) *error = "max_distance_m must be positive and the depth margins not negative";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+// `world` in the keyframe's image: its pixel and depth, or nothing when it is behind the camera,
+// outside the image or too far.
+std::optional<std::pair<Eigen::Vector2d, double>> ProjectIntoKeyframe(const KeyframeInfo& keyframe,
+                                                                      const Eigen::Vector3d& world,
+                                                                      double max_distance_m) {
+  const Eigen::Vector3d cam = keyframe.world_from_cam.inverse() * world;
+  if (!(cam.z() > 0.0) || cam.norm() > max_distance_m) return std::nullopt;
+  const Eigen::Vector2d pixel = keyframe.intrinsics.Project(cam);
+  const Intrinsics& k = keyframe.intrinsics;
+  // Pixel centres at integers: the image spans [-0.5, size - 0.5).
+  if (!(pixel.x() >= -0.5 && pixel.x() < k.width - 0.5 && pixel.y() >= -0.5 &&
+        pixel.y() < k.height - 0.5)) {
+    return std::nullopt;
+  }
+  return std::make_pair(pixel, cam.z());
+}
+
+}  // namespace
+
+std::vector<LabelInKeyframe> LabelsInKeyframe(const Model& model, KeyframeId keyframe,
+                                              const std::vector<LabelRecord>& labels,
+                                              const LabelViewOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const KeyframeInfo info = model.Keyframe(keyframe);
+  std::vector<LabelInKeyframe> seen;
+  cv::Mat depth;  // read when the first point falls in the image
+  for (const LabelRecord& label : labels) {
+    LabelInKeyframe in_view{&label, {}};
+    for (size_t p = 0; p < label.points.size(); ++p) {
+      const auto projected =
+          ProjectIntoKeyframe(info, label.points[p].world, options.max_distance_m);
+      if (!projected) continue;
+      if (depth.empty()) depth = model.LoadDepth(keyframe);
+      LabelPointInKeyframe point{p, projected->first, projected->second, false};
+      const int u = std::clamp(static_cast<int>(std::lround(point.pixel.x())), 0, depth.cols - 1);
+      const int v = std::clamp(static_cast<int>(std::lround(point.pixel.y())), 0, depth.rows - 1);
+      const double surface_m = 1e-3 * depth.at<uint16_t>(v, u);
+      point.hidden = surface_m > 0.0 && surface_m < point.depth_m - options.depth_margin_m -
+                                                        options.depth_margin_ratio * point.depth_m;
+      in_view.points.push_back(point);
+    }
+    if (!in_view.points.empty()) seen.push_back(std::move(in_view));
+  }
+  return seen;
+}
+
+std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<KeyframeInfo>& keyframes,
+                                             const LabelRecord& label, size_t max_count,
+                                             const LabelViewOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  std::vector<std::pair<double, KeyframeId>> seeing;
+  for (const KeyframeInfo& keyframe : keyframes) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const LabelPoint& point : label.points) {
+      const auto projected = ProjectIntoKeyframe(keyframe, point.world, options.max_distance_m);
+      if (projected) nearest = std::min(nearest, projected->second);
+    }
+    if (std::isfinite(nearest)) seeing.emplace_back(nearest, keyframe.id);
+  }
+  std::stable_sort(seeing.begin(), seeing.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<KeyframeId> ids;
+  for (size_t i = 0; i < seeing.size() && i < max_count; ++i) ids.push_back(seeing[i].second);
+  return ids;
+}
+
+}  // namespace sightmap
+
+namespace sightmap {
+namespace {
+
+const char* SourceName(LabelPointSource source) {
+  switch (source) {
+    case LabelPointSource::kKeyframePixel:
+      return "keyframe_pixel";
+    case LabelPointSource::kImportedFile:
+      return "imported_file";
+    case LabelPointSource::kTyped:
+      return "typed";
+  }
+  return "unknown";
+}
+
+}  // namespace
+
+nlohmann::json LabelsToJson(const std::vector<LabelRecord>& labels) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const LabelRecord& label : labels) {
+    nlohmann::json points = nlohmann::json::array();
+    nlohmann::json sources = nlohmann::json::array();
+    for (const LabelPoint& point : label.points) {
+      points.push_back({point.world.x(), point.world.y(), point.world.z()});
+      nlohmann::json source = {{"source", SourceName(point.source)}};
+      if (point.source == LabelPointSource::kKeyframePixel) {
+        source["keyframe"] = point.keyframe.value();
+        source["pixel"] = {point.pixel.x(), point.pixel.y()};
+      }
+      if (!point.file.empty()) source["file"] = point.file;
+      sources.push_back(std::move(source));
+    }
+    list.push_back({{"id", label.id.value()},
+                    {"name", label.name},
+                    {"type", label.type},
+                    {"points", std::move(points)},
+                    {"point_sources", std::move(sources)}});
+  }
+  return {{"labels", std::move(list)}};
 }
 
 }  // namespace sightmap

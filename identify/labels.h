@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
 #include "store/model.h"
 
@@ -44,6 +45,45 @@ PixelLabelPoint LabelPointFromPixel(const Model& model, KeyframeId keyframe,
 
 // A point typed in world coordinates [m] (source kTyped).
 LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world);
+
+// A label's points as one keyframe sees them, for drawing them on its image.
+struct LabelPointInKeyframe {
+  size_t point_index = 0;  // in LabelRecord::points
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
+  double depth_m = 0.0;  // along the keyframe's optical axis
+  // The keyframe's own depth shows a surface in front of the point: it is behind something.
+  bool hidden = false;
+};
+struct LabelInKeyframe {
+  const LabelRecord* label = nullptr;  // into the labels given
+  std::vector<LabelPointInKeyframe> points;
+};
+
+struct LabelViewOptions {
+  double max_distance_m = 8.0;  // points further from the camera are not drawn [m]
+  // A point is hidden when the keyframe's depth at its pixel is nearer by more than this plus
+  // depth_margin_ratio x its depth (Kinect-class noise grows with depth) [m].
+  double depth_margin_m = 0.10;
+  double depth_margin_ratio = 0.05;
+
+  bool Check(std::string* error) const;
+};
+
+// The labels with a point in `keyframe`'s image, in front of it and within max_distance_m, with
+// those points' pixels; hidden ones marked through the keyframe's depth image (one read).
+std::vector<LabelInKeyframe> LabelsInKeyframe(const Model& model, KeyframeId keyframe,
+                                              const std::vector<LabelRecord>& labels,
+                                              const LabelViewOptions& options = {});
+
+// Keyframes with one of `label`'s points in their image (in front, within max_distance_m; no
+// occlusion test, no image read), nearest first, at most `max_count`.
+std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<KeyframeInfo>& keyframes,
+                                             const LabelRecord& label, size_t max_count,
+                                             const LabelViewOptions& options = {});
+
+// {"labels": [{"id", "name", "type", "points": [[x, y, z]], "point_sources": [{"source",
+// "keyframe"?, "pixel"?, "file"?}]}]}: `sightmap label list --json` and the server's /api/labels.
+nlohmann::json LabelsToJson(const std::vector<LabelRecord>& labels);
 
 // The type a label gets when none is given.
 inline constexpr const char* kDefaultLabelType = "appliance";

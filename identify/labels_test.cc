@@ -129,6 +129,44 @@ TEST(LabelPointFromPixel, ClearErrors) {
                InvalidArgument);
 }
 
+// The keyframe's depth is 2 m at pixel (100, 80) and 0.5 m at (200, 150); a label point 1.5 m out
+// along each ray is seen at the first and hidden at the second.
+TEST(LabelsInKeyframe, ProjectsPointsAndMarksThoseBehindTheKeyframesSurface) {
+  Fixture f;
+  AddKeyframe(&f, [](cv::Mat& depth) {
+    depth.at<uint16_t>(80, 100) = 2000;
+    depth.at<uint16_t>(150, 200) = 500;
+  });
+  auto world_at = [&](double u, double v, double z) {
+    const Eigen::Vector3d cam((u - f.intrinsics.cx) / f.intrinsics.fx * z,
+                              (v - f.intrinsics.cy) / f.intrinsics.fy * z, z);
+    return Eigen::Vector3d(f.world_from_cam * cam);
+  };
+  const std::vector<LabelRecord> labels = {
+      {LabelId(),
+       "lamp",
+       "lamp",
+       {LabelPointFromWorld(world_at(100, 80, 1.5)), LabelPointFromWorld(world_at(200, 150, 1.5)),
+        LabelPointFromWorld(f.world_from_cam * Eigen::Vector3d(0, 0, -1.0))}},
+      {LabelId(), "far", "appliance", {LabelPointFromWorld(world_at(100, 80, 9.0))}},
+  };
+  const std::vector<LabelInKeyframe> seen = LabelsInKeyframe(f.model, f.keyframe, labels);
+  ASSERT_EQ(seen.size(), 1u) << "the far label is beyond 8 m";
+  EXPECT_EQ(seen[0].label, &labels[0]);
+  ASSERT_EQ(seen[0].points.size(), 2u) << "the point behind the camera is not drawn";
+  EXPECT_EQ(seen[0].points[0].point_index, 0u);
+  EXPECT_LT((seen[0].points[0].pixel - Eigen::Vector2d(100, 80)).norm(), 1e-6);
+  EXPECT_NEAR(seen[0].points[0].depth_m, 1.5, 1e-9);
+  EXPECT_FALSE(seen[0].points[0].hidden);
+  EXPECT_EQ(seen[0].points[1].point_index, 1u);
+  EXPECT_TRUE(seen[0].points[1].hidden);
+
+  const std::vector<KeyframeInfo> keyframes = f.model.Keyframes();
+  EXPECT_EQ(KeyframesSeeingLabel(keyframes, labels[0], 5), std::vector<KeyframeId>{f.keyframe});
+  EXPECT_TRUE(KeyframesSeeingLabel(keyframes, labels[1], 5).empty());
+  EXPECT_TRUE(KeyframesSeeingLabel(keyframes, labels[0], 0).empty());
+}
+
 TEST(Labels, APixelLabelFollowsItsKeyframeAfterUpdatePoses) {
   Fixture f;
   AddKeyframe(&f, [](cv::Mat&) {});

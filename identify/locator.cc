@@ -606,13 +606,14 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   const LocatorOptions& options = impl_->options;
   LocateResult result;
   result.intrinsics_source = intrinsics ? source : IntrinsicsSource::kEstimated;
-  auto finish = [&](std::string reason) {
+  auto finish = [&](UnmatchedReason code, std::string reason) {
     result.matched = false;
+    result.reason_code = code;
     result.reason = std::move(reason);
     result.timings.total_ms = MsSince(start);
     return result;
   };
-  if (photo.empty()) return finish("the photo is empty.");
+  if (photo.empty()) return finish(UnmatchedReason::kEmptyPhoto, "the photo is empty.");
   SIGHTMAP_CHECK(photo.depth() == CV_8U &&
                      (photo.channels() == 1 || photo.channels() == 3 || photo.channels() == 4),
                  "a photo must be 8-bit grey, BGR or BGRA");
@@ -662,7 +663,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     std::ostringstream why;
     why << "the photo has only " << features.size() << " features (at least " << options.min_inliers
         << " needed): it is blank, blurred or too dark.";
-    return finish(why.str());
+    return finish(UnmatchedReason::kFewFeatures, why.str());
   }
 
   // Retrieval through the inverted index.
@@ -670,7 +671,8 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   const std::vector<PlaceCandidate> candidates = impl_->Retrieve(features.descriptors);
   result.timings.retrieval_ms = MsSince(stage);
   if (candidates.empty()) {
-    return finish("no keyframe of the model shares a visual word with the photo.");
+    return finish(UnmatchedReason::kUnknownPlace,
+                  "no keyframe of the model shares a visual word with the photo.");
   }
 
   std::vector<cv::Point2f> photo_points(features.size());
@@ -899,12 +901,14 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
         << runner_up_inliers << " inliers, " << std::fixed << std::setprecision(1)
         << (best.world_from_cam.translation() - runner_up_pose.translation()).norm()
         << " m apart): the view is ambiguous.";
-    return finish(why.str());
+    return finish(UnmatchedReason::kAmbiguous, why.str());
   }
 
   if (!best.valid) {
     std::ostringstream why;
+    UnmatchedReason code = UnmatchedReason::kFewMatches;
     if (rejected_rotation_deg > 0.0) {
+      code = UnmatchedReason::kUnseenView;
       why << "the best pose (" << most_inliers_rejected << " inliers) turns "
           << std::lround(rejected_rotation_deg) << " deg from its keyframe (at most "
           << options.max_rotation_from_keyframe_deg << " allowed).";
@@ -912,13 +916,14 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       why << "none of " << result.candidates_tried
           << " retrieved places gave a pose: " << most_inliers_rejected << " PnP inliers at best";
       if (rejected_cells >= 0 && most_inliers_rejected >= options.min_inliers) {
+        code = UnmatchedReason::kMatchesInOneCorner;
         why << " but in " << rejected_cells << " cells of the photo (" << options.min_inlier_cells
             << " needed).";
       } else {
         why << ", " << options.min_inliers << " needed.";
       }
     }
-    return finish(why.str());
+    return finish(code, why.str());
   }
 
   result.matched = true;
@@ -938,10 +943,63 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   return result;
 }
 
+const char* ToString(UnmatchedReason reason) {
+  switch (reason) {
+    case UnmatchedReason::kNone:
+      return "none";
+    case UnmatchedReason::kEmptyPhoto:
+      return "empty_photo";
+    case UnmatchedReason::kFewFeatures:
+      return "few_features";
+    case UnmatchedReason::kUnknownPlace:
+      return "unknown_place";
+    case UnmatchedReason::kAmbiguous:
+      return "ambiguous";
+    case UnmatchedReason::kUnseenView:
+      return "unseen_view";
+    case UnmatchedReason::kFewMatches:
+      return "few_matches";
+    case UnmatchedReason::kMatchesInOneCorner:
+      return "matches_in_one_corner";
+  }
+  return "unknown";
+}
+
+const char* Advice(UnmatchedReason reason) {
+  switch (reason) {
+    case UnmatchedReason::kNone:
+      return "";
+    case UnmatchedReason::kEmptyPhoto:
+      return "The photo is empty: take it again.";
+    case UnmatchedReason::kFewFeatures:
+      return "The photo shows too little detail (blank, blurred or dark): hold the phone still, "
+             "turn on the light or include more of the room.";
+    case UnmatchedReason::kUnknownPlace:
+      return "Nothing in the photo looks like the mapped rooms: is this a mapped floor? Step back "
+             "and include more of the room.";
+    case UnmatchedReason::kAmbiguous:
+      return "Two places look alike in this photo: include something that tells them apart, such "
+             "as a door, a window or a poster.";
+    case UnmatchedReason::kUnseenView:
+      return "This view of the room was not seen while mapping: take the photo from where people "
+             "usually stand, or have this part of the room mapped.";
+    case UnmatchedReason::kFewMatches:
+      return "Too few details matched: step back or include more of the room.";
+    case UnmatchedReason::kMatchesInOneCorner:
+      return "Only a small part of the photo matched: step back so that more of the room is in "
+             "the picture.";
+  }
+  return "";
+}
+
 nlohmann::json ToJson(const LocateResult& result) {
   nlohmann::json out;
   out["matched"] = result.matched;
-  if (!result.matched) out["reason"] = result.reason;
+  if (!result.matched) {
+    out["reason"] = result.reason;
+    out["reason_code"] = ToString(result.reason_code);
+    out["advice"] = Advice(result.reason_code);
+  }
   if (result.matched) {
     const Eigen::Vector3d t = result.world_from_cam.translation();
     const Eigen::Quaterniond q(result.world_from_cam.linear());
@@ -968,7 +1026,8 @@ nlohmann::json ToJson(const LocateResult& result) {
                           {"type", appliance.type},
                           {"pixel", {appliance.pixel.x(), appliance.pixel.y()}},
                           {"distance_m", appliance.distance_m},
-                          {"visible", !appliance.occluded}});
+                          {"visible", !appliance.occluded},
+                          {"visible_share", appliance.visible_share}});
   }
   out["appliances"] = appliances;
   out["candidates_tried"] = result.candidates_tried;

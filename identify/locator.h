@@ -129,6 +129,9 @@ struct ApplianceInView {
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // centre of its visible points, photo pixels
   double distance_m = 0.0;                          // camera to the nearest point [m]
   bool occluded = false;  // in the view cone but hidden behind a model surface
+  // Share of the label's points inside the photo and not hidden: below 1 the appliance is partly
+  // in view (cut by the photo's edge, or partly behind something).
+  double visible_share = 1.0;
 };
 
 // Time spent per stage [ms].
@@ -141,9 +144,26 @@ struct LocateTimings {
   double total_ms = 0.0;
 };
 
+// Why a photo was not matched, in classes a client can explain to the person holding the phone.
+enum class UnmatchedReason {
+  kNone,                // matched
+  kEmptyPhoto,          // no pixels
+  kFewFeatures,         // blank, blurred or dark
+  kUnknownPlace,        // nothing in it looks like any keyframe
+  kAmbiguous,           // two places fit about as well
+  kUnseenView,          // the best pose turns too far from every keyframe that saw the place
+  kFewMatches,          // too few details agree on a pose
+  kMatchesInOneCorner,  // enough details agree, but in one small part of the photo
+};
+// "few_features", ...: stable names for JSON.
+const char* ToString(UnmatchedReason reason);
+// One sentence for a person, not an engineer: what went wrong and what to do about it.
+const char* Advice(UnmatchedReason reason);
+
 struct LocateResult {
   bool matched = false;
-  std::string reason;  // why not, when not matched (one sentence)
+  std::string reason;  // why not, when not matched (one sentence, with the figures)
+  UnmatchedReason reason_code = UnmatchedReason::kNone;
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   int inliers = 0;
   int matches = 0;        // 2D-3D matches of the winning candidate
@@ -165,10 +185,10 @@ struct LocateResult {
   int photo_features = 0;
 };
 
-// The answer's JSON: {"matched", "reason"?, "pose": {"world_from_cam": {"position",
-// "quaternion_xyzw"}}, "inliers", "matches", "keyframe", "intrinsics": {"fx","fy","cx","cy",
-// "width","height","source"}, "appliances": [{"name","type","pixel":[u,v],"distance_m",
-// "visible"}], "timings_ms": {...}}.
+// The answer's JSON: {"matched", "reason"?, "reason_code"?, "advice"?, "pose": {"world_from_cam":
+// {"position", "quaternion_xyzw"}}, "inliers", "matches", "keyframe", "intrinsics":
+// {"fx","fy","cx","cy", "width","height","source"}, "appliances":
+// [{"name","type","pixel":[u,v],"distance_m", "visible","visible_share"}], "timings_ms": {...}}.
 nlohmann::json ToJson(const LocateResult& result);
 
 class Locator {

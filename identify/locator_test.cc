@@ -156,16 +156,21 @@ TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
   const LocateResult noisy = locator_->Locate(noise, phone);
   EXPECT_FALSE(noisy.matched);
   EXPECT_FALSE(noisy.reason.empty());
-  std::printf("noise: %s\n", noisy.reason.c_str());
+  EXPECT_NE(noisy.reason_code, UnmatchedReason::kNone);
+  std::printf("noise: %s (%s)\n", noisy.reason.c_str(), ToString(noisy.reason_code));
 
   const cv::Mat blank(960, 1280, CV_8UC3, cv::Scalar(200, 205, 210));
   const LocateResult wall = locator_->Locate(blank, std::nullopt);
   EXPECT_FALSE(wall.matched);
   EXPECT_NE(wall.reason.find("features"), std::string::npos) << wall.reason;
+  EXPECT_EQ(wall.reason_code, UnmatchedReason::kFewFeatures);
+  EXPECT_NE(std::string(Advice(wall.reason_code)).find("too little detail"), std::string::npos);
   EXPECT_EQ(wall.intrinsics_source, IntrinsicsSource::kEstimated);
   EXPECT_TRUE(wall.appliances.empty());
 
-  EXPECT_FALSE(locator_->Locate(cv::Mat(), phone).matched);
+  const LocateResult empty = locator_->Locate(cv::Mat(), phone);
+  EXPECT_FALSE(empty.matched);
+  EXPECT_EQ(empty.reason_code, UnmatchedReason::kEmptyPhoto);
 }
 
 TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
@@ -315,7 +320,7 @@ TEST_F(LocatorTest, JsonHasTheDocumentedKeys) {
     EXPECT_TRUE(json["timings_ms"].contains(key)) << key;
   }
   for (const nlohmann::json& appliance : json["appliances"]) {
-    for (const char* key : {"name", "type", "pixel", "distance_m", "visible"}) {
+    for (const char* key : {"name", "type", "pixel", "distance_m", "visible", "visible_share"}) {
       EXPECT_TRUE(appliance.contains(key)) << key;
     }
     EXPECT_EQ(appliance["pixel"].size(), 2u);
@@ -324,6 +329,8 @@ TEST_F(LocatorTest, JsonHasTheDocumentedKeys) {
   const nlohmann::json unmatched = ToJson(locator_->Locate(cv::Mat(), std::nullopt));
   EXPECT_FALSE(unmatched["matched"].get<bool>());
   EXPECT_TRUE(unmatched["reason"].is_string());
+  EXPECT_EQ(unmatched["reason_code"], "empty_photo");
+  EXPECT_EQ(unmatched["advice"], Advice(UnmatchedReason::kEmptyPhoto));
   EXPECT_EQ(unmatched["intrinsics"]["source"], "estimated");
 }
 
@@ -439,6 +446,8 @@ TEST_F(VisibilityTest, BehindTheWallIsOccludedOutsideIsNotListedInPlainViewIsVis
   EXPECT_TRUE(result[1].occluded);
   EXPECT_FALSE(result[2].occluded);
   EXPECT_TRUE(result[3].occluded);
+  EXPECT_DOUBLE_EQ(result[0].visible_share, 1.0);
+  EXPECT_DOUBLE_EQ(result[1].visible_share, 0.0);
   const Eigen::Vector2d expected = intrinsics_.Project({0.5, -0.3, 1.5});
   EXPECT_LE((result[0].pixel - expected).norm(), 1e-6);
   EXPECT_NEAR(result[0].distance_m, Eigen::Vector3d(0.5, -0.3, 1.5).norm(), 1e-9);
@@ -449,6 +458,20 @@ TEST_F(VisibilityTest, BehindTheWallIsOccludedOutsideIsNotListedInPlainViewIsVis
       labels, nullptr, intrinsics_, Eigen::Isometry3d::Identity(), VisibilityOptions());
   ASSERT_EQ(bare.size(), 4u);
   for (const ApplianceInView& appliance : bare) EXPECT_FALSE(appliance.occluded);
+}
+
+TEST_F(VisibilityTest, AnApplianceCutByThePhotosEdgeIsPartlyInViewAtItsVisiblePoint) {
+  const std::vector<LabelRecord> labels = {
+      Label("half_out", {{0.5, -0.3, 1.5}, {10.0, 0.0, 2.0}}),
+      Label("mostly_out", {{0.5, -0.3, 1.5}, {10.0, 0.0, 2.0}, {-10.0, 0.0, 2.0}}),
+  };
+  const std::vector<ApplianceInView> result = AppliancesInView(
+      labels, &cloud_, intrinsics_, Eigen::Isometry3d::Identity(), VisibilityOptions());
+  ASSERT_EQ(result.size(), 1u) << "a third in the photo is under min_in_view_share";
+  EXPECT_EQ(result[0].name, "half_out");
+  EXPECT_FALSE(result[0].occluded);
+  EXPECT_DOUBLE_EQ(result[0].visible_share, 0.5);
+  EXPECT_LE((result[0].pixel - intrinsics_.Project({0.5, -0.3, 1.5})).norm(), 1e-6);
 }
 
 TEST_F(VisibilityTest, APoseMovesTheViewAndPixelsAreTheVisiblePointsCentre) {

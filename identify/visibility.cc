@@ -241,6 +241,8 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& la
     appliance.type = label.type;
     appliance.distance_m = nearest;
     appliance.occluded = unoccluded < options.min_unoccluded_share * in_view;
+    appliance.visible_share =
+        static_cast<double>(unoccluded) / static_cast<double>(label.points.size());
     appliance.pixel =
         appliance.occluded || unoccluded == 0 ? sum_in_view / in_view : sum_visible / unoccluded;
     result.push_back(std::move(appliance));

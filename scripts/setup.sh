@@ -19,6 +19,7 @@ packages=(
   libcpp-httplib-dev                        # the HTTP server phones talk to (sightmap serve)
   libexif-dev                               # a photo's focal length from its EXIF (sightmap locate)
   xvfb xauth                                # a virtual display for the preview's tests
+  chromium chromium-driver python3-selenium # the web pages' tests in a real headless browser
   opencv-doc                                # real photographs the simulator textures its scene with
   libgtest-dev libbenchmark-dev             # tests and benchmarks
   clang-14 libclang-rt-14-dev libfuzzer-14-dev  # the fuzzers (fuzz/, scripts/fuzz.sh)
