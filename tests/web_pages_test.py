@@ -21,6 +21,7 @@ Usage: web_pages_test.py SIGHTMAP_BINARY OUT_DIR. Exits 77 (skipped) when Chromi
 Selenium is missing, unless CI=true, where that is a failure.
 """
 
+import base64
 import json
 import os
 import re
@@ -145,13 +146,18 @@ def build_model(sightmap, work):
     model = os.path.join(work, "model.db")
     run(sightmap, "sim", "generate", "--session", "2", "--seed", "7", "--frames", "0",
         "--queries", "12", "--out", photos)
+    # The same photos as a phone's camera takes them, larger than the server matches at.
+    run(sightmap, "sim", "generate", "--session", "2", "--seed", "7", "--frames", "0",
+        "--queries", "6", "--query-size", "2560x1920", "--out", os.path.join(work, "big"))
     run(sightmap, "map", "--source", "sim:office?seed=7&fps=1&frames=90", "--ground-truth-poses",
         "--model", model, "--headless")
     run(sightmap, "label", "import", "--model", model, "--from-scene",
         os.path.join(photos, "appliances.json"))
-    return model, sorted(os.path.join(photos, "queries", name)
-                         for name in os.listdir(os.path.join(photos, "queries"))
-                         if name.endswith(".jpg"))
+    def jpegs(folder):
+        queries = os.path.join(folder, "queries")
+        return sorted(os.path.join(queries, name) for name in os.listdir(queries)
+                      if name.endswith(".jpg"))
+    return model, jpegs(photos), jpegs(os.path.join(work, "big"))
 
 
 def locate_answers(sightmap, model, photos):
@@ -169,7 +175,7 @@ def upload(browser, photo):
     return state
 
 
-def test_phone_page(browser, server, answers, out_dir):
+def test_phone_page(browser, server, sightmap, model, answers, big_photos, out_dir):
     browser.get(server.url + "/")
     matched = [p for p, a in answers.items() if a["matched"] and a["appliances"]]
     unmatched = [p for p, a in answers.items() if not a["matched"]]
@@ -214,6 +220,37 @@ def test_phone_page(browser, server, answers, out_dir):
     expect("No building system" in browser.find_element(By.ID, "details-actions-why").text,
            "the disabled actions must say why")
     browser.save_screenshot(os.path.join(out_dir, "phone-details.png"))
+
+    # Photos larger than the server needs are downscaled by the page before they are sent: what
+    # it shows must be `locate --json` on the very bytes it sent, and at least one must match.
+    matched_big = 0
+    for index, photo in enumerate(big_photos):
+        upload(browser, photo)
+        sent = browser.execute_script("return document.body.dataset.upload")
+        size, sent_bytes = sent.split()[:2]
+        expect(size == "1280x960" and int(sent_bytes) < os.path.getsize(photo),
+               f"the page sent {sent} of a 2560x1920 photo")
+        encoded = browser.execute_async_script(
+            "const done = arguments[arguments.length - 1];"
+            "const reader = new FileReader();"
+            "reader.onload = () => done(reader.result.split(',')[1]);"
+            "reader.readAsDataURL(window.sightmapLastUpload);")
+        sent_path = os.path.join(os.path.dirname(photo), f"sent-{index}.jpg")
+        with open(sent_path, "wb") as file:
+            file.write(base64.b64decode(encoded))
+        expected = json.loads(run(sightmap, "locate", "--model", model, sent_path, "--json"))
+        shown = [item.get_attribute("data-name") for item in
+                 browser.find_elements(By.CSS_SELECTOR, "#appliances li")]
+        expect(shown == [a["name"] for a in expected["appliances"]],
+               f"{os.path.basename(photo)} downscaled: the page shows {shown}, locate on the "
+               f"sent bytes {[a['name'] for a in expected['appliances']]}")
+        print(f"phone page: 2560x1920 {os.path.basename(photo)} sent as {size} "
+              f"({int(sent_bytes) // 1024} of {os.path.getsize(photo) // 1024} KB) -> {shown}")
+        if expected["matched"] and shown:
+            matched_big += 1
+            if matched_big == 2:
+                break
+    expect(matched_big >= 1, "no downscaled photo matched")
 
     # An unmatched photo says why in words a person understands.
     if unmatched:
@@ -355,11 +392,11 @@ def main():
     browser = None
     server = None
     try:
-        model, photos = build_model(sightmap, work)
+        model, photos, big_photos = build_model(sightmap, work)
         answers = locate_answers(sightmap, model, photos)
         server = Server(sightmap, "--model", model)
         browser = make_browser()
-        test_phone_page(browser, server, answers, out_dir)
+        test_phone_page(browser, server, sightmap, model, answers, big_photos, out_dir)
         test_label_page(browser, server, sightmap, model, work, out_dir)
         server.stop()
         server = None

@@ -87,18 +87,31 @@ async function preparePhoto(file) {
   const scale = Math.min(1, MAX_SIDE_PX / longer);
   const width = Math.round(bitmap.width * scale);
   const height = Math.round(bitmap.height * scale);
+  // A high-quality (area-averaging) resize: a plain bilinear one blurs and aliases the fine
+  // detail the matcher needs, and photos that match at full size stop matching.
+  let small;
+  try {
+    small = await createImageBitmap(file, {
+      imageOrientation: 'from-image', resizeWidth: width, resizeHeight: height,
+      resizeQuality: 'high'});
+  } catch (error) {  // a browser without resize options: its best canvas smoothing instead
+    small = bitmap;
+  }
   const canvas = document.createElement('canvas');
   canvas.width = width;
   canvas.height = height;
-  canvas.getContext('2d').drawImage(bitmap, 0, 0, width, height);
-  const body = await new Promise((resolve) => canvas.toBlob(resolve, 'image/jpeg', 0.9));
+  const context = canvas.getContext('2d');
+  context.imageSmoothingQuality = 'high';
+  context.drawImage(small, 0, 0, width, height);
+  if (small === bitmap) small = await createImageBitmap(canvas);
+  const body = await new Promise((resolve) => canvas.toBlob(resolve, 'image/jpeg', 0.92));
   let query = '';
   const focal = focal35mm(await file.arrayBuffer());
   if (focal) {
     const f = focal * Math.hypot(width, height) / FILM_DIAGONAL_MM;
     query = `?fx=${f}&fy=${f}&cx=${(width - 1) / 2}&cy=${(height - 1) / 2}`;
   }
-  return {body, query, bitmap: await createImageBitmap(canvas)};
+  return {body, query, bitmap: small};
 }
 
 function visibilityOf(appliance) {
@@ -247,6 +260,10 @@ async function locate(file) {
     return;
   }
   setStatus(`Locating the photo (${Math.round(prepared.body.size / 1024)} KB)…`);
+  // What was sent, for whoever needs to reproduce an answer (the browser test does).
+  document.body.dataset.upload =
+      `${prepared.bitmap.width}x${prepared.bitmap.height} ${prepared.body.size}${prepared.query}`;
+  window.sightmapLastUpload = prepared.body;
   const start = performance.now();
   let answer;
   try {
