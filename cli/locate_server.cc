@@ -106,7 +106,9 @@ class Slots {
 
 void Reply(httplib::Response& response, int status, const nlohmann::json& body) {
   response.status = status;
-  response.set_content(body.dump(), kJson);
+  // Messages quote what the client sent ("fx=3\xff is not a number"): bytes that are not UTF-8
+  // become U+FFFD instead of failing the answer (the fuzzer found that 500).
+  response.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), kJson);
 }
 
 void Refuse(httplib::Response& response, int status, const std::string& message) {
@@ -217,19 +219,22 @@ bool SameSecret(const std::string& given, const std::string& secret) {
 
 int64_t PathId(const httplib::Request& request) { return std::stoll(request.matches[1].str()); }
 
-// Runs `answer` and sends its JSON, or the ServiceError's status and message.
+// Runs `answer` and sends its JSON, or the ServiceError's status and message (counted in
+// `refused`).
 template <typename Answer>
-void ReplyWith(httplib::Response& response, Answer answer) {
+void ReplyWith(httplib::Response& response, std::atomic<int64_t>& refused, Answer answer) {
   try {
     Reply(response, 200, answer());
+    return;
   } catch (const ServiceError& e) {
     Refuse(response, e.status(), e.what());
   } catch (const InvalidArgument& e) {
     Refuse(response, 400, e.what());
   } catch (const Error& e) {
-    // The model could not be read or written: a writer holding its lock, a full disk.
-    Refuse(response, 503, std::string(e.what()) + ": try again");
+    // The model could not be read or written: another writer holding it, a full disk.
+    Refuse(response, 503, std::string(e.what()) + " (then try again)");
   }
+  ++refused;
 }
 
 nlohmann::json ParseBody(const httplib::Request& request) {
@@ -566,23 +571,25 @@ void LocateServer::Impl::AddPageRoutes() {
 void LocateServer::Impl::AddLabelRoutes() {
   LabelService& labels = *label_service;
   server.Get("/api/status", [this, &labels](const httplib::Request&, httplib::Response& response) {
-    ReplyWith(response, [&] {
+    ReplyWith(response, refused, [&] {
       nlohmann::json status = labels.Status();
       status["token_required"] = !options.edit_token.empty();
       return status;
     });
   });
-  server.Get("/api/keyframes", [&labels](const httplib::Request&, httplib::Response& response) {
-    ReplyWith(response, [&] { return labels.Keyframes(); });
-  });
+  server.Get("/api/keyframes",
+             [this, &labels](const httplib::Request&, httplib::Response& response) {
+               ReplyWith(response, refused, [&] { return labels.Keyframes(); });
+             });
   server.Get(R"(/api/keyframes/(\d{1,15})/image\.jpg)",
-             [&labels](const httplib::Request& request, httplib::Response& response) {
+             [this, &labels](const httplib::Request& request, httplib::Response& response) {
                int max_side = 0;
                if (request.has_param("max_side")) {
                  const std::string text = request.get_param_value("max_side");
                  const std::optional<uint64_t> value = ParseContentLength(text);
                  if (!value || *value > 100000) {
-                   Refuse(response, 400, "max_side must be a number of pixels, got '" + text + "'");
+                   RefuseCounted(response, 400,
+                                 "max_side must be a number of pixels, got '" + text + "'");
                    return;
                  }
                  max_side = static_cast<int>(*value);
@@ -593,30 +600,30 @@ void LocateServer::Impl::AddLabelRoutes() {
                  // A keyframe's image never changes once stored.
                  response.set_header("Cache-Control", "max-age=86400");
                } catch (const ServiceError& e) {
-                 Refuse(response, e.status(), e.what());
+                 RefuseCounted(response, e.status(), e.what());
                }
              });
   server.Get(R"(/api/keyframes/(\d{1,15})/labels)",
-             [&labels](const httplib::Request& request, httplib::Response& response) {
-               ReplyWith(response, [&] { return labels.KeyframeLabels(PathId(request)); });
+             [this, &labels](const httplib::Request& request, httplib::Response& response) {
+               ReplyWith(response, refused, [&] { return labels.KeyframeLabels(PathId(request)); });
              });
-  server.Get("/api/labels", [&labels](const httplib::Request&, httplib::Response& response) {
-    ReplyWith(response, [&] { return labels.Labels(); });
+  server.Get("/api/labels", [this, &labels](const httplib::Request&, httplib::Response& response) {
+    ReplyWith(response, refused, [&] { return labels.Labels(); });
   });
   server.Post("/api/labels",
               [this, &labels](const httplib::Request& request, httplib::Response& response) {
                 if (!MayEdit(request, response)) return;
-                ReplyWith(response, [&] { return labels.AddPoint(ParseBody(request)); });
+                ReplyWith(response, refused, [&] { return labels.AddPoint(ParseBody(request)); });
               });
   server.Patch(R"(/api/labels/(\d{1,15}))", [this, &labels](const httplib::Request& request,
                                                             httplib::Response& response) {
     if (!MayEdit(request, response)) return;
-    ReplyWith(response, [&] { return labels.Edit(PathId(request), ParseBody(request)); });
+    ReplyWith(response, refused, [&] { return labels.Edit(PathId(request), ParseBody(request)); });
   });
   server.Delete(R"(/api/labels/(\d{1,15}))",
                 [this, &labels](const httplib::Request& request, httplib::Response& response) {
                   if (!MayEdit(request, response)) return;
-                  ReplyWith(response, [&] { return labels.Remove(PathId(request)); });
+                  ReplyWith(response, refused, [&] { return labels.Remove(PathId(request)); });
                 });
 }
 

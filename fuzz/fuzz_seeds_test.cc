@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -97,6 +98,16 @@ TEST(FuzzSeeds, PointLists) {
   EXPECT_EQ(ReadPointList(dir + "/written.txt").size(), 2u);
 }
 
+TEST(FuzzSeeds, LabelRequests) {
+  const std::string dir = SeedDir("label_request");
+  fuzz::WriteFile(
+      dir + "/add",
+      R"({"name": "projector 1", "type": "projector", "keyframe": 1, "pixel": [20, 30]})");
+  fuzz::WriteFile(dir + "/rename", R"({"name": "desk lamp", "type": "lamp"})");
+  fuzz::WriteFile(dir + "/bad-pixel", R"({"name": "x", "keyframe": 1, "pixel": [1e300, -4]})");
+  EXPECT_FALSE(nlohmann::json::parse(ReadBytes(dir + "/add")).is_discarded());
+}
+
 TEST(FuzzSeeds, Photos) {
   const std::string dir = SeedDir("photo");
   const cv::Mat image = TestImage();
@@ -138,11 +149,14 @@ TEST(FuzzSeeds, Ply) {
 }
 
 // locate_request_fuzzer reads its input with FuzzedDataProvider: the query string (ended by a
-// backslash and one more byte), the body, and from the end the length mode (Content-Length, none,
-// -5, huge, chunked) and the Content-Type (one byte each, modulo 5).
+// backslash and one more byte), the body, and from the end the Content-Type and the length mode
+// (Content-Length, none, -5, huge, chunked; one byte each, modulo 5) and the route (modulo 6: 0
+// POST /locate, 1 POST /api/labels, 2 PATCH and 3 DELETE /api/labels/1, 4 a keyframe image, 5 a
+// keyframe's labels).
 std::string LocateRequestSeed(const std::string& query, const std::string& body, int type,
-                              int length_mode) {
-  return query + "\\q" + body + static_cast<char>(length_mode) + static_cast<char>(type);
+                              int length_mode, int route = 0) {
+  return query + "\\q" + body + static_cast<char>(route) + static_cast<char>(length_mode) +
+         static_cast<char>(type);
 }
 
 TEST(FuzzSeeds, LocateRequests) {
@@ -158,6 +172,13 @@ TEST(FuzzSeeds, LocateRequests) {
   fuzz::WriteFile(dir + "/multipart", LocateRequestSeed("", Bytes(jpeg), 3, 0));
   fuzz::WriteFile(dir + "/cut", LocateRequestSeed("", Bytes(jpeg).substr(0, 2000), 1, 0));
   fuzz::WriteFile(dir + "/chunked", LocateRequestSeed("fx=1", Bytes(jpeg), 2, 4));
+  const std::string add = R"({"name": "lamp", "type": "lamp", "keyframe": 1, "pixel": [100, 80]})";
+  fuzz::WriteFile(dir + "/label-add", LocateRequestSeed("", add, 0, 0, 1));
+  fuzz::WriteFile(dir + "/label-rename",
+                  LocateRequestSeed("token=x", R"({"name": "desk lamp"})", 0, 0, 2));
+  fuzz::WriteFile(dir + "/label-remove", LocateRequestSeed("", "", 0, 1, 3));
+  fuzz::WriteFile(dir + "/keyframe-image", LocateRequestSeed("max_side=64", "", 0, 1, 4));
+  fuzz::WriteFile(dir + "/keyframe-labels", LocateRequestSeed("", "", 0, 1, 5));
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
-// libFuzzer harness: POST /locate as `sightmap serve` handles it, end to end. A real LocateServer
+// libFuzzer harness: POST /locate (and the labelling page's API) as `sightmap serve` handles it,
+// end to end. A real LocateServer
 // on 127.0.0.1 (a small synthetic model) gets one request per input over a real socket: the input
 // chooses the query string, the Content-Type (none, image/jpeg, form-encoded, multipart with the
 // body as its file or malformed multipart), the length (Content-Length true, absent, negative or
@@ -63,6 +64,14 @@ std::string BuildRequest(FuzzedDataProvider& in) {
   const std::string query = QueryText(in.ConsumeRandomLengthString(48));
   const int content_type = in.ConsumeIntegralInRange(0, 4);
   const int length_mode = in.ConsumeIntegralInRange(0, 4);
+  // The labelling page's endpoints share the server's request handling; 0 is POST /locate.
+  static const char* kRoutes[] = {"POST /locate",
+                                  "POST /api/labels",
+                                  "PATCH /api/labels/1",
+                                  "DELETE /api/labels/1",
+                                  "GET /api/keyframes/1/image.jpg",
+                                  "GET /api/keyframes/2/labels"};
+  const int route = in.ConsumeIntegralInRange(0, 5);
   std::string body = in.ConsumeRemainingBytesAsString();
   static const char* kTypes[] = {nullptr, "image/jpeg", "application/x-www-form-urlencoded",
                                  "multipart/form-data; boundary=sightmapfuzz",
@@ -73,7 +82,8 @@ std::string BuildRequest(FuzzedDataProvider& in) {
         "filename=\"q.jpg\"\r\nContent-Type: image/jpeg\r\n\r\n" +
         body + "\r\n--sightmapfuzz--\r\n";
   }
-  std::string request = "POST /locate" + (query.empty() ? "" : "?" + query) + " HTTP/1.1\r\n";
+  std::string request =
+      std::string(kRoutes[route]) + (query.empty() ? "" : "?" + query) + " HTTP/1.1\r\n";
   request += "Host: 127.0.0.1\r\nConnection: close\r\n";
   if (kTypes[content_type])
     request += std::string("Content-Type: ") + kTypes[content_type] + "\r\n";

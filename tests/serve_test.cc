@@ -398,6 +398,10 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
       {"100 MP jpeg header", "/locate", huge_jpeg, 413},
       {"three of four intrinsics", "/locate?fx=1000&fy=1000&cx=640", jpeg, 400},
       {"intrinsics not numbers", "/locate?fx=a&fy=1000&cx=640&cy=480", jpeg, 400},
+      // Quoted in the answer: bytes that are not UTF-8 must not turn the 400 into a 500.
+      {"intrinsics not UTF-8", "/locate?fx=3%FF%FF&fy=1000&cx=640&cy=480", jpeg, 400},
+      {"a label edit that is not JSON", "/api/labels", jpeg, 400},
+      {"a label edit without a pixel", "/api/labels", "{\"name\": \"lamp\", \"keyframe\": 1}", 400},
       {"unknown endpoint", "/nothing", jpeg, 404},
   };
   for (const Case& c : cases) {
