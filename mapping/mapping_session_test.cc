@@ -30,13 +30,8 @@ MappingOptions SimOptions(const std::string& dir, int frames) {
   return options;
 }
 
-ModelOptions ReadOnly() {
-  ModelOptions options;
-  options.read_only = true;
-  return options;
-}
-
-int CountLines(const std::string& path) {
+// Poses in a TUM trajectory file: its lines that are neither empty nor comments.
+int CountPoses(const std::string& path) {
   std::ifstream in(path);
   int lines = 0;
   for (std::string line; std::getline(in, line);) lines += !line.empty() && line[0] != '#';
@@ -67,7 +62,7 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
   EXPECT_EQ(summary.ate_poses, 12);
   EXPECT_TRUE(std::isfinite(*summary.ate_rmse_m));
 
-  const Model model = Model::Open(dir + "/model.db", ReadOnly());
+  const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), 12);
   const std::vector<SessionRecord> sessions = model.Sessions();
   ASSERT_EQ(sessions.size(), 1u);
@@ -110,7 +105,7 @@ TEST(MappingSession, AnInterruptFinishesTheKeyframeInHandAndEndsTheSession) {
   EXPECT_EQ(summary.keyframes, 3);
   EXPECT_LT(summary.frames_read, 40);
   EXPECT_GT(summary.ply_points, 1000);
-  const Model model = Model::Open(dir + "/model.db", ReadOnly());
+  const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), 3);
   EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kFinished);
   EXPECT_TRUE(std::filesystem::file_size(dir + "/model.ply") > 0);
@@ -129,10 +124,10 @@ TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
   EXPECT_EQ(summary.reason, StopReason::kSourceFailed);
   EXPECT_NE(summary.reason_detail.find("unplugged"), std::string::npos) << summary.reason_detail;
   EXPECT_EQ(summary.keyframes, 5);
-  const Model model = Model::Open(dir + "/model.db", ReadOnly());
+  const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), 5);
   EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kInterrupted);
-  EXPECT_EQ(CountLines(dir + "/trajectory.txt"), 5);
+  EXPECT_EQ(CountPoses(dir + "/trajectory.txt"), 5);
 }
 
 // Killed halfway and run again with the same command, a replay continues after its last stored
@@ -152,7 +147,7 @@ TEST(MappingSession, AResumedReplayContinuesAfterItsLastStoredFrame) {
   EXPECT_EQ(second.frames_read, 20);
   EXPECT_EQ(second.keyframes, 12);
   {
-    const Model model = Model::Open(dir + "/model.db", ReadOnly());
+    const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
     std::set<TimestampNs> stamps;
     for (const KeyframeInfo& keyframe : model.Keyframes()) stamps.insert(keyframe.timestamp_ns);
     EXPECT_EQ(model.NumKeyframes(), 20);

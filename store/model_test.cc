@@ -12,10 +12,13 @@
 #include "store/schema.h"
 #include "store/store_test_util.h"
 #include "store/synthetic_model.h"
+#include "tests/command_runner.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
 namespace {
+
+using testing::CountLines;
 
 SyntheticKeyframeOptions SmallKeyframes() {
   SyntheticKeyframeOptions options;
@@ -31,12 +34,6 @@ Eigen::Isometry3d MakePose(double angle_rad, const Eigen::Vector3d& t) {
       Eigen::AngleAxisd(angle_rad, Eigen::Vector3d(0.3, 1.0, -0.2).normalized()).toRotationMatrix();
   pose.translation() = t;
   return pose;
-}
-
-int CountLines(const std::string& text) {
-  int lines = 0;
-  for (char c : text) lines += c == '\n';
-  return lines;
 }
 
 TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
@@ -62,7 +59,7 @@ TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
   LinkRecord odometry;
   odometry.from = a;  // `to` left invalid: the keyframe being added
   odometry.type = LinkType::kOdometry;
-  odometry.from_from_to = MakePose(0.1, {0.1, 0.0, 0.0});
+  odometry.to_in_from = MakePose(0.1, {0.1, 0.0, 0.0});
   odometry.information(0, 0) = 400.0;
   odometry.information(3, 5) = odometry.information(5, 3) = 0.5;
   second.links.push_back(odometry);
@@ -100,7 +97,7 @@ TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
   ASSERT_EQ(links.size(), 1u);
   EXPECT_EQ(links[0].from, a);
   EXPECT_EQ(links[0].to, b);
-  EXPECT_TRUE(links[0].from_from_to.isApprox(odometry.from_from_to, 1e-12));
+  EXPECT_TRUE(links[0].to_in_from.isApprox(odometry.to_in_from, 1e-12));
   EXPECT_EQ(links[0].information, odometry.information);
 
   const std::vector<SessionRecord> sessions = model.Sessions();

@@ -26,25 +26,10 @@ namespace sightmap {
 namespace {
 
 using testing::CommandResult;
+using testing::CountLines;
+using testing::ExpectOneLineError;
+using testing::Sightmap;
 using testing::Slurp;
-
-// Runs `sightmap ARGS` with no standard input; arguments are passed through the shell as written.
-CommandResult Sightmap(const std::string& args) {
-  return testing::RunCommand(SIGHTMAP_BINARY, args);
-}
-
-int CountLines(const std::string& text) {
-  int lines = 0;
-  for (char c : text) lines += c == '\n';
-  return lines;
-}
-
-void ExpectOneLineError(const CommandResult& run, int exit_code, const std::string& fragment) {
-  EXPECT_EQ(run.exit_code, exit_code) << run.err;
-  EXPECT_EQ(CountLines(run.err), 1) << run.err;
-  EXPECT_EQ(run.err.rfind("error: ", 0), 0u) << run.err;
-  EXPECT_NE(run.err.find(fragment), std::string::npos) << run.err;
-}
 
 TEST(Cli, HelpAndVersion) {
   const CommandResult help = Sightmap("--help");

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <gtest/gtest.h>
+
 #include "tests/test_data.h"
 
 namespace sightmap::testing {
@@ -27,6 +29,21 @@ CommandResult RunCommand(const std::string& binary, const std::string& args) {
   run.out = Slurp(dir + "/out");
   run.err = Slurp(dir + "/err");
   return run;
+}
+
+CommandResult Sightmap(const std::string& args) { return RunCommand(SIGHTMAP_BINARY, args); }
+
+int CountLines(const std::string& text) {
+  int lines = 0;
+  for (const char c : text) lines += c == '\n' ? 1 : 0;
+  return lines;
+}
+
+void ExpectOneLineError(const CommandResult& run, int exit_code, const std::string& fragment) {
+  EXPECT_EQ(run.exit_code, exit_code) << run.err;
+  EXPECT_EQ(CountLines(run.err), 1) << run.err;
+  EXPECT_EQ(run.err.rfind("error: ", 0), 0u) << run.err;
+  EXPECT_NE(run.err.find(fragment), std::string::npos) << run.err;
 }
 
 }  // namespace sightmap::testing

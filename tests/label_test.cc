@@ -18,17 +18,8 @@ namespace sightmap {
 namespace {
 
 using testing::CommandResult;
-
-CommandResult Sightmap(const std::string& args) {
-  return testing::RunCommand(SIGHTMAP_BINARY, args);
-}
-
-void ExpectOneLineError(const CommandResult& run, int exit_code, const std::string& fragment) {
-  EXPECT_EQ(run.exit_code, exit_code) << run.err;
-  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
-  EXPECT_EQ(run.err.rfind("error: ", 0), 0u) << run.err;
-  EXPECT_NE(run.err.find(fragment), std::string::npos) << run.err;
-}
+using testing::ExpectOneLineError;
+using testing::Sightmap;
 
 // Two 160x120 keyframes facing the synthetic wall 2 m away, the second 0.1 m along x.
 std::string MakeModel(const std::string& dir) {
