@@ -1,5 +1,6 @@
 #include "mapping/bounded_queue.h"
 
+#include <atomic>
 #include <chrono>
 #include <thread>
 #include <vector>
@@ -24,6 +25,25 @@ TEST(BoundedQueue, PushNewestDropsTheOldestWhenFullAndKeepsOrder) {
   EXPECT_EQ(queue.Pop(), 4);
   queue.Close();
   EXPECT_EQ(queue.PushNewest(5), PushResult::kClosed);
+}
+
+TEST(BoundedQueue, PushWaitsForRoomUntilAnItemIsTaken) {
+  BoundedQueue<int> queue(1);
+  ASSERT_TRUE(queue.Push(1));
+  std::atomic<bool> returned{false};
+  std::thread producer([&] {
+    EXPECT_TRUE(queue.Push(2));
+    returned = true;
+  });
+  // A correct Push cannot return before the Pop below, however slow the machine; one that does
+  // not wait returns at once and is caught here.
+  std::this_thread::sleep_for(100ms);
+  EXPECT_FALSE(returned.load()) << "Push returned while the queue was full";
+  EXPECT_EQ(queue.size(), 1u);
+  EXPECT_EQ(queue.Pop(), 1);
+  producer.join();
+  EXPECT_TRUE(returned.load());
+  EXPECT_EQ(queue.Pop(), 2);
 }
 
 TEST(BoundedQueue, PushWaitsForRoomSoAReplayLosesNothing) {

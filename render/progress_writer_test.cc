@@ -142,16 +142,21 @@ TEST(ProgressWriter, ProducerNeverBlocksAndSlowRendersAreSkipped) {
       "skipped, last render %.1f ms; Finish %.0f ms\n",
       feed_ms, slowest_submit_ms, static_cast<long long>(stats.renders),
       static_cast<long long>(stats.renders_skipped), stats.last_render_ms, finish_ms);
-  // One render of this map takes tens of milliseconds or more; 1,000 submits take far less.
-  EXPECT_LT(feed_ms, 500.0);
-  EXPECT_LT(slowest_submit_ms, 50.0);
+  // Against the renderer's own time in this run, not a wall-clock budget: a Submit that waited
+  // for renders would take at least one render per milestone (100 of them) to feed everything;
+  // a busy machine slows both sides alike.
+  ASSERT_GT(stats.last_render_ms, 0.0);
+  EXPECT_LT(feed_ms, 10.0 * stats.last_render_ms)
+      << "feeding 1,000 keyframes took as long as " << feed_ms / stats.last_render_ms
+      << " renders: Submit waits for the renderer";
   EXPECT_EQ(stats.keyframes, 1000);
   EXPECT_GT(stats.renders_skipped, 0);
   // Every milestone is rendered or skipped, plus possibly the final render.
   EXPECT_GE(stats.renders + stats.renders_skipped, 100);
   EXPECT_LE(stats.renders + stats.renders_skipped, 101);
   EXPECT_GE(stats.pngs_written, 1);
-  EXPECT_LT(finish_ms, 10000.0);
+  // A hang guard, not a timing target: Finish renders once more and joins.
+  EXPECT_LT(finish_ms, 60000.0);
   const cv::Mat image = cv::imread(path, cv::IMREAD_COLOR);
   EXPECT_EQ(image.cols, 640);
 }

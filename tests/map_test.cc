@@ -34,12 +34,9 @@ namespace {
 using namespace std::chrono_literals;
 
 using testing::CommandResult;
+using testing::CountLines;
+using testing::Sightmap;
 using testing::Slurp;
-
-// Runs `sightmap ARGS` with no standard input; arguments are passed through the shell as written.
-CommandResult Sightmap(const std::string& args) {
-  return testing::RunCommand(SIGHTMAP_BINARY, args);
-}
 
 // A `sightmap` process started in the background, so a test can signal it.
 class Background {
@@ -99,17 +96,11 @@ class Background {
   int exit_code_ = -1;
 };
 
-ModelOptions ReadOnly() {
-  ModelOptions options;
-  options.read_only = true;
-  return options;
-}
-
 // Committed keyframes of a model another process is writing (0 while it does not exist yet).
 int64_t CommittedKeyframes(const std::string& path) {
   if (!std::filesystem::exists(path)) return 0;
   try {
-    return Model::Open(path, ReadOnly()).NumKeyframes();
+    return Model::Open(path, ModelOptions::ReadOnly()).NumKeyframes();
   } catch (const std::exception&) {
     return 0;  // created but the schema not committed yet
   }
@@ -148,12 +139,6 @@ bool Connected(const std::vector<LinkRecord>& links, KeyframeId a, KeyframeId b)
   return root(a.value()) == root(b.value());
 }
 
-int CountLines(const std::string& text) {
-  int lines = 0;
-  for (char c : text) lines += c == '\n';
-  return lines;
-}
-
 // A recording replayed as fast as the mapper reads: every frame a keyframe at --rate 30.
 void ExpectRecordingMapsEveryFrame(const std::string& recording, int frames) {
   const std::string dir = testing::MakeTempDir("map");
@@ -169,7 +154,7 @@ void ExpectRecordingMapsEveryFrame(const std::string& recording, int frames) {
   EXPECT_EQ(summary.at("dropped_frames"), 0) << "a replay waits for the mapper";
   EXPECT_EQ(summary.at("reason"), "the source ended");
   EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), frames);
-  const Model model = Model::Open(dir + "/m.db", ReadOnly());
+  const Model model = Model::Open(dir + "/m.db", ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), frames);
   ASSERT_EQ(model.Sessions().size(), 1u);
   EXPECT_EQ(model.Sessions()[0].end_state, SessionEnd::kFinished);
@@ -232,17 +217,31 @@ TEST(Map, ASimWalkWritesProgressImageTrajectoryAndAte) {
   EXPECT_GT(ReadPly(dir + "/m.ply").size(), 10000u);
 }
 
+// The summary's ATE is the one `eval trajectory` computes from the exported trajectory and the
+// walk's ground truth (as `sim generate` writes it), and no worse than measured.
 TEST(Map, ASimSummaryAsJsonHasAnAte) {
   const std::string dir = testing::MakeTempDir("sim-json");
-  const CommandResult run = Sightmap("map --source 'sim:office?frames=15&fps=1' --model " + dir +
-                                     "/m.db --headless --json");
+  const CommandResult run =
+      Sightmap("map --source 'sim:office?frames=15&fps=1' --model " + dir +
+               "/m.db --headless --json --trajectory-out " + dir + "/est.txt");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const nlohmann::json summary = nlohmann::json::parse(run.out);
   EXPECT_EQ(summary.at("keyframes"), 15);
   EXPECT_EQ(summary.at("source_kind"), "sim");
   ASSERT_TRUE(summary.at("ate_rmse_m").is_number());
-  EXPECT_GE(summary.at("ate_rmse_m").get<double>(), 0.0);
   EXPECT_EQ(summary.at("ate_poses"), 15);
+  ASSERT_EQ(Sightmap("sim generate --frames 15 --fps 1 --queries 0 --out " + dir + "/gt").exit_code,
+            0);
+  const CommandResult eval = Sightmap("eval trajectory --gt " + dir + "/gt/groundtruth.txt --est " +
+                                      dir + "/est.txt --json");
+  ASSERT_EQ(eval.exit_code, 0) << eval.err;
+  const nlohmann::json error = nlohmann::json::parse(eval.out);
+  EXPECT_EQ(error.at("matched_poses"), 15);
+  EXPECT_NEAR(summary.at("ate_rmse_m").get<double>(), error.at("ate_rmse_m").get<double>(), 1e-6);
+  EXPECT_NEAR(summary.at("ate_max_m").get<double>(), error.at("ate_max_m").get<double>(), 1e-6);
+  // Measured 0.49 m: 15 keyframes at 1 Hz with only keyframes tracked is the paper's capture, far
+  // from issue 17's 1 Hz target of 0.10 m; this guards against it getting worse.
+  EXPECT_LT(summary.at("ate_rmse_m").get<double>(), 0.75);
   EXPECT_EQ(summary.at("segments").get<int64_t>(), Info(dir + "/m.db").at("segments"));
   EXPECT_EQ(summary.at("largest_segment_keyframes").get<int64_t>(),
             Info(dir + "/m.db").at("largest_segment_keyframes"));
@@ -348,7 +347,7 @@ TEST(Map, CtrlCFinishesCommitsWritesThePlyAndExitsZero) {
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("stopped: interrupted"), std::string::npos) << result.out;
   EXPECT_LT(stop_s, 30.0);
-  const Model reopened = Model::Open(model, ReadOnly());
+  const Model reopened = Model::Open(model, ModelOptions::ReadOnly());
   const int64_t keyframes = reopened.NumKeyframes();
   EXPECT_GE(keyframes, 5);
   EXPECT_LT(keyframes, 300);
@@ -378,7 +377,7 @@ TEST(Map, ASecondCtrlCExitsAtOnceAndTheModelStillOpens) {
   const CommandResult result = run.Wait();
   EXPECT_EQ(result.exit_code, 128 + SIGINT) << result.err;
   EXPECT_NE(result.err.find("second signal"), std::string::npos) << result.err;
-  const Model reopened = Model::Open(model, ReadOnly());
+  const Model reopened = Model::Open(model, ModelOptions::ReadOnly());
   EXPECT_EQ(reopened.IntegrityCheck(), "ok");
   EXPECT_GE(reopened.NumKeyframes(), 10);
 }
@@ -393,8 +392,14 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
   const std::string dir = testing::MakeTempDir("kill");
   const std::string model = dir + "/m.db";
   const std::string walk = "'sim:office?frames=120&fps=1'";
-  std::mt19937 random(std::random_device{}());
+  // A different moment every run, said in every failure; SIGHTMAP_TEST_SEED=N replays one.
+  const char* given_seed = std::getenv("SIGHTMAP_TEST_SEED");
+  const unsigned seed =
+      given_seed ? static_cast<unsigned>(std::stoul(given_seed)) : std::random_device{}();
+  std::mt19937 random(seed);
   const int extra_ms = std::uniform_int_distribution<int>(0, 2000)(random);
+  SCOPED_TRACE("killed " + std::to_string(extra_ms) + " ms after keyframe 31 (SIGHTMAP_TEST_SEED=" +
+               std::to_string(seed) + " replays it)");
   int64_t committed = 0;
   {
     Background run("map --source " + walk + " --model " + model + " --headless");
@@ -402,7 +407,7 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
     std::this_thread::sleep_for(std::chrono::milliseconds(extra_ms));
     run.Signal(SIGKILL);
     EXPECT_EQ(run.Wait().exit_code, 128 + SIGKILL);
-    const Model killed = Model::Open(model, ReadOnly());
+    const Model killed = Model::Open(model, ModelOptions::ReadOnly());
     EXPECT_EQ(killed.IntegrityCheck(), "ok");
     committed = killed.NumKeyframes();
     ASSERT_EQ(killed.Sessions().size(), 1u);
@@ -426,7 +431,7 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
   EXPECT_EQ(summary.at("keyframes"), 15);
   EXPECT_EQ(summary.at("joined_stored_map"), true) << resumed.out;
 
-  const Model after = Model::Open(model, ReadOnly());
+  const Model after = Model::Open(model, ModelOptions::ReadOnly());
   EXPECT_EQ(after.IntegrityCheck(), "ok");
   EXPECT_EQ(after.NumKeyframes(), committed + 15);
   const std::vector<SessionRecord> sessions = after.Sessions();
@@ -478,7 +483,7 @@ TEST(Map, ARecordingAtItsRecordedPaceTakesTheLiveSensorPath) {
   EXPECT_EQ(keyframes + dropped + unpaired, 12)
       << "every frame is mapped, or counted as dropped (behind the recorded pace) or unpaired";
   EXPECT_GE(summary.at("elapsed_s").get<double>(), 0.3) << "12 frames recorded over 0.367 s";
-  EXPECT_EQ(Model::Open(dir + "/m.db", ReadOnly()).NumKeyframes(), keyframes);
+  EXPECT_EQ(Model::Open(dir + "/m.db", ModelOptions::ReadOnly()).NumKeyframes(), keyframes);
   std::printf("realtime replay of 12 frames at 30 Hz: %lld mapped, %lld dropped, %lld unpaired\n",
               static_cast<long long>(keyframes), static_cast<long long>(dropped),
               static_cast<long long>(unpaired));
