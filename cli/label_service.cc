@@ -70,9 +70,7 @@ LabelService::LabelService(std::string model_path, const LabelServiceOptions& op
 }
 
 Model LabelService::OpenForReading() const {
-  ModelOptions model_options;
-  model_options.read_only = true;
-  return Model::Open(model_path_, model_options);
+  return Model::Open(model_path_, ModelOptions::ReadOnly());
 }
 
 Model LabelService::OpenForWriting() const {

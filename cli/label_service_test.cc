@@ -99,7 +99,7 @@ TEST_F(LabelServiceTest, AClickedPixelBecomesTheSamePointAsLabelAdd) {
             std::string::npos)
       << added.at("message");
   // The same code as `sightmap label add --keyframe 2 --pixel 200,100`.
-  const Model model = Model::Open(path_, ModelOptions{true});
+  const Model model = Model::Open(path_, ModelOptions::ReadOnly());
   const PixelLabelPoint expected =
       LabelPointFromPixel(model, keyframes_[1], Eigen::Vector2d(200, 100));
   const nlohmann::json& world = added.at("point").at("world");
@@ -155,11 +155,11 @@ TEST_F(LabelServiceTest, BadEditsAreRefusedWithTheirStatusAndChangeNothing) {
             }),
             400);
   EXPECT_EQ(reloads_, 0);
-  EXPECT_EQ(Model::Open(path_, ModelOptions{true}).Labels().size(), 0u);
+  EXPECT_EQ(Model::Open(path_, ModelOptions::ReadOnly()).Labels().size(), 0u);
 
   service.AddPoint({{"name", "lamp"}, {"keyframe", keyframe}, {"pixel", {10, 10}}});
   service.AddPoint({{"name", "fan"}, {"keyframe", keyframe}, {"pixel", {20, 10}}});
-  const int64_t lamp = Model::Open(path_, ModelOptions{true}).FindLabel("lamp")->id.value();
+  const int64_t lamp = Model::Open(path_, ModelOptions::ReadOnly()).FindLabel("lamp")->id.value();
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp, {{"name", "fan"}}); }), 409);
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp, nlohmann::json::object()); }), 400);
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp + 100, {{"type", "x"}}); }), 404);
@@ -170,7 +170,7 @@ TEST_F(LabelServiceTest, BadEditsAreRefusedWithTheirStatusAndChangeNothing) {
   EXPECT_EQ(renamed.at("label").at("type"), "lamp");
   EXPECT_EQ(renamed.at("label").at("points").size(), 1u) << "renaming keeps the points";
   EXPECT_EQ(service.Remove(lamp).at("removed"), "desk lamp");
-  const std::vector<LabelRecord> left = Model::Open(path_, ModelOptions{true}).Labels();
+  const std::vector<LabelRecord> left = Model::Open(path_, ModelOptions::ReadOnly()).Labels();
   ASSERT_EQ(left.size(), 1u);
   EXPECT_EQ(left[0].name, "fan");
 }
@@ -182,7 +182,7 @@ TEST_F(LabelServiceTest, AReadOnlyServiceShowsButRefusesEveryWriteWith403) {
   EXPECT_FALSE(status.at("editable").get<bool>());
   EXPECT_EQ(status.at("read_only_reason"), "started with --read-only");
   EXPECT_EQ(service.Labels().at("labels").size(), 1u);
-  const int64_t lamp = Model::Open(path_, ModelOptions{true}).FindLabel("lamp")->id.value();
+  const int64_t lamp = Model::Open(path_, ModelOptions::ReadOnly()).FindLabel("lamp")->id.value();
   EXPECT_EQ(
       RefusedWith([&] {
         service.AddPoint({{"name", "x"}, {"keyframe", keyframes_[0].value()}, {"pixel", {5, 5}}});
@@ -190,7 +190,7 @@ TEST_F(LabelServiceTest, AReadOnlyServiceShowsButRefusesEveryWriteWith403) {
       403);
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp, {{"name", "y"}}); }), 403);
   EXPECT_EQ(RefusedWith([&] { service.Remove(lamp); }), 403);
-  EXPECT_EQ(Model::Open(path_, ModelOptions{true}).FindLabel("lamp")->name, "lamp");
+  EXPECT_EQ(Model::Open(path_, ModelOptions::ReadOnly()).FindLabel("lamp")->name, "lamp");
 }
 
 }  // namespace

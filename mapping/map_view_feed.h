@@ -1,7 +1,8 @@
 // The mapping session's side of render/: builds MapUpdates (keyframe clouds, corrected poses, loop
 // edges, camera, status) and hands them to a MapView (preview window or progress images) without
-// waiting. Its own translation unit and plain types, so mapping code that includes slam/ never
-// sees render/'s headers (both declare a sightmap::TrackingState).
+// waiting. It is the one mapping file that includes render/ (OpenGL, GLFW, OSMesa): its plain
+// types keep render/ a private dependency of mapping/, so the rest of the pipeline builds and is
+// tested without a GL header in sight.
 #pragma once
 
 #include <cstdint>

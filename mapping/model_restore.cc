@@ -53,7 +53,7 @@ RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool lo
     MapperLink link;
     link.from = mapper_id_of.at(record.from.value());
     link.to = mapper_id_of.at(record.to.value());
-    link.from_from_to = record.from_from_to;
+    link.to_in_from = record.to_in_from;
     link.information = record.information;
     link.type = FromStoreLinkType(record.type);
     link.active = record.active;

@@ -99,7 +99,7 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
     stored.from = link.from == task.mapper_id ? KeyframeId() : StoreId(link.from);
     stored.to = link.to == task.mapper_id ? KeyframeId() : StoreId(link.to);
     stored.type = ToStoreLinkType(link.type);
-    stored.from_from_to = link.from_from_to;
+    stored.to_in_from = link.to_in_from;
     stored.information = link.information;
     stored.active = link.active;
     record.links.push_back(stored);

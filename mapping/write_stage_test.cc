@@ -36,7 +36,7 @@ MapperLink Link(int64_t from, int64_t to, MapperLinkType type) {
   link.from = from;
   link.to = to;
   link.type = type;
-  link.from_from_to = At(static_cast<double>(to - from));
+  link.to_in_from = At(static_cast<double>(to - from));
   return link;
 }
 

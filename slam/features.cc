@@ -11,7 +11,6 @@ namespace sightmap {
 namespace {
 
 cv::Ptr<cv::Feature2D> MakeDetector(const FeatureOptions& options, int max_features) {
-  if (options.type == FeatureOptions::Type::kSift) return cv::SIFT::create(max_features);
   return cv::ORB::create(max_features, static_cast<float>(options.orb_scale_factor),
                          options.orb_levels, /*edgeThreshold=*/31, /*firstLevel=*/0,
                          /*WTA_K=*/2, cv::ORB::HARRIS_SCORE, /*patchSize=*/31,
@@ -58,6 +57,13 @@ bool FeatureOptions::Check(std::string* error) const {
     if (error) *error = what;
     return false;
   };
+  if (type != Type::kOrb) {
+    // The vocabulary, the place index and the photo matcher take 32-byte binary descriptors:
+    // SIFT would be extracted and then refused (or silently skipped) downstream.
+    return fail(
+        "only ORB features are supported: the vocabulary, the place index and the photo "
+        "matcher take binary descriptors");
+  }
   if (max_features <= 0) return fail("max_features must be positive");
   if (grid_cols <= 0 || grid_rows <= 0) return fail("grid_cols and grid_rows must be positive");
   if (orb_levels <= 0 || !(orb_scale_factor > 1.0)) {

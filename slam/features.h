@@ -13,6 +13,7 @@
 namespace sightmap {
 
 struct FeatureOptions {
+  // kSift is refused by Check(): everything downstream takes binary ORB descriptors.
   enum class Type { kOrb, kSift };
   Type type = Type::kOrb;
   // Keypoints kept per image, spread over a grid so one textured poster cannot take them all.

@@ -259,7 +259,7 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
   PoseGraphEdge edge;
   edge.from = link.from;
   edge.to = link.to;
-  edge.from_from_to = link.from_from_to;
+  edge.to_in_from = link.to_in_from;
   edge.information = link.information;
   // A prior is odometry to the graph: switching it off would split the map it holds together.
   edge.type = link.type == MapperLinkType::kOdometry || link.type == MapperLinkType::kPrior
@@ -320,7 +320,7 @@ KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat
     MapperLink known;
     known.from = last.id;
     known.to = keyframe.id;
-    known.from_from_to = graph_.Pose(last.id).inverse() * pose;
+    known.to_in_from = graph_.Pose(last.id).inverse() * pose;
     // Exact, so as stiff as the floor allows: an optimisation after a later link changes nothing.
     known.information =
         FlooredInformation(Eigen::Matrix<double, 6, 6>::Identity() * 1e12, options_);
@@ -454,12 +454,12 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
       MapperLink link;
       link.from = target.id;
       link.to = keyframe.id;
-      link.from_from_to = result.target_from_source;
+      link.to_in_from = result.target_from_source;
       link.information = result.information;
       link.type = MapperLinkType::kOdometry;
       link.inliers = result.inliers;
       if (odometry.empty() && (!motion || motion->source == MotionSource::kPrior)) {
-        world_from_cam = graph_.Pose(target.id) * link.from_from_to;
+        world_from_cam = graph_.Pose(target.id) * link.to_in_from;
       }
       odometry.push_back(link);
       if (static_cast<int>(odometry.size()) >= wanted_links) break;
@@ -468,7 +468,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
       MapperLink link;
       link.from = last.id;
       link.to = keyframe.id;
-      link.from_from_to = Orthonormalised(motion->previous_from_cam);
+      link.to_in_from = Orthonormalised(motion->previous_from_cam);
       link.information =
           motion_refined ? motion->information : FlooredInformation(motion->information, options_);
       link.type = motion->source == MotionSource::kPrior ? MapperLinkType::kPrior
@@ -636,7 +636,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     MapperLink link;
     link.from = target.id;
     link.to = keyframe.id;
-    link.from_from_to = result.target_from_source;
+    link.to_in_from = result.target_from_source;
     link.information = result.information;
     link.inliers = result.inliers;
     const int target_root = Root(target.segment);
@@ -684,9 +684,9 @@ Eigen::Isometry3d Mapper::JoinCorrection(int newer_root, const MapperLink& link)
   // The pose `link.to` should have in the frame of `link.from`'s segment, and the rigid motion
   // that takes the whole of its segment there.
   if (Root(Get(link.to).segment) == newer_root) {
-    return graph_.Pose(link.from) * link.from_from_to * graph_.Pose(link.to).inverse();
+    return graph_.Pose(link.from) * link.to_in_from * graph_.Pose(link.to).inverse();
   }
-  return graph_.Pose(link.to) * link.from_from_to.inverse() * graph_.Pose(link.from).inverse();
+  return graph_.Pose(link.to) * link.to_in_from.inverse() * graph_.Pose(link.from).inverse();
 }
 
 bool Mapper::JoinKeepsTheWalkPossible(int older_root, int newer_root,

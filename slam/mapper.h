@@ -139,7 +139,7 @@ struct MapperLink {
   int64_t from = 0;
   int64_t to = 0;
   // Pose of `to` in `from`'s camera frame: world_from_from^-1 * world_from_to.
-  Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d to_in_from = Eigen::Isometry3d::Identity();
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
   MapperLinkType type = MapperLinkType::kOdometry;
   int inliers = 0;

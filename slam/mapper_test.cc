@@ -65,7 +65,7 @@ TEST(Mapper, TracksTheHandheldWalkWithCentimetreAccuracy) {
     const Eigen::Isometry3d truth =
         walk.frames[static_cast<size_t>(link.from)].world_from_cam_gt->inverse() *
         *walk.frames[static_cast<size_t>(link.to)].world_from_cam_gt;
-    const Eigen::Isometry3d off = truth.inverse() * link.from_from_to;
+    const Eigen::Isometry3d off = truth.inverse() * link.to_in_from;
     if (!link.active) continue;
     EXPECT_LT(off.translation().norm(), 0.10) << link.from << " -> " << link.to;
     EXPECT_LT(RotationAngleDeg(off), 3.0) << link.from << " -> " << link.to;
@@ -143,7 +143,7 @@ double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
     const Eigen::Isometry3d truth =
         walk.frames[static_cast<size_t>(link.from)].world_from_cam_gt->inverse() *
         *walk.frames[static_cast<size_t>(link.to)].world_from_cam_gt;
-    errors.push_back((truth.inverse() * link.from_from_to).translation().norm());
+    errors.push_back((truth.inverse() * link.to_in_from).translation().norm());
   }
   return Percentile(errors, 0.5);
 }
@@ -268,7 +268,7 @@ TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
   MapperLink wrong;
   wrong.from = 2;
   wrong.to = 44;
-  wrong.from_from_to = Eigen::Isometry3d::Identity();  // "44 is where 2 was": it is not
+  wrong.to_in_from = Eigen::Isometry3d::Identity();  // "44 is where 2 was": it is not
   wrong.information = mapper.Links().back().information;
   wrong.type = MapperLinkType::kLoopClosure;
   const double apart = (ground_truth[2].world_from_cam.inverse() * ground_truth[44].world_from_cam)

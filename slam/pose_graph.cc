@@ -55,9 +55,9 @@ Eigen::Matrix<T, 6, 1> EdgeError(const T* q_a_data, const T* p_a_data, const T* 
 
 class EdgeCost {
  public:
-  EdgeCost(const Eigen::Isometry3d& from_from_to, const Matrix6d& sqrt_information)
-      : q_measured_(from_from_to.linear()),
-        p_measured_(from_from_to.translation()),
+  EdgeCost(const Eigen::Isometry3d& to_in_from, const Matrix6d& sqrt_information)
+      : q_measured_(to_in_from.linear()),
+        p_measured_(to_in_from.translation()),
         sqrt_information_(sqrt_information) {
     q_measured_.normalize();
   }
@@ -70,10 +70,10 @@ class EdgeCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Isometry3d& from_from_to,
+  static ceres::CostFunction* Create(const Eigen::Isometry3d& to_in_from,
                                      const Matrix6d& sqrt_information) {
     return new ceres::AutoDiffCostFunction<EdgeCost, 6, 4, 3, 4, 3>(
-        new EdgeCost(from_from_to, sqrt_information));
+        new EdgeCost(to_in_from, sqrt_information));
   }
 
  private:
@@ -111,8 +111,8 @@ struct PoseParameters {
 
 double Chi2(const PoseGraphEdge& edge, const PoseParameters& from, const PoseParameters& to) {
   const Vector6d error = EdgeError(from.q, from.p, to.q, to.p,
-                                   Eigen::Quaterniond(edge.from_from_to.linear()).normalized(),
-                                   edge.from_from_to.translation());
+                                   Eigen::Quaterniond(edge.to_in_from.linear()).normalized(),
+                                   edge.to_in_from.translation());
   return error.dot(edge.information * error);
 }
 
@@ -228,8 +228,8 @@ size_t PoseGraph::AddEdge(const PoseGraphEdge& edge) {
                  "edge " << edge.from << " -> " << edge.to << " joins an unknown pose");
   SIGHTMAP_CHECK(edge.from != edge.to,
                  "edge " << edge.from << " -> " << edge.to << " joins a pose to itself");
-  SIGHTMAP_CHECK(IsRigid(edge.from_from_to), "edge " << edge.from << " -> " << edge.to
-                                                     << " measures no finite rigid transform");
+  SIGHTMAP_CHECK(IsRigid(edge.to_in_from), "edge " << edge.from << " -> " << edge.to
+                                                   << " measures no finite rigid transform");
   const Matrix6d& information = edge.information;
   SIGHTMAP_CHECK(information.allFinite(),
                  "edge " << edge.from << " -> " << edge.to << " has a non-finite information");
@@ -456,7 +456,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
       if (!active_[e] || !selected[e]) continue;
       const auto [a, b] = ends[e];
       problem.AddResidualBlock(
-          EdgeCost::Create(edges_[e].from_from_to, sqrt_information[e]),
+          EdgeCost::Create(edges_[e].to_in_from, sqrt_information[e]),
           edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : odometry_loss.get(),
           parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
       in_problem[a] = in_problem[b] = true;

@@ -3,13 +3,13 @@
 // Ceres (Levenberg-Marquardt, sparse Cholesky) over quaternion + translation parameters, as in
 // Ceres' examples/slam/pose_graph_3d. Ceres stays in pose_graph.cc.
 //
-// Residual of an edge (from, to, from_from_to = M, information = W). With the estimate
+// Residual of an edge (from, to, to_in_from = M, information = W). With the estimate
 // E = world_from_from^-1 * world_from_to, the error is the 6-vector r = (t, w) for which
 //   E = Exp(r) * M,  Exp(t, w) = [R(w) | t]  (R(w): the rotation of angle |w| about w / |w|),
 // i.e. r = (t_E - R(w) t_M, AngleAxis(R_E R_M^T)): translation first, then a rotation applied
 // on the left. That is the parameterisation RegistrationResult::information is computed in
 // (slam/registration.h), so a registration's target_from_source and information are an edge's
-// from_from_to and information with from = target and to = source. The cost of the edge is
+// to_in_from and information with from = target and to = source. The cost of the edge is
 // r^T W r (the chi-square of a 6-dof error when W is the inverse covariance); Ceres is given
 // S r with S^T S = W.
 //
@@ -77,7 +77,7 @@ struct PoseGraphEdge {
   int64_t from = 0;  // pose ids
   int64_t to = 0;
   // Measured pose of `to` in `from`'s frame: world_from_from^-1 * world_from_to.
-  Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d to_in_from = Eigen::Isometry3d::Identity();
   // Inverse covariance of the error r = (translation x, y, z, left rotation x, y, z) defined in
   // the header comment; symmetric positive semi-definite.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();

@@ -19,7 +19,7 @@ synthetic::Scene MakeScene(bool with_false_loop) {
     edge.to = 350;
     // Place recognition confuses pose 350 (on the far side of the circle) with a view 30 cm in
     // front of pose 100.
-    edge.from_from_to = synthetic::ExpSe3(
+    edge.to_in_from = synthetic::ExpSe3(
         (Eigen::Matrix<double, 6, 1>() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished());
     const synthetic::CircleOptions options = synthetic::LargeCircleOptions();
     edge.information = synthetic::Information(options.loop_sigma_m, options.loop_sigma_rad);

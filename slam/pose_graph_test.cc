@@ -26,13 +26,13 @@ Eigen::Isometry3d Translation(double x, double y = 0.0, double z = 0.0) {
   return pose;
 }
 
-PoseGraphEdge MakeEdge(int64_t from, int64_t to, const Eigen::Isometry3d& from_from_to,
+PoseGraphEdge MakeEdge(int64_t from, int64_t to, const Eigen::Isometry3d& to_in_from,
                        const Matrix6d& information,
                        PoseGraphEdgeType type = PoseGraphEdgeType::kOdometry) {
   PoseGraphEdge edge;
   edge.from = from;
   edge.to = to;
-  edge.from_from_to = from_from_to;
+  edge.to_in_from = to_in_from;
   edge.information = information;
   edge.type = type;
   return edge;

@@ -176,7 +176,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
       false_to = static_cast<int64_t>(i);
       link.from = false_from;
       link.to = false_to;
-      link.from_from_to = Eigen::Isometry3d::Identity();
+      link.to_in_from = Eigen::Isometry3d::Identity();
       link.information = mapper.Links().back().information;
       link.type = MapperLinkType::kLoopClosure;
       const KeyframeReport injected = mapper.AddExternalLink(link);
@@ -203,7 +203,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
     ++run.loops;
     const Eigen::Isometry3d link_truth =
         truths[static_cast<size_t>(link.from)].inverse() * truths[static_cast<size_t>(link.to)];
-    const Eigen::Isometry3d error = link_truth.inverse() * link.from_from_to;
+    const Eigen::Isometry3d error = link_truth.inverse() * link.to_in_from;
     const double error_m = error.translation().norm();
     const double error_deg = RotationAngleDeg(error);
     if (error_m > 0.10 || error_deg > 3.0) {

@@ -102,11 +102,11 @@ inline Scene MakeCircleScene(const CircleOptions& options) {
     PoseGraphEdge edge;
     edge.from = i;
     edge.to = i + 1;
-    edge.from_from_to = noise(options.odometry_sigma_m, options.odometry_sigma_rad) *
-                        scene.truth[i].inverse() * scene.truth[i + 1];
+    edge.to_in_from = noise(options.odometry_sigma_m, options.odometry_sigma_rad) *
+                      scene.truth[i].inverse() * scene.truth[i + 1];
     edge.information = Information(options.odometry_sigma_m / options.odometry_overconfidence,
                                    options.odometry_sigma_rad / options.odometry_overconfidence);
-    reckoned = reckoned * edge.from_from_to;
+    reckoned = reckoned * edge.to_in_from;
     scene.graph.AddPose(i + 1, reckoned);
     scene.graph.AddEdge(edge);
   }
@@ -115,8 +115,8 @@ inline Scene MakeCircleScene(const CircleOptions& options) {
       PoseGraphEdge edge;
       edge.from = i;
       edge.to = i + options.poses_per_lap;
-      edge.from_from_to = noise(options.loop_sigma_m, options.loop_sigma_rad) *
-                          scene.truth[i].inverse() * scene.truth[i + options.poses_per_lap];
+      edge.to_in_from = noise(options.loop_sigma_m, options.loop_sigma_rad) *
+                        scene.truth[i].inverse() * scene.truth[i + options.poses_per_lap];
       edge.information = Information(options.loop_sigma_m, options.loop_sigma_rad);
       edge.type = PoseGraphEdgeType::kLoop;
       scene.loop_edges.push_back(scene.graph.AddEdge(edge));
@@ -126,7 +126,7 @@ inline Scene MakeCircleScene(const CircleOptions& options) {
     PoseGraphEdge edge;
     edge.from = count - 1;
     edge.to = 0;
-    edge.from_from_to = scene.truth[count - 1].inverse() * scene.truth[0];
+    edge.to_in_from = scene.truth[count - 1].inverse() * scene.truth[0];
     edge.information = Information(options.loop_sigma_m, options.loop_sigma_rad);
     edge.type = PoseGraphEdgeType::kLoop;
     scene.loop_edges.push_back(scene.graph.AddEdge(edge));

@@ -80,6 +80,20 @@ void ResealChecksum(std::vector<uint8_t>* bytes) {
   for (int i = 0; i < 8; ++i) (*bytes)[body + i] = static_cast<uint8_t>(hash >> (8 * i));
 }
 
+// Features the vocabulary cannot take are refused where they are chosen, not extracted and then
+// skipped.
+TEST(Vocabulary, SiftFeaturesAreRefusedByTheirOptions) {
+  FeatureOptions options;
+  std::string why;
+  EXPECT_TRUE(options.Check(&why)) << why;
+  options.type = FeatureOptions::Type::kSift;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("only ORB"), std::string::npos) << why;
+  EXPECT_THROW(ExtractFeatures(cv::Mat(48, 64, CV_8UC1, cv::Scalar(9)), cv::Mat(),
+                               Intrinsics::FromFieldOfView(64, 48, 1.0, 0.0), options),
+               InvalidArgument);
+}
+
 TEST(Vocabulary, SerializeRoundTripGivesTheSameWordForEveryDescriptor) {
   const std::vector<cv::Mat> images = TrainingImages(12, 800, 3);
   const Vocabulary vocabulary = Vocabulary::Train(images);

@@ -44,7 +44,7 @@ void WriteKeyframes(Model& model, const SyntheticKeyframeOptions& options, int l
     if (previous.valid()) {
       LinkRecord odometry;
       odometry.from = previous;
-      odometry.from_from_to.translation() = Eigen::Vector3d(options.step_m, 0, 0);
+      odometry.to_in_from.translation() = Eigen::Vector3d(options.step_m, 0, 0);
       keyframe.links.push_back(odometry);
     }
     previous = model.AddKeyframe(keyframe);

@@ -247,7 +247,7 @@ struct Model::Impl {
                      "INSERT INTO links (from_id, to_id, type, tx, ty, tz, qx, qy, qz, qw, "
                      "information, active) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     insert.Bind(1, from.value()).Bind(2, to.value()).Bind(3, static_cast<int>(link.type));
-    BindPose(insert, 4, link.from_from_to);
+    BindPose(insert, 4, link.to_in_from);
     // Eigen stores column-major; the 6x6 is symmetric so the order does not matter to readers.
     insert.BindBlob(11, link.information.data(), sizeof(double) * 36);
     insert.Bind(12, link.active ? 1 : 0);
@@ -800,7 +800,7 @@ std::vector<LinkRecord> Model::Links() const {
     link.from = KeyframeId(query.Int(1));
     link.to = KeyframeId(query.Int(2));
     link.type = static_cast<LinkType>(query.Int(3));
-    link.from_from_to = ColumnPose(query, 4);
+    link.to_in_from = ColumnPose(query, 4);
     const std::vector<uint8_t> information = query.Blob(11);
     SIGHTMAP_CHECK(information.size() == sizeof(double) * 36,
                    "corrupt information matrix of link " << link.id.value());

@@ -78,7 +78,8 @@ struct LinkRecord {
   KeyframeId from;
   KeyframeId to;
   LinkType type = LinkType::kOdometry;
-  Eigen::Isometry3d from_from_to = Eigen::Isometry3d::Identity();
+  // Pose of `to` in `from`'s camera frame: world_from_from^-1 * world_from_to.
+  Eigen::Isometry3d to_in_from = Eigen::Isometry3d::Identity();
   Matrix6d information = Matrix6d::Identity();  // over (tx, ty, tz, rx, ry, rz) [1/m^2, 1/rad^2]
   // False once the pose graph switched it off as inconsistent with the rest (a false loop); kept
   // so that a resumed session does not trust it again.
@@ -164,6 +165,13 @@ struct ModelOptions {
   int busy_timeout_ms = 2000;
 
   bool Check(std::string* error) const;
+
+  // Defaults, read-only: for inspection, export, serving and tests.
+  static ModelOptions ReadOnly() {
+    ModelOptions options;
+    options.read_only = true;
+    return options;
+  }
 };
 
 // Counts for `sightmap info`.
