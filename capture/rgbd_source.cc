@@ -137,10 +137,12 @@ std::unique_ptr<RgbdSource> OpenSource(const std::string& source, const SourceOp
                                      "(set in the scene file); drop --calib");
       }
       if (const SourceOpener opener = FindOpener(spec.kind)) return opener(spec.location, options);
-      SIGHTMAP_THROW(Error,
-                     "sim:" << spec.location
-                            << " — the synthetic building is not part of this build yet; map "
-                               "a recording (FILE.oni, tum:DIR, 3dmatch:DIR) instead");
+      // A program that links sim/ but never called sim::RegisterSimSource(): its bug, not the
+      // user's.
+      SIGHTMAP_THROW(Error, "sim:" << spec.location
+                                   << " cannot be opened: this program did not register the "
+                                      "simulator's source (sim::RegisterSimSource()); map a "
+                                      "recording (FILE.oni, tum:DIR, 3dmatch:DIR) instead");
   }
   SIGHTMAP_THROW(Error, "unhandled SOURCE kind for " << source);
 }

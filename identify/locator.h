@@ -21,10 +21,8 @@
 namespace sightmap {
 
 struct LocatorOptions {
-  // Photo features: more than a keyframe's, because a phone photo sees more. 3000: with places
-  // matched once each and guided matching, 3000 features, 20 candidates and 6 places matched 39
-  // of 100 session-2 photos against 35 with 1500, 10 and 4 (5000 features, 40 candidates and 12
-  // places: 40).
+  // Photo features: more than a keyframe's, because a phone photo sees more of the room (the
+  // measured choice of 3000 is in locate_benchmark.cc).
   FeatureOptions features = [] {
     FeatureOptions f;
     f.max_features = 3000;
@@ -35,8 +33,8 @@ struct LocatorOptions {
   // detail at about half its size) [px]; the answer's pixels are in the original image.
   int max_image_side_px = 960;
   // Retrieval: keyframes taken from the inverted index, best bag-of-words score first, each
-  // verified by PnP; the best verified pose wins. (40 candidates and 12 places matched the same
-  // 39 of 100 photos at about twice the matching time.)
+  // verified by PnP; the best verified pose wins. More candidates cost matching time without
+  // matching more photos (locate_benchmark.cc).
   int retrieval_candidates = 20;
   // Candidates within place_radius_m of an earlier candidate, looking within place_max_angle_deg
   // of it, join its place; each place (its candidates and their neighbours) is matched once
@@ -51,10 +49,9 @@ struct LocatorOptions {
   int max_neighbours = 4;
   // When positive, a photo descriptor is compared only with the model descriptors under the same
   // node of the vocabulary tree this many levels below the root (ORB-SLAM's search by BoW); 0
-  // compares it with every descriptor of the place. Level 2 (about 100 nodes) cuts matching to
-  // 1/30 (p95 of the whole locate 404 -> 184 ms), but its ratio test no longer sees the
-  // second-nearest descriptors of other nodes: verified poses went wrong by 0.7 m (1 of 100
-  // benchmark photos) and 2.6 m (1 of 17 in locator_test), where exhaustive matching has none.
+  // compares it with every descriptor of the place. A node level cuts matching time, but its
+  // ratio test no longer sees the second-nearest descriptors of other nodes, which lets wrong
+  // poses through; exhaustive matching is the default (figures in locate_benchmark.cc).
   int match_node_level = 0;
   // Nearest-neighbour distance ratio for photo-to-model descriptor matches.
   double match_ratio = 0.8;
@@ -82,7 +79,8 @@ struct LocatorOptions {
   // A pose's inliers must cover this many cells of a 4x4 grid over the photo.
   int min_inlier_cells = 4;
   // After guided matching, the inliers must be at least this share of the place's 3D points the
-  // pose projects into the photo (measured: right poses 0.021-0.09, wrong ones from 0.009).
+  // pose projects into the photo: right poses hold a larger share than wrong ones
+  // (locate_benchmark.cc).
   double min_inlier_share = 0.02;
   // Poses of two places agree when within same_pose_m and same_pose_deg; when they disagree the
   // winner needs min_inlier_ratio_over_runner_up x the runner-up's inliers (a pose refused by a

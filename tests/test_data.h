@@ -17,8 +17,8 @@ std::string FindSharedData(const std::string& relative);
 // True when running under CI (the environment variable CI is set to anything but "" or "false").
 bool RunningUnderCi();
 
-// A fresh empty folder under the test's temporary directory, removed by nobody (ctest's build
-// tree).
+// A fresh empty folder, <system temporary folder>/sightmap_tests/<suite>.<test>/<name>, emptied
+// when a test asks for it again and otherwise left for inspection after a failure.
 std::string MakeTempDir(const std::string& name);
 
 }  // namespace sightmap::testing
