@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/atomic_file.h"
 #include "core/check.h"
 
 namespace sightmap {
@@ -96,9 +97,7 @@ void WriteCalibrationFile(const std::string& path, const RgbdCalibration& calibr
          {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0), r(2, 1), r(2, 2)}},
         {"translation_m", {t.x(), t.y(), t.z()}}};
   }
-  std::ofstream out(path);
-  out << root.dump(2) << "\n";
-  SIGHTMAP_CHECK(out.good(), "cannot write calibration file " << path);
+  WriteFileAtomically(path, root.dump(2) + "\n");
 }
 
 }  // namespace sightmap

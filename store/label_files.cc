@@ -10,6 +10,7 @@
 #include <iomanip>
 #include <map>
 
+#include "core/atomic_file.h"
 #include "core/check.h"
 
 namespace sightmap {
@@ -59,12 +60,12 @@ std::vector<Eigen::Vector3d> ReadPointList(const std::string& path) {
 }
 
 void WritePointList(const std::string& path, const std::vector<Eigen::Vector3d>& points) {
-  std::ofstream out(path);
-  SIGHTMAP_CHECK(out.is_open(), "cannot write " << path << ": check that its folder is writable");
-  out << std::fixed << std::setprecision(6);
-  for (const Eigen::Vector3d& p : points) out << p.x() << " " << p.y() << " " << p.z() << "\n";
-  out.flush();
-  SIGHTMAP_CHECK(out.good(), "cannot write " << path << ": is the disk full?");
+  AtomicFile file(path);
+  file.out() << std::fixed << std::setprecision(6);
+  for (const Eigen::Vector3d& p : points) {
+    file.out() << p.x() << " " << p.y() << " " << p.z() << "\n";
+  }
+  file.Commit();
 }
 
 std::string LabelFileName(const std::string& label_name) {
@@ -105,6 +106,7 @@ int ExportLabels(const Model& model, const std::string& dir) {
     for (const auto& [temporary, final_path] : staged) {
       std::filesystem::rename(temporary, final_path);
     }
+    SyncFolder(dir);  // the renames, durable together
   } catch (const std::exception& e) {
     for (const auto& [temporary, final_path] : staged) std::filesystem::remove(temporary, ec);
     SIGHTMAP_THROW(Error, e.what());

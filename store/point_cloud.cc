@@ -22,6 +22,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/atomic_file.h"
 #include "core/check.h"
 #include "core/voxel_key.h"
 
@@ -127,16 +128,14 @@ class VoxelAccumulator {
   size_t merge_at_ = kFirstMerge;
 };
 
-// Binary little-endian PLY, x y z (float) red green blue (uchar), written beside `path` and renamed
-// over it when complete: a crash or a full disk never leaves a truncated cloud under the name.
+// Binary little-endian PLY, x y z (float) red green blue (uchar), through an AtomicFile: a crash or
+// a full disk never leaves a truncated cloud under the name.
 void WritePly(const std::string& path, const std::vector<ColoredPoint>& points) {
   static_assert(sizeof(float) == 4, "PLY floats are 4 bytes");
   static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
                 "records are copied as they lie in memory");
-  const std::string partial = path + ".partial";
-  std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-  SIGHTMAP_CHECK(out.is_open(),
-                 "cannot write " << path << ": check that its folder exists and is writable");
+  AtomicFile file(path, ".partial");
+  std::ostream& out = file.out();
   out << "ply\nformat binary_little_endian 1.0\ncomment written by sightmap\nelement vertex "
       << points.size()
       << "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
@@ -158,20 +157,7 @@ void WritePly(const std::string& path, const std::vector<ColoredPoint>& points) 
     }
     out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
   }
-  out.flush();
-  const bool written = static_cast<bool>(out);
-  out.close();
-  std::error_code ec;
-  if (!written || out.fail()) {
-    std::filesystem::remove(partial, ec);
-    SIGHTMAP_THROW(Error, "cannot write " << path << ": is the disk full?");
-  }
-  std::filesystem::rename(partial, path, ec);
-  if (ec) {
-    const std::string reason = ec.message();  // before remove() overwrites ec
-    std::filesystem::remove(partial, ec);
-    SIGHTMAP_THROW(Error, "cannot write " << path << ": " << reason);
-  }
+  file.Commit();
 }
 
 std::vector<ColoredPoint> ToColoredPoints(const Cloud& cloud) {

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/atomic_file.h"
 #include "core/check.h"
 
 namespace sightmap {
@@ -59,8 +60,8 @@ bool ParseSeconds(const std::string& token, TimestampNs* ns) {
 }  // namespace
 
 void WriteTumTrajectory(const std::string& path, const std::vector<StampedPose>& poses) {
-  std::ofstream out(path);
-  SIGHTMAP_CHECK(out.is_open(), "cannot write " << path << ": check that its folder is writable");
+  AtomicFile file(path);
+  std::ostream& out = file.out();
   out << "# timestamp tx ty tz qx qy qz qw (world_from_cam, TUM RGB-D format)\n";
   char line[256];
   for (const StampedPose& pose : poses) {
@@ -70,8 +71,7 @@ void WriteTumTrajectory(const std::string& path, const std::vector<StampedPose>&
                   t.z(), q.x(), q.y(), q.z(), q.w());
     out << FormatSeconds(pose.timestamp_ns) << line;
   }
-  out.flush();
-  SIGHTMAP_CHECK(out.good(), "cannot write " << path << ": is the disk full?");
+  file.Commit();
 }
 
 std::vector<StampedPose> ReadTumTrajectory(const std::string& path) {

@@ -53,6 +53,7 @@ try:
     from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
+    from selenium.webdriver.support import expected_conditions
     from selenium.webdriver.support.ui import WebDriverWait
 except ImportError:
     skip_or_fail("python3-selenium is not installed")
@@ -337,6 +338,7 @@ def test_label_page(browser, server, sightmap, model, work, out_dir):
         By.CSS_SELECTOR, 'tr[data-label-name="web projector 2"]'), "the rename")
     row = browser.find_element(By.CSS_SELECTOR, 'tr[data-label-name="web projector 2"]')
     row.find_element(By.CSS_SELECTOR, "button.remove").click()
+    wait_for(browser, expected_conditions.alert_is_present(), "the removal's confirmation")
     browser.switch_to.alert.accept()
     wait_for(browser, lambda b: not b.find_elements(
         By.CSS_SELECTOR, 'tr[data-label-name="web projector 2"]'), "the removal")

@@ -234,11 +234,12 @@ async function addPoint(event) {
   try {
     const answer = await api('/api/labels', {method: 'POST', body: JSON.stringify(request)});
     say(answer.message);
-    document.body.dataset.lastAdded = answer.label.name;
     state.clicked = null;
     $('add-point').disabled = true;
     await Promise.all([loadLabels(), openKeyframe(state.keyframe.id)]);
     say(answer.message);
+    // Once the list and the keyframe show it (the browser test waits for this).
+    document.body.dataset.lastAdded = answer.label.name;
   } catch (error) {
     say(error.message, true);
   }
