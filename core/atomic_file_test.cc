@@ -1,36 +1,30 @@
 #include "core/atomic_file.h"
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
 
 #include "core/check.h"
+#include "tests/command_runner.h"
 #include "tests/test_data.h"
 
 namespace sightmap {
 namespace {
 
-std::string Read(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream bytes;
-  bytes << in.rdbuf();
-  return bytes.str();
-}
+using testing::Slurp;
 
 TEST(AtomicFile, ReplacesTheTargetOnlyOnCommit) {
   const std::string path = testing::MakeTempDir("atomic") + "/out.txt";
   WriteFileAtomically(path, "old");
-  EXPECT_EQ(Read(path), "old");
+  EXPECT_EQ(Slurp(path), "old");
   {
     AtomicFile file(path);
     file.out() << "new, half written";
-    EXPECT_EQ(Read(path), "old") << "the target changes only at Commit";
+    EXPECT_EQ(Slurp(path), "old") << "the target changes only at Commit";
     EXPECT_TRUE(std::filesystem::exists(path + ".tmp"));
   }  // not committed: as if the process had failed before the end
-  EXPECT_EQ(Read(path), "old");
+  EXPECT_EQ(Slurp(path), "old");
   EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
   {
     AtomicFile file(path, ".partial");
@@ -38,11 +32,11 @@ TEST(AtomicFile, ReplacesTheTargetOnlyOnCommit) {
     file.out() << "new";
     file.Commit();
   }
-  EXPECT_EQ(Read(path), "new");
+  EXPECT_EQ(Slurp(path), "new");
   EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
   const std::string binary("a\0b\xff", 4);
   WriteFileAtomically(path, binary);
-  EXPECT_EQ(Read(path), binary);
+  EXPECT_EQ(Slurp(path), binary);
 }
 
 TEST(AtomicFile, AMissingFolderIsAClearError) {
