@@ -25,6 +25,7 @@
 
 #include "capture/calibration.h"
 #include "core/check.h"
+#include "core/tum_format.h"
 
 namespace sightmap {
 namespace {
@@ -112,35 +113,6 @@ bool AllDigits(const std::string& text) {
                      [](char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; });
 }
 
-// Seconds to nanoseconds. Decimal text is parsed exactly: TUM timestamps carry 16 significant
-// digits, which a double cannot hold to the nanosecond.
-bool ParseTimestampNs(const std::string& text, int64_t* ns) {
-  constexpr int64_t kMaxSeconds = 9'000'000'000;  // keeps seconds * 1e9 inside int64_t
-  const size_t dot = text.find('.');
-  const std::string whole = text.substr(0, dot);
-  const std::string fraction = dot == std::string::npos ? std::string() : text.substr(dot + 1);
-  if ((!whole.empty() || !fraction.empty()) && AllDigits(whole) && AllDigits(fraction) &&
-      whole.size() <= 10) {
-    const int64_t seconds = whole.empty() ? 0 : std::stoll(whole);
-    if (seconds > kMaxSeconds) return false;
-    int64_t nanos = 0;
-    for (size_t i = 0; i < 9; ++i)
-      nanos = nanos * 10 + (i < fraction.size() ? fraction[i] - '0' : 0);
-    if (fraction.size() > 9 && fraction[9] >= '5') ++nanos;
-    *ns = seconds * 1'000'000'000 + nanos;
-    return true;
-  }
-  // Anything else a float parser takes (exponents); precision is then the caller's problem.
-  char* end = nullptr;
-  const long double seconds = std::strtold(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(seconds) ||
-      seconds < 0.0L || seconds > static_cast<long double>(kMaxSeconds)) {
-    return false;
-  }
-  *ns = std::llround(seconds * 1e9L);
-  return true;
-}
-
 struct TimedFile {
   int64_t ns = 0;
   std::string file;
@@ -173,22 +145,10 @@ struct GroundTruthSample {
 
 std::vector<GroundTruthSample> ReadTumGroundTruth(const fs::path& path) {
   std::vector<GroundTruthSample> samples;
-  ForEachDataLine(
-      path, [&](const std::vector<std::string>& tokens, int line_number, const std::string& line) {
-        const char* expected = "\"timestamp tx ty tz qx qy qz qw\" with a non-zero quaternion";
-        GroundTruthSample sample;
-        std::array<double, 7> v{};
-        bool ok = tokens.size() == 8 && ParseTimestampNs(tokens[0], &sample.ns);
-        for (size_t i = 0; ok && i < v.size(); ++i) {
-          ok = ParseDouble(tokens[i + 1], &v[i]) && std::isfinite(v[i]);
-        }
-        if (!ok) ThrowMalformed(path, line_number, line, expected);
-        sample.translation = Eigen::Vector3d(v[0], v[1], v[2]);
-        sample.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]);  // file order is x y z w
-        if (!(sample.rotation.norm() > 1e-6)) ThrowMalformed(path, line_number, line, expected);
-        sample.rotation.normalize();
-        samples.push_back(sample);
-      });
+  for (const StampedPose& pose : ReadTumTrajectory(path.string())) {
+    samples.push_back({pose.timestamp_ns, pose.world_from_cam.translation(),
+                       Eigen::Quaterniond(pose.world_from_cam.linear())});
+  }
   std::stable_sort(
       samples.begin(), samples.end(),
       [](const GroundTruthSample& a, const GroundTruthSample& b) { return a.ns < b.ns; });

@@ -4,13 +4,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iomanip>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "capture/calibration.h"
 #include "core/check.h"
+#include "core/tum_format.h"
 
 namespace sightmap::sim {
 namespace {
@@ -77,16 +77,13 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
   const SimulatorOptions& so = options.simulator;
   std::ofstream rgb_list = OpenText(dir / "rgb.txt");
   std::ofstream depth_list = OpenText(dir / "depth.txt");
-  std::ofstream groundtruth = OpenText(dir / "groundtruth.txt");
+  std::vector<StampedPose> groundtruth;
   const std::string header = std::string("# sightmap synthetic building: scene ") + so.scene +
                              ", trajectory " + ToString(so.trajectory) + ", session " +
                              std::to_string(so.session) + ", seed " + std::to_string(so.seed);
   rgb_list << "# color images\n" << header << "\n# timestamp filename\n";
   depth_list << "# depth maps (16-bit PNG, 5000 per metre)\n"
              << header << "\n# timestamp filename\n";
-  groundtruth << "# ground truth trajectory (world_from_cam)\n"
-              << header << "\n# timestamp tx ty tz qx qy qz qw\n";
-  groundtruth << std::fixed << std::setprecision(6);
 
   auto last_report = start;
   GenerateSummary summary;
@@ -99,11 +96,7 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
     WriteImage(dir / "depth" / (stamp + ".png"), depth_tum);
     rgb_list << stamp << " rgb/" << stamp << ".png\n";
     depth_list << stamp << " depth/" << stamp << ".png\n";
-    const Eigen::Isometry3d& pose = *frame.world_from_cam_gt;
-    const Eigen::Quaterniond q(pose.linear());
-    groundtruth << stamp << " " << pose.translation().x() << " " << pose.translation().y() << " "
-                << pose.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " "
-                << q.w() << "\n";
+    groundtruth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
     ++summary.frames;
     const auto now = std::chrono::steady_clock::now();
     if (progress != nullptr && now - last_report > std::chrono::seconds(3)) {
@@ -111,8 +104,10 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
       *progress << "sim: frame " << (i + 1) << "/" << simulator.num_frames() << "\n" << std::flush;
     }
   }
-  SIGHTMAP_CHECK(rgb_list.good() && depth_list.good() && groundtruth.good(),
+  SIGHTMAP_CHECK(rgb_list.good() && depth_list.good(),
                  "cannot write the TUM lists in " << dir.string());
+  WriteTumTrajectory((dir / "groundtruth.txt").string(), groundtruth,
+                     "ground truth trajectory; " + header.substr(2));
 
   RgbdCalibration calibration;
   calibration.color = so.camera;
