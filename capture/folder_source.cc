@@ -91,13 +91,8 @@ void ForEachDataLine(const fs::path& path, ParseFn&& parse) {
   while (std::getline(in, line)) {
     ++line_number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::string spaced = line;
-    std::replace(spaced.begin(), spaced.end(), ',', ' ');
-    std::istringstream stream(spaced);
-    std::vector<std::string> tokens;
-    std::string token;
-    while (stream >> token) tokens.push_back(token);
-    if (tokens.empty() || tokens.front().front() == '#') continue;
+    const std::vector<std::string> tokens = TumFields(line);
+    if (tokens.empty()) continue;
     parse(tokens, line_number, line);
   }
 }

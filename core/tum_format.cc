@@ -70,6 +70,16 @@ std::string FormatTimestamp(TimestampNs ns) {
   return text;
 }
 
+std::vector<std::string> TumFields(std::string line) {
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  std::replace(line.begin(), line.end(), ',', ' ');
+  std::istringstream stream(line);
+  std::vector<std::string> fields;
+  for (std::string field; stream >> field;) fields.push_back(field);
+  if (!fields.empty() && fields.front().front() == '#') fields.clear();
+  return fields;
+}
+
 std::vector<StampedPose> ReadTumTrajectory(const std::string& path) {
   std::ifstream in(path);
   SIGHTMAP_CHECK(in.is_open(), "cannot read trajectory " << path << ": check that it exists");
@@ -79,12 +89,8 @@ std::vector<StampedPose> ReadTumTrajectory(const std::string& path) {
   while (std::getline(in, line)) {
     ++line_number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::string spaced = line;
-    std::replace(spaced.begin(), spaced.end(), ',', ' ');
-    std::istringstream fields(spaced);
-    std::vector<std::string> tokens;
-    for (std::string token; fields >> token;) tokens.push_back(token);
-    if (tokens.empty() || tokens.front().front() == '#') continue;
+    const std::vector<std::string> tokens = TumFields(line);
+    if (tokens.empty()) continue;
     StampedPose pose;
     std::array<double, 7> v{};
     bool ok = tokens.size() == 8 && ParseTimestampNs(tokens[0], &pose.timestamp_ns);

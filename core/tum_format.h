@@ -18,6 +18,10 @@ bool ParseTimestampNs(const std::string& text, TimestampNs* ns);
 // 1305031102175304000 ns -> "1305031102.175304000".
 std::string FormatTimestamp(TimestampNs ns);
 
+// A line's fields (a trailing '\r' dropped, spaces or commas between fields); none for a blank
+// line or a '#' comment.
+std::vector<std::string> TumFields(std::string line);
+
 // Poses in file order. Throws Error naming the file, the line and what it expected ("fix or
 // delete the line") for a malformed line or a zero quaternion; quaternions are normalised.
 std::vector<StampedPose> ReadTumTrajectory(const std::string& path);
