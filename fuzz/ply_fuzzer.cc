@@ -1,5 +1,5 @@
 // libFuzzer harness: the PLY reader (`ReadPly`, which tools and tests read `map --ply` output
-// with; PCL underneath). A sightmap::Error is the right answer to a bad file; anything else is a
+// with). A sightmap::Error is the right answer to a bad file; anything else is a
 // finding.
 #include <cstddef>
 #include <cstdint>

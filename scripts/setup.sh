@@ -12,7 +12,7 @@ packages=(
   libcli11-dev                              # command line
   nlohmann-json3-dev                        # JSON output and calibration files
   libsqlite3-dev                            # the model (store/)
-  libpcl-dev                                # PLY export: voxel filter, outlier removal, PLY I/O
+  libnanoflann-dev                          # the PLY export's outlier filter (nearest neighbours)
   libosmesa6-dev                            # off-screen rendering (render/, the simulator)
   libceres-dev                              # pose-graph optimisation (slam/)
   libglfw3-dev                              # the live preview window (render/)

@@ -1,4 +1,4 @@
-// Round trips of every export and import: PLY (read back with PCL), CloudCompare label files,
+// Round trips of every export and import: PLY (read back with ReadPly), CloudCompare label files,
 // TUM trajectories.
 #include <filesystem>
 #include <fstream>
@@ -86,9 +86,9 @@ TEST(Ply, RoundTripThroughPcl) {
   EXPECT_EQ(coloured, static_cast<int>(points.size()));
 }
 
-// Found by ply_fuzzer: a header whose element is not "vertex" read as an empty cloud that PCL's
-// typed conversion then indexed (undefined behaviour), and PCL's reader aborts the process on some
-// colour layouts. The header is checked first: each of these is an error, never a crash.
+// Found by ply_fuzzer in the PCL reader ReadPly once used: a header whose element is not "vertex",
+// colour layouts it aborted the process on, a form feed in the header. Each is an error, never a
+// crash.
 TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
   const std::string dir = ::testing::TempDir();
   auto write = [&](const std::string& name, const std::string& element,
@@ -103,7 +103,7 @@ TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
   EXPECT_EQ(ReadPly(write("good.ply", "vertex", "x", 24)).size(), 2u);
   EXPECT_THROW(ReadPly(write("cut.ply", "vertex", "x", 12)), Error);
   EXPECT_THROW(ReadPly(write("no-x.ply", "vertex", "w", 24)), Error);
-  // Red and green without blue: PCL's reader asserted on this one.
+  // Red and green without blue.
   {
     std::ofstream out(dir + "/two-colours.ply", std::ios::binary);
     out << "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty "
@@ -111,7 +111,7 @@ TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
         << std::string(14, '\0');
   }
   EXPECT_THROW(ReadPly(dir + "/two-colours.ply"), Error);
-  // A form feed before obj_info: PCL's header parser asserted on it.
+  // A form feed before obj_info.
   {
     std::ofstream out(dir + "/form-feed.ply", std::ios::binary);
     out << "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty "
@@ -119,6 +119,27 @@ TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
         << std::string(12, '\0');
   }
   EXPECT_THROW(ReadPly(dir + "/form-feed.ply"), Error);
+}
+
+// Other tools write ASCII and other scalar types: read as they are, any property order.
+TEST(Ply, AsciiWithDoublesAndColoursFirstIsRead) {
+  const std::string path = testing::MakeTempDir("ply_ascii") + "/cloud.ply";
+  std::ofstream(path) << "ply\nformat ascii 1.0\ncomment from another tool\nelement vertex 2\n"
+                         "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+                         "property double x\nproperty double y\nproperty double z\n"
+                         "property int confidence\nend_header\n"
+                         "255 128 0 1.5 -2.25 3.125 7\n1 2 3 -0.5 0 1e-3 9\n";
+  const std::vector<ColoredPoint> points = ReadPly(path);
+  ASSERT_EQ(points.size(), 2u);
+  EXPECT_EQ(points[0].position, Eigen::Vector3f(1.5f, -2.25f, 3.125f));
+  EXPECT_EQ(points[0].red, 255);
+  EXPECT_EQ(points[0].green, 128);
+  EXPECT_EQ(points[0].blue, 0);
+  EXPECT_EQ(points[1].position, Eigen::Vector3f(-0.5f, 0.0f, 0.001f));
+  EXPECT_EQ(points[1].blue, 3);
+  std::ofstream(path) << "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+                         "property float y\nproperty float z\nend_header\n1 2 3\n4 5\n";
+  EXPECT_THROW(ReadPly(path), Error) << "a vertex short of a value";
 }
 
 TEST(Ply, VoxelSizeAndOutlierRemoval) {
@@ -161,7 +182,7 @@ TEST(Ply, VoxelSizeAndOutlierRemoval) {
 
 TEST(Ply, VoxelFilterHandlesABoundingBoxOfBillionsOfVoxels) {
   // Two walls 3 km apart at a 2 cm leaf: 150,000 x 235 x 125 voxels overflow a 32-bit index (on
-  // such a cloud pcl::VoxelGrid returns its input unfiltered).
+  // such a cloud PCL's VoxelGrid, used before, returned its input unfiltered).
   Model model = Model::Open(":memory:");
   const SessionId session = model.BeginSession({});
   SyntheticKeyframeOptions options = WallKeyframes();

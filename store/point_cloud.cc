@@ -1,17 +1,9 @@
-// The only file of sightmap that includes PCL: its headers are heavy to compile, and keeping them
-// here keeps PCL a private dependency of sightmap_store.
 #include "store/point_cloud.h"
 
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/common/io.h>
-#include <pcl/console/print.h>
-#include <pcl/conversions.h>
-#include <pcl/filters/statistical_outlier_removal.h>
-#include <pcl/io/ply_io.h>
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
+#include <nanoflann.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -29,11 +21,9 @@
 namespace sightmap {
 namespace {
 
-using Cloud = pcl::PointCloud<pcl::PointXYZRGB>;
-
-// Back-projected points are summed per voxel as they arrive (PCL's VoxelGrid answer: each voxel's
+// Back-projected points are summed per voxel as they arrive (a voxel grid's answer: each voxel's
 // centroid and mean colour), so a 3,000-keyframe model never holds its tens of millions of raw
-// points at once: PCL's filter on the raw cloud, refiltered whenever it doubled, peaked at 1.5 GB.
+// points at once (a filter run on the raw cloud, refiltered whenever it doubled, peaked at 1.5 GB).
 class VoxelAccumulator {
  public:
   // leaf_m 0 keeps every point: each gets its own key.
@@ -160,42 +150,55 @@ void WritePly(const std::string& path, const std::vector<ColoredPoint>& points) 
   file.Commit();
 }
 
-std::vector<ColoredPoint> ToColoredPoints(const Cloud& cloud) {
-  std::vector<ColoredPoint> points;
-  points.reserve(cloud.size());
-  for (const pcl::PointXYZRGB& p : cloud) {
-    ColoredPoint point;
-    point.position = Eigen::Vector3f(p.x, p.y, p.z);
-    point.red = p.r;
-    point.green = p.g;
-    point.blue = p.b;
-    points.push_back(point);
+// The points as nanoflann's k-d tree reads them.
+struct PointsAdaptor {
+  const std::vector<ColoredPoint>& points;
+  size_t kdtree_get_point_count() const { return points.size(); }
+  float kdtree_get_pt(size_t index, size_t dim) const { return points[index].position[dim]; }
+  template <class Box>
+  bool kdtree_get_bbox(Box& /*box*/) const {
+    return false;
   }
-  return points;
-}
+};
 
-// PCL's statistical outlier removal, on the voxel centres.
+// Statistical outlier removal (as PCL's, which this replaced, with the same points kept on a
+// 90-keyframe model: 551,204): each point's mean distance to its
+// k nearest neighbours; points whose mean is more than outlier_stddev standard deviations above
+// the mean of all are dropped.
 std::vector<ColoredPoint> RemoveOutliers(const std::vector<ColoredPoint>& points,
                                          const PlyExportOptions& options) {
-  auto cloud = std::make_shared<Cloud>();
-  cloud->reserve(points.size());
-  for (const ColoredPoint& p : points) {
-    pcl::PointXYZRGB point;
-    point.x = p.position.x();
-    point.y = p.position.y();
-    point.z = p.position.z();
-    point.r = p.red;
-    point.g = p.green;
-    point.b = p.blue;
-    cloud->push_back(point);
+  const size_t k = static_cast<size_t>(options.outlier_neighbours);
+  if (points.size() <= k) return points;
+  using Tree =
+      nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointsAdaptor>,
+                                          PointsAdaptor, 3>;
+  const PointsAdaptor adaptor{points};
+  Tree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  tree.buildIndex();
+  std::vector<double> mean_distance(points.size());
+  std::vector<uint32_t> indices(k + 1);
+  std::vector<float> squared(k + 1);
+  for (size_t i = 0; i < points.size(); ++i) {
+    // k + 1: the point itself comes first, at distance 0.
+    const size_t found =
+        tree.knnSearch(points[i].position.data(), k + 1, indices.data(), squared.data());
+    double sum = 0.0;
+    for (size_t j = 1; j < found; ++j) sum += std::sqrt(static_cast<double>(squared[j]));
+    mean_distance[i] = found > 1 ? sum / static_cast<double>(found - 1) : 0.0;
   }
-  pcl::StatisticalOutlierRemoval<pcl::PointXYZRGB> removal;
-  removal.setInputCloud(cloud);
-  removal.setMeanK(options.outlier_neighbours);
-  removal.setStddevMulThresh(options.outlier_stddev);
-  Cloud kept;
-  removal.filter(kept);
-  return ToColoredPoints(kept);
+  double mean = 0.0;
+  for (const double d : mean_distance) mean += d;
+  mean /= static_cast<double>(points.size());
+  double variance = 0.0;
+  for (const double d : mean_distance) variance += (d - mean) * (d - mean);
+  const double stddev = std::sqrt(variance / static_cast<double>(points.size() - 1));
+  const double threshold = mean + options.outlier_stddev * stddev;
+  std::vector<ColoredPoint> kept;
+  kept.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (mean_distance[i] <= threshold) kept.push_back(points[i]);
+  }
+  return kept;
 }
 
 }  // namespace
@@ -271,15 +274,26 @@ size_t PlyTypeBytes(const std::string& type) {
   return it == kBytes.end() ? 0 : it->second;
 }
 
+// What a point cloud PLY's header says: its vertices' properties in file order, and where they
+// start.
+struct PlyLayout {
+  bool binary = false;
+  uint64_t vertices = 0;
+  std::vector<std::pair<std::string, std::string>> properties;  // (name, type)
+  size_t vertex_bytes = 0;                                      // binary: one vertex's bytes
+  size_t header_bytes = 0;                                      // where the body starts
+};
+
 // A point cloud's PLY header as ReadPly takes it: one `vertex` element of scalar properties with
-// x, y and z, and red, green and blue all three as uchar or none. Checked before PCL sees the
-// file: PCL's reader asserts (aborts the process) on some colour layouts, which the fuzzer found.
-void CheckPointCloudPlyHeader(const std::string& path) {
+// x, y and z, and red, green and blue all three as uchar or none (what the fuzzer found broke the
+// reader this replaced is refused here: control characters in the header, partial colours).
+PlyLayout ReadPointCloudPlyHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   SIGHTMAP_CHECK(in.is_open(), "cannot read " << path);
   auto fail = [&](const std::string& why) {
     SIGHTMAP_THROW(Error, "cannot read " << path << " as a point cloud PLY: " << why);
   };
+  PlyLayout layout;
   std::string line;
   if (!std::getline(in, line) || (line != "ply" && line != "ply\r"))
     fail("it does not start with 'ply'");
@@ -295,8 +309,7 @@ void CheckPointCloudPlyHeader(const std::string& path) {
     header_bytes += line.size() + 1;
     if (header_bytes > kMaxHeaderBytes) fail("its header runs past 64 KiB");
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    // PCL splits header lines on single spaces and asserts on what it did not expect, e.g. a
-    // form feed before "obj_info" (found by ply_fuzzer).
+    // A header is plain text: a form feed before "obj_info" (found by ply_fuzzer) is refused.
     const bool printable = std::all_of(line.begin(), line.end(), [](char c) {
       const auto byte = static_cast<unsigned char>(c);
       return byte >= 0x20 && byte != 0x7F;
@@ -327,7 +340,11 @@ void CheckPointCloudPlyHeader(const std::string& path) {
           fail("it holds fewer bytes than its header says");
         }
       }
-      return;
+      layout.binary = binary;
+      layout.vertices = vertices;
+      layout.vertex_bytes = vertex_bytes;
+      layout.header_bytes = header_bytes;
+      return layout;
     }
     if (keyword == "comment" || keyword == "obj_info" || keyword.empty()) continue;
     if (keyword == "format") {
@@ -354,12 +371,44 @@ void CheckPointCloudPlyHeader(const std::string& path) {
         fail("property line '" + line + "' is not a scalar vertex property");
       }
       types[name] = type;
+      layout.properties.emplace_back(name, type);
       vertex_bytes += bytes;
     } else {
       fail("unknown header line '" + line.substr(0, 40) + "'");
     }
   }
   fail("its header has no end_header");
+  return layout;
+}
+
+// One binary little-endian scalar of `type` at `bytes`, as a double.
+double BinaryScalar(const std::string& type, const char* bytes) {
+  auto get = [bytes](auto value) {
+    std::memcpy(&value, bytes, sizeof(value));
+    return static_cast<double>(value);
+  };
+  if (type == "char" || type == "int8") return get(int8_t{});
+  if (type == "uchar" || type == "uint8") return get(uint8_t{});
+  if (type == "short" || type == "int16") return get(int16_t{});
+  if (type == "ushort" || type == "uint16") return get(uint16_t{});
+  if (type == "int" || type == "int32") return get(int32_t{});
+  if (type == "uint" || type == "uint32") return get(uint32_t{});
+  if (type == "float" || type == "float32") return get(float{});
+  return get(double{});
+}
+
+// A vertex's values, in property order, to a point (colour 0 when the file has none).
+ColoredPoint ToPoint(const std::vector<double>& values, const std::array<int, 6>& slot) {
+  ColoredPoint point;
+  point.position = Eigen::Vector3f(static_cast<float>(values[static_cast<size_t>(slot[0])]),
+                                   static_cast<float>(values[static_cast<size_t>(slot[1])]),
+                                   static_cast<float>(values[static_cast<size_t>(slot[2])]));
+  if (slot[3] >= 0) {
+    point.red = static_cast<uint8_t>(values[static_cast<size_t>(slot[3])]);
+    point.green = static_cast<uint8_t>(values[static_cast<size_t>(slot[4])]);
+    point.blue = static_cast<uint8_t>(values[static_cast<size_t>(slot[5])]);
+  }
+  return point;
 }
 
 }  // namespace
@@ -368,28 +417,45 @@ std::vector<ColoredPoint> ReadPly(const std::string& path) {
   std::error_code ec;
   SIGHTMAP_CHECK(std::filesystem::is_regular_file(path, ec),
                  "cannot read " << path << ": no such file");
-  // Read untyped first: PCL's typed conversion indexes the first point of an empty cloud (a PLY
-  // whose element is not named "vertex" reads as one), which the fuzzer caught as undefined
-  // behaviour; and the fields are checked before they are trusted.
-  CheckPointCloudPlyHeader(path);
-  pcl::PCLPointCloud2 blob;
-  pcl::PLYReader reader;
-  const pcl::console::VERBOSITY_LEVEL verbosity = pcl::console::getVerbosityLevel();
-  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
-  const int rc = reader.read(path, blob);
-  pcl::console::setVerbosityLevel(verbosity);
-  SIGHTMAP_CHECK(rc == 0, "cannot read " << path << " as PLY: it is damaged or not a PLY file");
-  const uint64_t points = static_cast<uint64_t>(blob.width) * blob.height;
-  if (points == 0) return {};
-  for (const char* name : {"x", "y", "z"}) {
-    SIGHTMAP_CHECK(pcl::getFieldIndex(blob, name) >= 0,
-                   "cannot read " << path << " as a point cloud: its vertices have no " << name);
+  const PlyLayout layout = ReadPointCloudPlyHeader(path);
+  // Where x, y, z, red, green, blue are among the properties (-1: no colour).
+  std::array<int, 6> slot;
+  slot.fill(-1);
+  const char* wanted[] = {"x", "y", "z", "red", "green", "blue"};
+  for (size_t i = 0; i < layout.properties.size(); ++i) {
+    for (size_t w = 0; w < slot.size(); ++w) {
+      if (layout.properties[i].first == wanted[w]) slot[w] = static_cast<int>(i);
+    }
   }
-  SIGHTMAP_CHECK(blob.data.size() >= points * blob.point_step,
-                 "cannot read " << path << " as PLY: it holds fewer bytes than its header says");
-  Cloud cloud;
-  pcl::fromPCLPointCloud2(blob, cloud);
-  return ToColoredPoints(cloud);
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(static_cast<std::streamoff>(layout.header_bytes));
+  std::vector<ColoredPoint> points;
+  // No more than the file can hold (an ASCII value takes at least two bytes): a small file that
+  // claims a billion vertices must not reserve gigabytes.
+  const uint64_t file_bytes = std::filesystem::file_size(path, ec);
+  const uint64_t body_bytes =
+      !ec && file_bytes > layout.header_bytes ? file_bytes - layout.header_bytes : 0;
+  const uint64_t value_bytes = layout.binary ? layout.vertex_bytes : 2 * layout.properties.size();
+  points.reserve(static_cast<size_t>(
+      std::min<uint64_t>(layout.vertices, body_bytes / std::max<uint64_t>(1, value_bytes))));
+  std::vector<double> values(layout.properties.size());
+  std::vector<char> record(layout.vertex_bytes);
+  for (uint64_t v = 0; v < layout.vertices; ++v) {
+    if (layout.binary) {
+      in.read(record.data(), static_cast<std::streamsize>(record.size()));
+      size_t offset = 0;
+      for (size_t i = 0; i < values.size(); ++i) {
+        values[i] = BinaryScalar(layout.properties[i].second, record.data() + offset);
+        offset += PlyTypeBytes(layout.properties[i].second);
+      }
+    } else {
+      for (double& value : values) in >> value;
+    }
+    SIGHTMAP_CHECK(in, "cannot read " << path << " as PLY: vertex " << v << " of "
+                                      << layout.vertices << " is missing or not numbers");
+    points.push_back(ToPoint(values, slot));
+  }
+  return points;
 }
 
 }  // namespace sightmap

@@ -47,7 +47,9 @@ struct ColoredPoint {
 PlyExportStats ExportPly(const Model& model, const std::string& path,
                          const PlyExportOptions& options = {});
 
-// Reads a PLY with x y z and red green blue back (as PCL reads it), for tests and tools.
+// Reads a PLY point cloud (ascii or binary little-endian; x y z of any scalar type, and red green
+// blue as uchar or none) back, for tests and tools. Throws Error saying what is wrong with a file
+// it cannot read.
 std::vector<ColoredPoint> ReadPly(const std::string& path);
 
 }  // namespace sightmap
