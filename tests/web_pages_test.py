@@ -281,6 +281,10 @@ def test_label_page(browser, server, sightmap, model, work, out_dir):
              "the labelling page to load")
     thumbs = browser.find_elements(By.CSS_SELECTOR, "#thumbs .thumb")
     expect(len(thumbs) == 90, f"{len(thumbs)} keyframe thumbnails, not 90")
+    # The first row of thumbnails is on screen: they load (lazily) and decode.
+    wait_for(browser, lambda b: b.execute_script(
+        "return [...document.querySelectorAll('#thumbs img')].slice(0, 3)"
+        ".every(i => i.complete && i.naturalWidth === 160)"), "the first thumbnails")
     browser.save_screenshot(os.path.join(out_dir, "label-list.png"))
     keyframe = 40
     browser.find_element(By.CSS_SELECTOR, f'#thumbs .thumb[data-keyframe="{keyframe}"]').click()
@@ -381,7 +385,25 @@ def test_read_only_and_token(browser, sightmap, model):
         expect(status == 200, f"removing with the token answered {status}")
     finally:
         server.stop()
-    print("read-only: no editing controls, writes 403; --token: writes without it 401")
+    # Off loopback without --token, one is made up and printed with the labelling page's address.
+    server = Server(sightmap, "--model", model, "--host", "0.0.0.0")
+    try:
+        match = re.search(r"/label\?token=([0-9a-f]+)", server.output)
+        expect(match, f"no edit token printed: {server.output}")
+        body = {"name": "printed", "keyframe": 40, "pixel": [320, 200]}
+        status, _ = server.request("POST", "/api/labels", body)
+        expect(status == 401, f"an edit without the printed token answered {status}")
+        status, answer = server.request("POST", "/api/labels", body,
+                                        {"X-Sightmap-Token": match.group(1)})
+        expect(status == 200, f"an edit with the printed token answered {status} {answer}")
+        server.request("DELETE", f"/api/labels/{answer['label']['id']}", None,
+                       {"X-Sightmap-Token": match.group(1)})
+        status, _ = server.request("GET", "/appliances")
+        expect(status == 200, "the phone side needs no token")
+    finally:
+        server.stop()
+    print("read-only: no editing controls, writes 403; --token: writes without it 401; "
+          "--host 0.0.0.0: a printed token")
 
 
 def main():

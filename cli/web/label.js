@@ -81,9 +81,11 @@ function thumbButton(keyframeId, withCaption) {
   image.src = `/api/keyframes/${keyframeId}/image.jpg?max_side=160`;
   button.append(image);
   if (withCaption) {
+    // The session is the list's choice; the keyframe and its time say which one this is.
     const caption = document.createElement('span');
     const keyframe = state.keyframes.find((k) => k.id === keyframeId);
-    caption.textContent = keyframe ? keyframeCaption(keyframe) : `#${keyframeId}`;
+    caption.textContent =
+        keyframe ? `#${keyframe.id} · ${keyframe.time_s.toFixed(0)} s` : `#${keyframeId}`;
     button.append(caption);
   }
   button.addEventListener('click', () => openKeyframe(keyframeId));
