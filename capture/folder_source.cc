@@ -10,9 +10,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <map>
 #include <optional>
 #include <sstream>
+#include <string_view>
 #include <thread>
 #include <tuple>
 #include <utility>
@@ -24,6 +26,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/calibration.h"
+#include "core/atomic_file.h"
 #include "core/check.h"
 #include "core/tum_format.h"
 
@@ -849,6 +852,37 @@ std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
   return std::make_unique<FolderSource>(std::move(metadata), std::move(frames),
                                         DepthEncoding::kMillimetres,
                                         static_cast<int64_t>(incomplete.size()), options.realtime);
+}
+
+namespace {
+
+void WritePngAtomically(const std::string& path, const cv::Mat& image) {
+  std::vector<uchar> bytes;
+  SIGHTMAP_CHECK(cv::imencode(".png", image, bytes), "cannot encode " << path << " as PNG");
+  WriteFileAtomically(path,
+                      std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+}  // namespace
+
+void WriteThreeDMatchFrame(const std::string& dir, const RgbdFrame& frame) {
+  char stem[32];
+  std::snprintf(stem, sizeof(stem), "frame-%06lld", static_cast<long long>(frame.index));
+  const std::string base = (fs::path(dir) / stem).string();
+  WritePngAtomically(base + ".color.png", frame.color);
+  WritePngAtomically(base + ".depth.png", frame.depth);
+  if (frame.world_from_cam_gt) {
+    std::ostringstream pose;
+    pose << std::setprecision(17) << frame.world_from_cam_gt->matrix() << "\n";
+    WriteFileAtomically(base + ".pose.txt", pose.str());
+  }
+}
+
+void WriteThreeDMatchIntrinsics(const std::string& dir, const Intrinsics& k) {
+  std::ostringstream text;
+  text << std::setprecision(17) << k.fx << " 0 " << k.cx << "\n0 " << k.fy << " " << k.cy
+       << "\n0 0 1\n";
+  WriteFileAtomically((fs::path(dir) / "camera-intrinsics.txt").string(), text.str());
 }
 
 }  // namespace sightmap

@@ -38,4 +38,11 @@ std::unique_ptr<RgbdSource> OpenTumFolder(const std::string& dir, const SourceOp
 std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
                                                   const SourceOptions& options);
 
+// The same layout written (`sightmap probe --dump`): frame-NNNNNN.color.png and .depth.png
+// (millimetres) with N the frame's index, and .pose.txt when the frame has ground truth; with
+// camera-intrinsics.txt, the folder plays back as `3dmatch:DIR`. Every file is written
+// atomically. Throws Error naming the file that could not be written.
+void WriteThreeDMatchFrame(const std::string& dir, const RgbdFrame& frame);
+void WriteThreeDMatchIntrinsics(const std::string& dir, const Intrinsics& intrinsics);
+
 }  // namespace sightmap

@@ -122,6 +122,45 @@ TEST(ThreeDMatchFolderTest, ReadsTheSharedLoungeFrames) {
   EXPECT_EQ(stats.unpaired_frames, 0);
 }
 
+// What `probe --dump` writes plays back as the same frames: pixels, depth, pose and intrinsics.
+TEST(ThreeDMatchFolderTest, WrittenFramesReadBackExactly) {
+  const std::string dir = testing::MakeTempDir("3dmatch-written");
+  const Intrinsics k = Intrinsics::FromPinhole(64, 48, 57.123456789, 58.5, 31.25, 23.75);
+  std::vector<RgbdFrame> frames(3);
+  for (int i = 0; i < 3; ++i) {
+    RgbdFrame& frame = frames[static_cast<size_t>(i)];
+    frame.index = i * 2;  // gaps are allowed
+    frame.color = cv::Mat(48, 64, CV_8UC3);
+    cv::randu(frame.color, cv::Scalar::all(0), cv::Scalar::all(255));
+    frame.depth = cv::Mat(48, 64, CV_16UC1);
+    cv::randu(frame.depth, cv::Scalar(0), cv::Scalar(8000));
+    if (i != 1) {
+      frame.world_from_cam_gt = Eigen::Translation3d(0.1 * i, -1.25, 2.0 / 3.0) *
+                                Eigen::AngleAxisd(0.3 * i + 0.1, Eigen::Vector3d::UnitY());
+    }
+    WriteThreeDMatchFrame(dir, frame);
+  }
+  WriteThreeDMatchIntrinsics(dir, k);
+  const std::unique_ptr<RgbdSource> source = OpenThreeDMatchFolder(dir, SourceOptions());
+  EXPECT_NEAR(source->metadata().intrinsics.fx, k.fx, 1e-12);
+  EXPECT_NEAR(source->metadata().intrinsics.cy, k.cy, 1e-12);
+  for (const RgbdFrame& written : frames) {
+    const std::optional<RgbdFrame> read = source->Next();
+    ASSERT_TRUE(read);
+    EXPECT_EQ(cv::norm(read->color, written.color, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(read->depth, written.depth, cv::NORM_INF), 0.0);
+    ASSERT_EQ(read->world_from_cam_gt.has_value(), written.world_from_cam_gt.has_value());
+    if (written.world_from_cam_gt) {
+      EXPECT_LT((read->world_from_cam_gt->matrix() - written.world_from_cam_gt->matrix())
+                    .cwiseAbs()
+                    .maxCoeff(),
+                1e-15);
+    }
+  }
+  EXPECT_FALSE(source->Next());
+  EXPECT_THROW(WriteThreeDMatchFrame(dir + "/missing", frames[0]), Error);
+}
+
 TEST(ThreeDMatchFolderTest, SceneFolderWithOneSequenceReadsIt) {
   SIGHTMAP_REQUIRE_SHARED_DATA(dir, "rgbd/3dmatch-lounge");
   std::unique_ptr<RgbdSource> source = OpenThreeDMatchFolder(dir, SourceOptions());

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "capture/folder_source.h"
 #include "capture/rgbd_source.h"
 #include "cli/command_util.h"
 #include "cli/commands.h"
@@ -30,29 +31,6 @@ struct ProbeSummary {
   double valid_fraction_sum = 0.0;
   std::vector<uint16_t> depth_samples_mm;  // a subsample of valid depths, for the median
 };
-
-// Writes frame N as the 3DMatch layout (frame-N.color.png, frame-N.depth.png) so a dump plays back
-// as `3dmatch:DIR`.
-void DumpFrame(const std::string& dir, const RgbdFrame& frame) {
-  char stem[32];
-  std::snprintf(stem, sizeof(stem), "frame-%06lld", static_cast<long long>(frame.index));
-  const std::string base = (std::filesystem::path(dir) / stem).string();
-  SIGHTMAP_CHECK(cv::imwrite(base + ".color.png", frame.color) &&
-                     cv::imwrite(base + ".depth.png", frame.depth),
-                 "cannot write " << base << ".*.png: check that " << dir
-                                 << " is writable and the disk is not full");
-  if (frame.world_from_cam_gt) {
-    std::ofstream pose(base + ".pose.txt");
-    pose << std::setprecision(9) << frame.world_from_cam_gt->matrix() << "\n";
-  }
-}
-
-void WriteIntrinsicsFile(const std::string& dir, const Intrinsics& k) {
-  std::ofstream out((std::filesystem::path(dir) / "camera-intrinsics.txt").string());
-  out << std::setprecision(10) << k.fx << " 0 " << k.cx << "\n0 " << k.fy << " " << k.cy
-      << "\n0 0 1\n";
-  SIGHTMAP_CHECK(out.good(), "cannot write camera-intrinsics.txt in " << dir);
-}
 
 }  // namespace
 
@@ -97,7 +75,7 @@ int RunProbe(int argc, char** argv) {
   std::unique_ptr<RgbdSource> rgbd = OpenSource(source, options);
   const SourceMetadata& meta = rgbd->metadata();
   if (max_frames < 0 && meta.kind == "openni") max_frames = 30;
-  if (dump > 0) WriteIntrinsicsFile(out_dir, meta.intrinsics);
+  if (dump > 0) WriteThreeDMatchIntrinsics(out_dir, meta.intrinsics);
 
   // Progress on stderr for long folders, only when a person is watching.
   const bool show_progress = isatty(STDERR_FILENO) != 0;
@@ -119,7 +97,7 @@ int RunProbe(int argc, char** argv) {
         if (z) summary.depth_samples_mm.push_back(z);
       }
     }
-    if (summary.frames < dump) DumpFrame(out_dir, *frame);
+    if (summary.frames < dump) WriteThreeDMatchFrame(out_dir, *frame);
     ++summary.frames;
     if (show_progress &&
         std::chrono::steady_clock::now() - last_progress > std::chrono::seconds(1)) {
