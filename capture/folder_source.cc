@@ -28,6 +28,7 @@
 #include "capture/calibration.h"
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/image_header.h"
 #include "core/tum_format.h"
 
 namespace sightmap {
@@ -222,54 +223,13 @@ std::vector<std::pair<size_t, size_t>> AssociateByTime(const std::vector<TimedFi
 // ------------------------------------------------------------------------------------------------
 // Images
 
-struct ImageHeader {
-  int width = 0;
-  int height = 0;
-  int bits = 0;  // per channel
-  int channels = 0;
-};
-
-// The size and format from a PNG's IHDR chunk, without decoding pixels; nullopt for other files.
-std::optional<ImageHeader> ReadPngHeader(const std::string& path) {
+// A PNG or JPEG header from the file's first 64 KiB (room for EXIF segments before a JPEG's
+// frame header), without decoding pixels; nullopt for other files.
+std::optional<ImageHeader> ReadImageFileHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  std::array<unsigned char, 26> bytes{};
-  if (!in.read(reinterpret_cast<char*>(bytes.data()), bytes.size())) return std::nullopt;
-  static constexpr std::array<unsigned char, 8> kSignature = {0x89, 'P',  'N',  'G',
-                                                              '\r', '\n', 0x1a, '\n'};
-  if (!std::equal(kSignature.begin(), kSignature.end(), bytes.begin()) ||
-      std::memcmp(&bytes[12], "IHDR", 4) != 0) {
-    return std::nullopt;
-  }
-  const auto big_endian = [&bytes](size_t at) {
-    return static_cast<int>(
-        (static_cast<uint32_t>(bytes[at]) << 24) | (static_cast<uint32_t>(bytes[at + 1]) << 16) |
-        (static_cast<uint32_t>(bytes[at + 2]) << 8) | static_cast<uint32_t>(bytes[at + 3]));
-  };
-  ImageHeader header;
-  header.width = big_endian(16);
-  header.height = big_endian(20);
-  header.bits = bytes[24];
-  switch (bytes[25]) {
-    case 0:
-      header.channels = 1;
-      break;
-    case 2:
-      header.channels = 3;
-      break;
-    case 3:  // palette entries are 8-bit RGB whatever the index width
-      header.channels = 3;
-      header.bits = 8;
-      break;
-    case 4:
-      header.channels = 2;
-      break;
-    case 6:
-      header.channels = 4;
-      break;
-    default:
-      return std::nullopt;
-  }
-  return header;
+  std::vector<uint8_t> bytes(64 * 1024);
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  return ReadImageHeader(bytes.data(), static_cast<size_t>(in.gcount()));
 }
 
 cv::Mat ReadImage(const std::string& path, const char* what) {
@@ -286,9 +246,9 @@ cv::Mat ReadImage(const std::string& path, const char* what) {
   return image;
 }
 
-// Falls back to decoding the image for formats other than PNG.
-ImageHeader ReadImageHeader(const std::string& path, const char* what) {
-  if (std::optional<ImageHeader> header = ReadPngHeader(path)) return *header;
+// Falls back to decoding the image for formats other than PNG and JPEG.
+ImageHeader ReadFrameImageHeader(const std::string& path, const char* what) {
+  if (std::optional<ImageHeader> header = ReadImageFileHeader(path)) return *header;
   const cv::Mat image = ReadImage(path, what);
   ImageHeader header;
   header.width = image.cols;
@@ -432,8 +392,8 @@ void RequireFolder(const std::string& dir, const char* format, const char* hint)
 
 // Native sizes from the first frame's headers, which must agree (the depth is registered).
 void SetSizesFromFirstFrame(const FolderFrame& first, SourceMetadata* metadata) {
-  const ImageHeader color = ReadImageHeader(first.color_path, "colour");
-  const ImageHeader depth = ReadImageHeader(first.depth_path, "depth");
+  const ImageHeader color = ReadFrameImageHeader(first.color_path, "colour");
+  const ImageHeader depth = ReadFrameImageHeader(first.depth_path, "depth");
   CheckDepthFormat(first.depth_path, depth.bits, depth.channels);
   SIGHTMAP_CHECK(color.width == depth.width && color.height == depth.height,
                  "the first frame's depth image "

@@ -7,14 +7,14 @@
 #include <cstdint>
 
 #include "core/check.h"
+#include "core/image_header.h"
 #include "identify/exif.h"
 #include "identify/photo.h"
-#include "identify/photo_header.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace sightmap;
-  if (const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size)) {
-    PhotoIsComplete(data, size, header->format);
+  if (const std::optional<ImageHeader> header = ReadImageHeader(data, size)) {
+    ImageIsComplete(data, size, header->format);
   }
   ExifFocalLength35mm(data, size);
   ExifOrientation(data, size);

@@ -10,7 +10,7 @@
 #include <memory>
 
 #include "core/check.h"
-#include "identify/photo_header.h"
+#include "core/image_header.h"
 
 namespace sightmap {
 namespace {
@@ -103,7 +103,7 @@ std::optional<double> DerivedFocal35mm(ExifData* exif, const uint8_t* data, size
   std::optional<double> width = Positive(TagValue(exif, EXIF_TAG_PIXEL_X_DIMENSION));
   std::optional<double> height = Positive(TagValue(exif, EXIF_TAG_PIXEL_Y_DIMENSION));
   if (!width || !height) {
-    const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size);
+    const std::optional<ImageHeader> header = ReadImageHeader(data, size);
     if (!header) return std::nullopt;
     width = header->width;
     height = header->height;

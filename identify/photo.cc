@@ -124,7 +124,7 @@ int Photo::height() const {
 }
 
 Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
-  const std::optional<PhotoHeader> header = ReadPhotoHeader(data, size);
+  const std::optional<ImageHeader> header = ReadImageHeader(data, size);
   if (!header) {
     throw PhotoRejected(PhotoProblem::kNotAnImage, "the photo is not a JPEG or PNG image");
   }
@@ -136,7 +136,7 @@ Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
             << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
     throw PhotoRejected(PhotoProblem::kTooLarge, message.str());
   }
-  if (!PhotoIsComplete(data, size, header->format)) {
+  if (!ImageIsComplete(data, size, header->format)) {
     throw PhotoRejected(PhotoProblem::kTruncated,
                         std::string("the ") + ToString(header->format) +
                             " is truncated (it has no end marker): the upload or copy was cut "
@@ -144,7 +144,7 @@ Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
   }
   Photo photo;
   photo.stored = *header;
-  if (header->format == PhotoFormat::kJpeg) {
+  if (header->format == ImageFormat::kJpeg) {
     const ExifFacts exif = ReadExifFacts(data, size);
     photo.orientation = PhotoOrientation::FromExif(exif.orientation);
     photo.exif_focal_35mm = exif.focal_35mm;

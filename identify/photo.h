@@ -13,7 +13,7 @@
 
 #include "core/camera.h"
 #include "core/check.h"
-#include "identify/photo_header.h"
+#include "core/image_header.h"
 
 namespace sightmap {
 
@@ -51,7 +51,7 @@ class PhotoRejected : public InvalidArgument {
 };
 
 struct Photo {
-  PhotoHeader stored;  // format and size as the file stores the pixels
+  ImageHeader stored;  // format and size as the file stores the pixels
   PhotoOrientation orientation;
   // BGR, turned by the orientation's rotation. Not mirrored: a mirror image is no pinhole
   // projection, so the locator works on the camera's own view and DisplayPixel() mirrors its

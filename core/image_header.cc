@@ -1,4 +1,4 @@
-#include "identify/photo_header.h"
+#include "core/image_header.h"
 
 namespace sightmap {
 namespace {
@@ -6,10 +6,10 @@ namespace {
 uint32_t BigEndian16(const uint8_t* p) { return (uint32_t{p[0]} << 8) | p[1]; }
 uint32_t BigEndian32(const uint8_t* p) { return (BigEndian16(p) << 16) | BigEndian16(p + 2); }
 
-std::optional<PhotoHeader> ReadPng(const uint8_t* data, size_t size) {
+std::optional<ImageHeader> ReadPng(const uint8_t* data, size_t size) {
   static constexpr uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   // Signature, then the IHDR chunk: length (13), "IHDR", width, height (big-endian).
-  if (size < 24) return std::nullopt;
+  if (size < 26) return std::nullopt;
   for (int i = 0; i < 8; ++i) {
     if (data[i] != kSignature[i]) return std::nullopt;
   }
@@ -20,7 +20,29 @@ std::optional<PhotoHeader> ReadPng(const uint8_t* data, size_t size) {
   if (width == 0 || height == 0 || width > 0x7FFFFFFFu || height > 0x7FFFFFFFu) {
     return std::nullopt;
   }
-  return PhotoHeader{PhotoFormat::kPng, static_cast<int>(width), static_cast<int>(height)};
+  ImageHeader header{ImageFormat::kPng, static_cast<int>(width), static_cast<int>(height)};
+  header.bits = data[24];
+  switch (data[25]) {  // colour type
+    case 0:
+      header.channels = 1;
+      break;
+    case 2:
+      header.channels = 3;
+      break;
+    case 3:  // palette entries are 8-bit RGB whatever the index width
+      header.channels = 3;
+      header.bits = 8;
+      break;
+    case 4:
+      header.channels = 2;
+      break;
+    case 6:
+      header.channels = 4;
+      break;
+    default:
+      return std::nullopt;
+  }
+  return header;
 }
 
 bool IsStartOfFrame(uint8_t marker) {
@@ -28,7 +50,7 @@ bool IsStartOfFrame(uint8_t marker) {
   return marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
 }
 
-std::optional<PhotoHeader> ReadJpeg(const uint8_t* data, size_t size) {
+std::optional<ImageHeader> ReadJpeg(const uint8_t* data, size_t size) {
   if (size < 4 || data[0] != 0xFF || data[1] != 0xD8) return std::nullopt;
   size_t at = 2;
   while (at < size) {
@@ -44,13 +66,16 @@ std::optional<PhotoHeader> ReadJpeg(const uint8_t* data, size_t size) {
     const size_t length = BigEndian16(data + at);  // includes its own two bytes
     if (length < 2) return std::nullopt;
     if (IsStartOfFrame(marker)) {
-      // Length (2), precision (1), height (2), width (2).
-      if (length < 7 || at + 7 > size) return std::nullopt;
+      // Length (2), precision (1), height (2), width (2), components (1).
+      if (length < 8 || at + 8 > size) return std::nullopt;
       const int height = static_cast<int>(BigEndian16(data + at + 3));
       const int width = static_cast<int>(BigEndian16(data + at + 5));
       // A zero height means "given by a DNL marker later": rare, and not worth decoding blind.
       if (width == 0 || height == 0) return std::nullopt;
-      return PhotoHeader{PhotoFormat::kJpeg, width, height};
+      ImageHeader header{ImageFormat::kJpeg, width, height};
+      header.bits = data[at + 2];
+      header.channels = data[at + 7];
+      return header;
     }
     at += length;
   }
@@ -59,17 +84,17 @@ std::optional<PhotoHeader> ReadJpeg(const uint8_t* data, size_t size) {
 
 }  // namespace
 
-const char* ToString(PhotoFormat format) { return format == PhotoFormat::kJpeg ? "jpeg" : "png"; }
+const char* ToString(ImageFormat format) { return format == ImageFormat::kJpeg ? "jpeg" : "png"; }
 
-std::optional<PhotoHeader> ReadPhotoHeader(const uint8_t* data, size_t size) {
+std::optional<ImageHeader> ReadImageHeader(const uint8_t* data, size_t size) {
   if (data == nullptr) return std::nullopt;
   if (auto png = ReadPng(data, size)) return png;
   return ReadJpeg(data, size);
 }
 
-bool PhotoIsComplete(const uint8_t* data, size_t size, PhotoFormat format) {
+bool ImageIsComplete(const uint8_t* data, size_t size, ImageFormat format) {
   if (data == nullptr || size < 4) return false;
-  if (format == PhotoFormat::kPng) {
+  if (format == ImageFormat::kPng) {
     // The IEND chunk whole (length 0, "IEND", its 4-byte CRC); a few trailing bytes are tolerated.
     for (size_t i = size > 64 ? size - 64 : 0; i + 8 <= size; ++i) {
       if (data[i] == 'I' && data[i + 1] == 'E' && data[i + 2] == 'N' && data[i + 3] == 'D') {
