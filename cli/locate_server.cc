@@ -371,14 +371,17 @@ httplib::Server::HandlerResponse LocateServer::Impl::PreRoute(const httplib::Req
                                                               httplib::Response& response) {
   request_start = std::chrono::steady_clock::now();
   if (!request.has_header("Content-Length")) {
-    // A POST that says neither its length nor that it is chunked: cpp-httplib would wait for the
-    // connection to close to find the body's end (the fuzzer found a multipart upload stall so
-    // until the read timeout, then get no answer). Ask for the length instead.
+    // A POST (or PATCH) that says neither its length nor that it is chunked: cpp-httplib would wait
+    // for the connection to close to find the body's end (the fuzzer found a multipart upload stall
+    // so until the read timeout, then get no answer). Ask for the length instead.
     const bool chunked =
         request.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
-    if (request.method != "POST" || chunked) return httplib::Server::HandlerResponse::Unhandled;
+    const bool has_body =
+        request.method == "POST" || request.method == "PATCH" || request.method == "PUT";
+    if (!has_body || chunked) return httplib::Server::HandlerResponse::Unhandled;
     response.set_header("Connection", "close");
-    RefuseCounted(response, 411, "a POST needs a Content-Length (or chunked transfer encoding)");
+    RefuseCounted(response, 411,
+                  "a " + request.method + " needs a Content-Length (or chunked transfer encoding)");
     return httplib::Server::HandlerResponse::Handled;
   }
   const std::string declared = request.get_header_value("Content-Length");
@@ -601,6 +604,8 @@ void LocateServer::Impl::AddLabelRoutes() {
                  response.set_header("Cache-Control", "max-age=86400");
                } catch (const ServiceError& e) {
                  RefuseCounted(response, e.status(), e.what());
+               } catch (const Error& e) {
+                 RefuseCounted(response, 503, std::string(e.what()) + " (then try again)");
                }
              });
   server.Get(R"(/api/keyframes/(\d{1,15})/labels)",

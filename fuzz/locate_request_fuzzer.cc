@@ -19,6 +19,7 @@
 #include <thread>
 
 #include <fuzzer/FuzzedDataProvider.h>
+#include <nlohmann/json.hpp>
 
 #include "cli/locate_server.h"
 #include "fuzz/fuzz_inputs.h"
@@ -145,6 +146,20 @@ std::string Exchange(const std::string& request) {
   return answer;
 }
 
+// A label an input created is removed again: labels piling up over a run would slow every later
+// input (each edit reloads them all into the Locator) without finding anything new.
+void RemoveCreatedLabel(const std::string& request, const std::string& answer) {
+  if (request.rfind("POST /api/labels", 0) != 0 || answer.rfind("HTTP/1.1 200", 0) != 0) return;
+  const size_t body = answer.find("\r\n\r\n");
+  if (body == std::string::npos) return;
+  const nlohmann::json created =
+      nlohmann::json::parse(answer.substr(body + 4), nullptr, /*allow_exceptions=*/false);
+  if (!created.is_object() || !created.contains("label")) return;
+  const int64_t id = created["label"].value("id", int64_t{0});
+  Exchange("DELETE /api/labels/" + std::to_string(id) +
+           " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
@@ -183,5 +198,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::fprintf(stderr, "server error:\n%s\n", answer.c_str());
     std::abort();
   }
+  RemoveCreatedLabel(request, answer);
   return 0;
 }

@@ -499,6 +499,11 @@ TEST_F(ServeTest, ADeclaredLengthIsRefusedBeforeTheBody) {
                           "name=\"photo\"; filename=\"q.jpg\"\r\n\r\nxyz\r\n--b--\r\n",
                           std::chrono::seconds(2)),
             "HTTP/1.1 411 Length Required");
+  // The same for a label edit (PATCH), which waited for the read timeout before.
+  EXPECT_EQ(RawStatusLine(server_->port(),
+                          "PATCH /api/labels/1 HTTP/1.1\r\nHost: x\r\n\r\n{\"type\": \"lamp\"}",
+                          std::chrono::seconds(2)),
+            "HTTP/1.1 411 Length Required");
   ExpectStillServing();
 }
 
