@@ -90,15 +90,7 @@ template <typename ParseFn>
 void ForEachDataLine(const fs::path& path, ParseFn&& parse) {
   std::ifstream in(path);
   SIGHTMAP_CHECK(in, "cannot read " << path.string() << "; check that the file is readable");
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const std::vector<std::string> tokens = TumFields(line);
-    if (tokens.empty()) continue;
-    parse(tokens, line_number, line);
-  }
+  ForEachTumLine(in, parse);
 }
 
 bool ParseDouble(const std::string& text, double* value) {

@@ -162,9 +162,9 @@ std::optional<Intrinsics> IntrinsicsFromQuery(const httplib::Request& request, i
 // to one worker, and calls the pre-routing handler and the logger on it).
 thread_local std::optional<std::chrono::steady_clock::time_point> request_start;
 
-// A declared Content-Length that is not a plain decimal number: "-5", "12abc", "" or one too long
-// to be a size. Requests without the header have no body or a chunked one.
-std::optional<uint64_t> ParseContentLength(const std::string& text) {
+// A plain decimal number (a declared Content-Length, ?max_side=), or nothing for "-5", "12abc", ""
+// or one too long to be a size.
+std::optional<uint64_t> ParsePlainDecimal(const std::string& text) {
   if (text.empty() || text.size() > 18) return std::nullopt;
   for (const char c : text) {
     if (!std::isdigit(static_cast<unsigned char>(c))) return std::nullopt;
@@ -385,7 +385,7 @@ httplib::Server::HandlerResponse LocateServer::Impl::PreRoute(const httplib::Req
     return httplib::Server::HandlerResponse::Handled;
   }
   const std::string declared = request.get_header_value("Content-Length");
-  const std::optional<uint64_t> length = ParseContentLength(declared);
+  const std::optional<uint64_t> length = ParsePlainDecimal(declared);
   if (length && *length <= MaxBodyBytes()) return httplib::Server::HandlerResponse::Unhandled;
   // Answered before the body is read, and the connection closed: its bytes are never read.
   response.set_header("Connection", "close");
@@ -589,7 +589,7 @@ void LocateServer::Impl::AddLabelRoutes() {
                int max_side = 0;
                if (request.has_param("max_side")) {
                  const std::string text = request.get_param_value("max_side");
-                 const std::optional<uint64_t> value = ParseContentLength(text);
+                 const std::optional<uint64_t> value = ParsePlainDecimal(text);
                  if (!value || *value > 100000) {
                    RefuseCounted(response, 400,
                                  "max_side must be a number of pixels, got '" + text + "'");

@@ -70,42 +70,45 @@ std::string FormatTimestamp(TimestampNs ns) {
   return text;
 }
 
-std::vector<std::string> TumFields(std::string line) {
-  if (!line.empty() && line.back() == '\r') line.pop_back();
-  std::replace(line.begin(), line.end(), ',', ' ');
-  std::istringstream stream(line);
-  std::vector<std::string> fields;
-  for (std::string field; stream >> field;) fields.push_back(field);
-  if (!fields.empty() && fields.front().front() == '#') fields.clear();
-  return fields;
+void ForEachTumLine(std::istream& in,
+                    const std::function<void(const std::vector<std::string>&, int,
+                                             const std::string&)>& fields_of_line) {
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::string spaced = line;
+    std::replace(spaced.begin(), spaced.end(), ',', ' ');
+    std::istringstream stream(spaced);
+    std::vector<std::string> fields;
+    for (std::string field; stream >> field;) fields.push_back(field);
+    if (fields.empty() || fields.front().front() == '#') continue;
+    fields_of_line(fields, line_number, line);
+  }
 }
 
 std::vector<StampedPose> ReadTumTrajectory(const std::string& path) {
   std::ifstream in(path);
   SIGHTMAP_CHECK(in.is_open(), "cannot read trajectory " << path << ": check that it exists");
   std::vector<StampedPose> poses;
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const std::vector<std::string> tokens = TumFields(line);
-    if (tokens.empty()) continue;
-    StampedPose pose;
-    std::array<double, 7> v{};
-    bool ok = tokens.size() == 8 && ParseTimestampNs(tokens[0], &pose.timestamp_ns);
-    for (size_t i = 0; ok && i < v.size(); ++i) ok = ParseDouble(tokens[i + 1], &v[i]);
-    const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);  // the file's order is x y z w
-    if (!ok || !(q.norm() > 1e-6)) {
-      SIGHTMAP_THROW(Error, path << ":" << line_number
-                                 << ": expected \"timestamp tx ty tz qx qy qz qw\" with a "
-                                    "non-zero quaternion but found \""
-                                 << line << "\"; fix or delete the line");
-    }
-    pose.world_from_cam.linear() = q.normalized().toRotationMatrix();
-    pose.world_from_cam.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
-    poses.push_back(pose);
-  }
+  ForEachTumLine(
+      in, [&](const std::vector<std::string>& tokens, int line_number, const std::string& line) {
+        StampedPose pose;
+        std::array<double, 7> v{};
+        bool ok = tokens.size() == 8 && ParseTimestampNs(tokens[0], &pose.timestamp_ns);
+        for (size_t i = 0; ok && i < v.size(); ++i) ok = ParseDouble(tokens[i + 1], &v[i]);
+        const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);  // the file's order is x y z w
+        if (!ok || !(q.norm() > 1e-6)) {
+          SIGHTMAP_THROW(Error, path << ":" << line_number
+                                     << ": expected \"timestamp tx ty tz qx qy qz qw\" with a "
+                                        "non-zero quaternion but found \""
+                                     << line << "\"; fix or delete the line");
+        }
+        pose.world_from_cam.linear() = q.normalized().toRotationMatrix();
+        pose.world_from_cam.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
+        poses.push_back(pose);
+      });
   return poses;
 }
 

@@ -5,6 +5,8 @@
 // nine fraction digits, so a write-read round trip is exact.
 #pragma once
 
+#include <functional>
+#include <istream>
 #include <string>
 #include <vector>
 
@@ -18,9 +20,12 @@ bool ParseTimestampNs(const std::string& text, TimestampNs* ns);
 // 1305031102175304000 ns -> "1305031102.175304000".
 std::string FormatTimestamp(TimestampNs ns);
 
-// A line's fields (a trailing '\r' dropped, spaces or commas between fields); none for a blank
-// line or a '#' comment.
-std::vector<std::string> TumFields(std::string line);
+// Calls fields_of_line(fields, line_number, line) for every line of `in` that is neither blank nor
+// a '#' comment: its fields separated by spaces or commas, its 1-based number, and the line as
+// written (a trailing '\r' dropped), for error messages.
+void ForEachTumLine(std::istream& in,
+                    const std::function<void(const std::vector<std::string>&, int,
+                                             const std::string&)>& fields_of_line);
 
 // Poses in file order. Throws Error naming the file, the line and what it expected ("fix or
 // delete the line") for a malformed line or a zero quaternion; quaternions are normalised.
