@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap {
 
@@ -34,5 +35,7 @@ bool KeyframeSampler::Accept(TimestampNs timestamp_ns) {
   *next_due_ns_ += (periods_late + 1) * period_ns_;
   return true;
 }
+
+SIGHTMAP_OPTIONS_JSON(KeyframeSamplerOptions, rate_hz)
 
 }  // namespace sightmap

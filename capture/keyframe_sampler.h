@@ -5,6 +5,8 @@
 #include <optional>
 #include <string>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/rgbd_frame.h"
 
 namespace sightmap {
@@ -15,6 +17,8 @@ struct KeyframeSamplerOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const KeyframeSamplerOptions& options);
+void from_json(const nlohmann::json& json, KeyframeSamplerOptions& options);
 
 class KeyframeSampler {
  public:

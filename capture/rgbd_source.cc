@@ -9,6 +9,7 @@
 #include "capture/folder_source.h"
 #include "capture/openni_source.h"
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap {
 namespace {
@@ -146,5 +147,8 @@ std::unique_ptr<RgbdSource> OpenSource(const std::string& source, const SourceOp
   }
   SIGHTMAP_THROW(Error, "unhandled SOURCE kind for " << source);
 }
+
+SIGHTMAP_OPTIONS_JSON(SourceOptions, width, height, fps, realtime, sync_tolerance_ns,
+                      frame_timeout_ms, calibration_file)
 
 }  // namespace sightmap

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 
@@ -33,6 +35,8 @@ struct SourceOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const SourceOptions& options);
+void from_json(const nlohmann::json& json, SourceOptions& options);
 
 // How the depth image came to be registered to the colour image.
 enum class DepthRegistration {

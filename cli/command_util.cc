@@ -9,7 +9,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <sstream>
 
 #include "core/check.h"
@@ -85,6 +87,43 @@ void MakeParentFolder(const std::string& path, const std::string& option) {
     SIGHTMAP_THROW(Error, "cannot write " << option << " " << path << ": cannot create its folder ("
                                           << error.message() << ")");
   }
+}
+
+std::string ReadConfigFile(const std::string& path) {
+  constexpr std::uintmax_t kMaxBytes = 1 << 20;
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) {
+    SIGHTMAP_THROW(InvalidArgument, "--config " << path << " is a folder, not a JSON file");
+  }
+  const std::uintmax_t bytes = std::filesystem::file_size(path, error);
+  if (error) {
+    SIGHTMAP_THROW(InvalidArgument, "--config " << path << ": " << error.message());
+  }
+  if (bytes > kMaxBytes) {
+    SIGHTMAP_THROW(InvalidArgument, "--config " << path << " is " << bytes
+                                                << " bytes; a config is a small JSON file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in.is_open()) {
+    SIGHTMAP_THROW(InvalidArgument, "--config " << path << ": " << std::strerror(errno));
+  }
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+int RequireGiven(const CLI::App& app, std::initializer_list<const CLI::Option*> options) {
+  for (const CLI::Option* option : options) {
+    if (option->count() == 0) {
+      PrintError(option->get_name() + " is required — run '" + app.get_name() + " --help'");
+      return kExitUsage;
+    }
+  }
+  return -1;
+}
+
+CLI::Option* AddPrintConfigFlag(CLI::App& app, bool& print_config) {
+  return app.add_flag("--print-config", print_config,
+                      "print every option as the JSON --config reads (after --config and the "
+                      "flags), and exit");
 }
 
 void CheckOutputFile(const std::string& path, const std::string& option) {

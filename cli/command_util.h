@@ -1,9 +1,14 @@
 // What every `sightmap` subcommand shares: the exit-code contract and CLI11 parsing.
 #pragma once
 
+#include <initializer_list>
+#include <iostream>
 #include <string>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "core/options_json.h"
 
 namespace sightmap::cli {
 
@@ -47,6 +52,36 @@ void MakeParentFolder(const std::string& path, const std::string& option);
 void CheckOutputFile(const std::string& path, const std::string& option);
 // The same for an output folder: made if missing, and a file can be created in it.
 void CheckOutputFolder(const std::string& dir, const std::string& option);
+
+// The text of a config file; throws InvalidArgument when it cannot be read or is over 1 MiB.
+std::string ReadConfigFile(const std::string& path);
+
+// `--config FILE`: `options` as JSON (what `--print-config` prints, and `info --json` shows of a
+// map session), read while the command line is parsed: CLI11 assigns the other flags after
+// parsing, so a flag on the command line overrides the file whatever their order. A key the file
+// leaves out keeps its default. Errors (a missing file, bad JSON, an unknown key) throw
+// InvalidArgument naming the file and the key.
+template <typename Options>
+CLI::Option* AddConfigOption(CLI::App& app, Options& options) {
+  return app
+      .add_option_function<std::string>(
+          "--config",
+          [&options](const std::string& path) {
+            options_json::ParseInto(ReadConfigFile(path), "--config " + path, options);
+          },
+          "read the options from this JSON file (see --print-config); flags given here override it")
+      ->trigger_on_parse();
+}
+// `--print-config`: print every option as the JSON --config reads, and do nothing else.
+CLI::Option* AddPrintConfigFlag(CLI::App& app, bool& print_config);
+// The options a command needs unless it only prints its config: returns kExitUsage (printed as
+// CLI11 prints a missing required option) when one of them was not given, else -1.
+int RequireGiven(const CLI::App& app, std::initializer_list<const CLI::Option*> options);
+// Prints `options` as --config reads them.
+template <typename Options>
+void PrintConfig(const Options& options) {
+  std::cout << nlohmann::json(options).dump(2) << "\n";
+}
 
 // Prints `error: <message>` as one line on stderr.
 void PrintError(const std::string& message);

@@ -10,6 +10,29 @@
 
 namespace sightmap::cli {
 
+namespace {
+
+// Each session with the options it ran with (what `map --config` reads; older models stored
+// fewer of them).
+nlohmann::json SessionsJson(const std::vector<SessionRecord>& sessions) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const SessionRecord& session : sessions) {
+    nlohmann::json options = nlohmann::json::parse(session.options_json, nullptr,
+                                                   /*allow_exceptions=*/false);
+    if (options.is_discarded()) options = nullptr;
+    list.push_back({{"id", session.id.value()},
+                    {"source", session.source},
+                    {"device", session.device_name},
+                    {"end", SessionEndName(session.end_state)},
+                    {"start_time_ns", session.start_time_ns},
+                    {"end_time_ns", session.end_time_ns},
+                    {"options", options}});
+  }
+  return list;
+}
+
+}  // namespace
+
 int RunInfo(int argc, char** argv) {
   CLI::App app("Report what a model holds: sessions, keyframes, links by type, labels, size.",
                "sightmap info");
@@ -57,6 +80,7 @@ int RunInfo(int argc, char** argv) {
     nlohmann::json names = nlohmann::json::array();
     for (const LabelRecord& label : labels) names.push_back(label.name);
     out["label_names"] = names;
+    out["session_list"] = SessionsJson(model.Sessions());
     std::cout << out.dump(2) << "\n";
     return kExitSuccess;
   }

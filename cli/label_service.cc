@@ -11,6 +11,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/options_json.h"
+
 namespace sightmap::cli {
 namespace {
 
@@ -286,5 +288,9 @@ nlohmann::json LabelService::Remove(int64_t id) {
   labels_changed_(model);
   return {{"removed", label.name}};
 }
+
+// editable and read_only_reason are the server's (LocateServerOptions::read_only).
+SIGHTMAP_OPTIONS_JSON(LabelServiceOptions, max_image_side_px, jpeg_quality, seen_by_max, pixel,
+                      view)
 
 }  // namespace sightmap::cli

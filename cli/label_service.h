@@ -42,6 +42,8 @@ struct LabelServiceOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const LabelServiceOptions& options);
+void from_json(const nlohmann::json& json, LabelServiceOptions& options);
 
 class LabelService {
  public:

@@ -108,8 +108,8 @@ int RunLocate(int argc, char** argv) {
   std::string intrinsics_text;
   std::string calib_path;
   bool json = false;
-  app.add_option("--model", model_path, "the model's SQLite file")->required();
-  app.add_option("PHOTO", photo_path, "the photo (JPEG or PNG)")->required();
+  auto* model_option = app.add_option("--model", model_path, "the model's SQLite file");
+  auto* photo_option = app.add_option("PHOTO", photo_path, "the photo (JPEG or PNG)");
   auto* intrinsics_option = app.add_option(
       "--intrinsics", intrinsics_text,
       "FX,FY,CX,CY of the photo as a viewer shows it (EXIF orientation applied), at its "
@@ -120,7 +120,17 @@ int RunLocate(int argc, char** argv) {
                  "its EXIF orientation")
       ->excludes(intrinsics_option);
   app.add_flag("--json", json, "print the answer as one JSON object (stable keys)");
+  LocatorOptions options;
+  AddConfigOption(app, options);
+  bool print_config = false;
+  AddPrintConfigFlag(app, print_config);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (print_config) {
+    PrintConfig(options);
+    return kExitSuccess;
+  }
+  if (const int code = RequireGiven(app, {model_option, photo_option}); code >= 0) return code;
+  SIGHTMAP_CHECK_OPTIONS(options);
 
   // The photo first: a typo in its name should not wait for the model to load.
   const Photo photo = ReadPhotoFile(photo_path, kMaxPhotoMegapixels);
@@ -140,7 +150,7 @@ int RunLocate(int argc, char** argv) {
   model_options.read_only = true;
   model_options.create_if_missing = false;
   const Model model = Model::Open(model_path, model_options);
-  const Locator locator(model);
+  const Locator locator(model, options);
   const LocateResult result = locator.Locate(photo, hint);
   if (json) {
     std::cout << ToJson(result).dump(2) << "\n";

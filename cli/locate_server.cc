@@ -27,6 +27,7 @@
 #include "cli/label_service.h"
 #include "cli/web_assets.h"
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/statistics.h"
 #include "identify/photo.h"
 #include "store/model.h"
@@ -265,7 +266,16 @@ bool LocateServerOptions::Check(std::string* error) const {
     why << "label_refresh_s must not be negative";
   else if (read_only && read_only_reason.empty())
     why << "a read-only server needs a read_only_reason to give";
-  if (why.tellp() == 0) return true;
+  if (why.tellp() == 0) {
+    std::string nested;
+    if (!locator.Check(&nested)) {
+      why << "locator: " << nested;
+    } else if (!labels.Check(&nested)) {
+      why << "labels: " << nested;
+    } else {
+      return true;
+    }
+  }
   if (error != nullptr) *error = why.str();
   return false;
 }
@@ -659,8 +669,7 @@ void LocateServer::Impl::HandleHealth(httplib::Response& response) const {
          {"uptime_s", uptime_s}});
 }
 
-LocateServer::LocateServer(const std::string& model_path, const LocateServerOptions& options,
-                           const LocatorOptions& locator_options)
+LocateServer::LocateServer(const std::string& model_path, const LocateServerOptions& options)
     : impl_(std::make_unique<Impl>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
   Impl& impl = *impl_;
@@ -670,9 +679,9 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
     ModelOptions model_options;
     model_options.read_only = true;
     const Model model = Model::Open(model_path, model_options);
-    impl.locator = std::make_unique<Locator>(model, locator_options);
+    impl.locator = std::make_unique<Locator>(model, options.locator);
   }
-  LabelServiceOptions label_options;
+  LabelServiceOptions label_options = options.labels;
   label_options.editable = !options.read_only;
   label_options.read_only_reason = options.read_only_reason;
   // An edit answers phones at once, not at the next label refresh.
@@ -801,5 +810,11 @@ void LocateServer::Stop() {
 
 size_t LocateServer::NumKeyframes() const { return impl_->locator->NumKeyframes(); }
 size_t LocateServer::NumLabels() const { return impl_->locator->Labels().size(); }
+
+// read_only_reason is not an option: the server says why it refuses edits.
+SIGHTMAP_OPTIONS_JSON(LocateServerOptions, host, port, locate_threads, connection_threads,
+                      max_queued_connections, max_body_mb, max_megapixels, read_timeout_s,
+                      write_timeout_s, keep_alive_timeout_s, label_refresh_s, log_requests,
+                      read_only, edit_token, locator, labels)
 
 }  // namespace sightmap::cli

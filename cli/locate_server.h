@@ -22,6 +22,9 @@
 #include <memory>
 #include <string>
 
+#include <nlohmann/json_fwd.hpp>
+
+#include "cli/label_service.h"
 #include "identify/locator.h"
 
 namespace sightmap::cli {
@@ -56,16 +59,20 @@ struct LocateServerOptions {
   // When set, label edits must carry it (header X-Sightmap-Token, or ?token=): for a server other
   // machines can reach. Reading, and the phone page, need none.
   std::string edit_token;
+  LocatorOptions locator;
+  // Its editable and read_only_reason are the server's: set from read_only above.
+  LabelServiceOptions labels;
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const LocateServerOptions& options);
+void from_json(const nlohmann::json& json, LocateServerOptions& options);
 
 class LocateServer {
  public:
   // Loads the model read-only and builds the Locator once (seconds for a large model). Throws
   // sightmap::Error when the model cannot be used.
-  LocateServer(const std::string& model_path, const LocateServerOptions& options,
-               const LocatorOptions& locator_options = LocatorOptions());
+  LocateServer(const std::string& model_path, const LocateServerOptions& options);
   ~LocateServer();
   LocateServer(const LocateServer&) = delete;
   LocateServer& operator=(const LocateServer&) = delete;

@@ -201,8 +201,8 @@ int RunMap(int argc, char** argv) {
   app.add_option("--source", options.source,
                  "openni:// | openni://URI | FILE.oni | tum:DIR | 3dmatch:DIR | sim:NAME[?...] "
                  "(default: the first sensor)");
-  app.add_option("--model", options.model_path, "the model file (SQLite), created or resumed")
-      ->required();
+  auto* model_option =
+      app.add_option("--model", options.model_path, "the model file (SQLite), created or resumed");
   app.add_option("--ply", options.ply_path, "write the point cloud here at the end");
   app.add_option("--rate", options.sampler.rate_hz,
                  "keyframes per second of source time [Hz]; 0 makes every frame a keyframe")
@@ -242,24 +242,31 @@ int RunMap(int argc, char** argv) {
                "register keyframes to each other only, not the frames in between (the paper's "
                "1 Hz capture)");
   app.add_flag("--json", json, "print the summary as one JSON object (stable keys)");
+  AddConfigOption(app, options);
+  bool print_config = false;
+  AddPrintConfigFlag(app, print_config);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  // What the flags imply, over what a --config file set.
+  if (start_frame_option->count() > 0) options.continue_replay = false;
+  if (options.source_options.realtime) options.live = true;
+  if (no_tracking) options.tracking.track = false;
+  if (preview) options.view.choice = mapping::ViewChoice::kPreview;
+  if (headless) options.view.choice = mapping::ViewChoice::kHeadless;
+  const bool has_display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
+  // Nothing to draw into (no window and no image file): no view at all, whatever a config says.
+  options.show_view = !options.view.progress_png.empty() ||
+                      options.view.choice == mapping::ViewChoice::kPreview ||
+                      (options.view.choice == mapping::ViewChoice::kAuto && has_display);
+  if (print_config) {
+    PrintConfig(options);
+    return kExitSuccess;
+  }
+  if (const int code = RequireGiven(app, {model_option}); code >= 0) return code;
   // Before any thread exists; a Ctrl-C from here on waits for the session to take it.
   std::atomic<bool> stop_requested{false};
   StopSignalWatcher watcher(
       "sightmap map",
       "\nsightmap map: stopping after the keyframe in hand (Ctrl-C again to exit at once)\n");
-
-  options.continue_replay = start_frame_option->count() == 0;
-  options.live = options.source_options.realtime;
-  options.tracking.track = !no_tracking;
-  options.view.choice = preview    ? mapping::ViewChoice::kPreview
-                        : headless ? mapping::ViewChoice::kHeadless
-                                   : mapping::ViewChoice::kAuto;
-  const bool has_display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
-  // Nothing to draw into: no window and no image file.
-  if (options.view.progress_png.empty() && (headless || (!preview && !has_display))) {
-    options.show_view = false;
-  }
 
   // The outputs are checked (their folders made) before any work: a typo in --ply must not cost
   // a mapping run.

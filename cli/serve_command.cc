@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -54,8 +55,9 @@ int RunServe(int argc, char** argv) {
       "sightmap serve");
   std::string model_path;
   LocateServerOptions options;
-  int timeout_s = options.read_timeout_s;
-  app.add_option("--model", model_path, "the model (from 'sightmap map', with labels)")->required();
+  std::optional<int> timeout_s;
+  auto* model_option =
+      app.add_option("--model", model_path, "the model (from 'sightmap map', with labels)");
   app.add_option("--host", options.host, "address to listen on")->capture_default_str();
   app.add_option("--port", options.port, "port; 0 picks a free one (printed)")
       ->check(Within(0, 65535))
@@ -72,16 +74,28 @@ int RunServe(int argc, char** argv) {
       ->check(Within(0.01, 1000, "megapixels"))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
-                 "a client that stops sending or receiving for this long is dropped [s]")
-      ->check(Within(1, 3600, "s"))
-      ->capture_default_str();
+                 "a client that stops sending or receiving for this long is dropped [s] "
+                 "(default: 5 s sending, 20 s receiving)")
+      ->check(Within(1, 3600, "s"));
   app.add_flag("--read-only", options.read_only,
                "the labelling page only shows; label edits are refused (the default when the "
                "model file is not writable)");
   app.add_option("--token", options.edit_token,
                  "label edits must carry this token (made up and printed when --host is not a "
                  "loopback address; the phone page needs none)");
+  AddConfigOption(app, options);
+  bool print_config = false;
+  AddPrintConfigFlag(app, print_config);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (timeout_s) {
+    options.read_timeout_s = *timeout_s;
+    options.write_timeout_s = *timeout_s;
+  }
+  if (print_config) {
+    PrintConfig(options);
+    return kExitSuccess;
+  }
+  if (const int code = RequireGiven(app, {model_option}); code >= 0) return code;
   if (!options.read_only) {
     const std::string why = WhyNotWritable(model_path);
     if (!why.empty()) {
@@ -92,8 +106,6 @@ int RunServe(int argc, char** argv) {
   if (!options.read_only && options.edit_token.empty() && !IsLoopback(options.host)) {
     options.edit_token = MakeToken();
   }
-  options.read_timeout_s = timeout_s;
-  options.write_timeout_s = timeout_s;
 
   // glibc gives threads up to 8 x cores malloc arenas and does not hand memory freed in one to
   // another: with 32 connection threads the resident size grew with every new thread that

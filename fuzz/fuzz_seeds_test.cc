@@ -13,9 +13,12 @@
 
 #include "capture/calibration.h"
 #include "capture/folder_source.h"
+#include "cli/locate_server.h"
+#include "core/options_json.h"
 #include "fuzz/fuzz_inputs.h"
 #include "identify/exif_testing.h"
 #include "identify/photo.h"
+#include "mapping/mapping_session.h"
 #include "sim/scene.h"
 #include "store/label_files.h"
 #include "store/model.h"
@@ -68,6 +71,14 @@ TEST(FuzzSeeds, CalibrationJson) {
   colour_only.color = full.color;
   WriteCalibrationFile(dir + "/color.json", colour_only);
   EXPECT_TRUE(ReadCalibrationFile(dir + "/full.json").color_from_depth.has_value());
+}
+
+TEST(FuzzSeeds, OptionsJson) {
+  const std::string dir = SeedDir("options_json");
+  std::ofstream(dir + "/map.json") << nlohmann::json(mapping::MappingOptions()).dump(2);
+  std::ofstream(dir + "/serve.json") << nlohmann::json(cli::LocateServerOptions()).dump(2);
+  std::ofstream(dir + "/partial.json") << R"({"mapper": {"pose_graph": {"max_iterations": 7}}})";
+  EXPECT_GT(std::filesystem::file_size(dir + "/map.json"), 1000u);
 }
 
 TEST(FuzzSeeds, TumFolderLists) {

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "store/label_files.h"
 
 namespace sightmap {
@@ -402,5 +403,9 @@ nlohmann::json LabelsToJson(const std::vector<LabelRecord>& labels) {
   }
   return {{"labels", std::move(list)}};
 }
+
+SIGHTMAP_OPTIONS_JSON(PixelLabelOptions, max_depth_search_px, max_depth_m)
+
+SIGHTMAP_OPTIONS_JSON(LabelViewOptions, max_distance_m, depth_margin_m, depth_margin_ratio)
 
 }  // namespace sightmap

@@ -26,6 +26,8 @@ struct PixelLabelOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const PixelLabelOptions& options);
+void from_json(const nlohmann::json& json, PixelLabelOptions& options);
 
 // A pixel turned into a label point, and where its depth came from.
 struct PixelLabelPoint {
@@ -68,6 +70,8 @@ struct LabelViewOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const LabelViewOptions& options);
+void from_json(const nlohmann::json& json, LabelViewOptions& options);
 
 // The labels with a point in `keyframe`'s image, in front of it and within max_distance_m, with
 // those points' pixels; hidden ones marked through the keyframe's depth image (one read).

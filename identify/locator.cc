@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/rotation.h"
 #include "identify/exif.h"
 #include "identify/visibility.h"
@@ -1047,5 +1048,17 @@ LocateResult Locator::Locate(const Photo& photo, const IntrinsicsHint& hint) con
   }
   return result;
 }
+
+SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, max_image_side_px, retrieval_candidates,
+                      place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
+                      neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
+                      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
+                      min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
+                      guided_rounds, min_inlier_cells, min_inlier_share, same_pose_m, same_pose_deg,
+                      min_inlier_ratio_over_runner_up, confident_inliers,
+                      max_rotation_from_keyframe_deg, focal_candidates_35mm, refine_estimated_focal,
+                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
+                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
+                      min_in_view_share, min_unoccluded_share)
 
 }  // namespace sightmap

@@ -120,6 +120,8 @@ struct LocatorOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const LocatorOptions& options);
+void from_json(const nlohmann::json& json, LocatorOptions& options);
 
 struct ApplianceInView {
   std::string name;

@@ -1,6 +1,7 @@
 #include "mapping/map_view_feed.h"
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "render/map_scene.h"
 #include "render/map_view_factory.h"
 
@@ -111,5 +112,21 @@ bool MapViewFeed::paused() const { return impl_->view->paused(); }
 bool MapViewFeed::stop_requested() const { return impl_->view->stop_requested(); }
 void MapViewFeed::Finish() { impl_->view->Finish(); }
 std::string MapViewFeed::description() const { return impl_->view->description(); }
+
+namespace {
+const std::pair<ViewChoice, const char*> kViewChoiceNames[] = {{ViewChoice::kAuto, "auto"},
+                                                               {ViewChoice::kPreview, "preview"},
+                                                               {ViewChoice::kHeadless, "headless"}};
+}  // namespace
+
+void to_json(nlohmann::json& json, const ViewChoice& choice) {
+  options_json::WriteEnum(json, choice, kViewChoiceNames);
+}
+void from_json(const nlohmann::json& json, ViewChoice& choice) {
+  options_json::ReadEnum(json, choice, kViewChoiceNames);
+}
+
+SIGHTMAP_OPTIONS_JSON(MapViewFeedOptions, choice, progress_png, progress_every_n_keyframes,
+                      world_up, cloud_pixel_step, cloud_voxel_m)
 
 }  // namespace sightmap::mapping

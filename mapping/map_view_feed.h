@@ -15,6 +15,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 #include "core/tracking_state.h"
 
@@ -37,6 +39,8 @@ struct MapViewFeedOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const MapViewFeedOptions& options);
+void from_json(const nlohmann::json& json, MapViewFeedOptions& options);
 
 struct FeedStatus {
   int64_t keyframes = 0;

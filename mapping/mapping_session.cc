@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/statistics.h"
 #include "mapping/capture_stage.h"
 #include "mapping/map_stage.h"
@@ -41,26 +42,6 @@ double PeakRssMiB() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB on Linux
-}
-
-nlohmann::json OptionsJson(const MappingOptions& options) {
-  nlohmann::json json;
-  json["source"] = options.source;
-  json["rate_hz"] = options.sampler.rate_hz;
-  json["start_frame"] = options.start_frame;
-  json["continue_replay"] = options.continue_replay;
-  json["max_keyframes"] = options.max_keyframes;
-  json["live"] = options.live;
-  json["realtime"] = options.source_options.realtime;
-  json["width"] = options.source_options.width;
-  json["height"] = options.source_options.height;
-  json["fps"] = options.source_options.fps;
-  json["calibration_file"] = options.source_options.calibration_file;
-  json["max_features"] = options.mapper.features.max_features;
-  json["odometry_window"] = options.mapper.odometry_window;
-  json["vocabulary_training_keyframes"] = options.mapper.vocabulary_training_keyframes;
-  json["loop_candidates"] = options.mapper.loop_candidates;
-  return json;
 }
 
 }  // namespace
@@ -176,7 +157,10 @@ SessionRecord MakeSessionRecord(const MappingOptions& options, const SourceMetad
   record.device_name = meta.device_name;
   record.device_serial = meta.serial;
   record.intrinsics = meta.intrinsics;
-  record.options_json = OptionsJson(options).dump();
+  // What ran: the tracker's options as TrackingOptions() made them.
+  MappingOptions ran = options;
+  ran.tracking = TrackingOptions(options);
+  record.options_json = nlohmann::json(ran).dump();
   return record;
 }
 
@@ -489,5 +473,11 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   summary.peak_rss_mib = PeakRssMiB();
   return summary;
 }
+
+SIGHTMAP_OPTIONS_JSON(MappingOptions, source, model_path, ply_path, trajectory_path, start_frame,
+                      continue_replay, max_keyframes, live, anchor_to_ground_truth,
+                      ground_truth_poses, frame_queue_capacity, keyframe_queue_capacity,
+                      write_queue_capacity, source_options, sampler, tracking, track_every, mapper,
+                      model, ply, view, show_view)
 
 }  // namespace sightmap::mapping

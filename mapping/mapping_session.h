@@ -32,6 +32,8 @@
 #include <ostream>
 #include <string>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "capture/keyframe_sampler.h"
 #include "capture/rgbd_source.h"
 #include "mapping/map_view_feed.h"
@@ -85,10 +87,14 @@ struct MappingOptions {
   ModelOptions model;
   PlyExportOptions ply;
   MapViewFeedOptions view;
-  bool show_view = true;  // false: no preview and no progress images at all (tests, benchmarks)
+  // false: no preview and no progress images at all (tests, benchmarks). `sightmap map` sets it
+  // from view: a view is shown when there is a window or an image file to draw into.
+  bool show_view = true;
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const MappingOptions& options);
+void from_json(const nlohmann::json& json, MappingOptions& options);
 
 enum class StopReason {
   kSourceEnded,   // the recording, folder or walk ended

@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap::mapping {
 
@@ -63,5 +64,7 @@ void TrackStage::Run() {
   }
   keyframes_->Close();
 }
+
+SIGHTMAP_OPTIONS_JSON(TrackStageOptions, track, tracker)
 
 }  // namespace sightmap::mapping

@@ -17,6 +17,8 @@
 #include <thread>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 #include "mapping/bounded_queue.h"
@@ -31,6 +33,8 @@ struct TrackStageOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const TrackStageOptions& options);
+void from_json(const nlohmann::json& json, TrackStageOptions& options);
 
 // A keyframe on its way to the mapper. Untracked keyframes carry only their frame.
 struct KeyframeItem {

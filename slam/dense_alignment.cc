@@ -10,6 +10,7 @@
 #include <opencv2/rgbd.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/rotation.h"
 
 namespace sightmap {
@@ -248,5 +249,9 @@ DenseAlignment DenseAligner::Align(Frame& source, Frame& target,
   result.success = true;
   return result;
 }
+
+SIGHTMAP_OPTIONS_JSON(DenseAlignmentOptions, downscale, iterations_per_level, min_depth_m,
+                      max_depth_m, information_stride_px, max_pair_distance_m, depth_noise_coeff,
+                      min_pairs)
 
 }  // namespace sightmap

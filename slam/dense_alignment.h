@@ -22,6 +22,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 
 namespace sightmap {
@@ -49,6 +51,8 @@ struct DenseAlignmentOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const DenseAlignmentOptions& options);
+void from_json(const nlohmann::json& json, DenseAlignmentOptions& options);
 
 // A frame reduced for dense alignment. Empty when the frame has none (a restored keyframe whose
 // colour was not loaded): alignment is then skipped by the callers.

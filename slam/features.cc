@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap {
 namespace {
@@ -130,5 +131,21 @@ Features ExtractFeatures(const cv::Mat& image, const cv::Mat& depth_mm, const In
   }
   return features;
 }
+
+namespace {
+const std::pair<FeatureOptions::Type, const char*> kFeatureTypeNames[] = {
+    {FeatureOptions::Type::kOrb, "orb"}, {FeatureOptions::Type::kSift, "sift"}};
+}  // namespace
+
+void to_json(nlohmann::json& json, const FeatureOptions::Type& type) {
+  options_json::WriteEnum(json, type, kFeatureTypeNames);
+}
+void from_json(const nlohmann::json& json, FeatureOptions::Type& type) {
+  options_json::ReadEnum(json, type, kFeatureTypeNames);
+}
+
+SIGHTMAP_OPTIONS_JSON(FeatureOptions, type, max_features, grid_cols, grid_rows, orb_levels,
+                      orb_scale_factor, orb_fast_threshold, min_depth_m, max_depth_m,
+                      depth_window_radius_px, depth_edge_ratio)
 
 }  // namespace sightmap

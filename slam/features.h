@@ -8,6 +8,8 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 
 namespace sightmap {
@@ -38,6 +40,8 @@ struct FeatureOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const FeatureOptions& options);
+void from_json(const nlohmann::json& json, FeatureOptions& options);
 
 // Features of one image. points_cam[i] is the camera-frame point [m] of keypoints[i], valid when
 // has_point[i]; descriptors has one row per keypoint (CV_8U for ORB, CV_32F for SIFT).

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/rotation.h"
 
 namespace sightmap {
@@ -763,5 +764,16 @@ void Mapper::TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* r
   }
   report->optimised = true;
 }
+
+SIGHTMAP_OPTIONS_JSON(MapperOptions, features, registration, odometry_window, extra_odometry_links,
+                      extra_link_max_disagreement_m, extra_link_max_disagreement_deg,
+                      depth_downscale, vocabulary, vocabulary_training_keyframes,
+                      loop_exclude_recent, loop_candidates, loop_min_relative_score,
+                      loop_min_inliers, loop_min_spacing, local_loop_hops,
+                      local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m,
+                      join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
+                      walk_slack_m, walk_slack_deg, walk_max_gap_s, link_min_sigma_m,
+                      link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m,
+                      dense_max_correction_deg, dense_link_min_sigma_m, dense_link_min_sigma_rad)
 
 }  // namespace sightmap

@@ -24,6 +24,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 #include "core/tracking_state.h"
@@ -130,6 +132,8 @@ struct MapperOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const MapperOptions& options);
+void from_json(const nlohmann::json& json, MapperOptions& options);
 
 // kPrior: the tracker's motion model across seconds where nothing registered (a bare wall filled
 // the view); its covariance grows with the blind time, so a later loop closure corrects it.

@@ -3,6 +3,7 @@
 #include <opencv2/features2d.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap {
 
@@ -46,5 +47,7 @@ std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& re
   }
   return matches;
 }
+
+SIGHTMAP_OPTIONS_JSON(MatchOptions, ratio, mutual)
 
 }  // namespace sightmap

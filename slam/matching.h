@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
 namespace sightmap {
@@ -19,6 +20,8 @@ struct MatchOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const MatchOptions& options);
+void from_json(const nlohmann::json& json, MatchOptions& options);
 
 // Matches query descriptors to reference descriptors (both CV_8U binary, or both CV_32F).
 // DMatch::queryIdx indexes `query`, trainIdx indexes `reference`.

@@ -16,6 +16,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap {
 namespace {
@@ -536,5 +537,8 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }
+
+SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_threads,
+                      function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2)
 
 }  // namespace sightmap

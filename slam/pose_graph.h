@@ -33,6 +33,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <nlohmann/json_fwd.hpp>
 
 namespace sightmap {
 
@@ -70,6 +71,8 @@ struct PoseGraphOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const PoseGraphOptions& options);
+void from_json(const nlohmann::json& json, PoseGraphOptions& options);
 
 enum class PoseGraphEdgeType { kOdometry, kLoop };
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "slam/hamming.h"
 #include "slam/rigid_alignment.h"
 
@@ -508,5 +509,12 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
   result.success = true;
   return result;
 }
+
+SIGHTMAP_OPTIONS_JSON(RegistrationOptions, matching, ransac_max_iterations, ransac_confidence,
+                      ransac_seed, min_inlier_distance_m, inlier_sigmas, depth_noise_coeff,
+                      min_sample_spread_m, refine_iterations, huber_px, guided_radius_px,
+                      guided_max_hamming, guided_min_seed_inliers, min_inliers, min_inlier_ratio,
+                      verify_stride_px, verify_min_tolerance_m, min_consistent_fraction,
+                      max_violation_fraction, min_overlap_samples)
 
 }  // namespace sightmap

@@ -14,6 +14,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 #include "slam/features.h"
 #include "slam/matching.h"
@@ -72,6 +74,8 @@ struct RegistrationOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const RegistrationOptions& options);
+void from_json(const nlohmann::json& json, RegistrationOptions& options);
 
 // Where the time of one registration went [s].
 struct RegistrationTimes {

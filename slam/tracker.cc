@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/rotation.h"
 
 namespace sightmap {
@@ -374,5 +375,14 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   result.total_s = SecondsSince(start);
   return result;
 }
+
+SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
+                      min_reference_inlier_ratio, richer_reference_ratio, min_keyframe_interval_s,
+                      depth_downscale, max_deviation_mps, max_deviation_dps, deviation_slack_m,
+                      deviation_slack_deg, dense_fallback, dense, dense_max_deviation_mps,
+                      dense_max_deviation_dps, dense_slack_m, dense_slack_deg, dense_step_sigma_m,
+                      dense_step_sigma_rad, prior_sigma_m, prior_sigma_mps, prior_sigma_rad,
+                      prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
+                      min_reference_points)
 
 }  // namespace sightmap

@@ -29,6 +29,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "capture/keyframe_sampler.h"
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
@@ -99,6 +101,8 @@ struct TrackerOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const TrackerOptions& options);
+void from_json(const nlohmann::json& json, TrackerOptions& options);
 
 // How a keyframe's pose relative to the previous keyframe was found.
 enum class MotionSource {

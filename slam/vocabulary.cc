@@ -11,6 +11,7 @@
 #include <opencv2/core/check.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "slam/hamming.h"
 
 namespace sightmap {
@@ -503,5 +504,8 @@ double Vocabulary::Score(const BowVector& a, const BowVector& b) {
   }
   return std::min(score, 1.0);
 }
+
+SIGHTMAP_OPTIONS_JSON(VocabularyOptions, branching, depth, kmeans_iterations,
+                      max_training_descriptors, seed)
 
 }  // namespace sightmap

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
 namespace sightmap {
@@ -31,6 +32,8 @@ struct VocabularyOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const VocabularyOptions& options);
+void from_json(const nlohmann::json& json, VocabularyOptions& options);
 
 class Vocabulary {
  public:

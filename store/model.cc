@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 #include "store/schema.h"
 #include "store/sqlite_util.h"
 #include "store/writer_lock.h"
@@ -988,5 +989,8 @@ std::string Model::IntegrityCheck() const {
   if (foreign.Step()) result += "; foreign key violation in table " + foreign.Text(0);
   return result;
 }
+
+SIGHTMAP_OPTIONS_JSON(ModelOptions, read_only, create_if_missing, jpeg_quality, png_compression,
+                      sync_every_commit, busy_timeout_ms)
 
 }  // namespace sightmap

@@ -14,6 +14,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 
@@ -173,6 +175,8 @@ struct ModelOptions {
     return options;
   }
 };
+void to_json(nlohmann::json& json, const ModelOptions& options);
+void from_json(const nlohmann::json& json, ModelOptions& options);
 
 // Counts for `sightmap info`.
 struct ModelSummary {

@@ -16,6 +16,7 @@
 
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/options_json.h"
 #include "core/voxel_key.h"
 
 namespace sightmap {
@@ -457,5 +458,8 @@ std::vector<ColoredPoint> ReadPly(const std::string& path) {
   }
   return points;
 }
+
+SIGHTMAP_OPTIONS_JSON(PlyExportOptions, pixel_step, min_depth_m, max_depth_m, voxel_size_m,
+                      remove_outliers, outlier_neighbours, outlier_stddev)
 
 }  // namespace sightmap

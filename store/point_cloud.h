@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "store/model.h"
 
 namespace sightmap {
@@ -28,6 +30,8 @@ struct PlyExportOptions {
 
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const PlyExportOptions& options);
+void from_json(const nlohmann::json& json, PlyExportOptions& options);
 
 struct PlyExportStats {
   int64_t keyframes = 0;

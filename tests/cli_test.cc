@@ -289,6 +289,38 @@ TEST(Cli, ReadCommandsTakeTheModelEitherWay) {
   ExpectOneLineError(Sightmap("export --trajectory " + out + "/u.txt"), 2, "give the model");
 }
 
+// locate and serve read --config like map: their own options as JSON, flags over the file, and
+// --print-config shows the result without a model.
+TEST(Cli, LocateAndServeReadTheirConfigAndPrintIt) {
+  const std::string dir = testing::MakeTempDir("cli_config");
+  std::ofstream(dir + "/locate.json")
+      << R"({"min_inliers": 31, "features": {"max_features": 900}})";
+  const CommandResult locate = Sightmap("locate --config " + dir + "/locate.json --print-config");
+  ASSERT_EQ(locate.exit_code, 0) << locate.err;
+  const nlohmann::json locator = nlohmann::json::parse(locate.out);
+  EXPECT_EQ(locator.at("min_inliers"), 31);
+  EXPECT_EQ(locator.at("features").at("max_features"), 900);
+  EXPECT_EQ(locator.at("features").at("type"), "orb");
+
+  std::ofstream(dir + "/serve.json")
+      << R"({"port": 0, "locator": {"max_places": 2}, "labels": {"jpeg_quality": 70}})";
+  const CommandResult serve =
+      Sightmap("serve --port 9000 --config " + dir + "/serve.json --print-config");
+  ASSERT_EQ(serve.exit_code, 0) << serve.err;
+  const nlohmann::json server = nlohmann::json::parse(serve.out);
+  EXPECT_EQ(server.at("port"), 9000);
+  EXPECT_EQ(server.at("locator").at("max_places"), 2);
+  EXPECT_EQ(server.at("labels").at("jpeg_quality"), 70);
+  EXPECT_EQ(server.at("read_timeout_s"), 5);
+
+  ExpectOneLineError(Sightmap("locate --config " + dir + "/serve.json"), 2,
+                     "serve.json: labels: unknown option");
+  ExpectOneLineError(Sightmap("serve --config " + dir + "/locate.json"), 2,
+                     "locate.json: features: unknown option");
+  ExpectOneLineError(Sightmap("locate --config " + dir + "/locate.json"), 2, "--model is required");
+  ExpectOneLineError(Sightmap("serve --config " + dir + "/serve.json"), 2, "--model is required");
+}
+
 // sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,
 // the same bytes for the same arguments.
 TEST(Cli, SimGenerateWritesATumFolderThatProbesBackIdentically) {

@@ -194,6 +194,13 @@ TEST(Map, AFiveFrameRealModelLocatesItsPhotos) {
   const nlohmann::json answer = nlohmann::json::parse(located.out);
   EXPECT_EQ(answer.at("matched"), true) << located.out;
   EXPECT_EQ(answer.at("intrinsics").at("source"), "given");
+  // A --config the locator cannot meet: the same photo is refused, so the options reach it.
+  std::ofstream(dir + "/strict.json") << R"({"min_inliers": 100000, "confident_inliers": 100000})";
+  const CommandResult strict =
+      Sightmap("locate --config " + dir + "/strict.json --model " + dir + "/m.db " + folder +
+               "/frame-000001.color.png --intrinsics 570.342205,570.342205,320,240 --json");
+  ASSERT_EQ(strict.exit_code, 0) << strict.err;
+  EXPECT_EQ(nlohmann::json::parse(strict.out).at("matched"), false) << strict.out;
 }
 
 TEST(Map, ASimWalkWritesProgressImageTrajectoryAndAte) {
@@ -310,6 +317,79 @@ TEST(Map, TracksEveryFrameAtTenHertzAndKeepsOneKeyframeASecondInOnePart) {
   const nlohmann::json plain = nlohmann::json::parse(untracked.out);
   EXPECT_EQ(plain.at("tracked_frames"), 0);
   EXPECT_EQ(plain.at("keyframes"), 3);
+}
+
+// The model keeps every option a session ran with (info --json), and that is the config that runs
+// it again: --config reads it, and a flag given beside it wins whatever the order.
+TEST(Map, ASessionsOptionsAreInTheModelAndAreTheConfigThatRunsItAgain) {
+  const std::string dir = testing::MakeTempDir("config");
+  const CommandResult run =
+      Sightmap("map --source 'sim:office?frames=6&fps=1' --model " + dir +
+               "/m.db --headless --json --rate 2 --no-tracking --max-keyframes 4");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json options = Info(dir + "/m.db").at("session_list").at(0).at("options");
+  EXPECT_EQ(options.at("source"), "sim:office?frames=6&fps=1");
+  EXPECT_EQ(options.at("sampler").at("rate_hz"), 2.0);
+  EXPECT_EQ(options.at("max_keyframes"), 4);
+  EXPECT_EQ(options.at("tracking").at("track"), false);
+  EXPECT_EQ(options.at("show_view"), false);
+  // The tracker as it ran: with the mapper's features, at the keyframe rate.
+  EXPECT_EQ(options.at("tracking").at("tracker").at("features"),
+            options.at("mapper").at("features"));
+  EXPECT_EQ(options.at("tracking").at("tracker").at("keyframe_rate_hz"), 2.0);
+  EXPECT_GT(options.at("mapper").size(), 30u);
+  std::ofstream(dir + "/session.json") << options.dump(2);
+
+  const CommandResult printed =
+      Sightmap("map --config " + dir + "/session.json --model " + dir + "/m.db --print-config");
+  ASSERT_EQ(printed.exit_code, 0) << printed.err;
+  EXPECT_EQ(nlohmann::json::parse(printed.out), options);
+  for (const std::string& order : {"--rate 3 --config " + dir + "/session.json",
+                                   "--config " + dir + "/session.json --rate 3"}) {
+    const CommandResult flagged = Sightmap("map " + order + " --print-config");
+    ASSERT_EQ(flagged.exit_code, 0) << flagged.err;
+    EXPECT_EQ(nlohmann::json::parse(flagged.out).at("sampler").at("rate_hz"), 3.0) << order;
+  }
+
+  const CommandResult again =
+      Sightmap("map --config " + dir + "/session.json --model " + dir + "/again.db --json");
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(nlohmann::json::parse(again.out).at("keyframes"), 4);
+  EXPECT_EQ(nlohmann::json::parse(again.out).at("tracked_frames"), 0);
+  nlohmann::json rerun = Info(dir + "/again.db").at("session_list").at(0).at("options");
+  EXPECT_EQ(rerun.at("model_path"), dir + "/again.db");
+  rerun["model_path"] = options.at("model_path");
+  EXPECT_EQ(rerun, options);
+}
+
+TEST(Map, ABadConfigIsOneLineThatNamesTheFileAndTheKey) {
+  const std::string dir = testing::MakeTempDir("bad-config");
+  const auto run_with = [&dir](const std::string& text) {
+    std::ofstream(dir + "/c.json") << text;
+    return Sightmap("map --config " + dir + "/c.json --model " + dir +
+                    "/m.db --source 'sim:office?frames=3' --headless");
+  };
+  testing::ExpectOneLineError(run_with(R"({"mapper": {"loop_candidate": 5}})"), 2,
+                              dir +
+                                  "/c.json: mapper.loop_candidate: unknown option; did you "
+                                  "mean loop_candidates?");
+  testing::ExpectOneLineError(run_with(R"({"sampler": {"rate_hz": "fast"}})"), 2,
+                              "sampler.rate_hz: must be a number");
+  testing::ExpectOneLineError(run_with(R"({"track_every": 1.5})"), 2,
+                              "track_every: must be a whole number");
+  testing::ExpectOneLineError(run_with(R"({"sampler": {"rate_hz": -1}})"), 2, "rate_hz");
+  testing::ExpectOneLineError(run_with("{\n  \"live\": true,\n"), 2,
+                              "c.json is not valid JSON: parse error at line 3");
+  testing::ExpectOneLineError(
+      Sightmap("map --config " + dir + "/none.json --model " + dir + "/m.db"), 2,
+      "--config " + dir + "/none.json: No such file or directory");
+  testing::ExpectOneLineError(Sightmap("map --config " + dir + " --model " + dir + "/m.db"), 2,
+                              "is a folder");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/m.db")) << "no model from a bad config";
+  // The defaults need neither a model nor a source.
+  const CommandResult defaults = Sightmap("map --print-config");
+  ASSERT_EQ(defaults.exit_code, 0) << defaults.err;
+  EXPECT_EQ(nlohmann::json::parse(defaults.out).at("sampler").at("rate_hz"), 1.0);
 }
 
 TEST(Map, WithoutASensorTheDefaultSourceFailsWithOneLine) {
