@@ -58,7 +58,7 @@ void ReplicateModel(const Model& source, const std::string& path, int factor) {
   session.source = "replicated";
   const SessionId id = model.BeginSession(session);
   const std::vector<KeyframeInfo> infos = source.Keyframes();
-  std::vector<KeyframeFeatures> features;
+  std::vector<Features> features;
   for (const KeyframeInfo& info : infos) features.push_back(source.LoadFeatures(info.id));
   for (int copy = 0; copy < factor; ++copy) {
     for (size_t i = 0; i < infos.size(); ++i) {

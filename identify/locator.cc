@@ -515,7 +515,7 @@ Vocabulary LoadOrTrainVocabulary(const Model& model, const std::vector<KeyframeI
   }
   std::vector<cv::Mat> descriptors;
   for (const KeyframeInfo& info : infos) {
-    const KeyframeFeatures features = model.LoadFeatures(info.id);
+    const Features features = model.LoadFeatures(info.id);
     if (IsOrbDescriptors(features.descriptors)) descriptors.push_back(features.descriptors);
   }
   if (descriptors.size() < 2) return Vocabulary();
@@ -541,7 +541,7 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
     keyframe.id = info.id;
     keyframe.world_from_cam = info.world_from_cam;
     keyframe.view_direction = info.world_from_cam.linear().col(2);
-    const KeyframeFeatures features = model.LoadFeatures(info.id);
+    const Features features = model.LoadFeatures(info.id);
     const size_t slot = impl_->keyframes.size();
     // Every descriptor votes in retrieval; only those with a 3D point can be matched for PnP.
     if (IsOrbDescriptors(features.descriptors)) {
@@ -550,11 +550,10 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
                          impl_->vocabulary.Transform(features.descriptors));
       }
       std::vector<int> rows;
-      for (size_t i = 0; i < features.cam_points.size(); ++i) {
-        const Eigen::Vector3f& p = features.cam_points[i];
-        if (!p.allFinite()) continue;
+      for (size_t i = 0; i < features.points_cam.size(); ++i) {
+        if (!features.has_point[i]) continue;
         rows.push_back(static_cast<int>(i));
-        const Eigen::Vector3d world = info.world_from_cam * p.cast<double>();
+        const Eigen::Vector3d world = info.world_from_cam * features.points_cam[i];
         keyframe.world_points.emplace_back(static_cast<float>(world.x()),
                                            static_cast<float>(world.y()),
                                            static_cast<float>(world.z()));

@@ -5,7 +5,6 @@
 #include <filesystem>
 
 #include "core/check.h"
-#include "mapping/feature_conversion.h"
 #include "store/model.h"
 
 namespace sightmap {
@@ -63,7 +62,7 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
     keyframe.intrinsics = camera;
     keyframe.color = frame.color;
     keyframe.depth = frame.depth;  // the Locator's occlusion cloud
-    keyframe.features = mapping::ToStoreFeatures(features);
+    keyframe.features = features;
     model.AddKeyframe(keyframe);
     if ((options.vocabulary_keyframes == 0 || i < options.vocabulary_keyframes) &&
         features.descriptors.rows > 0) {

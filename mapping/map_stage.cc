@@ -3,7 +3,6 @@
 #include <utility>
 
 #include "core/check.h"
-#include "mapping/feature_conversion.h"
 
 namespace sightmap::mapping {
 
@@ -55,7 +54,7 @@ WriteTask MapStage::KeyframeTask(const KeyframeReport& report, RgbdFrame& frame,
   task.record.intrinsics = camera_;
   task.record.color = std::move(frame.color);
   task.record.depth = std::move(frame.depth);
-  task.record.features = ToStoreFeatures(mapper_->FeaturesOf(report.id));
+  task.record.features = mapper_->FeaturesOf(report.id);
   // This step's links are the newest of Links(). Older links it switched off were stored active
   // and are switched off with the poses.
   const std::vector<MapperLink>& links = mapper_->Links();

@@ -5,7 +5,6 @@
 #include <set>
 
 #include "core/check.h"
-#include "mapping/feature_conversion.h"
 #include "mapping/write_stage.h"
 
 namespace sightmap::mapping {
@@ -37,9 +36,8 @@ RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool lo
   for (const KeyframeInfo& info : stored) {
     const cv::Mat depth = model.LoadDepth(info.id);
     const cv::Mat color = load_color || view ? model.LoadColor(info.id) : cv::Mat();
-    const int64_t id =
-        mapper->RestoreKeyframe(info.timestamp_ns, FromStoreFeatures(model.LoadFeatures(info.id)),
-                                depth, info.world_from_cam, color);
+    const int64_t id = mapper->RestoreKeyframe(info.timestamp_ns, model.LoadFeatures(info.id),
+                                               depth, info.world_from_cam, color);
     SIGHTMAP_CHECK(id == static_cast<int64_t>(restored.store_ids.size()),
                    "the mapper restored keyframe " << info.id.value() << " as " << id);
     restored.store_ids.push_back(info.id);
@@ -55,10 +53,10 @@ RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool lo
     link.to = mapper_id_of.at(record.to.value());
     link.to_in_from = record.to_in_from;
     link.information = record.information;
-    link.type = FromStoreLinkType(record.type);
+    link.type = record.type;
     link.active = record.active;
     mapper->RestoreLink(link);
-    if (view && link.active && link.type != MapperLinkType::kOdometry) {
+    if (view && link.active && link.type != LinkType::kOdometry) {
       view->AddLoop(link.from, link.to);
     }
   }

@@ -103,7 +103,7 @@ TEST(RestoreModel, ANewSessionWalkingTheSamePlacesJoinsTheStoredMap) {
   EXPECT_TRUE(stage.joined_stored_map());
   int relocalisations = 0;  // from a stored keyframe to a new one
   for (const MapperLink& link : mapper.Links()) {
-    relocalisations += link.type == MapperLinkType::kRelocalisation &&
+    relocalisations += link.type == LinkType::kRelocalisation &&
                        std::min(link.from, link.to) < kStoredKeyframes &&
                        std::max(link.from, link.to) >= kStoredKeyframes;
   }

@@ -6,35 +6,6 @@
 
 namespace sightmap::mapping {
 
-LinkType ToStoreLinkType(MapperLinkType type) {
-  switch (type) {
-    case MapperLinkType::kOdometry:
-      return LinkType::kOdometry;
-    case MapperLinkType::kLoopClosure:
-      return LinkType::kLoopClosure;
-    case MapperLinkType::kRelocalisation:
-      return LinkType::kRelocalisation;
-    case MapperLinkType::kPrior:
-      return LinkType::kPrior;
-  }
-  return LinkType::kOdometry;
-}
-
-MapperLinkType FromStoreLinkType(LinkType type) {
-  switch (type) {
-    case LinkType::kOdometry:
-      return MapperLinkType::kOdometry;
-    case LinkType::kRelocalisation:
-      return MapperLinkType::kRelocalisation;
-    case LinkType::kPrior:
-      return MapperLinkType::kPrior;
-    case LinkType::kLoopClosure:
-    case LinkType::kUser:
-      return MapperLinkType::kLoopClosure;
-  }
-  return MapperLinkType::kLoopClosure;
-}
-
 WriteStage::WriteStage(Model* model, MapViewFeed* view, int session_number,
                        std::vector<KeyframeId> store_ids, size_t queue_capacity)
     : model_(model),
@@ -98,7 +69,7 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
     // The new keyframe's own end is left unset: the model fills in the id it gives it.
     stored.from = link.from == task.mapper_id ? KeyframeId() : StoreId(link.from);
     stored.to = link.to == task.mapper_id ? KeyframeId() : StoreId(link.to);
-    stored.type = ToStoreLinkType(link.type);
+    stored.type = link.type;
     stored.to_in_from = link.to_in_from;
     stored.information = link.information;
     stored.active = link.active;
@@ -110,7 +81,7 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
   view_->AddKeyframe(task.mapper_id, session_number_, record.world_from_cam, record.color,
                      record.depth, record.intrinsics);
   for (const MapperLink& link : task.links) {
-    if (link.active && link.type != MapperLinkType::kOdometry) view_->AddLoop(link.from, link.to);
+    if (link.active && link.type != LinkType::kOdometry) view_->AddLoop(link.from, link.to);
   }
   view_->SetCamera(record.world_from_cam);
   view_->SetStatus(task.status);
@@ -126,7 +97,7 @@ void WriteStage::WritePoses(const WriteTask& task) {
   }
   std::vector<LinkKey> deactivated;
   for (const MapperLink& link : task.deactivated) {
-    deactivated.push_back({StoreId(link.from), StoreId(link.to), ToStoreLinkType(link.type)});
+    deactivated.push_back({StoreId(link.from), StoreId(link.to), link.type});
   }
   model_->UpdateGraph(poses, deactivated);
   if (view_) view_->UpdatePoses(task.poses);

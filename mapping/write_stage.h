@@ -41,10 +41,6 @@ struct WriteTask {
   std::vector<uint8_t> vocabulary;
 };
 
-LinkType ToStoreLinkType(MapperLinkType type);
-// A user's link constrains the graph like a verified loop.
-MapperLinkType FromStoreLinkType(LinkType type);
-
 class WriteStage {
  public:
   // Starts the thread. `store_ids` maps the mapper ids of the keyframes already in the model

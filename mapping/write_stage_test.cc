@@ -31,7 +31,7 @@ Eigen::Isometry3d At(double x) {
   return pose;
 }
 
-MapperLink Link(int64_t from, int64_t to, MapperLinkType type) {
+MapperLink Link(int64_t from, int64_t to, LinkType type) {
   MapperLink link;
   link.from = from;
   link.to = to;
@@ -69,14 +69,13 @@ TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
     const SessionId session = Begin(model);
     WriteStage stage(&model, nullptr, 1, {}, 2);
     ASSERT_TRUE(stage.Push(KeyframeTask(session, 0, {})));
-    ASSERT_TRUE(stage.Push(KeyframeTask(session, 1, {Link(0, 1, MapperLinkType::kOdometry)})));
+    ASSERT_TRUE(stage.Push(KeyframeTask(session, 1, {Link(0, 1, LinkType::kOdometry)})));
     ASSERT_TRUE(stage.Push(KeyframeTask(
-        session, 2,
-        {Link(1, 2, MapperLinkType::kPrior), Link(0, 2, MapperLinkType::kLoopClosure)})));
+        session, 2, {Link(1, 2, LinkType::kPrior), Link(0, 2, LinkType::kLoopClosure)})));
     WriteTask poses;
     poses.kind = WriteTask::Kind::kPoses;
     poses.poses = {{0, At(0.5)}, {2, At(2.5)}, {7, At(7.0)}};  // 7 is not written yet: skipped
-    poses.deactivated = {Link(0, 2, MapperLinkType::kLoopClosure)};
+    poses.deactivated = {Link(0, 2, LinkType::kLoopClosure)};
     ASSERT_TRUE(stage.Push(poses));
     WriteTask vocabulary;
     vocabulary.kind = WriteTask::Kind::kVocabulary;
@@ -127,13 +126,13 @@ TEST(WriteStage, LinksToRestoredKeyframesUseTheirModelIds) {
   {
     WriteStage stage(&model, nullptr, 1, {}, 2);
     stage.Push(KeyframeTask(first, 0, {}));
-    stage.Push(KeyframeTask(first, 1, {Link(0, 1, MapperLinkType::kOdometry)}));
+    stage.Push(KeyframeTask(first, 1, {Link(0, 1, LinkType::kOdometry)}));
     stage.Finish();
   }
   for (const KeyframeInfo& info : model.Keyframes()) restored.push_back(info.id);
   const SessionId second = Begin(model);
   WriteStage stage(&model, nullptr, 2, restored, 2);
-  stage.Push(KeyframeTask(second, 2, {Link(1, 2, MapperLinkType::kRelocalisation)}));
+  stage.Push(KeyframeTask(second, 2, {Link(1, 2, LinkType::kRelocalisation)}));
   stage.Finish();
   ASSERT_FALSE(stage.failed());
   const std::vector<LinkRecord> links = model.Links();
@@ -162,14 +161,6 @@ TEST(WriteStage, AFailedWriteStopsTheStageAndKeepsWhatWasCommitted) {
   EXPECT_EQ(stage.committed(), 1);
   EXPECT_EQ(model.NumKeyframes(), 1);
   EXPECT_EQ(model.IntegrityCheck(), "ok");
-}
-
-TEST(WriteStage, LinkTypesRoundTripThroughTheStore) {
-  for (MapperLinkType type : {MapperLinkType::kOdometry, MapperLinkType::kLoopClosure,
-                              MapperLinkType::kRelocalisation, MapperLinkType::kPrior}) {
-    EXPECT_EQ(FromStoreLinkType(ToStoreLinkType(type)), type);
-  }
-  EXPECT_EQ(FromStoreLinkType(LinkType::kUser), MapperLinkType::kLoopClosure);
 }
 
 }  // namespace

@@ -80,10 +80,6 @@ bool FeatureOptions::Check(std::string* error) const {
   return true;
 }
 
-size_t Features::NumPoints() const {
-  return static_cast<size_t>(std::count(has_point.begin(), has_point.end(), true));
-}
-
 Features ExtractFeatures(const cv::Mat& image, const cv::Mat& depth_mm, const Intrinsics& camera,
                          const FeatureOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);

@@ -6,11 +6,11 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
-#include <nlohmann/json_fwd.hpp>
-
 #include "core/camera.h"
+#include "core/features.h"
 
 namespace sightmap {
 
@@ -42,18 +42,6 @@ struct FeatureOptions {
 };
 void to_json(nlohmann::json& json, const FeatureOptions& options);
 void from_json(const nlohmann::json& json, FeatureOptions& options);
-
-// Features of one image. points_cam[i] is the camera-frame point [m] of keypoints[i], valid when
-// has_point[i]; descriptors has one row per keypoint (CV_8U for ORB, CV_32F for SIFT).
-struct Features {
-  std::vector<cv::KeyPoint> keypoints;
-  cv::Mat descriptors;
-  std::vector<Eigen::Vector3d> points_cam;
-  std::vector<bool> has_point;
-
-  size_t size() const { return keypoints.size(); }
-  size_t NumPoints() const;
-};
 
 // Detects and describes features in a BGR or grey image; with a depth image (16-bit mm, same size,
 // registered), each keypoint whose depth is valid gets its 3D point through `camera`. Pass an

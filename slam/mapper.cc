@@ -145,7 +145,7 @@ int Mapper::Root(int segment) const {
 
 int Mapper::NumLoopClosures() const {
   return static_cast<int>(std::count_if(links_.begin(), links_.end(), [](const MapperLink& link) {
-    return link.active && link.type == MapperLinkType::kLoopClosure;
+    return link.active && (link.type == LinkType::kLoopClosure || link.type == LinkType::kUser);
   }));
 }
 
@@ -158,7 +158,7 @@ bool Mapper::AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
 
 int Mapper::NumPriorLinks() const {
   return static_cast<int>(std::count_if(links_.begin(), links_.end(), [](const MapperLink& link) {
-    return link.type == MapperLinkType::kPrior;
+    return link.type == LinkType::kPrior;
   }));
 }
 
@@ -263,7 +263,7 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
   edge.to_in_from = link.to_in_from;
   edge.information = link.information;
   // A prior is odometry to the graph: switching it off would split the map it holds together.
-  edge.type = link.type == MapperLinkType::kOdometry || link.type == MapperLinkType::kPrior
+  edge.type = link.type == LinkType::kOdometry || link.type == LinkType::kPrior
                   ? PoseGraphEdgeType::kOdometry
                   : PoseGraphEdgeType::kLoop;
   // Links and graph edges are added together only here, so a link's index is its edge's index.
@@ -325,7 +325,7 @@ KeyframeReport Mapper::AddKeyframeAtPose(TimestampNs timestamp_ns, const cv::Mat
     // Exact, so as stiff as the floor allows: an optimisation after a later link changes nothing.
     known.information =
         FlooredInformation(Eigen::Matrix<double, 6, 6>::Identity() * 1e12, options_);
-    known.type = MapperLinkType::kOdometry;
+    known.type = LinkType::kOdometry;
     link = known;
   }
   start_new_segment_ = false;
@@ -457,7 +457,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
       link.to = keyframe.id;
       link.to_in_from = result.target_from_source;
       link.information = result.information;
-      link.type = MapperLinkType::kOdometry;
+      link.type = LinkType::kOdometry;
       link.inliers = result.inliers;
       if (odometry.empty() && (!motion || motion->source == MotionSource::kPrior)) {
         world_from_cam = graph_.Pose(target.id) * link.to_in_from;
@@ -472,8 +472,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
       link.to_in_from = Orthonormalised(motion->previous_from_cam);
       link.information =
           motion_refined ? motion->information : FlooredInformation(motion->information, options_);
-      link.type = motion->source == MotionSource::kPrior ? MapperLinkType::kPrior
-                                                         : MapperLinkType::kOdometry;
+      link.type = motion->source == MotionSource::kPrior ? LinkType::kPrior : LinkType::kOdometry;
       link.inliers = motion->inliers;
       if (odometry.empty() || motion->source != MotionSource::kPrior) world_from_cam = predicted;
       odometry.insert(odometry.begin(), link);
@@ -642,7 +641,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     link.inliers = result.inliers;
     const int target_root = Root(target.segment);
     if (target_root != root) {
-      link.type = MapperLinkType::kRelocalisation;
+      link.type = LinkType::kRelocalisation;
       // The older segment keeps its frame; the newer one moves into it.
       const int older = std::min(target_root, root);
       const int newer = std::max(target_root, root);
@@ -665,18 +664,18 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
       AddLink(pending_join_->link, report);
       pending_join_.reset();
     } else {
-      link.type = MapperLinkType::kLoopClosure;
+      link.type = LinkType::kLoopClosure;
     }
     AddLink(link, report);
     last_loop_keyframe_ = keyframe.id;
-    if (link.type == MapperLinkType::kLoopClosure && options_.local_loop_hops > 0) {
+    if (link.type == LinkType::kLoopClosure && options_.local_loop_hops > 0) {
       OptimiseNear(links_.size() - 1, report);
     } else {
       Optimise(keyframe.id, report);
     }
     const MapperLink& added = links_.back();
     report->loop_closed = added.active;
-    return link.type == MapperLinkType::kRelocalisation;
+    return link.type == LinkType::kRelocalisation;
   }
   return false;
 }

@@ -27,6 +27,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "core/camera.h"
+#include "core/link_type.h"
 #include "core/rgbd_frame.h"
 #include "core/tracking_state.h"
 #include "slam/dense_alignment.h"
@@ -137,15 +138,13 @@ void from_json(const nlohmann::json& json, MapperOptions& options);
 
 // kPrior: the tracker's motion model across seconds where nothing registered (a bare wall filled
 // the view); its covariance grows with the blind time, so a later loop closure corrects it.
-enum class MapperLinkType { kOdometry, kLoopClosure, kRelocalisation, kPrior };
-
 struct MapperLink {
   int64_t from = 0;
   int64_t to = 0;
   // Pose of `to` in `from`'s camera frame: world_from_from^-1 * world_from_to.
   Eigen::Isometry3d to_in_from = Eigen::Isometry3d::Identity();
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
-  MapperLinkType type = MapperLinkType::kOdometry;
+  LinkType type = LinkType::kOdometry;
   int inliers = 0;
   bool active = true;  // false once the pose graph rejected it as inconsistent
 };

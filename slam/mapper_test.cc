@@ -139,7 +139,7 @@ double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
   }
   std::vector<double> errors;
   for (const MapperLink& link : mapper.Links()) {
-    if (link.type != MapperLinkType::kOdometry) continue;
+    if (link.type != LinkType::kOdometry) continue;
     const Eigen::Isometry3d truth =
         walk.frames[static_cast<size_t>(link.from)].world_from_cam_gt->inverse() *
         *walk.frames[static_cast<size_t>(link.to)].world_from_cam_gt;
@@ -270,7 +270,7 @@ TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
   wrong.to = 44;
   wrong.to_in_from = Eigen::Isometry3d::Identity();  // "44 is where 2 was": it is not
   wrong.information = mapper.Links().back().information;
-  wrong.type = MapperLinkType::kLoopClosure;
+  wrong.type = LinkType::kLoopClosure;
   const double apart = (ground_truth[2].world_from_cam.inverse() * ground_truth[44].world_from_cam)
                            .translation()
                            .norm();

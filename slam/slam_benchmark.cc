@@ -178,7 +178,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
       link.to = false_to;
       link.to_in_from = Eigen::Isometry3d::Identity();
       link.information = mapper.Links().back().information;
-      link.type = MapperLinkType::kLoopClosure;
+      link.type = LinkType::kLoopClosure;
       const KeyframeReport injected = mapper.AddExternalLink(link);
       run.false_loop_injected = true;
       std::fprintf(stderr,
@@ -195,7 +195,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   // Every accepted loop against ground truth.
   for (const MapperLink& link : mapper.Links()) {
     // Priors are the motion model's guesses, not place recognition's claims.
-    if (link.type == MapperLinkType::kOdometry || link.type == MapperLinkType::kPrior ||
+    if (link.type == LinkType::kOdometry || link.type == LinkType::kPrior ||
         !link.active) {
       continue;
     }

@@ -174,7 +174,7 @@ TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
   EXPECT_EQ(mapper.NumPriorLinks(), tracker.counters().prior_keyframes);
   EXPECT_GT(mapper.NumPriorLinks(), 0);
   for (const MapperLink& link : mapper.Links()) {
-    if (link.type != MapperLinkType::kPrior) continue;
+    if (link.type != LinkType::kPrior) continue;
     // A prior is looser than any registration the floor allows.
     EXPECT_LT(link.information(0, 0), 1.0 / (0.02 * 0.02) + 1e-6);
   }

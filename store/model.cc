@@ -153,6 +153,34 @@ std::vector<cv::KeyPoint> DecodeKeypoints(const std::vector<uint8_t>& blob) {
   return keypoints;
 }
 
+// Each keypoint's camera-frame point as three float32, NaN where it has none (the mapper's double
+// precision is more than depth noise of millimetres needs); no points at all for a photo.
+std::vector<Eigen::Vector3f> EncodePoints(const Features& features) {
+  std::vector<Eigen::Vector3f> points;
+  points.reserve(features.points_cam.size());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (size_t i = 0; i < features.points_cam.size(); ++i) {
+    points.push_back(features.has_point[i] ? Eigen::Vector3f(features.points_cam[i].cast<float>())
+                                           : Eigen::Vector3f(nan, nan, nan));
+  }
+  return points;
+}
+
+void DecodePoints(const std::vector<uint8_t>& blob, Features* features) {
+  const size_t count = blob.size() / sizeof(float[3]);
+  features->points_cam.reserve(count);
+  features->has_point.reserve(count);
+  for (size_t i = 0; i < count; ++i) {
+    float xyz[3];
+    std::memcpy(xyz, blob.data() + i * sizeof(xyz), sizeof(xyz));
+    const Eigen::Vector3f point(xyz[0], xyz[1], xyz[2]);
+    const bool valid = point.allFinite();
+    features->has_point.push_back(valid);
+    features->points_cam.push_back(valid ? Eigen::Vector3d(point.cast<double>())
+                                         : Eigen::Vector3d::Zero());
+  }
+}
+
 template <typename Row>
 Statement& BindRowAsBlob(Statement& statement, int index, const std::vector<Row>& rows) {
   return statement.BindBlob(index, rows.data(), rows.size() * sizeof(Row));
@@ -191,22 +219,6 @@ const char* SessionEndName(SessionEnd end) {
       return "interrupted";
     case SessionEnd::kResumedInto:
       return "resumed-into";
-  }
-  return "unknown";
-}
-
-const char* LinkTypeName(LinkType type) {
-  switch (type) {
-    case LinkType::kOdometry:
-      return "odometry";
-    case LinkType::kLoopClosure:
-      return "loop";
-    case LinkType::kRelocalisation:
-      return "relocalisation";
-    case LinkType::kUser:
-      return "user";
-    case LinkType::kPrior:
-      return "prior";
   }
   return "unknown";
 }
@@ -606,17 +618,14 @@ std::vector<SessionRecord> Model::Sessions() const {
 
 KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   impl_->CheckWritable();
-  const KeyframeFeatures& features = keyframe.features;
+  const Features& features = keyframe.features;
   SIGHTMAP_CHECK(keyframe.session.valid(), "a keyframe needs the session that made it");
   SIGHTMAP_CHECK(keyframe.color.type() == CV_8UC3 && keyframe.depth.type() == CV_16UC1 &&
                      keyframe.color.size() == keyframe.depth.size(),
                  "a keyframe needs 8-bit BGR colour and 16-bit depth of the same size");
-  SIGHTMAP_CHECK(features.descriptors.empty() ||
-                     features.descriptors.rows == static_cast<int>(features.keypoints.size()),
-                 "a keyframe needs one descriptor row per keypoint");
-  SIGHTMAP_CHECK(
-      features.cam_points.empty() || features.cam_points.size() == features.keypoints.size(),
-      "a keyframe needs one 3D point per keypoint (NaN where there is no depth)");
+  SIGHTMAP_CHECK(features.descriptors.empty() || features.IsConsistent(),
+                 "a keyframe needs one descriptor row per keypoint and a point slot per keypoint "
+                 "or none");
 
   // Encode before taking the write lock: the lock is held only for the inserts.
   std::vector<uint8_t> jpeg;
@@ -628,6 +637,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
                               {cv::IMWRITE_PNG_COMPRESSION, impl_->options.png_compression}),
                  "cannot encode a keyframe's depth image as PNG");
   const std::vector<uint8_t> keypoints = EncodeKeypoints(features.keypoints);
+  const std::vector<Eigen::Vector3f> cam_points = EncodePoints(features);
   const cv::Mat descriptors =
       features.descriptors.isContinuous() ? features.descriptors : features.descriptors.clone();
 
@@ -666,7 +676,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   BindRowAsBlob(insert_features, 3, keypoints);
   insert_features.Bind(4, descriptors.type()).Bind(5, descriptors.rows).Bind(6, descriptors.cols);
   insert_features.BindBlob(7, descriptors.data, descriptors.total() * descriptors.elemSize());
-  BindRowAsBlob(insert_features, 8, features.cam_points);
+  BindRowAsBlob(insert_features, 8, cam_points);
   insert_features.Run();
 
   for (const LinkRecord& link : keyframe.links) impl_->InsertLink(link, id);
@@ -749,14 +759,14 @@ cv::Mat Model::LoadDepth(KeyframeId id) const {
   return depth;
 }
 
-KeyframeFeatures Model::LoadFeatures(KeyframeId id) const {
+Features Model::LoadFeatures(KeyframeId id) const {
   Statement query(impl_->db,
                   "SELECT count, keypoints, descriptor_type, descriptor_rows, descriptor_cols, "
                   "descriptors, cam_points FROM features WHERE keyframe_id = ?");
   query.Bind(1, id.value());
   SIGHTMAP_CHECK(query.Step(), "keyframe " << id.value() << " has no features in model "
                                            << FileDescription(impl_->path));
-  KeyframeFeatures features;
+  Features features;
   features.keypoints = DecodeKeypoints(query.Blob(1));
   const int type = static_cast<int>(query.Int(2));
   const int rows = static_cast<int>(query.Int(3));
@@ -771,12 +781,11 @@ KeyframeFeatures Model::LoadFeatures(KeyframeId id) const {
   const std::vector<uint8_t> points = query.Blob(6);
   SIGHTMAP_CHECK(points.size() % sizeof(Eigen::Vector3f) == 0,
                  "corrupt 3D points of keyframe " << id.value());
-  features.cam_points.resize(points.size() / sizeof(Eigen::Vector3f));
-  for (size_t i = 0; i < features.cam_points.size(); ++i) {
-    float xyz[3];
-    std::memcpy(xyz, points.data() + i * sizeof(xyz), sizeof(xyz));
-    features.cam_points[i] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
-  }
+  DecodePoints(points, &features);
+  SIGHTMAP_CHECK(
+      features.points_cam.empty() || features.points_cam.size() == features.keypoints.size(),
+      "keyframe " << id.value() << " has " << features.points_cam.size() << " 3D points for "
+                  << features.keypoints.size() << " keypoints");
   SIGHTMAP_CHECK(static_cast<int64_t>(features.keypoints.size()) == query.Int(0),
                  "keyframe " << id.value() << " lists " << query.Int(0) << " features but has "
                              << features.keypoints.size());

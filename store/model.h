@@ -17,6 +17,8 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "core/camera.h"
+#include "core/features.h"
+#include "core/link_type.h"
 #include "core/rgbd_frame.h"
 
 namespace sightmap {
@@ -63,18 +65,6 @@ struct SessionRecord {
   std::string options_json;  // every option the session ran with, so the model explains itself
 };
 
-// What relocalisation and photo matching need without decoding images.
-struct KeyframeFeatures {
-  std::vector<cv::KeyPoint> keypoints;
-  cv::Mat descriptors;  // one row per keypoint; any depth and width (CV_8U ORB, CV_32F SIFT...)
-  // Each keypoint's 3D point in the camera frame [m]; NaN where the keypoint had no depth.
-  std::vector<Eigen::Vector3f> cam_points;
-};
-
-// kPrior: the tracker's motion model across a blind stretch (no registration behind it).
-enum class LinkType { kOdometry = 0, kLoopClosure = 1, kRelocalisation = 2, kUser = 3, kPrior = 4 };
-const char* LinkTypeName(LinkType type);
-
 struct LinkRecord {
   LinkId id;  // set by the model
   KeyframeId from;
@@ -103,7 +93,7 @@ struct KeyframeRecord {
   Intrinsics intrinsics;
   cv::Mat color;  // CV_8UC3 BGR, stored as JPEG
   cv::Mat depth;  // CV_16UC1 [mm], stored as lossless 16-bit PNG
-  KeyframeFeatures features;
+  Features features;
   // Links written in the same transaction. An invalid id at either end stands for this keyframe.
   std::vector<LinkRecord> links;
 };
@@ -238,7 +228,7 @@ class Model {
   int64_t NumKeyframes() const;
   cv::Mat LoadColor(KeyframeId id) const;  // CV_8UC3 BGR
   cv::Mat LoadDepth(KeyframeId id) const;  // CV_16UC1 [mm]
-  KeyframeFeatures LoadFeatures(KeyframeId id) const;
+  Features LoadFeatures(KeyframeId id) const;
 
   // Links of the pose graph.
   LinkId AddLink(const LinkRecord& link);

@@ -85,13 +85,15 @@ TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
   ASSERT_EQ(color.size(), second.color.size());
   EXPECT_LT(cv::norm(color, second.color, cv::NORM_L1) / color.total() / 3, 6.0);
 
-  const KeyframeFeatures features = model.LoadFeatures(b);
+  const Features features = model.LoadFeatures(b);
   ASSERT_EQ(features.keypoints.size(), 50u);
   EXPECT_FLOAT_EQ(features.keypoints[7].pt.x, second.features.keypoints[7].pt.x);
   EXPECT_EQ(features.keypoints[7].octave, second.features.keypoints[7].octave);
   EXPECT_EQ(cv::norm(features.descriptors, second.features.descriptors, cv::NORM_INF), 0.0);
   EXPECT_EQ(features.descriptors.type(), CV_8U);
-  EXPECT_TRUE(features.cam_points[9].isApprox(second.features.cam_points[9]));
+  // Stored as float32: depth noise is millimetres.
+  EXPECT_NEAR((features.points_cam[9] - second.features.points_cam[9]).norm(), 0.0, 1e-6);
+  EXPECT_EQ(features.has_point, second.features.has_point);
 
   const std::vector<LinkRecord> links = model.Links();
   ASSERT_EQ(links.size(), 1u);
@@ -108,19 +110,36 @@ TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
   EXPECT_EQ(model.IntegrityCheck(), "ok");
 }
 
-TEST(Model, FloatDescriptorsAndMissingDepthPointsRoundTrip) {
+TEST(Model, FloatDescriptorsAndKeypointsWithoutAPointRoundTrip) {
   Model model = Model::Open(":memory:");
   const SessionId session = model.BeginSession({});
   KeyframeRecord keyframe = MakeSyntheticKeyframe(session, 0, SmallKeyframes());
   keyframe.features.descriptors = cv::Mat(50, 128, CV_32F);
   cv::randu(keyframe.features.descriptors, -1.0, 1.0);
-  keyframe.features.cam_points[3] = Eigen::Vector3f::Constant(NAN);
+  keyframe.features.has_point[3] = false;
+  keyframe.features.points_cam[3] = Eigen::Vector3d(1.0, 2.0, 3.0);  // not a point: not kept
   const KeyframeId id = model.AddKeyframe(keyframe);
-  const KeyframeFeatures features = model.LoadFeatures(id);
+  const Features features = model.LoadFeatures(id);
   EXPECT_EQ(features.descriptors.type(), CV_32F);
   EXPECT_EQ(features.descriptors.cols, 128);
   EXPECT_EQ(cv::norm(features.descriptors, keyframe.features.descriptors, cv::NORM_INF), 0.0);
-  EXPECT_TRUE(std::isnan(features.cam_points[3].x()));
+  ASSERT_EQ(features.has_point.size(), 50u);
+  EXPECT_FALSE(features.has_point[3]);
+  EXPECT_EQ(features.points_cam[3], Eigen::Vector3d::Zero());
+  EXPECT_EQ(features.NumPoints(), 49u);
+  EXPECT_TRUE(features.IsConsistent());
+}
+
+TEST(Model, AKeyframeWithoutDepthPointsRoundTripsWithoutThem) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  KeyframeRecord keyframe = MakeSyntheticKeyframe(session, 0, SmallKeyframes());
+  keyframe.features.points_cam.clear();
+  keyframe.features.has_point.clear();
+  const Features features = model.LoadFeatures(model.AddKeyframe(keyframe));
+  EXPECT_EQ(features.size(), 50u);
+  EXPECT_TRUE(features.points_cam.empty());
+  EXPECT_EQ(features.NumPoints(), 0u);
 }
 
 TEST(Model, BadKeyframesAreRejectedAndLeaveNothingBehind) {
@@ -135,8 +154,12 @@ TEST(Model, BadKeyframesAreRejectedAndLeaveNothingBehind) {
   EXPECT_TRUE(model.Links().empty());
 
   KeyframeRecord mismatched = MakeSyntheticKeyframe(session, 1, SmallKeyframes());
-  mismatched.features.cam_points.pop_back();
+  mismatched.features.points_cam.pop_back();
+  mismatched.features.has_point.pop_back();
   EXPECT_THROW(model.AddKeyframe(mismatched), Error);
+  KeyframeRecord unflagged = MakeSyntheticKeyframe(session, 2, SmallKeyframes());
+  unflagged.features.has_point.pop_back();
+  EXPECT_THROW(model.AddKeyframe(unflagged), Error);
   EXPECT_EQ(model.NumKeyframes(), 0);
 }
 

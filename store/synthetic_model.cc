@@ -66,7 +66,7 @@ KeyframeRecord MakeSyntheticKeyframe(SessionId session, int index,
   std::uniform_real_distribution<float> along_u(0.0f, static_cast<float>(options.width - 1));
   std::uniform_real_distribution<float> along_v(0.0f, static_cast<float>(options.height - 1));
   std::uniform_int_distribution<int> byte(0, 255);
-  KeyframeFeatures& features = keyframe.features;
+  Features& features = keyframe.features;
   features.descriptors.create(options.num_features, 32, CV_8U);
   for (int i = 0; i < options.num_features; ++i) {
     const float u = along_u(random);
@@ -75,7 +75,8 @@ KeyframeRecord MakeSyntheticKeyframe(SessionId session, int index,
                                     i % 8, -1);
     for (int j = 0; j < 32; ++j)
       features.descriptors.at<uint8_t>(i, j) = static_cast<uint8_t>(byte(random));
-    features.cam_points.push_back(k.Unproject(u, v, options.wall_distance_m).cast<float>());
+    features.points_cam.push_back(k.Unproject(u, v, options.wall_distance_m));
+    features.has_point.push_back(true);
   }
   return keyframe;
 }
