@@ -7,7 +7,7 @@
 #include "core/atomic_file.h"
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 using nlohmann::json;
@@ -100,4 +100,4 @@ void WriteCalibrationFile(const std::string& path, const RgbdCalibration& calibr
   WriteFileAtomically(path, root.dump(2) + "\n");
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

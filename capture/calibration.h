@@ -17,7 +17,7 @@
 
 #include "core/camera.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct RgbdCalibration {
   std::optional<Intrinsics> color;
@@ -32,4 +32,4 @@ RgbdCalibration ReadCalibrationFile(const std::string& path);
 // Writes the same format (used by tests and by `probe` to save what a source derived).
 void WriteCalibrationFile(const std::string& path, const RgbdCalibration& calibration);
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

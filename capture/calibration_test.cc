@@ -7,7 +7,7 @@
 #include "core/check.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
@@ -65,4 +65,4 @@ TEST(Calibration, RejectsBadFilesWithTheirName) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -6,7 +6,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 cv::Mat RegisterDepthToColor(const cv::Mat& depth_mm, const DepthToColorModel& model) {
   SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1, "depth must be 16-bit millimetres");
@@ -70,4 +70,4 @@ Eigen::Isometry3d PrimeSenseColorFromDepth(double baseline_m) {
   return color_from_depth;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

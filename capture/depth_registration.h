@@ -8,7 +8,7 @@
 
 #include "core/camera.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct DepthToColorModel {
   Intrinsics depth;  // the depth camera, at the depth image's size
@@ -27,4 +27,4 @@ cv::Mat RegisterDepthToColor(const cv::Mat& depth_mm, const DepthToColorModel& m
 // images not mirrored). The PS1080 driver records the baseline as DCMOS_RCMOS_DISTANCE.
 Eigen::Isometry3d PrimeSenseColorFromDepth(double baseline_m);
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

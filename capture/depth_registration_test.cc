@@ -10,7 +10,7 @@
 #include "core/check.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 Intrinsics Kinect(int width, int height) {
@@ -132,4 +132,4 @@ TEST(DepthRegistration, RecordedRegistrationOfTheRealKinectRecordingIsHonoured) 
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -10,7 +10,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 const char* const kInstallUdevRulesCommand =
     "sudo cmake --install build --component udev && sudo udevadm control --reload-rules && "
@@ -383,4 +383,4 @@ std::string FormatDevicesReport(const DevicesReport& report) {
   return out.str();
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

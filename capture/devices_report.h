@@ -18,7 +18,7 @@
 
 #include "capture/usb_sensors.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct DeviceProblem {
   std::string problem;  // what is wrong, one sentence
@@ -96,4 +96,4 @@ std::string FormatDevicesReport(const DevicesReport& report);
 // The command that installs sightmap's udev rules and applies them to attached devices.
 extern const char* const kInstallUdevRulesCommand;
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -31,7 +31,7 @@
 #include "core/image_header.h"
 #include "core/tum_format.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 namespace fs = std::filesystem;
@@ -837,4 +837,4 @@ void WriteThreeDMatchIntrinsics(const std::string& dir, const Intrinsics& k) {
   WriteFileAtomically((fs::path(dir) / "camera-intrinsics.txt").string(), text.str());
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

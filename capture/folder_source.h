@@ -14,7 +14,7 @@
 
 #include "capture/rgbd_source.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 // A TUM RGB-D folder (https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats):
 //   rgb.txt, depth.txt    lines "timestamp filename" (seconds; '#' starts a comment)
@@ -45,4 +45,4 @@ std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
 void WriteThreeDMatchFrame(const std::string& dir, const RgbdFrame& frame);
 void WriteThreeDMatchIntrinsics(const std::string& dir, const Intrinsics& intrinsics);
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

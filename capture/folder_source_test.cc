@@ -20,7 +20,7 @@
 #include "core/check.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 namespace fs = std::filesystem;
@@ -584,4 +584,4 @@ TEST(FolderSourceErrorTest, UnreadableImage) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

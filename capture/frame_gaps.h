@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <optional>
 
-namespace sightmap {
+namespace sightmap::capture {
 
 class FrameGaps {
  public:
@@ -32,4 +32,4 @@ class FrameGaps {
   int64_t missed_ = 0;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 TEST(FrameGaps, ARecordingCountsTheFramesSkippedBeforeAndBetweenReads) {
@@ -29,4 +29,4 @@ TEST(FrameGaps, ALiveDeviceCountsFromItsFirstReadFrameAndARestartStartsAgain) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

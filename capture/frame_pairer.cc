@@ -2,7 +2,7 @@
 
 #include <cstdlib>
 
-namespace sightmap {
+namespace sightmap::capture {
 
 FramePairer::FramePairer(int64_t tolerance_ns) : tolerance_ns_(tolerance_ns) {}
 
@@ -64,4 +64,4 @@ std::optional<std::pair<TimedImage, TimedImage>> FramePairer::PopPair() {
   return pair;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -12,7 +12,7 @@
 
 #include "core/rgbd_frame.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct TimedImage {
   TimestampNs timestamp_ns = 0;
@@ -47,4 +47,4 @@ class FramePairer {
   int64_t unpaired_ = 0;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

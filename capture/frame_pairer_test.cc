@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 constexpr int64_t kMs = 1'000'000;
@@ -89,4 +89,4 @@ TEST(FramePairer, SlowColourStreamServesSeveralDepthFrames) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -5,7 +5,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 bool KeyframeSamplerOptions::Check(std::string* error) const {
   if (!(rate_hz >= 0.0) || !std::isfinite(rate_hz) || rate_hz > 1000.0) {
@@ -38,4 +38,4 @@ bool KeyframeSampler::Accept(TimestampNs timestamp_ns) {
 
 SIGHTMAP_OPTIONS_JSON(KeyframeSamplerOptions, rate_hz)
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -9,7 +9,7 @@
 
 #include "core/rgbd_frame.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct KeyframeSamplerOptions {
   // Keyframes per second [Hz]; 0 keeps every frame.
@@ -34,4 +34,4 @@ class KeyframeSampler {
   std::optional<TimestampNs> next_due_ns_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

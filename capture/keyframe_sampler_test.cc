@@ -6,7 +6,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 constexpr int64_t kMs = 1'000'000;
@@ -64,4 +64,4 @@ TEST(KeyframeSampler, TwoHertz) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -9,7 +9,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 // OpenNI 1 record types (DataRecords.h in OpenNI 1.5) and node types (XnTypes.h).
@@ -120,4 +120,4 @@ OniFileInfo ReadOniFileInfo(const std::string& path) {
   return info;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

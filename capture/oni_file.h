@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct OniFileInfo {
   int version_major = 0;
@@ -23,4 +23,4 @@ struct OniFileInfo {
 // one-line reason for a missing, empty, non-ONI, ONI 1.0.0, frameless or cut-off file.
 OniFileInfo ReadOniFileInfo(const std::string& path);
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

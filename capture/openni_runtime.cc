@@ -6,7 +6,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 std::mutex g_mutex;
 std::weak_ptr<OpenNiRuntime> g_runtime;
@@ -30,4 +30,4 @@ OpenNiRuntime::~OpenNiRuntime() {
   openni::OpenNI::shutdown();
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

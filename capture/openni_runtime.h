@@ -4,7 +4,7 @@
 
 #include <memory>
 
-namespace sightmap {
+namespace sightmap::capture {
 
 // Holding a handle keeps OpenNI2 initialised; the last handle shuts it down. Acquire() throws
 // sightmap::Error when OpenNI2 cannot initialise (e.g. its drivers folder is missing).
@@ -19,4 +19,4 @@ class OpenNiRuntime {
   OpenNiRuntime() = default;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -21,7 +21,7 @@
 #include "capture/openni_runtime.h"
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 // PrimeSense reference design (Kinect v1, Xtion, Carmine): 58 x 45 degree depth field of view and
@@ -518,4 +518,4 @@ std::unique_ptr<RgbdSource> OpenOniFile(const std::string& path, const SourceOpt
   return std::make_unique<OpenNiSource>(path, /*is_file=*/true, options);
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

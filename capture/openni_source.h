@@ -8,7 +8,7 @@
 
 #include "capture/rgbd_source.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 // `uri` empty opens the first device OpenNI2 lists. Throws sightmap::Error when there is none
 // ("no RGB-D sensor found — run 'sightmap devices'") or it cannot be opened.
@@ -19,4 +19,4 @@ std::unique_ptr<RgbdSource> OpenOpenNiDevice(const std::string& uri, const Sourc
 // of the 1.0.0 format OpenNI2 cannot play, or holds no frames.
 std::unique_ptr<RgbdSource> OpenOniFile(const std::string& path, const SourceOptions& options);
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

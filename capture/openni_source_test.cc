@@ -15,7 +15,7 @@
 #include "core/check.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 struct ReadAll {
@@ -292,4 +292,4 @@ TEST(OpenNiSource, NoSensorAttachedSaysWhatToDo) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -11,7 +11,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 constexpr char kSourceForms[] =
@@ -151,4 +151,4 @@ std::unique_ptr<RgbdSource> OpenSource(const std::string& source, const SourceOp
 SIGHTMAP_OPTIONS_JSON(SourceOptions, width, height, fps, realtime, sync_tolerance_ns,
                       frame_timeout_ms, calibration_file)
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -14,7 +14,7 @@
 #include "core/camera.h"
 #include "core/rgbd_frame.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 
 struct SourceOptions {
   // Live devices: requested stream size [px] and rate [Hz]. The closest mode the device offers is
@@ -147,4 +147,4 @@ void RegisterSourceOpener(SourceSpec::Kind kind, SourceOpener opener);
 std::unique_ptr<RgbdSource> OpenSource(const std::string& source,
                                        const SourceOptions& options = SourceOptions());
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -18,7 +18,7 @@
 #include "capture/openni_runtime.h"
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 // Sources, in order of authority:
@@ -352,4 +352,4 @@ FreenectDriverState FindFreenectDriver(const std::string& drivers_dir) {
   return state;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

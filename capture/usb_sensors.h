@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-namespace sightmap {
+namespace sightmap::capture {
 
 // What one USB device of a sensor does. A Kinect v1 is three USB devices behind its own hub
 // (camera, audio, motor); a PrimeSense-family sensor is a single device.
@@ -115,4 +115,4 @@ enum class FreenectDriverState {
 const char* ToString(FreenectDriverState state);
 FreenectDriverState FindFreenectDriver(const std::string& drivers_dir);
 
-}  // namespace sightmap
+}  // namespace sightmap::capture

@@ -19,7 +19,7 @@
 #include "core/check.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::capture {
 namespace {
 
 using UsbId = std::pair<uint16_t, uint16_t>;
@@ -487,4 +487,4 @@ TEST(DevicesReport, JsonKeys) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::capture

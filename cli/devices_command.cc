@@ -19,11 +19,11 @@ int RunDevices(int argc, char** argv) {
   app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
-  const DevicesReport report = ScanDevices();
+  const capture::DevicesReport report = capture::ScanDevices();
   if (json) {
-    std::cout << DevicesReportToJson(report).dump(2) << std::endl;
+    std::cout << capture::DevicesReportToJson(report).dump(2) << std::endl;
   } else {
-    std::cout << FormatDevicesReport(report);
+    std::cout << capture::FormatDevicesReport(report);
   }
   return kExitSuccess;
 }

@@ -44,8 +44,8 @@ std::string Fixed(double value, int digits) {
 }
 
 void PrintTable(const std::string& gt_path, const std::string& est_path, size_t gt_poses,
-                size_t est_poses, const TrajectoryEvalOptions& options,
-                const TrajectoryError& error) {
+                size_t est_poses, const slam::TrajectoryEvalOptions& options,
+                const slam::TrajectoryError& error) {
   const auto row = [](const std::string& metric, const std::string& value, const std::string& unit,
                       const std::string& note = "") {
     std::ostringstream line;
@@ -99,9 +99,9 @@ int RunEval(int argc, char** argv) {
   std::string up = "z";
   bool json = false;
   bool no_error_segments = false;
-  const TrajectoryEvalOptions defaults;
+  const slam::TrajectoryEvalOptions defaults;
   double max_time_diff_s = defaults.max_time_difference_ns * 1e-9;
-  TrajectoryEvalOptions options;
+  slam::TrajectoryEvalOptions options;
   trajectory
       ->add_option("--gt", gt_path, "ground truth, TUM format (timestamp tx ty tz qx qy qz qw)")
       ->required();
@@ -138,7 +138,7 @@ int RunEval(int argc, char** argv) {
   if (identify->parsed()) return RunEvalIdentify(identify_args);
 
   options.max_time_difference_ns = static_cast<int64_t>(std::llround(max_time_diff_s * 1e9));
-  TrajectoryPlotOptions plot;
+  slam::TrajectoryPlotOptions plot;
   plot.draw_error_segments = !no_error_segments;
   {
     const bool negative = up[0] == '-';
@@ -155,8 +155,9 @@ int RunEval(int argc, char** argv) {
 
   const std::vector<StampedPose> ground_truth = ReadPoses(gt_path, "ground truth");
   const std::vector<StampedPose> estimate = ReadPoses(est_path, "estimate");
-  const TrajectoryError error = EvaluateTrajectory(ground_truth, estimate, options);
-  if (!plot_path.empty()) WriteImageAtomically(plot_path, DrawTrajectoryPlot(error, plot));
+  const slam::TrajectoryError error = slam::EvaluateTrajectory(ground_truth, estimate, options);
+  if (!plot_path.empty())
+    render::WriteImageAtomically(plot_path, slam::DrawTrajectoryPlot(error, plot));
 
   if (json) {
     const Eigen::Quaterniond rotation(error.gt_from_est.rotation());

@@ -70,7 +70,8 @@ class Progress {
   double last_print_s_ = -1e9;
 };
 
-void PrintTable(const EvalIdentifyArgs& args, size_t keyframes, const IdentifyEvaluation& e) {
+void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
+                const identify::IdentifyEvaluation& e) {
   std::cout << "model      " << args.model_path << " (" << keyframes << " keyframes)\n";
   std::cout << "queries    " << args.queries_path << " (" << e.photos << " photos)\n\n";
   const int recall_undefined = e.matched_photos - e.recall_defined_photos;
@@ -95,16 +96,16 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes, const IdentifyEv
   std::cout << std::left << std::setw(20) << "ground truth" << std::right << std::setw(12)
             << "identified" << std::setw(16) << "not identified"
             << "\n";
-  for (int type = kNumTruthTypes - 1; type >= 0; --type) {
+  for (int type = identify::kNumTruthTypes - 1; type >= 0; --type) {
     const auto& row = e.categories[static_cast<size_t>(type)];
-    std::cout << std::left << std::setw(20) << ToString(static_cast<TruthType>(type)) << std::right
-              << std::setw(12) << row[1] << std::setw(16) << row[0] << "\n";
+    std::cout << std::left << std::setw(20) << ToString(static_cast<identify::TruthType>(type))
+              << std::right << std::setw(12) << row[1] << std::setw(16) << row[0] << "\n";
   }
   std::cout << "\ntimings [ms]   median      p95     mean      max\n";
   for (const char* stage : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
     const auto found = e.stages.find(stage);
     if (found == e.stages.end()) continue;
-    const StageTiming& t = found->second;
+    const identify::StageTiming& t = found->second;
     std::cout << std::left << std::setw(12) << stage << std::right << std::setw(9)
               << Fixed(t.median_ms, 1) << std::setw(9) << Fixed(t.p95_ms, 1) << std::setw(9)
               << Fixed(t.mean_ms, 1) << std::setw(9) << Fixed(t.max_ms, 1) << "\n";
@@ -154,7 +155,7 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     plot_height = size.height;
     CheckOutputFile(args.plot_path, "--plot");
   }
-  std::vector<QueryTruth> truths = ReadQueryTruths(args.queries_path);
+  std::vector<identify::QueryTruth> truths = identify::ReadQueryTruths(args.queries_path);
   SIGHTMAP_CHECK(!truths.empty(), "the query set " << args.queries_path << " holds no photo");
   if (args.limit > 0 && static_cast<size_t>(args.limit) < truths.size()) {
     truths.resize(static_cast<size_t>(args.limit));
@@ -162,46 +163,47 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
 
   std::cerr << "eval identify: loading " << args.model_path << "\n" << std::flush;
   const Clock::time_point load_start = Clock::now();
-  ModelOptions model_options;
+  store::ModelOptions model_options;
   model_options.read_only = true;
-  std::unique_ptr<Locator> locator;
+  std::unique_ptr<identify::Locator> locator;
   {
-    const Model model = Model::Open(args.model_path, model_options);
-    locator = std::make_unique<Locator>(model);
+    const store::Model model = store::Model::Open(args.model_path, model_options);
+    locator = std::make_unique<identify::Locator>(model);
   }
   const double load_s = SecondsSince(load_start);
 
-  std::vector<PhotoAnswer> answers;
+  std::vector<identify::PhotoAnswer> answers;
   answers.reserve(truths.size());
   Progress progress(truths.size());
   int matched = 0;
-  for (const QueryTruth& truth : truths) {
-    Photo photo;
+  for (const identify::QueryTruth& truth : truths) {
+    identify::Photo photo;
     try {
-      photo = ReadPhotoFile(truth.image_path, kMaxPhotoMegapixels);
+      photo = identify::ReadPhotoFile(truth.image_path, identify::kMaxPhotoMegapixels);
     } catch (const InvalidArgument& e) {
       SIGHTMAP_THROW(InvalidArgument,
                      e.what() << " (listed in queries.json; was the query set copied whole?)");
     }
     // queries.json gives the intrinsics at the written size; a resized copy keeps the camera.
-    IntrinsicsHint hint;
+    identify::IntrinsicsHint hint;
     hint.upright = truth.intrinsics;
     const Clock::time_point start = Clock::now();
-    const LocateResult result = locator->Locate(photo, hint);
+    const identify::LocateResult result = locator->Locate(photo, hint);
     const double wall_ms = SecondsSince(start) * 1e3;
-    PhotoAnswer answer = ToPhotoAnswer(result);
+    identify::PhotoAnswer answer = identify::ToPhotoAnswer(result);
     if (answer.timings.total_ms <= 0.0) answer.timings.total_ms = wall_ms;
     matched += answer.matched ? 1 : 0;
     answers.push_back(std::move(answer));
     progress.Update(answers.size(), matched, answers.size() == truths.size());
   }
 
-  const IdentifyEvaluation evaluation = EvaluateIdentification(truths, answers);
+  const identify::IdentifyEvaluation evaluation = identify::EvaluateIdentification(truths, answers);
   if (!args.plot_path.empty()) {
-    WriteImageAtomically(args.plot_path, DrawIdentifyPlot(evaluation, plot_width, plot_height));
+    render::WriteImageAtomically(args.plot_path,
+                                 identify::DrawIdentifyPlot(evaluation, plot_width, plot_height));
   }
   if (args.json) {
-    nlohmann::json out = ToJson(evaluation);
+    nlohmann::json out = identify::ToJson(evaluation);
     out["model"] = args.model_path;
     out["queries"] = args.queries_path;
     out["keyframes"] = locator->NumKeyframes();

@@ -19,7 +19,7 @@ int RunExport(int argc, char** argv) {
   std::string trajectory_path;
   std::string labels_dir;
   bool odometry = false;
-  PlyExportOptions ply;
+  store::PlyExportOptions ply;
   AddModelArgument(app, path);
   app.add_option("--ply", ply_path, "write the point cloud as binary PLY (x y z red green blue)");
   app.add_option("--voxel", ply.voxel_size_m, "voxel grid leaf size [m], 0 keeps every point")
@@ -47,21 +47,21 @@ int RunExport(int argc, char** argv) {
   CheckOutputFile(trajectory_path, "--trajectory");
   CheckOutputFolder(labels_dir, "--labels");
 
-  ModelOptions options;
+  store::ModelOptions options;
   options.read_only = true;
-  const Model model = Model::Open(path, options);
+  const store::Model model = store::Model::Open(path, options);
   if (!ply_path.empty()) {
-    const PlyExportStats stats = ExportPly(model, ply_path, ply);
+    const store::PlyExportStats stats = store::ExportPly(model, ply_path, ply);
     std::cout << "point cloud    " << ply_path << ": " << stats.written_points << " points from "
               << stats.keyframes << " keyframes\n";
   }
   if (!trajectory_path.empty()) {
-    const std::vector<StampedPose> poses = ModelTrajectory(model, odometry);
+    const std::vector<StampedPose> poses = store::ModelTrajectory(model, odometry);
     WriteTumTrajectory(trajectory_path, poses);
     std::cout << "trajectory     " << trajectory_path << ": " << poses.size() << " poses\n";
   }
   if (!labels_dir.empty()) {
-    const int count = ExportLabels(model, labels_dir);
+    const int count = store::ExportLabels(model, labels_dir);
     std::cout << "labels         " << labels_dir << ": " << count << " files\n";
   }
   return kExitSuccess;

@@ -14,16 +14,16 @@ namespace {
 
 // Each session with the options it ran with (what `map --config` reads; older models stored
 // fewer of them).
-nlohmann::json SessionsJson(const std::vector<SessionRecord>& sessions) {
+nlohmann::json SessionsJson(const std::vector<store::SessionRecord>& sessions) {
   nlohmann::json list = nlohmann::json::array();
-  for (const SessionRecord& session : sessions) {
+  for (const store::SessionRecord& session : sessions) {
     nlohmann::json options = nlohmann::json::parse(session.options_json, nullptr,
                                                    /*allow_exceptions=*/false);
     if (options.is_discarded()) options = nullptr;
     list.push_back({{"id", session.id.value()},
                     {"source", session.source},
                     {"device", session.device_name},
-                    {"end", SessionEndName(session.end_state)},
+                    {"end", store::SessionEndName(session.end_state)},
                     {"start_time_ns", session.start_time_ns},
                     {"end_time_ns", session.end_time_ns},
                     {"options", options}});
@@ -43,11 +43,11 @@ int RunInfo(int argc, char** argv) {
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
   if (const int code = RequireModelArgument(app, path); code >= 0) return code;
 
-  ModelOptions options;
+  store::ModelOptions options;
   options.read_only = true;
-  const Model model = Model::Open(path, options);
-  const ModelSummary summary = model.Summary();
-  const std::vector<LabelRecord> labels = model.Labels();
+  const store::Model model = store::Model::Open(path, options);
+  const store::ModelSummary summary = model.Summary();
+  const std::vector<store::LabelRecord> labels = model.Labels();
 
   if (json) {
     nlohmann::json out;
@@ -78,7 +78,7 @@ int RunInfo(int argc, char** argv) {
       out["bounding_box"] = nullptr;
     }
     nlohmann::json names = nlohmann::json::array();
-    for (const LabelRecord& label : labels) names.push_back(label.name);
+    for (const store::LabelRecord& label : labels) names.push_back(label.name);
     out["label_names"] = names;
     out["session_list"] = SessionsJson(model.Sessions());
     std::cout << out.dump(2) << "\n";
@@ -88,9 +88,9 @@ int RunInfo(int argc, char** argv) {
   std::cout << "model          " << path << " (schema " << summary.schema_version << ", "
             << std::fixed << std::setprecision(1) << summary.size_bytes / 1e6 << " MB)\n";
   std::cout << "sessions       " << summary.sessions << "\n";
-  for (const SessionRecord& session : model.Sessions()) {
-    std::cout << "  #" << session.id.value() << " " << SessionEndName(session.end_state) << "  "
-              << (session.source.empty() ? "(no source)" : session.source);
+  for (const store::SessionRecord& session : model.Sessions()) {
+    std::cout << "  #" << session.id.value() << " " << store::SessionEndName(session.end_state)
+              << "  " << (session.source.empty() ? "(no source)" : session.source);
     if (!session.device_name.empty()) std::cout << "  " << session.device_name;
     std::cout << "\n";
   }

@@ -47,11 +47,11 @@ std::vector<double> ParseNumbers(const std::string& text, int count, const std::
   return values;
 }
 
-Model OpenExisting(const std::string& path, bool read_only) {
-  ModelOptions options;
+store::Model OpenExisting(const std::string& path, bool read_only) {
+  store::ModelOptions options;
   options.read_only = read_only;
   options.create_if_missing = false;
-  return Model::Open(path, options);
+  return store::Model::Open(path, options);
 }
 
 std::string FormatPoint(const Eigen::Vector3d& p) {
@@ -67,7 +67,7 @@ std::string JoinNames(const std::vector<std::string>& names) {
   return joined;
 }
 
-void PrintImportReport(const LabelImportReport& report, const std::string& from) {
+void PrintImportReport(const identify::LabelImportReport& report, const std::string& from) {
   std::cout << "imported " << report.created.size() + report.replaced.size() << " label(s), "
             << report.points << " point(s) from " << from << "\n";
   if (!report.created.empty()) std::cout << "  created   " << JoinNames(report.created) << "\n";
@@ -95,7 +95,7 @@ int RunLabel(int argc, char** argv) {
   int64_t keyframe_id = 0;
   std::string pixel_text;
   std::string point_text;
-  PixelLabelOptions pixel_options;
+  identify::PixelLabelOptions pixel_options;
   add_model(add);
   add->add_option("--name", name, "the appliance's label (unique in the model)")->required();
   add->add_option("--type", type,
@@ -162,15 +162,15 @@ int RunLabel(int argc, char** argv) {
       const std::vector<double> uv = ParseNumbers(pixel_text, 2, "--pixel", "U,V");
       pixel = Eigen::Vector2d(uv[0], uv[1]);
     }
-    Model model = OpenExisting(model_path, /*read_only=*/false);
+    store::Model model = OpenExisting(model_path, /*read_only=*/false);
     std::ostringstream from;
-    LabelPoint point;
+    store::LabelPoint point;
     if (world) {
-      point = LabelPointFromWorld(*world);
+      point = identify::LabelPointFromWorld(*world);
       from << "typed";
     } else {
-      const PixelLabelPoint clicked =
-          LabelPointFromPixel(model, KeyframeId(keyframe_id), *pixel, pixel_options);
+      const identify::PixelLabelPoint clicked =
+          identify::LabelPointFromPixel(model, KeyframeId(keyframe_id), *pixel, pixel_options);
       point = clicked.point;
       from << "keyframe " << keyframe_id << " pixel " << pixel->x() << "," << pixel->y()
            << ", depth " << std::fixed << std::setprecision(3) << clicked.depth_m << " m";
@@ -181,7 +181,7 @@ int RunLabel(int argc, char** argv) {
       }
     }
     const bool existed = model.FindLabel(name).has_value();
-    const LabelRecord label = AddPointsToLabel(model, name, {point}, type);
+    const store::LabelRecord label = identify::AddPointsToLabel(model, name, {point}, type);
     std::cout << (existed ? "added to " : "created ") << "label '" << label.name << "' ("
               << label.type << "): point " << label.points.size() << " at "
               << FormatPoint(label.points.back().world) << " m, " << from.str() << "\n";
@@ -198,37 +198,38 @@ int RunLabel(int argc, char** argv) {
       PrintError("--type applies to point-list files; a scene file gives each appliance's type");
       return kExitUsage;
     }
-    Model model = OpenExisting(model_path, /*read_only=*/false);
+    store::Model model = OpenExisting(model_path, /*read_only=*/false);
     if (!scene_path.empty()) {
-      PrintImportReport(ImportSceneLabels(model, scene_path), scene_path);
+      PrintImportReport(identify::ImportSceneLabels(model, scene_path), scene_path);
     } else {
-      PrintImportReport(ImportPointListLabels(model, files, type),
+      PrintImportReport(identify::ImportPointListLabels(model, files, type),
                         std::to_string(files.size()) + " file(s)");
     }
     return kExitSuccess;
   }
 
   if (list->parsed()) {
-    const Model model = OpenExisting(model_path, /*read_only=*/true);
-    const std::vector<LabelRecord> labels = model.Labels();
+    const store::Model model = OpenExisting(model_path, /*read_only=*/true);
+    const std::vector<store::LabelRecord> labels = model.Labels();
     if (json) {
-      std::cout << LabelsToJson(labels).dump(2) << "\n";
+      std::cout << identify::LabelsToJson(labels).dump(2) << "\n";
       return kExitSuccess;
     }
     if (labels.empty()) {
       std::cout << "no labels: add one with 'sightmap label add' or 'sightmap label import'\n";
     }
-    for (const LabelRecord& label : labels) {
+    for (const store::LabelRecord& label : labels) {
       std::cout << label.name << " (" << label.type << "), " << label.points.size() << " point(s):";
-      for (const LabelPoint& point : label.points) std::cout << " " << FormatPoint(point.world);
+      for (const store::LabelPoint& point : label.points)
+        std::cout << " " << FormatPoint(point.world);
       std::cout << " m\n";
     }
     return kExitSuccess;
   }
 
   if (remove->parsed()) {
-    Model model = OpenExisting(model_path, /*read_only=*/false);
-    const std::optional<LabelRecord> label = model.FindLabel(name);
+    store::Model model = OpenExisting(model_path, /*read_only=*/false);
+    const std::optional<store::LabelRecord> label = model.FindLabel(name);
     SIGHTMAP_CHECK(label, "no label named '" << name << "' in " << model_path
                                              << ": 'sightmap label list --model " << model_path
                                              << "' lists them");
@@ -238,8 +239,8 @@ int RunLabel(int argc, char** argv) {
   }
 
   CheckOutputFolder(dir, "--dir");
-  const Model model = OpenExisting(model_path, /*read_only=*/true);
-  const int count = ExportLabels(model, dir);
+  const store::Model model = OpenExisting(model_path, /*read_only=*/true);
+  const int count = store::ExportLabels(model, dir);
   std::cout << "labels         " << dir << ": " << count << " files\n";
   return kExitSuccess;
 }

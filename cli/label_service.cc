@@ -30,9 +30,9 @@ std::optional<std::string> OptionalText(const nlohmann::json& request, const cha
   return request.at(key).get<std::string>();
 }
 
-void CheckText(const std::string& text, LabelField field) {
+void CheckText(const std::string& text, store::LabelField field) {
   std::string why;
-  if (!ValidLabelText(text, field, &why)) throw ServiceError(kBadRequest, why);
+  if (!store::ValidLabelText(text, field, &why)) throw ServiceError(kBadRequest, why);
 }
 
 void CheckObject(const nlohmann::json& request) {
@@ -63,7 +63,7 @@ bool LabelServiceOptions::Check(std::string* error) const {
 }
 
 LabelService::LabelService(std::string model_path, const LabelServiceOptions& options,
-                           std::function<void(const Model&)> labels_changed)
+                           std::function<void(const store::Model&)> labels_changed)
     : model_path_(std::move(model_path)),
       options_(options),
       labels_changed_(std::move(labels_changed)) {
@@ -71,18 +71,18 @@ LabelService::LabelService(std::string model_path, const LabelServiceOptions& op
   OpenForReading();  // fails now, not at the first request
 }
 
-Model LabelService::OpenForReading() const {
-  return Model::Open(model_path_, ModelOptions::ReadOnly());
+store::Model LabelService::OpenForReading() const {
+  return store::Model::Open(model_path_, store::ModelOptions::ReadOnly());
 }
 
-Model LabelService::OpenForWriting() const {
+store::Model LabelService::OpenForWriting() const {
   if (!options_.editable) throw ServiceError(kForbidden, options_.read_only_reason);
-  ModelOptions model_options;
+  store::ModelOptions model_options;
   model_options.create_if_missing = false;
-  return Model::Open(model_path_, model_options);
+  return store::Model::Open(model_path_, model_options);
 }
 
-KeyframeInfo LabelService::FindKeyframe(const Model& model, int64_t id) const {
+store::KeyframeInfo LabelService::FindKeyframe(const store::Model& model, int64_t id) const {
   try {
     return model.Keyframe(KeyframeId(id));
   } catch (const Error&) {
@@ -90,8 +90,8 @@ KeyframeInfo LabelService::FindKeyframe(const Model& model, int64_t id) const {
   }
 }
 
-LabelRecord LabelService::FindLabel(const Model& model, int64_t id) const {
-  for (LabelRecord& label : model.Labels()) {
+store::LabelRecord LabelService::FindLabel(const store::Model& model, int64_t id) const {
+  for (store::LabelRecord& label : model.Labels()) {
     if (label.id.value() == id) return std::move(label);
   }
   throw ServiceError(kNotFound, "no label " + std::to_string(id) +
@@ -99,7 +99,7 @@ LabelRecord LabelService::FindLabel(const Model& model, int64_t id) const {
 }
 
 nlohmann::json LabelService::Status() const {
-  const Model model = OpenForReading();
+  const store::Model model = OpenForReading();
   nlohmann::json status = {{"editable", options_.editable},
                            {"model", model_path_},
                            {"keyframes", model.NumKeyframes()},
@@ -109,12 +109,12 @@ nlohmann::json LabelService::Status() const {
 }
 
 nlohmann::json LabelService::Keyframes() const {
-  const Model model = OpenForReading();
-  const std::vector<SessionRecord> sessions = model.Sessions();
-  const std::vector<KeyframeInfo> keyframes = model.Keyframes();
+  const store::Model model = OpenForReading();
+  const std::vector<store::SessionRecord> sessions = model.Sessions();
+  const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
   std::map<int64_t, TimestampNs> first_stamp;
   std::map<int64_t, int64_t> counts;
-  for (const KeyframeInfo& keyframe : keyframes) {
+  for (const store::KeyframeInfo& keyframe : keyframes) {
     const int64_t session = keyframe.session.value();
     const auto [it, inserted] = first_stamp.emplace(session, keyframe.timestamp_ns);
     if (!inserted) it->second = std::min(it->second, keyframe.timestamp_ns);
@@ -130,7 +130,7 @@ nlohmann::json LabelService::Keyframes() const {
                             {"keyframes", counts[id]}});
   }
   nlohmann::json keyframe_list = nlohmann::json::array();
-  for (const KeyframeInfo& keyframe : keyframes) {
+  for (const store::KeyframeInfo& keyframe : keyframes) {
     const int64_t session = keyframe.session.value();
     keyframe_list.push_back(
         {{"id", keyframe.id.value()},
@@ -148,7 +148,7 @@ std::string LabelService::KeyframeJpeg(int64_t keyframe, int max_side) const {
                                         std::to_string(options_.max_image_side_px) +
                                         "] px (0: the keyframe's own size)");
   }
-  const Model model = OpenForReading();
+  const store::Model model = OpenForReading();
   FindKeyframe(model, keyframe);
   cv::Mat image = model.LoadColor(KeyframeId(keyframe));
   const int longer = std::max(image.cols, image.rows);
@@ -165,14 +165,14 @@ std::string LabelService::KeyframeJpeg(int64_t keyframe, int max_side) const {
 }
 
 nlohmann::json LabelService::KeyframeLabels(int64_t keyframe) const {
-  const Model model = OpenForReading();
-  const KeyframeInfo info = FindKeyframe(model, keyframe);
-  const std::vector<LabelRecord> labels = model.Labels();
+  const store::Model model = OpenForReading();
+  const store::KeyframeInfo info = FindKeyframe(model, keyframe);
+  const std::vector<store::LabelRecord> labels = model.Labels();
   nlohmann::json seen = nlohmann::json::array();
-  for (const LabelInKeyframe& in_view :
-       LabelsInKeyframe(model, KeyframeId(keyframe), labels, options_.view)) {
+  for (const identify::LabelInKeyframe& in_view :
+       identify::LabelsInKeyframe(model, KeyframeId(keyframe), labels, options_.view)) {
     nlohmann::json points = nlohmann::json::array();
-    for (const LabelPointInKeyframe& point : in_view.points) {
+    for (const identify::LabelPointInKeyframe& point : in_view.points) {
       points.push_back({{"index", point.point_index},
                         {"pixel", {point.pixel.x(), point.pixel.y()}},
                         {"depth_m", point.depth_m},
@@ -190,14 +190,14 @@ nlohmann::json LabelService::KeyframeLabels(int64_t keyframe) const {
 }
 
 nlohmann::json LabelService::Labels() const {
-  const Model model = OpenForReading();
-  const std::vector<LabelRecord> labels = model.Labels();
-  const std::vector<KeyframeInfo> keyframes = model.Keyframes();
-  nlohmann::json answer = LabelsToJson(labels);
+  const store::Model model = OpenForReading();
+  const std::vector<store::LabelRecord> labels = model.Labels();
+  const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
+  nlohmann::json answer = identify::LabelsToJson(labels);
   for (size_t i = 0; i < labels.size(); ++i) {
     nlohmann::json seen_by = nlohmann::json::array();
-    for (const KeyframeId id :
-         KeyframesSeeingLabel(keyframes, labels[i], options_.seen_by_max, options_.view)) {
+    for (const KeyframeId id : identify::KeyframesSeeingLabel(
+             keyframes, labels[i], options_.seen_by_max, options_.view)) {
       seen_by.push_back(id.value());
     }
     answer["labels"][i]["seen_by"] = std::move(seen_by);
@@ -209,10 +209,10 @@ nlohmann::json LabelService::AddPoint(const nlohmann::json& request) {
   CheckObject(request);
   const std::optional<std::string> name = OptionalText(request, "name");
   if (!name) throw ServiceError(kBadRequest, "\"name\" is required: the appliance's label");
-  CheckText(*name, LabelField::kName);
+  CheckText(*name, store::LabelField::kName);
   std::optional<std::string> type = OptionalText(request, "type");
   if (type && type->empty()) type.reset();
-  if (type) CheckText(*type, LabelField::kType);
+  if (type) CheckText(*type, store::LabelField::kType);
   if (!request.contains("keyframe") || !request.at("keyframe").is_number_integer()) {
     throw ServiceError(kBadRequest, "\"keyframe\" must be a keyframe id (an integer)");
   }
@@ -224,16 +224,16 @@ nlohmann::json LabelService::AddPoint(const nlohmann::json& request) {
   const Eigen::Vector2d uv(pixel[0].get<double>(), pixel[1].get<double>());
 
   const std::lock_guard<std::mutex> lock(write_mutex_);
-  Model model = OpenForWriting();
+  store::Model model = OpenForWriting();
   FindKeyframe(model, keyframe);
-  PixelLabelPoint clicked;
+  identify::PixelLabelPoint clicked;
   try {
-    clicked = LabelPointFromPixel(model, KeyframeId(keyframe), uv, options_.pixel);
+    clicked = identify::LabelPointFromPixel(model, KeyframeId(keyframe), uv, options_.pixel);
   } catch (const Error& e) {
     throw ServiceError(kBadRequest, e.what());
   }
   const bool created = !model.FindLabel(*name).has_value();
-  const LabelRecord label = AddPointsToLabel(model, *name, {clicked.point}, type);
+  const store::LabelRecord label = identify::AddPointsToLabel(model, *name, {clicked.point}, type);
   labels_changed_(model);
 
   std::ostringstream message;
@@ -244,7 +244,7 @@ nlohmann::json LabelService::AddPoint(const nlohmann::json& request) {
             << " px away (the clicked pixel has none)";
   }
   const Eigen::Vector3d& world = label.points.back().world;
-  return {{"label", LabelsToJson({label})["labels"][0]},
+  return {{"label", identify::LabelsToJson({label})["labels"][0]},
           {"created", created},
           {"point",
            {{"world", {world.x(), world.y(), world.z()}},
@@ -261,12 +261,12 @@ nlohmann::json LabelService::Edit(int64_t id, const nlohmann::json& request) {
   if (!name && !type) {
     throw ServiceError(kBadRequest, "give \"name\" (rename) and/or \"type\" (retype)");
   }
-  if (name) CheckText(*name, LabelField::kName);
-  if (type) CheckText(*type, LabelField::kType);
+  if (name) CheckText(*name, store::LabelField::kName);
+  if (type) CheckText(*type, store::LabelField::kType);
 
   const std::lock_guard<std::mutex> lock(write_mutex_);
-  Model model = OpenForWriting();
-  LabelRecord label = FindLabel(model, id);
+  store::Model model = OpenForWriting();
+  store::LabelRecord label = FindLabel(model, id);
   if (name && *name != label.name) {
     if (model.FindLabel(*name)) {
       throw ServiceError(kConflict, "a label named '" + *name +
@@ -277,13 +277,13 @@ nlohmann::json LabelService::Edit(int64_t id, const nlohmann::json& request) {
   if (type) label.type = *type;
   model.UpdateLabel(label);
   labels_changed_(model);
-  return {{"label", LabelsToJson({FindLabel(model, id)})["labels"][0]}};
+  return {{"label", identify::LabelsToJson({FindLabel(model, id)})["labels"][0]}};
 }
 
 nlohmann::json LabelService::Remove(int64_t id) {
   const std::lock_guard<std::mutex> lock(write_mutex_);
-  Model model = OpenForWriting();
-  const LabelRecord label = FindLabel(model, id);
+  store::Model model = OpenForWriting();
+  const store::LabelRecord label = FindLabel(model, id);
   model.DeleteLabel(label.id);
   labels_changed_(model);
   return {{"removed", label.name}};

@@ -37,8 +37,8 @@ struct LabelServiceOptions {
   int max_image_side_px = 1280;  // larger image requests are refused [px]
   int jpeg_quality = 85;         // of the keyframe images sent [1, 100]
   size_t seen_by_max = 8;        // keyframes listed per label as seeing it
-  PixelLabelOptions pixel;
-  LabelViewOptions view;
+  identify::PixelLabelOptions pixel;
+  identify::LabelViewOptions view;
 
   bool Check(std::string* error) const;
 };
@@ -50,7 +50,7 @@ class LabelService {
   // `labels_changed` is called with the model after every write (the server reloads the labels
   // its Locator reports). Throws Error when the model cannot be opened.
   LabelService(std::string model_path, const LabelServiceOptions& options,
-               std::function<void(const Model&)> labels_changed);
+               std::function<void(const store::Model&)> labels_changed);
 
   // {"editable", "read_only_reason"?, "model", "keyframes", "labels"}
   nlohmann::json Status() const;
@@ -75,14 +75,14 @@ class LabelService {
   nlohmann::json Remove(int64_t id);
 
  private:
-  Model OpenForReading() const;
-  Model OpenForWriting() const;
-  LabelRecord FindLabel(const Model& model, int64_t id) const;
-  KeyframeInfo FindKeyframe(const Model& model, int64_t id) const;
+  store::Model OpenForReading() const;
+  store::Model OpenForWriting() const;
+  store::LabelRecord FindLabel(const store::Model& model, int64_t id) const;
+  store::KeyframeInfo FindKeyframe(const store::Model& model, int64_t id) const;
 
   std::string model_path_;
   LabelServiceOptions options_;
-  std::function<void(const Model&)> labels_changed_;
+  std::function<void(const store::Model&)> labels_changed_;
   std::mutex write_mutex_;  // one edit at a time: read, check, write
 };
 

@@ -17,23 +17,23 @@ class LabelServiceTest : public ::testing::Test {
  protected:
   void SetUp() override {
     path_ = testing::MakeTempDir("label_service") + "/model.db";
-    Model model = Model::Open(path_);
-    SessionRecord session;
+    store::Model model = store::Model::Open(path_);
+    store::SessionRecord session;
     session.source = "sim:office";
     const SessionId id = model.BeginSession(session);
-    SyntheticKeyframeOptions options;
+    store::SyntheticKeyframeOptions options;
     options.width = 320;
     options.height = 240;
     options.num_features = 20;
     for (int i = 0; i < 2; ++i)
-      keyframes_.push_back(model.AddKeyframe(MakeSyntheticKeyframe(id, i, options)));
+      keyframes_.push_back(model.AddKeyframe(store::MakeSyntheticKeyframe(id, i, options)));
   }
 
   LabelService Service(bool editable = true) {
     LabelServiceOptions options;
     options.editable = editable;
     options.read_only_reason = "started with --read-only";
-    return LabelService(path_, options, [this](const Model& model) {
+    return LabelService(path_, options, [this](const store::Model& model) {
       ++reloads_;
       reloaded_labels_ = model.Labels().size();
     });
@@ -99,18 +99,18 @@ TEST_F(LabelServiceTest, AClickedPixelBecomesTheSamePointAsLabelAdd) {
             std::string::npos)
       << added.at("message");
   // The same code as `sightmap label add --keyframe 2 --pixel 200,100`.
-  const Model model = Model::Open(path_, ModelOptions::ReadOnly());
-  const PixelLabelPoint expected =
-      LabelPointFromPixel(model, keyframes_[1], Eigen::Vector2d(200, 100));
+  const store::Model model = store::Model::Open(path_, store::ModelOptions::ReadOnly());
+  const identify::PixelLabelPoint expected =
+      identify::LabelPointFromPixel(model, keyframes_[1], Eigen::Vector2d(200, 100));
   const nlohmann::json& world = added.at("point").at("world");
   EXPECT_NEAR(world[0].get<double>(), expected.point.world.x(), 1e-9);
   EXPECT_NEAR(world[1].get<double>(), expected.point.world.y(), 1e-9);
   EXPECT_NEAR(world[2].get<double>(), expected.point.world.z(), 1e-9);
   EXPECT_NEAR(added.at("point").at("depth_m").get<double>(), 2.0, 0.01);
-  const std::optional<LabelRecord> stored = model.FindLabel("projector 1");
+  const std::optional<store::LabelRecord> stored = model.FindLabel("projector 1");
   ASSERT_TRUE(stored);
   ASSERT_EQ(stored->points.size(), 1u);
-  EXPECT_EQ(stored->points[0].source, LabelPointSource::kKeyframePixel);
+  EXPECT_EQ(stored->points[0].source, store::LabelPointSource::kKeyframePixel);
   EXPECT_EQ(stored->points[0].pixel, Eigen::Vector2d(200, 100));
 
   // A second point to the same name keeps its type; the label is drawn on both keyframes.
@@ -155,11 +155,12 @@ TEST_F(LabelServiceTest, BadEditsAreRefusedWithTheirStatusAndChangeNothing) {
             }),
             400);
   EXPECT_EQ(reloads_, 0);
-  EXPECT_EQ(Model::Open(path_, ModelOptions::ReadOnly()).Labels().size(), 0u);
+  EXPECT_EQ(store::Model::Open(path_, store::ModelOptions::ReadOnly()).Labels().size(), 0u);
 
   service.AddPoint({{"name", "lamp"}, {"keyframe", keyframe}, {"pixel", {10, 10}}});
   service.AddPoint({{"name", "fan"}, {"keyframe", keyframe}, {"pixel", {20, 10}}});
-  const int64_t lamp = Model::Open(path_, ModelOptions::ReadOnly()).FindLabel("lamp")->id.value();
+  const int64_t lamp =
+      store::Model::Open(path_, store::ModelOptions::ReadOnly()).FindLabel("lamp")->id.value();
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp, {{"name", "fan"}}); }), 409);
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp, nlohmann::json::object()); }), 400);
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp + 100, {{"type", "x"}}); }), 404);
@@ -170,7 +171,8 @@ TEST_F(LabelServiceTest, BadEditsAreRefusedWithTheirStatusAndChangeNothing) {
   EXPECT_EQ(renamed.at("label").at("type"), "lamp");
   EXPECT_EQ(renamed.at("label").at("points").size(), 1u) << "renaming keeps the points";
   EXPECT_EQ(service.Remove(lamp).at("removed"), "desk lamp");
-  const std::vector<LabelRecord> left = Model::Open(path_, ModelOptions::ReadOnly()).Labels();
+  const std::vector<store::LabelRecord> left =
+      store::Model::Open(path_, store::ModelOptions::ReadOnly()).Labels();
   ASSERT_EQ(left.size(), 1u);
   EXPECT_EQ(left[0].name, "fan");
 }
@@ -182,7 +184,8 @@ TEST_F(LabelServiceTest, AReadOnlyServiceShowsButRefusesEveryWriteWith403) {
   EXPECT_FALSE(status.at("editable").get<bool>());
   EXPECT_EQ(status.at("read_only_reason"), "started with --read-only");
   EXPECT_EQ(service.Labels().at("labels").size(), 1u);
-  const int64_t lamp = Model::Open(path_, ModelOptions::ReadOnly()).FindLabel("lamp")->id.value();
+  const int64_t lamp =
+      store::Model::Open(path_, store::ModelOptions::ReadOnly()).FindLabel("lamp")->id.value();
   EXPECT_EQ(
       RefusedWith([&] {
         service.AddPoint({{"name", "x"}, {"keyframe", keyframes_[0].value()}, {"pixel", {5, 5}}});
@@ -190,7 +193,8 @@ TEST_F(LabelServiceTest, AReadOnlyServiceShowsButRefusesEveryWriteWith403) {
       403);
   EXPECT_EQ(RefusedWith([&] { service.Edit(lamp, {{"name", "y"}}); }), 403);
   EXPECT_EQ(RefusedWith([&] { service.Remove(lamp); }), 403);
-  EXPECT_EQ(Model::Open(path_, ModelOptions::ReadOnly()).FindLabel("lamp")->name, "lamp");
+  EXPECT_EQ(store::Model::Open(path_, store::ModelOptions::ReadOnly()).FindLabel("lamp")->name,
+            "lamp");
 }
 
 }  // namespace

@@ -50,7 +50,7 @@ Intrinsics ParseIntrinsics(const std::string& text, int width, int height) {
   return k;
 }
 
-void PrintHuman(const LocateResult& result, const std::string& photo_path) {
+void PrintHuman(const identify::LocateResult& result, const std::string& photo_path) {
   std::cout << std::fixed;
   if (!result.matched) {
     std::cout << "not matched    " << photo_path << ": " << result.reason << "\n";
@@ -70,14 +70,15 @@ void PrintHuman(const LocateResult& result, const std::string& photo_path) {
             << ToString(result.intrinsics_source) << ")\n";
   if (result.matched) {
     int visible = 0;
-    for (const ApplianceInView& appliance : result.appliances) visible += !appliance.occluded;
+    for (const identify::ApplianceInView& appliance : result.appliances)
+      visible += !appliance.occluded;
     std::cout << "appliances     " << visible << " in view";
     if (visible != static_cast<int>(result.appliances.size())) {
       std::cout << ", " << result.appliances.size() - static_cast<size_t>(visible)
                 << " hidden behind a surface";
     }
     std::cout << (result.appliances.empty() ? "\n" : ", nearest first:\n");
-    for (const ApplianceInView& appliance : result.appliances) {
+    for (const identify::ApplianceInView& appliance : result.appliances) {
       std::cout << "  " << std::left << std::setw(22) << appliance.name << std::setw(14)
                 << appliance.type << std::right << std::setprecision(2) << std::setw(6)
                 << appliance.distance_m << " m  ";
@@ -89,7 +90,7 @@ void PrintHuman(const LocateResult& result, const std::string& photo_path) {
       }
     }
   }
-  const LocateTimings& t = result.timings;
+  const identify::LocateTimings& t = result.timings;
   std::cout << std::setprecision(1) << "time           " << t.total_ms << " ms (features "
             << t.features_ms << ", retrieval " << t.retrieval_ms << ", matching " << t.matching_ms
             << ", PnP " << t.pnp_ms << ", visibility " << t.visibility_ms << ")\n";
@@ -120,7 +121,7 @@ int RunLocate(int argc, char** argv) {
                  "its EXIF orientation")
       ->excludes(intrinsics_option);
   app.add_flag("--json", json, "print the answer as one JSON object (stable keys)");
-  LocatorOptions options;
+  identify::LocatorOptions options;
   AddConfigOption(app, options);
   bool print_config = false;
   AddPrintConfigFlag(app, print_config);
@@ -133,12 +134,12 @@ int RunLocate(int argc, char** argv) {
   SIGHTMAP_CHECK_OPTIONS(options);
 
   // The photo first: a typo in its name should not wait for the model to load.
-  const Photo photo = ReadPhotoFile(photo_path, kMaxPhotoMegapixels);
-  IntrinsicsHint hint;
+  const identify::Photo photo = identify::ReadPhotoFile(photo_path, identify::kMaxPhotoMegapixels);
+  identify::IntrinsicsHint hint;
   if (!intrinsics_text.empty()) {
     hint.upright = ParseIntrinsics(intrinsics_text, photo.width(), photo.height());
   } else if (!calib_path.empty()) {
-    const RgbdCalibration calibration = ReadCalibrationFile(calib_path);
+    const capture::RgbdCalibration calibration = capture::ReadCalibrationFile(calib_path);
     SIGHTMAP_CHECK(calibration.color.has_value(),
                    "calibration file " << calib_path
                                        << " has no \"color\" block: the photo's intrinsics go "
@@ -146,14 +147,14 @@ int RunLocate(int argc, char** argv) {
     hint.sensor = calibration.color;
   }
 
-  ModelOptions model_options;
+  store::ModelOptions model_options;
   model_options.read_only = true;
   model_options.create_if_missing = false;
-  const Model model = Model::Open(model_path, model_options);
-  const Locator locator(model, options);
-  const LocateResult result = locator.Locate(photo, hint);
+  const store::Model model = store::Model::Open(model_path, model_options);
+  const identify::Locator locator(model, options);
+  const identify::LocateResult result = locator.Locate(photo, hint);
   if (json) {
-    std::cout << ToJson(result).dump(2) << "\n";
+    std::cout << identify::ToJson(result).dump(2) << "\n";
   } else {
     PrintHuman(result, photo_path);
   }

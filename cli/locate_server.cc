@@ -117,14 +117,14 @@ void Refuse(httplib::Response& response, int status, const std::string& message)
 }
 
 // The answer to a refused photo: 415 when it is no image, 413 when too large, else 400.
-int StatusFor(PhotoProblem problem) {
+int StatusFor(identify::PhotoProblem problem) {
   switch (problem) {
-    case PhotoProblem::kNotAnImage:
+    case identify::PhotoProblem::kNotAnImage:
       return 415;
-    case PhotoProblem::kTooLarge:
+    case identify::PhotoProblem::kTooLarge:
       return 413;
-    case PhotoProblem::kTruncated:
-    case PhotoProblem::kCorrupt:
+    case identify::PhotoProblem::kTruncated:
+    case identify::PhotoProblem::kCorrupt:
       return 400;
   }
   return 400;
@@ -283,7 +283,7 @@ bool LocateServerOptions::Check(std::string* error) const {
 struct LocateServer::Impl {
   LocateServerOptions options;
   std::string model_path;
-  std::unique_ptr<Locator> locator;
+  std::unique_ptr<identify::Locator> locator;
   std::unique_ptr<LabelService> label_service;
   int locate_threads = 1;
   std::unique_ptr<Slots> locate_slots;
@@ -351,25 +351,25 @@ void LocateServer::Impl::HandleLocate(const httplib::Request& request, const std
     return RefuseCounted(response, 400, "empty body: POST a JPEG or PNG photo as the request body");
   }
   const auto* bytes = reinterpret_cast<const uint8_t*>(body.data());
-  Photo photo;
-  LocateResult result;
+  identify::Photo photo;
+  identify::LocateResult result;
   try {
     // The cheap refusals and the query's intrinsics first: a bad upload never waits for a slot.
-    photo = InspectPhoto(bytes, body.size(), options.max_megapixels);
-    IntrinsicsHint hint;
+    photo = identify::InspectPhoto(bytes, body.size(), options.max_megapixels);
+    identify::IntrinsicsHint hint;
     hint.upright = IntrinsicsFromQuery(request, photo.width(), photo.height());
     // Decoding inside the slot bounds the decoded images in memory as well as the CPU.
     const Slots::Hold hold(*locate_slots);
-    DecodePixels(bytes, body.size(), &photo);
+    identify::DecodePixels(bytes, body.size(), &photo);
     result = locator->Locate(photo, hint);
     photo.upright.release();
-  } catch (const PhotoRejected& e) {
+  } catch (const identify::PhotoRejected& e) {
     return RefuseCounted(response, StatusFor(e.problem()), e.what());
   } catch (const InvalidArgument& e) {
     return RefuseCounted(response, 400, e.what());
   }
   ++located;
-  nlohmann::json answer = ToJson(result);
+  nlohmann::json answer = identify::ToJson(result);
   answer["photo"] = {{"width", photo.width()},
                      {"height", photo.height()},
                      {"format", ToString(photo.stored.format)},
@@ -498,9 +498,9 @@ void LocateServer::Impl::LogRequest(const httplib::Request& request,
 }
 
 // What decides whether the labels changed: every label's name, type, point count and update time.
-std::string LabelFingerprint(const std::vector<LabelRecord>& labels) {
+std::string LabelFingerprint(const std::vector<store::LabelRecord>& labels) {
   std::ostringstream fingerprint;
-  for (const LabelRecord& label : labels) {
+  for (const store::LabelRecord& label : labels) {
     fingerprint << label.name << '\n'
                 << label.type << '\n'
                 << label.points.size() << ' ' << label.updated_ns << '\n';
@@ -515,9 +515,9 @@ void LocateServer::Impl::WatchLabels() {
   const auto period = std::chrono::duration<double>(options.label_refresh_s);
   while (!watch_wakeup.wait_for(lock, period, [this] { return stop_requested.load(); })) {
     try {
-      ModelOptions model_options;
+      store::ModelOptions model_options;
       model_options.read_only = true;
-      const Model model = Model::Open(model_path, model_options);
+      const store::Model model = store::Model::Open(model_path, model_options);
       const std::string now = LabelFingerprint(model.Labels());
       if (now != last) {
         locator->ReloadLabels(model);
@@ -536,9 +536,9 @@ void LocateServer::Impl::WatchLabels() {
 
 void LocateServer::Impl::HandleAppliances(httplib::Response& response) const {
   nlohmann::json appliances = nlohmann::json::array();
-  for (const LabelRecord& label : locator->Labels()) {
+  for (const store::LabelRecord& label : locator->Labels()) {
     nlohmann::json points = nlohmann::json::array();
-    for (const LabelPoint& point : label.points) {
+    for (const store::LabelPoint& point : label.points) {
       points.push_back({point.world.x(), point.world.y(), point.world.z()});
     }
     appliances.push_back({{"name", label.name}, {"type", label.type}, {"points", points}});
@@ -676,10 +676,10 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   impl.options = options;
   impl.model_path = model_path;
   {
-    ModelOptions model_options;
+    store::ModelOptions model_options;
     model_options.read_only = true;
-    const Model model = Model::Open(model_path, model_options);
-    impl.locator = std::make_unique<Locator>(model, options.locator);
+    const store::Model model = store::Model::Open(model_path, model_options);
+    impl.locator = std::make_unique<identify::Locator>(model, options.locator);
   }
   LabelServiceOptions label_options = options.labels;
   label_options.editable = !options.read_only;
@@ -687,7 +687,7 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   // An edit answers phones at once, not at the next label refresh.
   impl.label_service = std::make_unique<LabelService>(
       model_path, label_options,
-      [&impl](const Model& model) { impl.locator->ReloadLabels(model); });
+      [&impl](const store::Model& model) { impl.locator->ReloadLabels(model); });
   impl.locate_threads = options.locate_threads > 0 ? options.locate_threads : HardwareThreads();
   impl.locate_slots = std::make_unique<Slots>(impl.locate_threads);
   const int connection_threads = options.connection_threads > 0

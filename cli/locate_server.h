@@ -59,7 +59,7 @@ struct LocateServerOptions {
   // When set, label edits must carry it (header X-Sightmap-Token, or ?token=): for a server other
   // machines can reach. Reading, and the phone page, need none.
   std::string edit_token;
-  LocatorOptions locator;
+  identify::LocatorOptions locator;
   // Its editable and read_only_reason are the server's: set from read_only above.
   LabelServiceOptions labels;
 

@@ -42,7 +42,7 @@ int RunProbe(int argc, char** argv) {
   int dump = 0;
   std::string out_dir;
   int64_t max_frames = -1;
-  SourceOptions options;
+  capture::SourceOptions options;
   app.add_option("SOURCE", source, "openni:// | openni://URI | FILE.oni | tum:DIR | 3dmatch:DIR")
       ->required();
   app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
@@ -72,10 +72,10 @@ int RunProbe(int argc, char** argv) {
 
   if (dump > 0) CheckOutputFolder(out_dir, "--out");
 
-  std::unique_ptr<RgbdSource> rgbd = OpenSource(source, options);
-  const SourceMetadata& meta = rgbd->metadata();
+  std::unique_ptr<capture::RgbdSource> rgbd = capture::OpenSource(source, options);
+  const capture::SourceMetadata& meta = rgbd->metadata();
   if (max_frames < 0 && meta.kind == "openni") max_frames = 30;
-  if (dump > 0) WriteThreeDMatchIntrinsics(out_dir, meta.intrinsics);
+  if (dump > 0) capture::WriteThreeDMatchIntrinsics(out_dir, meta.intrinsics);
 
   // Progress on stderr for long folders, only when a person is watching.
   const bool show_progress = isatty(STDERR_FILENO) != 0;
@@ -97,7 +97,7 @@ int RunProbe(int argc, char** argv) {
         if (z) summary.depth_samples_mm.push_back(z);
       }
     }
-    if (summary.frames < dump) WriteThreeDMatchFrame(out_dir, *frame);
+    if (summary.frames < dump) capture::WriteThreeDMatchFrame(out_dir, *frame);
     ++summary.frames;
     if (show_progress &&
         std::chrono::steady_clock::now() - last_progress > std::chrono::seconds(1)) {
@@ -109,7 +109,7 @@ int RunProbe(int argc, char** argv) {
   }
   if (show_progress) std::cerr << "\r" << std::string(40, ' ') << "\r" << std::flush;
 
-  const SourceStats stats = rgbd->stats();
+  const capture::SourceStats stats = rgbd->stats();
   double median_mm = 0.0;
   if (!summary.depth_samples_mm.empty()) {
     auto mid = summary.depth_samples_mm.begin() + summary.depth_samples_mm.size() / 2;

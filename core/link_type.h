@@ -3,7 +3,12 @@
 // it (the numbers are the schema's: never renumber).
 #pragma once
 
+#include <Eigen/Core>
+
 namespace sightmap {
+
+// A link's information (inverse covariance) over (tx, ty, tz, rx, ry, rz) [1/m^2, 1/rad^2].
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 // kPrior: the tracker's motion model across a blind stretch (no registration behind it).
 // kUser: a link a person asserted; it constrains the graph like a verified loop.

@@ -12,7 +12,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = sightmap::fuzz::ScratchDir() + "/calibration.json";
   sightmap::fuzz::WriteFile(path, std::string(reinterpret_cast<const char*>(data), size));
   try {
-    const sightmap::RgbdCalibration calibration = sightmap::ReadCalibrationFile(path);
+    const sightmap::capture::RgbdCalibration calibration =
+        sightmap::capture::ReadCalibrationFile(path);
     if (calibration.color) calibration.color->Scaled(320, 240);
   } catch (const sightmap::Error&) {
   }

@@ -62,15 +62,15 @@ TEST(FuzzSeeds, SceneJson) {
 
 TEST(FuzzSeeds, CalibrationJson) {
   const std::string dir = SeedDir("calibration_json");
-  RgbdCalibration full;
+  capture::RgbdCalibration full;
   full.color = Intrinsics::FromPinhole(640, 480, 525.0, 525.0, 319.5, 239.5);
   full.depth = Intrinsics::FromPinhole(640, 480, 575.8, 575.8, 319.5, 239.5);
   full.color_from_depth = Eigen::Isometry3d(Eigen::Translation3d(0.025, 0.0, 0.0));
-  WriteCalibrationFile(dir + "/full.json", full);
-  RgbdCalibration colour_only;
+  capture::WriteCalibrationFile(dir + "/full.json", full);
+  capture::RgbdCalibration colour_only;
   colour_only.color = full.color;
-  WriteCalibrationFile(dir + "/color.json", colour_only);
-  EXPECT_TRUE(ReadCalibrationFile(dir + "/full.json").color_from_depth.has_value());
+  capture::WriteCalibrationFile(dir + "/color.json", colour_only);
+  EXPECT_TRUE(capture::ReadCalibrationFile(dir + "/full.json").color_from_depth.has_value());
 }
 
 TEST(FuzzSeeds, OptionsJson) {
@@ -104,9 +104,9 @@ TEST(FuzzSeeds, ThreeDMatchText) {
 
 TEST(FuzzSeeds, PointLists) {
   const std::string dir = SeedDir("point_list");
-  WritePointList(dir + "/written.txt", {{1.0, 2.0, 0.5}, {-0.25, 1.5, 2.0}});
+  store::WritePointList(dir + "/written.txt", {{1.0, 2.0, 0.5}, {-0.25, 1.5, 2.0}});
   fuzz::WriteFile(dir + "/cloudcompare.asc", "//X,Y,Z,R,G,B\n1.5,2.25,0.75,255,0,0\n2,3,1,0,0,0\n");
-  EXPECT_EQ(ReadPointList(dir + "/written.txt").size(), 2u);
+  EXPECT_EQ(store::ReadPointList(dir + "/written.txt").size(), 2u);
 }
 
 TEST(FuzzSeeds, LabelRequests) {
@@ -137,24 +137,24 @@ TEST(FuzzSeeds, Photos) {
   ASSERT_TRUE(cv::imencode(".png", image, png));
   fuzz::WriteFile(dir + "/plain.png", Bytes(png));
   const std::string jpeg = ReadBytes(dir + "/portrait.jpg");
-  const Photo photo =
-      DecodePhoto(reinterpret_cast<const uint8_t*>(jpeg.data()), jpeg.size(), kMaxPhotoMegapixels);
+  const identify::Photo photo = identify::DecodePhoto(reinterpret_cast<const uint8_t*>(jpeg.data()),
+                                                      jpeg.size(), identify::kMaxPhotoMegapixels);
   EXPECT_EQ(photo.orientation.exif_code, 6);
 }
 
 TEST(FuzzSeeds, Ply) {
   const std::string dir = SeedDir("ply");
-  Model model = Model::Open(":memory:");
-  SyntheticKeyframeOptions options;
+  store::Model model = store::Model::Open(":memory:");
+  store::SyntheticKeyframeOptions options;
   options.width = 64;
   options.height = 48;
   options.num_features = 10;
   const SessionId session = model.BeginSession({});
-  model.AddKeyframe(MakeSyntheticKeyframe(session, 0, options));
-  PlyExportOptions ply;
+  model.AddKeyframe(store::MakeSyntheticKeyframe(session, 0, options));
+  store::PlyExportOptions ply;
   ply.voxel_size_m = 0.2;
-  ExportPly(model, dir + "/wall.ply", ply);
-  const std::vector<ColoredPoint> points = ReadPly(dir + "/wall.ply");
+  store::ExportPly(model, dir + "/wall.ply", ply);
+  const std::vector<store::ColoredPoint> points = store::ReadPly(dir + "/wall.ply");
   EXPECT_GT(points.size(), 3u);
   EXPECT_LT(fs::file_size(dir + "/wall.ply"), 20000u);
 }

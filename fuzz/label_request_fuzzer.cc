@@ -31,16 +31,16 @@ Fixture& TheFixture() {
     std::remove(made->path.c_str());
     {
       // Closed before the service opens it: a model has one writer at a time.
-      sightmap::Model model = sightmap::Model::Open(made->path);
-      sightmap::SyntheticKeyframeOptions options;
+      sightmap::store::Model model = sightmap::store::Model::Open(made->path);
+      sightmap::store::SyntheticKeyframeOptions options;
       options.width = 64;
       options.height = 48;
       options.num_features = 10;
       const sightmap::SessionId session = model.BeginSession({});
-      model.AddKeyframe(sightmap::MakeSyntheticKeyframe(session, 0, options));
+      model.AddKeyframe(sightmap::store::MakeSyntheticKeyframe(session, 0, options));
     }
     made->service = std::make_unique<sightmap::cli::LabelService>(
-        made->path, sightmap::cli::LabelServiceOptions(), [](const sightmap::Model&) {});
+        made->path, sightmap::cli::LabelServiceOptions(), [](const sightmap::store::Model&) {});
     made->label_id =
         made->service->AddPoint({{"name", "lamp"}, {"keyframe", 1}, {"pixel", {10, 10}}})
             .at("label")
@@ -53,11 +53,11 @@ Fixture& TheFixture() {
 
 // Puts the model back as the fixture made it: the one label, named and typed as before.
 void Restore(Fixture& fixture) {
-  sightmap::Model model = sightmap::Model::Open(fixture.path);
-  for (const sightmap::LabelRecord& label : model.Labels()) {
+  sightmap::store::Model model = sightmap::store::Model::Open(fixture.path);
+  for (const sightmap::store::LabelRecord& label : model.Labels()) {
     if (label.id.value() != fixture.label_id) model.DeleteLabel(label.id);
   }
-  for (sightmap::LabelRecord label : model.Labels()) {
+  for (sightmap::store::LabelRecord label : model.Labels()) {
     label.name = "lamp";
     label.type = "appliance";
     label.points.resize(1);

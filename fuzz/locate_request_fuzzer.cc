@@ -34,15 +34,15 @@ int g_port = 0;
 // them), small enough to load in a moment.
 std::string MakeModel() {
   const std::string path = sightmap::fuzz::ScratchDir() + "/model.db";
-  sightmap::Model model = sightmap::Model::Open(path);
-  sightmap::SyntheticKeyframeOptions options;
+  sightmap::store::Model model = sightmap::store::Model::Open(path);
+  sightmap::store::SyntheticKeyframeOptions options;
   options.width = 320;
   options.height = 240;
   options.num_features = 200;
   const sightmap::SessionId session = model.BeginSession({});
   for (int i = 0; i < 4; ++i)
-    model.AddKeyframe(sightmap::MakeSyntheticKeyframe(session, i, options));
-  model.EndSession(session, sightmap::SessionEnd::kFinished, 1);
+    model.AddKeyframe(sightmap::store::MakeSyntheticKeyframe(session, i, options));
+  model.EndSession(session, sightmap::store::SessionEnd::kFinished, 1);
   return path;
 }
 

@@ -16,14 +16,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (const std::optional<ImageHeader> header = ReadImageHeader(data, size)) {
     ImageIsComplete(data, size, header->format);
   }
-  ExifFocalLength35mm(data, size);
-  ExifOrientation(data, size);
+  identify::ExifFocalLength35mm(data, size);
+  identify::ExifOrientation(data, size);
   try {
-    const Photo photo = DecodePhoto(data, size, 4.0);
-    ChooseIntrinsics(photo, IntrinsicsHint());
-    IntrinsicsHint sensor;
+    const identify::Photo photo = identify::DecodePhoto(data, size, 4.0);
+    identify::ChooseIntrinsics(photo, identify::IntrinsicsHint());
+    identify::IntrinsicsHint sensor;
     sensor.sensor = Intrinsics::FromPinhole(640, 480, 525.0, 525.0, 319.5, 239.5);
-    ChooseIntrinsics(photo, sensor);
+    identify::ChooseIntrinsics(photo, sensor);
   } catch (const Error&) {
   }
   return 0;

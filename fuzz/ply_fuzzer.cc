@@ -13,7 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = sightmap::fuzz::ScratchDir() + "/cloud.ply";
   sightmap::fuzz::WriteFile(path, std::string(reinterpret_cast<const char*>(data), size));
   try {
-    sightmap::ReadPly(path);
+    sightmap::store::ReadPly(path);
   } catch (const sightmap::Error&) {
   }
   return 0;

@@ -16,9 +16,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = sightmap::fuzz::ScratchDir() + "/kettle.txt";
   sightmap::fuzz::WriteFile(path, std::string(reinterpret_cast<const char*>(data), size));
   try {
-    sightmap::ReadPointList(path);
-    sightmap::Model model = sightmap::Model::Open(":memory:");
-    sightmap::ImportPointListLabels(model, {path}, "kettle");
+    sightmap::store::ReadPointList(path);
+    sightmap::store::Model model = sightmap::store::Model::Open(":memory:");
+    sightmap::identify::ImportPointListLabels(model, {path}, "kettle");
   } catch (const sightmap::Error&) {
   }
   return 0;

@@ -34,8 +34,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   sightmap::fuzz::WriteParts(
       data, size, dir, {"camera-intrinsics.txt", "frame-000000.pose.txt", "frame-000001.pose.txt"});
   try {
-    std::unique_ptr<sightmap::RgbdSource> source =
-        sightmap::OpenThreeDMatchFolder(dir, sightmap::SourceOptions());
+    std::unique_ptr<sightmap::capture::RgbdSource> source =
+        sightmap::capture::OpenThreeDMatchFolder(dir, sightmap::capture::SourceOptions());
     for (int frames = 0; frames < 4 && source->Next(); ++frames) {
     }
   } catch (const sightmap::Error&) {

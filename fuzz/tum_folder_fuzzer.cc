@@ -33,8 +33,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string& dir = Folder();
   sightmap::fuzz::WriteParts(data, size, dir, {"rgb.txt", "depth.txt", "groundtruth.txt"});
   try {
-    std::unique_ptr<sightmap::RgbdSource> source =
-        sightmap::OpenTumFolder(dir, sightmap::SourceOptions());
+    std::unique_ptr<sightmap::capture::RgbdSource> source =
+        sightmap::capture::OpenTumFolder(dir, sightmap::capture::SourceOptions());
     for (int frames = 0; frames < 4 && source->Next(); ++frames) {
     }
   } catch (const sightmap::Error&) {

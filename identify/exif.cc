@@ -12,7 +12,7 @@
 #include "core/check.h"
 #include "core/image_header.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 // The 36 x 24 mm film frame's diagonal, on which 35 mm equivalence is defined [mm].
@@ -185,4 +185,4 @@ Intrinsics IntrinsicsFromFocal35mm(int width, int height, double focal_35mm) {
   return k;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

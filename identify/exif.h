@@ -10,7 +10,7 @@
 
 #include "core/camera.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 // What sightmap reads from a JPEG's EXIF, in one pass over its bytes: never throws on bad input
 // (the bytes may be any HTTP body), and gives the defaults when they are not a JPEG with EXIF.
@@ -43,4 +43,4 @@ std::optional<double> ExifFocalLength35mmOfFile(const std::string& path);
 // Throws InvalidArgument on a non-positive size or focal length.
 Intrinsics IntrinsicsFromFocal35mm(int width, int height, double focal_35mm);
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -17,7 +17,7 @@
 #include "identify/exif_testing.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 using testing::ExifFields;
@@ -172,4 +172,4 @@ TEST(IntrinsicsFromFocal35mm, DiagonalEquivalence) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -13,7 +13,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 namespace fs = std::filesystem;
@@ -401,4 +401,4 @@ cv::Mat DrawIdentifyPlot(const IdentifyEvaluation& e, int width_px, int height_p
   return image;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

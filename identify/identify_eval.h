@@ -35,7 +35,7 @@
 #include "core/statistics.h"  // Percentile, used with the evaluation
 #include "identify/locator.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 // The simulator's ground-truth classes (sim/simulator.h VisibilityType), in table order.
 enum class TruthType { kNotVisible = 0, kOccluded = 1, kPartiallyVisible = 2, kVisible = 3 };
@@ -127,4 +127,4 @@ nlohmann::json ToJson(const IdentifyEvaluation& evaluation);
 cv::Mat DrawIdentifyPlot(const IdentifyEvaluation& evaluation, int width_px = 1200,
                          int height_px = 560);
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

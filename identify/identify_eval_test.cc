@@ -10,7 +10,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 using T = TruthType;
@@ -234,4 +234,4 @@ TEST(IdentifyEval, PlotShowsRightAndWrongColours) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -15,7 +15,7 @@
 #include "core/options_json.h"
 #include "store/label_files.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 std::string TypeOrDefault(const std::optional<std::string>& type) {
@@ -25,17 +25,17 @@ std::string TypeOrDefault(const std::optional<std::string>& type) {
 // Writes `labels` (created or replacing the label of the same name). The store has no transaction
 // spanning several labels, so the caller validates everything first, and a write that still fails
 // (disk full, a locked file) is undone here by restoring what was there before.
-LabelImportReport WriteLabels(Model& model, std::vector<LabelRecord> labels,
+LabelImportReport WriteLabels(store::Model& model, std::vector<store::LabelRecord> labels,
                               bool keep_existing_type) {
   struct Written {
     LabelId id;
-    std::optional<LabelRecord> before;
+    std::optional<store::LabelRecord> before;
   };
   std::vector<Written> written;
   LabelImportReport report;
   try {
-    for (LabelRecord& label : labels) {
-      std::optional<LabelRecord> existing = model.FindLabel(label.name);
+    for (store::LabelRecord& label : labels) {
+      std::optional<store::LabelRecord> existing = model.FindLabel(label.name);
       if (existing) {
         label.id = existing->id;
         if (keep_existing_type) label.type = existing->type;
@@ -68,7 +68,7 @@ LabelImportReport WriteLabels(Model& model, std::vector<LabelRecord> labels,
 }
 
 // Refuses two labels of the same name in one import, naming where each came from.
-void CheckUniqueNames(const std::vector<LabelRecord>& labels,
+void CheckUniqueNames(const std::vector<store::LabelRecord>& labels,
                       const std::vector<std::string>& origins) {
   std::map<std::string, size_t> seen;
   for (size_t i = 0; i < labels.size(); ++i) {
@@ -106,12 +106,12 @@ bool PixelLabelOptions::Check(std::string* error) const {
   return true;
 }
 
-PixelLabelPoint LabelPointFromPixel(const Model& model, KeyframeId keyframe,
+PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyframe,
                                     const Eigen::Vector2d& pixel,
                                     const PixelLabelOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   SIGHTMAP_CHECK(keyframe.valid(), "keyframe ids start at 1: run 'sightmap info' on the model");
-  const KeyframeInfo info = model.Keyframe(keyframe);  // throws naming the model when absent
+  const store::KeyframeInfo info = model.Keyframe(keyframe);  // throws naming the model when absent
   const Intrinsics& k = info.intrinsics;
   const long u0 = std::isfinite(pixel.x()) ? std::lround(pixel.x()) : -1;
   const long v0 = std::isfinite(pixel.y()) ? std::lround(pixel.y()) : -1;
@@ -155,8 +155,8 @@ PixelLabelPoint LabelPointFromPixel(const Model& model, KeyframeId keyframe,
   result.depth_pixel = Eigen::Vector2i(best_u, best_v);
   result.depth_offset_px = std::sqrt(best_distance2);
   result.depth_m = depth.at<uint16_t>(best_v, best_u) / 1000.0;  // 16-bit millimetres
-  LabelPoint& point = result.point;
-  point.source = LabelPointSource::kKeyframePixel;
+  store::LabelPoint& point = result.point;
+  point.source = store::LabelPointSource::kKeyframePixel;
   point.keyframe = keyframe;
   point.pixel = pixel;
   point.cam_point = k.Unproject(pixel.x(), pixel.y(), result.depth_m);
@@ -164,20 +164,20 @@ PixelLabelPoint LabelPointFromPixel(const Model& model, KeyframeId keyframe,
   return result;
 }
 
-LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world) {
+store::LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world) {
   SIGHTMAP_CHECK(world.allFinite(), "a label point needs three finite coordinates [m]");
-  LabelPoint point;
-  point.source = LabelPointSource::kTyped;
+  store::LabelPoint point;
+  point.source = store::LabelPointSource::kTyped;
   point.world = world;
   return point;
 }
 
-LabelRecord AddPointsToLabel(Model& model, const std::string& name,
-                             const std::vector<LabelPoint>& points,
-                             const std::optional<std::string>& type) {
+store::LabelRecord AddPointsToLabel(store::Model& model, const std::string& name,
+                                    const std::vector<store::LabelPoint>& points,
+                                    const std::optional<std::string>& type) {
   SIGHTMAP_CHECK(!name.empty(), "a label needs a name: pass --name NAME");
   SIGHTMAP_CHECK(!points.empty(), "label '" << name << "' needs at least one point");
-  std::optional<LabelRecord> label = model.FindLabel(name);
+  std::optional<store::LabelRecord> label = model.FindLabel(name);
   if (label) {
     label->points.insert(label->points.end(), points.begin(), points.end());
     if (type && !type->empty()) label->type = *type;
@@ -190,12 +190,12 @@ LabelRecord AddPointsToLabel(Model& model, const std::string& name,
     model.AddLabel(*label);
   }
   // Read back, so the caller sees the store's world coordinates and timestamps.
-  std::optional<LabelRecord> stored = model.FindLabel(name);
+  std::optional<store::LabelRecord> stored = model.FindLabel(name);
   SIGHTMAP_CHECK(stored, "label '" << name << "' was written but cannot be read back");
   return *stored;
 }
 
-LabelImportReport ImportSceneLabels(Model& model, const std::string& path) {
+LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path) {
   std::ifstream in(path);
   SIGHTMAP_CHECK(in.is_open(), "cannot read scene file " << path << ": check that it exists");
   nlohmann::json scene;
@@ -219,7 +219,7 @@ LabelImportReport ImportSceneLabels(Model& model, const std::string& path) {
   const nlohmann::json& appliances = scene["appliances"];
   SIGHTMAP_CHECK(!appliances.empty(), "scene file " << path << " lists no appliance");
 
-  std::vector<LabelRecord> labels;
+  std::vector<store::LabelRecord> labels;
   std::vector<std::string> origins;
   for (size_t i = 0; i < appliances.size(); ++i) {
     const nlohmann::json& appliance = appliances[i];
@@ -230,7 +230,7 @@ LabelImportReport ImportSceneLabels(Model& model, const std::string& path) {
                        appliance["name"].is_string() &&
                        !appliance["name"].get<std::string>().empty(),
                    where << " has no \"name\": fix the scene file");
-    LabelRecord label;
+    store::LabelRecord label;
     label.name = appliance["name"].get<std::string>();
     const std::string named = where + " ('" + label.name + "')";
     if (appliance.contains("type")) {
@@ -243,8 +243,8 @@ LabelImportReport ImportSceneLabels(Model& model, const std::string& path) {
                    named << " has no \"points\": give at least one [x, y, z]");
     const nlohmann::json& points = appliance["points"];
     for (size_t j = 0; j < points.size(); ++j) {
-      LabelPoint point;
-      point.source = LabelPointSource::kImportedFile;
+      store::LabelPoint point;
+      point.source = store::LabelPointSource::kImportedFile;
       point.file = path;
       point.world = ParseScenePoint(points[j], named + " point " + std::to_string(j + 1));
       label.points.push_back(std::move(point));
@@ -256,20 +256,20 @@ LabelImportReport ImportSceneLabels(Model& model, const std::string& path) {
   return WriteLabels(model, std::move(labels), /*keep_existing_type=*/false);
 }
 
-LabelImportReport ImportPointListLabels(Model& model, const std::vector<std::string>& paths,
+LabelImportReport ImportPointListLabels(store::Model& model, const std::vector<std::string>& paths,
                                         const std::optional<std::string>& type) {
   SIGHTMAP_CHECK(!paths.empty(), "no point-list file to import: pass one file per appliance");
-  std::vector<LabelRecord> labels;
+  std::vector<store::LabelRecord> labels;
   for (const std::string& path : paths) {
-    LabelRecord label;
+    store::LabelRecord label;
     label.name = std::filesystem::path(path).stem().string();
     SIGHTMAP_CHECK(!label.name.empty(), "cannot name a label after " << path
                                                                      << ": its file name has no "
                                                                         "stem");
     label.type = TypeOrDefault(type);
-    for (const Eigen::Vector3d& world : ReadPointList(path)) {  // throws naming a bad file
-      LabelPoint point;
-      point.source = LabelPointSource::kImportedFile;
+    for (const Eigen::Vector3d& world : store::ReadPointList(path)) {  // throws naming a bad file
+      store::LabelPoint point;
+      point.source = store::LabelPointSource::kImportedFile;
       point.file = path;
       point.world = world;
       label.points.push_back(std::move(point));
@@ -281,9 +281,9 @@ LabelImportReport ImportPointListLabels(Model& model, const std::vector<std::str
   return WriteLabels(model, std::move(labels), keep_existing_type);
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify
 
-namespace sightmap {
+namespace sightmap::identify {
 
 bool LabelViewOptions::Check(std::string* error) const {
   if (!(max_distance_m > 0.0) || !(depth_margin_m >= 0.0) || !(depth_margin_ratio >= 0.0)) {
@@ -297,9 +297,8 @@ namespace {
 
 // `world` in the keyframe's image: its pixel and depth, or nothing when it is behind the camera,
 // outside the image or too far.
-std::optional<std::pair<Eigen::Vector2d, double>> ProjectIntoKeyframe(const KeyframeInfo& keyframe,
-                                                                      const Eigen::Vector3d& world,
-                                                                      double max_distance_m) {
+std::optional<std::pair<Eigen::Vector2d, double>> ProjectIntoKeyframe(
+    const store::KeyframeInfo& keyframe, const Eigen::Vector3d& world, double max_distance_m) {
   const Eigen::Vector3d cam = keyframe.world_from_cam.inverse() * world;
   if (!(cam.z() > 0.0) || cam.norm() > max_distance_m) return std::nullopt;
   const Eigen::Vector2d pixel = keyframe.intrinsics.Project(cam);
@@ -314,14 +313,14 @@ std::optional<std::pair<Eigen::Vector2d, double>> ProjectIntoKeyframe(const Keyf
 
 }  // namespace
 
-std::vector<LabelInKeyframe> LabelsInKeyframe(const Model& model, KeyframeId keyframe,
-                                              const std::vector<LabelRecord>& labels,
+std::vector<LabelInKeyframe> LabelsInKeyframe(const store::Model& model, KeyframeId keyframe,
+                                              const std::vector<store::LabelRecord>& labels,
                                               const LabelViewOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  const KeyframeInfo info = model.Keyframe(keyframe);
+  const store::KeyframeInfo info = model.Keyframe(keyframe);
   std::vector<LabelInKeyframe> seen;
   cv::Mat depth;  // read when the first point falls in the image
-  for (const LabelRecord& label : labels) {
+  for (const store::LabelRecord& label : labels) {
     LabelInKeyframe in_view{&label, {}};
     for (size_t p = 0; p < label.points.size(); ++p) {
       const auto projected =
@@ -341,14 +340,14 @@ std::vector<LabelInKeyframe> LabelsInKeyframe(const Model& model, KeyframeId key
   return seen;
 }
 
-std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<KeyframeInfo>& keyframes,
-                                             const LabelRecord& label, size_t max_count,
+std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<store::KeyframeInfo>& keyframes,
+                                             const store::LabelRecord& label, size_t max_count,
                                              const LabelViewOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   std::vector<std::pair<double, KeyframeId>> seeing;
-  for (const KeyframeInfo& keyframe : keyframes) {
+  for (const store::KeyframeInfo& keyframe : keyframes) {
     double nearest = std::numeric_limits<double>::infinity();
-    for (const LabelPoint& point : label.points) {
+    for (const store::LabelPoint& point : label.points) {
       const auto projected = ProjectIntoKeyframe(keyframe, point.world, options.max_distance_m);
       if (projected) nearest = std::min(nearest, projected->second);
     }
@@ -361,18 +360,18 @@ std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<KeyframeInfo>& ke
   return ids;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
-const char* SourceName(LabelPointSource source) {
+const char* SourceName(store::LabelPointSource source) {
   switch (source) {
-    case LabelPointSource::kKeyframePixel:
+    case store::LabelPointSource::kKeyframePixel:
       return "keyframe_pixel";
-    case LabelPointSource::kImportedFile:
+    case store::LabelPointSource::kImportedFile:
       return "imported_file";
-    case LabelPointSource::kTyped:
+    case store::LabelPointSource::kTyped:
       return "typed";
   }
   return "unknown";
@@ -380,15 +379,15 @@ const char* SourceName(LabelPointSource source) {
 
 }  // namespace
 
-nlohmann::json LabelsToJson(const std::vector<LabelRecord>& labels) {
+nlohmann::json LabelsToJson(const std::vector<store::LabelRecord>& labels) {
   nlohmann::json list = nlohmann::json::array();
-  for (const LabelRecord& label : labels) {
+  for (const store::LabelRecord& label : labels) {
     nlohmann::json points = nlohmann::json::array();
     nlohmann::json sources = nlohmann::json::array();
-    for (const LabelPoint& point : label.points) {
+    for (const store::LabelPoint& point : label.points) {
       points.push_back({point.world.x(), point.world.y(), point.world.z()});
       nlohmann::json source = {{"source", SourceName(point.source)}};
-      if (point.source == LabelPointSource::kKeyframePixel) {
+      if (point.source == store::LabelPointSource::kKeyframePixel) {
         source["keyframe"] = point.keyframe.value();
         source["pixel"] = {point.pixel.x(), point.pixel.y()};
       }
@@ -408,4 +407,4 @@ SIGHTMAP_OPTIONS_JSON(PixelLabelOptions, max_depth_search_px, max_depth_m)
 
 SIGHTMAP_OPTIONS_JSON(LabelViewOptions, max_distance_m, depth_margin_m, depth_margin_ratio)
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

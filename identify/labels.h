@@ -14,7 +14,7 @@
 
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 struct PixelLabelOptions {
   // When the clicked pixel has no depth, the depth of the nearest pixel (by pixel distance) that
@@ -31,7 +31,7 @@ void from_json(const nlohmann::json& json, PixelLabelOptions& options);
 
 // A pixel turned into a label point, and where its depth came from.
 struct PixelLabelPoint {
-  LabelPoint point;              // kKeyframePixel: keyframe, pixel, cam_point, world
+  store::LabelPoint point;       // kKeyframePixel: keyframe, pixel, cam_point, world
   Eigen::Vector2i depth_pixel;   // the pixel whose depth was used
   double depth_offset_px = 0.0;  // its distance from the clicked pixel [px]; 0 when it had depth
   double depth_m = 0.0;          // the depth used [m]
@@ -41,12 +41,12 @@ struct PixelLabelPoint {
 // its camera frame and in the world (its current optimised world_from_cam). The clicked pixel's
 // ray is kept when a neighbour's depth is borrowed. Throws Error with one line when the keyframe is
 // not in the model, the pixel is outside its image, or no depth lies within max_depth_search_px.
-PixelLabelPoint LabelPointFromPixel(const Model& model, KeyframeId keyframe,
+PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyframe,
                                     const Eigen::Vector2d& pixel,
                                     const PixelLabelOptions& options = PixelLabelOptions());
 
 // A point typed in world coordinates [m] (source kTyped).
-LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world);
+store::LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world);
 
 // A label's points as one keyframe sees them, for drawing them on its image.
 struct LabelPointInKeyframe {
@@ -57,7 +57,7 @@ struct LabelPointInKeyframe {
   bool hidden = false;
 };
 struct LabelInKeyframe {
-  const LabelRecord* label = nullptr;  // into the labels given
+  const store::LabelRecord* label = nullptr;  // into the labels given
   std::vector<LabelPointInKeyframe> points;
 };
 
@@ -75,19 +75,19 @@ void from_json(const nlohmann::json& json, LabelViewOptions& options);
 
 // The labels with a point in `keyframe`'s image, in front of it and within max_distance_m, with
 // those points' pixels; hidden ones marked through the keyframe's depth image (one read).
-std::vector<LabelInKeyframe> LabelsInKeyframe(const Model& model, KeyframeId keyframe,
-                                              const std::vector<LabelRecord>& labels,
+std::vector<LabelInKeyframe> LabelsInKeyframe(const store::Model& model, KeyframeId keyframe,
+                                              const std::vector<store::LabelRecord>& labels,
                                               const LabelViewOptions& options = {});
 
 // Keyframes with one of `label`'s points in their image (in front, within max_distance_m; no
 // occlusion test, no image read), nearest first, at most `max_count`.
-std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<KeyframeInfo>& keyframes,
-                                             const LabelRecord& label, size_t max_count,
+std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<store::KeyframeInfo>& keyframes,
+                                             const store::LabelRecord& label, size_t max_count,
                                              const LabelViewOptions& options = {});
 
 // {"labels": [{"id", "name", "type", "points": [[x, y, z]], "point_sources": [{"source",
 // "keyframe"?, "pixel"?, "file"?}]}]}: `sightmap label list --json` and the server's /api/labels.
-nlohmann::json LabelsToJson(const std::vector<LabelRecord>& labels);
+nlohmann::json LabelsToJson(const std::vector<store::LabelRecord>& labels);
 
 // The type a label gets when none is given.
 inline constexpr const char* kDefaultLabelType = "appliance";
@@ -95,9 +95,9 @@ inline constexpr const char* kDefaultLabelType = "appliance";
 // Appends `points` to the label `name`, creating it when absent with `type` (kDefaultLabelType when
 // nullopt or empty). An existing label keeps its type unless `type` names a new one. Returns the
 // label as stored. Throws Error on an empty name or no point.
-LabelRecord AddPointsToLabel(Model& model, const std::string& name,
-                             const std::vector<LabelPoint>& points,
-                             const std::optional<std::string>& type = std::nullopt);
+store::LabelRecord AddPointsToLabel(store::Model& model, const std::string& name,
+                                    const std::vector<store::LabelPoint>& points,
+                                    const std::optional<std::string>& type = std::nullopt);
 
 // What an import did, by label name (sorted).
 struct LabelImportReport {
@@ -114,13 +114,13 @@ struct LabelImportReport {
 // write, so a bad file (unreadable, not JSON, a missing field, a point that is not three finite
 // numbers, a name twice) throws Error and leaves the model unchanged; should a write fail midway,
 // the labels already written are restored.
-LabelImportReport ImportSceneLabels(Model& model, const std::string& path);
+LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path);
 
 // CloudCompare point lists (store/label_files.h's ReadPointList), one label per file named after
 // its stem. New labels get `type` (kDefaultLabelType when nullopt or empty); an existing label's
 // points are replaced, and its type too when `type` is given. All or nothing, as ImportSceneLabels;
 // two files with the same stem are an Error.
-LabelImportReport ImportPointListLabels(Model& model, const std::vector<std::string>& paths,
+LabelImportReport ImportPointListLabels(store::Model& model, const std::vector<std::string>& paths,
                                         const std::optional<std::string>& type = std::nullopt);
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

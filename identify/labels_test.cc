@@ -13,13 +13,13 @@
 #include "store/synthetic_model.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 // A keyframe looking at the synthetic 2 m wall, posed with a rotation so that world and camera
 // coordinates differ on every axis.
 struct Fixture {
-  Model model = Model::Open(":memory:");
+  store::Model model = store::Model::Open(":memory:");
   KeyframeId keyframe;
   Intrinsics intrinsics;
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
@@ -29,11 +29,11 @@ struct Fixture {
 template <typename EditDepth>
 void AddKeyframe(Fixture* f, EditDepth edit_depth) {
   const SessionId session = f->model.BeginSession({});
-  SyntheticKeyframeOptions options;
+  store::SyntheticKeyframeOptions options;
   options.width = 320;
   options.height = 240;
   options.num_features = 10;
-  KeyframeRecord record = MakeSyntheticKeyframe(session, 3, options);
+  store::KeyframeRecord record = store::MakeSyntheticKeyframe(session, 3, options);
   f->world_from_cam = Eigen::Translation3d(0.3, -1.2, 0.8) *
                       Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, -0.3).normalized());
   record.world_from_cam = f->world_from_cam;
@@ -58,7 +58,7 @@ TEST(LabelPointFromPixel, ExactOnAKeyframeWithKnownDepthAndPose) {
   AddKeyframe(&f, [](cv::Mat& depth) { depth.at<uint16_t>(80, 100) = 1234; });
   const PixelLabelPoint result =
       LabelPointFromPixel(f.model, f.keyframe, Eigen::Vector2d(100.0, 80.0));
-  EXPECT_EQ(result.point.source, LabelPointSource::kKeyframePixel);
+  EXPECT_EQ(result.point.source, store::LabelPointSource::kKeyframePixel);
   EXPECT_EQ(result.point.keyframe, f.keyframe);
   EXPECT_EQ(result.depth_pixel, Eigen::Vector2i(100, 80));
   EXPECT_DOUBLE_EQ(result.depth_offset_px, 0.0);
@@ -69,7 +69,7 @@ TEST(LabelPointFromPixel, ExactOnAKeyframeWithKnownDepthAndPose) {
   ExpectNear(result.point.world, f.world_from_cam * cam, 1e-9);
 
   // Stored, it reads back at the same world point (the store derives it from the pose).
-  const LabelRecord label = AddPointsToLabel(f.model, "lamp", {result.point});
+  const store::LabelRecord label = AddPointsToLabel(f.model, "lamp", {result.point});
   ASSERT_EQ(label.points.size(), 1u);
   ExpectNear(label.points[0].world, f.world_from_cam * cam, 1e-9);
   ExpectNear(label.points[0].cam_point, cam, 1e-12);
@@ -142,7 +142,7 @@ TEST(LabelsInKeyframe, ProjectsPointsAndMarksThoseBehindTheKeyframesSurface) {
                               (v - f.intrinsics.cy) / f.intrinsics.fy * z, z);
     return Eigen::Vector3d(f.world_from_cam * cam);
   };
-  const std::vector<LabelRecord> labels = {
+  const std::vector<store::LabelRecord> labels = {
       {LabelId(),
        "lamp",
        "lamp",
@@ -161,7 +161,7 @@ TEST(LabelsInKeyframe, ProjectsPointsAndMarksThoseBehindTheKeyframesSurface) {
   EXPECT_EQ(seen[0].points[1].point_index, 1u);
   EXPECT_TRUE(seen[0].points[1].hidden);
 
-  const std::vector<KeyframeInfo> keyframes = f.model.Keyframes();
+  const std::vector<store::KeyframeInfo> keyframes = f.model.Keyframes();
   EXPECT_EQ(KeyframesSeeingLabel(keyframes, labels[0], 5), std::vector<KeyframeId>{f.keyframe});
   EXPECT_TRUE(KeyframesSeeingLabel(keyframes, labels[1], 5).empty());
   EXPECT_TRUE(KeyframesSeeingLabel(keyframes, labels[0], 0).empty());
@@ -176,15 +176,15 @@ TEST(Labels, APixelLabelFollowsItsKeyframeAfterUpdatePoses) {
   const Eigen::Isometry3d moved =
       Eigen::Translation3d(-2.0, 0.5, 0.1) * Eigen::AngleAxisd(1.1, Eigen::Vector3d::UnitZ());
   f.model.UpdatePoses({{f.keyframe, moved}});
-  const std::optional<LabelRecord> label = f.model.FindLabel("projector");
+  const std::optional<store::LabelRecord> label = f.model.FindLabel("projector");
   ASSERT_TRUE(label);
   ExpectNear(label->points[0].world, moved * clicked.point.cam_point, 1e-9);
   EXPECT_GT((label->points[0].world - clicked.point.world).norm(), 0.5);
 }
 
 TEST(Labels, AddPointsCreatesThenAppendsKeepingTheType) {
-  Model model = Model::Open(":memory:");
-  LabelRecord lamp = AddPointsToLabel(model, "lamp", {LabelPointFromWorld({1, 2, 3})});
+  store::Model model = store::Model::Open(":memory:");
+  store::LabelRecord lamp = AddPointsToLabel(model, "lamp", {LabelPointFromWorld({1, 2, 3})});
   EXPECT_EQ(lamp.type, kDefaultLabelType);
   lamp = AddPointsToLabel(model, "lamp", {LabelPointFromWorld({4, 5, 6})}, "lamp");
   EXPECT_EQ(lamp.type, "lamp");
@@ -192,7 +192,7 @@ TEST(Labels, AddPointsCreatesThenAppendsKeepingTheType) {
   EXPECT_EQ(lamp.type, "lamp");
   ASSERT_EQ(lamp.points.size(), 3u);
   ExpectNear(lamp.points[2].world, {7, 8, 9}, 1e-12);
-  EXPECT_EQ(lamp.points[2].source, LabelPointSource::kTyped);
+  EXPECT_EQ(lamp.points[2].source, store::LabelPointSource::kTyped);
   EXPECT_THROW(AddPointsToLabel(model, "", {LabelPointFromWorld({1, 2, 3})}), Error);
   EXPECT_THROW(AddPointsToLabel(model, "tv", {}), Error);
   EXPECT_THROW(LabelPointFromWorld({1, NAN, 3}), Error);
@@ -205,21 +205,21 @@ TEST(Labels, SceneFileImport) {
     "appliances": [
       {"id": 1, "name": "monitor_1", "type": "monitor", "points": [[1.5, 2, 0.75]]},
       {"id": 2, "name": "lamp_1", "type": "lamp", "points": [[0, 1, 1.2], [0, 1.1, 1.3]]}]})");
-  Model model = Model::Open(":memory:");
+  store::Model model = store::Model::Open(":memory:");
   AddPointsToLabel(model, "lamp_1", {LabelPointFromWorld({9, 9, 9})}, "old");
   AddPointsToLabel(model, "kept", {LabelPointFromWorld({5, 5, 5})});
   const LabelImportReport report = ImportSceneLabels(model, path);
   EXPECT_EQ(report.created, std::vector<std::string>{"monitor_1"});
   EXPECT_EQ(report.replaced, std::vector<std::string>{"lamp_1"});
   EXPECT_EQ(report.points, 3);
-  const std::vector<LabelRecord> labels = model.Labels();
+  const std::vector<store::LabelRecord> labels = model.Labels();
   ASSERT_EQ(labels.size(), 3u);
   EXPECT_EQ(labels[0].name, "kept");
   EXPECT_EQ(labels[1].name, "lamp_1");
   EXPECT_EQ(labels[1].type, "lamp");
   ASSERT_EQ(labels[1].points.size(), 2u);
   ExpectNear(labels[1].points[1].world, {0, 1.1, 1.3}, 1e-12);
-  EXPECT_EQ(labels[1].points[1].source, LabelPointSource::kImportedFile);
+  EXPECT_EQ(labels[1].points[1].source, store::LabelPointSource::kImportedFile);
   EXPECT_EQ(labels[1].points[1].file, path);
   EXPECT_EQ(labels[2].name, "monitor_1");
   EXPECT_EQ(labels[2].type, "monitor");
@@ -227,7 +227,7 @@ TEST(Labels, SceneFileImport) {
 
 TEST(Labels, ABadSceneFileLeavesTheModelUnchanged) {
   const std::string dir = testing::MakeTempDir("labels_bad_scene");
-  Model model = Model::Open(":memory:");
+  store::Model model = store::Model::Open(":memory:");
   AddPointsToLabel(model, "lamp_1", {LabelPointFromWorld({9, 9, 9})}, "old");
   const auto expect_refused = [&](const std::string& name, const std::string& text,
                                   const std::string& fragment) {
@@ -240,7 +240,7 @@ TEST(Labels, ABadSceneFileLeavesTheModelUnchanged) {
       EXPECT_NE(message.find(fragment), std::string::npos) << name << ": " << message;
       EXPECT_EQ(message.find('\n'), std::string::npos) << message;
     }
-    const std::vector<LabelRecord> labels = model.Labels();
+    const std::vector<store::LabelRecord> labels = model.Labels();
     ASSERT_EQ(labels.size(), 1u) << name;
     EXPECT_EQ(labels[0].type, "old");
     ExpectNear(labels[0].points.at(0).world, {9, 9, 9}, 1e-12);
@@ -270,7 +270,7 @@ TEST(Labels, PointListFilesImportAllOrNothing) {
   const std::string tv = WriteFile(dir + "/tv.txt", "// CloudCompare\n1 2 3\n1.5,2.5,3.5\n");
   const std::string lamp = WriteFile(dir + "/lamp.asc", "0 0 1\n");
   const std::string empty = WriteFile(dir + "/empty.txt", "no points here\n");
-  Model model = Model::Open(":memory:");
+  store::Model model = store::Model::Open(":memory:");
   AddPointsToLabel(model, "lamp", {LabelPointFromWorld({9, 9, 9})}, "lamp");
 
   EXPECT_THROW(ImportPointListLabels(model, {tv, empty}), Error);
@@ -283,14 +283,14 @@ TEST(Labels, PointListFilesImportAllOrNothing) {
   EXPECT_EQ(report.created, std::vector<std::string>{"tv"});
   EXPECT_EQ(report.replaced, std::vector<std::string>{"lamp"});
   EXPECT_EQ(report.points, 3);
-  const std::optional<LabelRecord> tv_label = model.FindLabel("tv");
+  const std::optional<store::LabelRecord> tv_label = model.FindLabel("tv");
   ASSERT_TRUE(tv_label);
   EXPECT_EQ(tv_label->type, kDefaultLabelType);
   ASSERT_EQ(tv_label->points.size(), 2u);
   ExpectNear(tv_label->points[1].world, {1.5, 2.5, 3.5}, 1e-12);
-  EXPECT_EQ(tv_label->points[1].source, LabelPointSource::kImportedFile);
+  EXPECT_EQ(tv_label->points[1].source, store::LabelPointSource::kImportedFile);
   EXPECT_EQ(tv_label->points[1].file, tv);
-  const std::optional<LabelRecord> lamp_label = model.FindLabel("lamp");
+  const std::optional<store::LabelRecord> lamp_label = model.FindLabel("lamp");
   ASSERT_TRUE(lamp_label);
   EXPECT_EQ(lamp_label->type, "lamp");  // kept: no type given
   ASSERT_EQ(lamp_label->points.size(), 1u);
@@ -301,4 +301,4 @@ TEST(Labels, PointListFilesImportAllOrNothing) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -39,7 +39,7 @@
 #include "sim/simulator.h"
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 namespace fs = std::filesystem;
@@ -50,19 +50,19 @@ double Seconds(std::chrono::steady_clock::time_point start) {
 
 // A model holding `factor` copies of `source`'s keyframe features (no images), the copy c moved
 // by 100 c metres along x, and its vocabulary and labels.
-void ReplicateModel(const Model& source, const std::string& path, int factor) {
-  ModelOptions options;
+void ReplicateModel(const store::Model& source, const std::string& path, int factor) {
+  store::ModelOptions options;
   options.sync_every_commit = false;
-  Model model = Model::Open(path, options);
-  SessionRecord session;
+  store::Model model = store::Model::Open(path, options);
+  store::SessionRecord session;
   session.source = "replicated";
   const SessionId id = model.BeginSession(session);
-  const std::vector<KeyframeInfo> infos = source.Keyframes();
+  const std::vector<store::KeyframeInfo> infos = source.Keyframes();
   std::vector<Features> features;
-  for (const KeyframeInfo& info : infos) features.push_back(source.LoadFeatures(info.id));
+  for (const store::KeyframeInfo& info : infos) features.push_back(source.LoadFeatures(info.id));
   for (int copy = 0; copy < factor; ++copy) {
     for (size_t i = 0; i < infos.size(); ++i) {
-      KeyframeRecord keyframe;
+      store::KeyframeRecord keyframe;
       keyframe.session = id;
       keyframe.timestamp_ns = infos[i].timestamp_ns + copy * int64_t{1000000000000};
       keyframe.world_from_cam = infos[i].world_from_cam;
@@ -79,12 +79,12 @@ void ReplicateModel(const Model& source, const std::string& path, int factor) {
   }
   const auto vocabulary = source.LoadVocabulary();
   model.SetVocabulary(vocabulary->first, vocabulary->second);
-  for (const LabelRecord& label : source.Labels()) {
-    LabelRecord copy = label;
+  for (const store::LabelRecord& label : source.Labels()) {
+    store::LabelRecord copy = label;
     copy.id = LabelId();
     model.AddLabel(copy);
   }
-  model.EndSession(id, SessionEnd::kFinished, 0);
+  model.EndSession(id, store::SessionEnd::kFinished, 0);
 }
 
 // The share of a photo's view the walk saw from a similar viewpoint: the model's surfaces drawn
@@ -94,10 +94,10 @@ void ReplicateModel(const Model& source, const std::string& path, int factor) {
 // spans 3.6x). Local features can only match what is covered: this bounds the matched share.
 class ViewCoverage {
  public:
-  ViewCoverage(const Model& model, double max_angle_deg, double max_scale)
+  ViewCoverage(const store::Model& model, double max_angle_deg, double max_scale)
       : cos_max_(std::cos(max_angle_deg * M_PI / 180.0)), max_scale_(max_scale) {
     OcclusionCloudBuilder builder(0.05);
-    for (const KeyframeInfo& info : model.Keyframes()) {
+    for (const store::KeyframeInfo& info : model.Keyframes()) {
       const cv::Mat depth = model.LoadDepth(info.id);
       if (depth.empty()) continue;
       builder.AddDepth(depth, info.intrinsics, info.world_from_cam, 4, 0.3, 5.0);
@@ -216,9 +216,10 @@ int Run(int argc, char** argv) {
     std::printf("  %d keyframes, %d labels in %.1f s\n", summary.keyframes, summary.labels,
                 summary.seconds);
   }
-  ModelOptions read_only;
+  store::ModelOptions read_only;
   read_only.read_only = true;
-  const Model model = Model::Open(model_path);  // writable: upgrades a kept older model
+  const store::Model model =
+      store::Model::Open(model_path);  // writable: upgrades a kept older model
   auto start = std::chrono::steady_clock::now();
   const Locator locator(model, locator_options);
   std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
@@ -237,7 +238,7 @@ int Run(int argc, char** argv) {
   int seen_photos = 0;
   int seen_matched = 0;
   std::vector<Eigen::Isometry3d> keyframes_world_from_cam;
-  for (const KeyframeInfo& info : model.Keyframes()) {
+  for (const store::KeyframeInfo& info : model.Keyframes()) {
     keyframes_world_from_cam.push_back(info.world_from_cam);
   }
   std::optional<ViewCoverage> view_coverage;
@@ -342,7 +343,7 @@ int Run(int argc, char** argv) {
       std::printf("\nreplicated model written in %.1f s\n", Seconds(start));
       std::fflush(stdout);
     }
-    const Model large_model = Model::Open(large_path, read_only);
+    const store::Model large_model = store::Model::Open(large_path, read_only);
     const Locator large(large_model, locator_options);
     std::vector<double> small_retrieval, large_retrieval;
     // Interleaved, so both see the same machine load.
@@ -372,6 +373,6 @@ int Run(int argc, char** argv) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::identify
 
-int main(int argc, char** argv) { return sightmap::Run(argc, argv); }
+int main(int argc, char** argv) { return sightmap::identify::Run(argc, argv); }

@@ -22,7 +22,7 @@
 #include "slam/place_index.h"
 #include "slam/vocabulary.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 bool LocatorOptions::Check(std::string* error) const {
   std::ostringstream why;
@@ -297,7 +297,8 @@ std::vector<std::vector<cv::DMatch>> KnnWithinNodes(const cv::Mat& query,
     std::vector<cv::DMatch>& nearest = knn[static_cast<size_t>(q)];
     const uint8_t* d = query.ptr<uint8_t>(q);
     for (; it != by_node.end() && it->first == node; ++it) {
-      const float distance = static_cast<float>(Hamming256(d, train.ptr<uint8_t>(it->second)));
+      const float distance =
+          static_cast<float>(slam::Hamming256(d, train.ptr<uint8_t>(it->second)));
       if (nearest.size() == k && distance >= nearest.back().distance) continue;
       if (nearest.size() == k) nearest.pop_back();
       auto at = std::upper_bound(
@@ -346,7 +347,7 @@ void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f
     grid.ForEachNear(uv, options.guided_radius_px, [&](int i) {
       const cv::Point2f d = photo_points[static_cast<size_t>(i)] - uv;
       if (d.x * d.x + d.y * d.y > radius_sq) return;
-      const int distance = Hamming256(photo_descriptors.ptr<uint8_t>(i), model_row);
+      const int distance = slam::Hamming256(photo_descriptors.ptr<uint8_t>(i), model_row);
       if (distance < nearest_distance) {
         nearest_distance = distance;
         nearest = i;
@@ -431,13 +432,13 @@ struct Locator::Impl {
 
   LocatorOptions options;
   std::vector<ModelKeyframe> keyframes;
-  Vocabulary vocabulary;
-  PlaceIndex index;  // ids are slots into `keyframes`
+  slam::Vocabulary vocabulary;
+  slam::PlaceIndex index;  // ids are slots into `keyframes`
   OcclusionCloud cloud;
   // Every keyframe's depth at 80x60, to tell from which side the walk saw each label point.
   std::vector<SightingView> sighting_views;
   struct LabelSet {
-    std::vector<LabelRecord> labels;
+    std::vector<store::LabelRecord> labels;
     LabelSightings sightings;  // per label, per point
   };
   mutable std::mutex labels_mutex;
@@ -452,21 +453,21 @@ struct Locator::Impl {
   // Retrieval candidates for a photo's descriptors, best first: the inverted index's, and in a
   // model of no more keyframes than retrieval_candidates every keyframe (a few keyframes are
   // cheaper to verify than to rank, and a vocabulary trained on them ranks poorly).
-  std::vector<PlaceCandidate> Retrieve(const cv::Mat& descriptors) const;
+  std::vector<slam::PlaceCandidate> Retrieve(const cv::Mat& descriptors) const;
 };
 
-std::vector<PlaceCandidate> Locator::Impl::Retrieve(const cv::Mat& descriptors) const {
-  std::vector<PlaceCandidate> candidates;
+std::vector<slam::PlaceCandidate> Locator::Impl::Retrieve(const cv::Mat& descriptors) const {
+  std::vector<slam::PlaceCandidate> candidates;
   if (!vocabulary.empty()) {
     candidates = index.Query(vocabulary.Transform(descriptors), options.retrieval_candidates);
   }
   if (keyframes.size() <= static_cast<size_t>(options.retrieval_candidates)) {
     for (size_t slot = 0; slot < keyframes.size(); ++slot) {
-      const bool listed =
-          std::any_of(candidates.begin(), candidates.end(),
-                      [&](const PlaceCandidate& c) { return c.id == static_cast<int64_t>(slot); });
+      const bool listed = std::any_of(
+          candidates.begin(), candidates.end(),
+          [&](const slam::PlaceCandidate& c) { return c.id == static_cast<int64_t>(slot); });
       if (!listed && !keyframes[slot].world_points.empty()) {
-        candidates.push_back(PlaceCandidate{static_cast<int64_t>(slot), 0.0});
+        candidates.push_back(slam::PlaceCandidate{static_cast<int64_t>(slot), 0.0});
       }
     }
   }
@@ -504,31 +505,32 @@ bool IsOrbDescriptors(const cv::Mat& descriptors) {
 // The model's vocabulary; a model of fewer keyframes than the mapper trains its vocabulary on
 // (a short recording) has none, and gets one trained here from its keyframes (empty when fewer
 // than two have features: retrieval then tries every keyframe).
-Vocabulary LoadOrTrainVocabulary(const Model& model, const std::vector<KeyframeInfo>& infos) {
+slam::Vocabulary LoadOrTrainVocabulary(const store::Model& model,
+                                       const std::vector<store::KeyframeInfo>& infos) {
   const auto stored = model.LoadVocabulary();
   if (stored) {
-    SIGHTMAP_CHECK(stored->first == Vocabulary::kFormat, "the model's vocabulary is in format '"
-                                                             << stored->first
-                                                             << "', this sightmap reads '"
-                                                             << Vocabulary::kFormat << "'");
-    return Vocabulary::Deserialize(stored->second);
+    SIGHTMAP_CHECK(stored->first == slam::Vocabulary::kFormat,
+                   "the model's vocabulary is in format '"
+                       << stored->first << "', this sightmap reads '" << slam::Vocabulary::kFormat
+                       << "'");
+    return slam::Vocabulary::Deserialize(stored->second);
   }
   std::vector<cv::Mat> descriptors;
-  for (const KeyframeInfo& info : infos) {
+  for (const store::KeyframeInfo& info : infos) {
     const Features features = model.LoadFeatures(info.id);
     if (IsOrbDescriptors(features.descriptors)) descriptors.push_back(features.descriptors);
   }
-  if (descriptors.size() < 2) return Vocabulary();
-  return Vocabulary::Train(descriptors);
+  if (descriptors.size() < 2) return slam::Vocabulary();
+  return slam::Vocabulary::Train(descriptors);
 }
 
 }  // namespace
 
-Locator::Locator(const Model& model, const LocatorOptions& options)
+Locator::Locator(const store::Model& model, const LocatorOptions& options)
     : impl_(std::make_unique<Impl>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
   impl_->options = options;
-  const std::vector<KeyframeInfo> infos = model.Keyframes();
+  const std::vector<store::KeyframeInfo> infos = model.Keyframes();
   SIGHTMAP_CHECK(!infos.empty(), "the model " << model.path()
                                               << " has no keyframes: map a building into it "
                                                  "first ('sightmap map')");
@@ -536,7 +538,7 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
 
   OcclusionCloudBuilder cloud(options.occlusion_voxel_m);
   impl_->keyframes.reserve(infos.size());
-  for (const KeyframeInfo& info : infos) {
+  for (const store::KeyframeInfo& info : infos) {
     Impl::ModelKeyframe keyframe;
     keyframe.id = info.id;
     keyframe.world_from_cam = info.world_from_cam;
@@ -586,7 +588,7 @@ Locator::Locator(const Model& model, const LocatorOptions& options)
 
 Locator::~Locator() = default;
 
-void Locator::ReloadLabels(const Model& model) {
+void Locator::ReloadLabels(const store::Model& model) {
   auto labels = std::make_shared<Impl::LabelSet>();
   labels->labels = model.Labels();
   labels->sightings =
@@ -598,7 +600,7 @@ void Locator::ReloadLabels(const Model& model) {
 size_t Locator::NumKeyframes() const { return impl_->keyframes.size(); }
 const LocatorOptions& Locator::options() const { return impl_->options; }
 size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.size(); }
-std::vector<LabelRecord> Locator::Labels() const { return impl_->CurrentLabels()->labels; }
+std::vector<store::LabelRecord> Locator::Labels() const { return impl_->CurrentLabels()->labels; }
 
 LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                              IntrinsicsSource source) const {
@@ -655,7 +657,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
                         std::max(1, static_cast<int>(std::lround(photo.rows * scale)))),
                0.0, 0.0, cv::INTER_AREA);
   }
-  const Features features = ExtractFeatures(
+  const Features features = slam::ExtractFeatures(
       grey, cv::Mat(), full_candidates.front().Scaled(grey.cols, grey.rows), options.features);
   result.photo_features = static_cast<int>(features.size());
   result.timings.features_ms = MsSince(stage);
@@ -668,7 +670,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
 
   // Retrieval through the inverted index.
   stage = Clock::now();
-  const std::vector<PlaceCandidate> candidates = impl_->Retrieve(features.descriptors);
+  const std::vector<slam::PlaceCandidate> candidates = impl_->Retrieve(features.descriptors);
   result.timings.retrieval_ms = MsSince(stage);
   if (candidates.empty()) {
     return finish(UnmatchedReason::kUnknownPlace,
@@ -687,7 +689,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   // keyframes' and their neighbours' 3D features rather than keyframe by keyframe.
   const double place_cos = std::cos(options.place_max_angle_deg * M_PI / 180.0);
   std::vector<Impl::Place> places;
-  for (const PlaceCandidate& candidate : candidates) {
+  for (const slam::PlaceCandidate& candidate : candidates) {
     const size_t slot = static_cast<size_t>(candidate.id);
     const Impl::ModelKeyframe& keyframe = impl_->keyframes[slot];
     Impl::Place* joined = nullptr;
@@ -1060,4 +1062,4 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, max_image_side_px, retrieval_can
                       occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
                       min_in_view_share, min_unoccluded_share)
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -18,13 +18,13 @@
 #include "slam/features.h"
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 struct LocatorOptions {
   // Photo features: more than a keyframe's, because a phone photo sees more of the room (the
   // measured choice of 3000 is in locate_benchmark.cc).
-  FeatureOptions features = [] {
-    FeatureOptions f;
+  slam::FeatureOptions features = [] {
+    slam::FeatureOptions f;
     f.max_features = 3000;
     return f;
   }();
@@ -197,7 +197,7 @@ class Locator {
   // labels. A model without a vocabulary (fewer keyframes than the mapper trains one on) gets one
   // trained from its keyframes, and a model of at most retrieval_candidates keyframes verifies
   // every one of them. Throws Error with one line when the model has no keyframe.
-  Locator(const Model& model, const LocatorOptions& options = LocatorOptions());
+  Locator(const store::Model& model, const LocatorOptions& options = LocatorOptions());
   ~Locator();
   Locator(const Locator&) = delete;
   Locator& operator=(const Locator&) = delete;
@@ -212,18 +212,18 @@ class Locator {
   LocateResult Locate(const Photo& photo, const IntrinsicsHint& hint) const;
 
   // Re-reads the labels (after `label add` on a served model).
-  void ReloadLabels(const Model& model);
+  void ReloadLabels(const store::Model& model);
 
   size_t NumKeyframes() const;
   const LocatorOptions& options() const;
   // Voxels of the occlusion cloud (0 when the model stores no depth).
   size_t NumOcclusionVoxels() const;
   // Labels currently loaded.
-  std::vector<LabelRecord> Labels() const;
+  std::vector<store::LabelRecord> Labels() const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

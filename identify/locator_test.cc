@@ -22,7 +22,7 @@
 #include "identify/visibility.h"
 #include "sim/simulator.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 namespace fs = std::filesystem;
@@ -47,7 +47,7 @@ class LocatorTest : public ::testing::Test {
     SimModelOptions options;
     options.keyframes = 100;
     summary_ = new SimModelSummary(BuildSimulatorModel((*dir_ / "model.db").string(), options));
-    model_ = new Model(Model::Open((*dir_ / "model.db").string()));
+    model_ = new store::Model(store::Model::Open((*dir_ / "model.db").string()));
     locator_ = new Locator(*model_);
 
     // Session 2: other lighting, chairs moved. Photos whose camera stands within 1.5 m of a
@@ -77,7 +77,7 @@ class LocatorTest : public ::testing::Test {
 
   static fs::path* dir_;
   static SimModelSummary* summary_;
-  static Model* model_;
+  static store::Model* model_;
   static Locator* locator_;
   static std::vector<sim::QueryPhoto>* seen_photos_;
   static sim::Scene* scene_;
@@ -85,7 +85,7 @@ class LocatorTest : public ::testing::Test {
 
 fs::path* LocatorTest::dir_ = nullptr;
 SimModelSummary* LocatorTest::summary_ = nullptr;
-Model* LocatorTest::model_ = nullptr;
+store::Model* LocatorTest::model_ = nullptr;
 Locator* LocatorTest::locator_ = nullptr;
 std::vector<sim::QueryPhoto>* LocatorTest::seen_photos_ = nullptr;
 sim::Scene* LocatorTest::scene_ = nullptr;
@@ -362,7 +362,7 @@ TEST_F(LocatorTest, ConcurrentCallsGiveTheSameAnswers) {
 }
 
 TEST(LocatorModelTest, AModelWithoutKeyframesIsAClearError) {
-  Model empty = Model::Open(":memory:");
+  store::Model empty = store::Model::Open(":memory:");
   try {
     Locator locator(empty);
     FAIL() << "expected an error";
@@ -384,12 +384,12 @@ TEST(LocatorModelTest, AFewKeyframesWithoutAVocabularyStillLocatePhotos) {
     options.keyframes = keyframes;
     options.write_vocabulary = false;
     const SimModelSummary summary = BuildSimulatorModel(path, options);
-    const Model model = Model::Open(path);
+    const store::Model model = store::Model::Open(path);
     ASSERT_FALSE(model.LoadVocabulary().has_value());
     const Locator locator(model);
     EXPECT_EQ(locator.NumKeyframes(), static_cast<size_t>(keyframes));
     // The last keyframe's own view, downscaled: another image of the same place.
-    const KeyframeInfo info = model.Keyframes().back();
+    const store::KeyframeInfo info = model.Keyframes().back();
     cv::Mat photo;
     cv::resize(model.LoadColor(info.id), photo, cv::Size(), 0.75, 0.75, cv::INTER_AREA);
     const LocateResult result =
@@ -418,12 +418,13 @@ class VisibilityTest : public ::testing::Test {
     cloud_ = builder.Build();
   }
 
-  static LabelRecord Label(const std::string& name, const std::vector<Eigen::Vector3d>& points) {
-    LabelRecord label;
+  static store::LabelRecord Label(const std::string& name,
+                                  const std::vector<Eigen::Vector3d>& points) {
+    store::LabelRecord label;
     label.name = name;
     label.type = "lamp";
     for (const Eigen::Vector3d& p : points) {
-      LabelPoint point;
+      store::LabelPoint point;
       point.world = p;
       label.points.push_back(point);
     }
@@ -435,7 +436,7 @@ class VisibilityTest : public ::testing::Test {
 };
 
 TEST_F(VisibilityTest, BehindTheWallIsOccludedOutsideIsNotListedInPlainViewIsVisible) {
-  const std::vector<LabelRecord> labels = {
+  const std::vector<store::LabelRecord> labels = {
       Label("behind_wall", {{-0.5, 0.2, 4.5}}),
       Label("in_front", {{0.5, -0.3, 1.5}}),
       Label("on_the_wall", {{-1.0, 0.5, 3.0}}),  // sits on the wall: must not hide itself
@@ -471,7 +472,7 @@ TEST_F(VisibilityTest, BehindTheWallIsOccludedOutsideIsNotListedInPlainViewIsVis
 }
 
 TEST_F(VisibilityTest, AnApplianceCutByThePhotosEdgeIsPartlyInViewAtItsVisiblePoint) {
-  const std::vector<LabelRecord> labels = {
+  const std::vector<store::LabelRecord> labels = {
       Label("half_out", {{0.5, -0.3, 1.5}, {10.0, 0.0, 2.0}}),
       Label("mostly_out", {{0.5, -0.3, 1.5}, {10.0, 0.0, 2.0}, {-10.0, 0.0, 2.0}}),
   };
@@ -490,7 +491,7 @@ TEST_F(VisibilityTest, APoseMovesTheViewAndPixelsAreTheVisiblePointsCentre) {
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   world_from_cam.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
   world_from_cam.translation() = Eigen::Vector3d(0, 0, 6.0);
-  const std::vector<LabelRecord> labels = {
+  const std::vector<store::LabelRecord> labels = {
       Label("two_points", {{-0.5, 0.2, 4.5}, {-0.3, 0.2, 4.5}}),
       Label("in_front_of_origin", {{0.5, -0.3, 1.5}}),
   };
@@ -519,7 +520,7 @@ TEST_F(VisibilityTest, AFarSwitchSeenFromBehindItsWallIsOccludedWhenTheWalkSawIt
   }
   const OcclusionCloud wall = builder.Build();
   const Eigen::Vector3d switch_point(0.3, 0.2, 2.99);
-  const std::vector<LabelRecord> labels = {Label("switch", {switch_point})};
+  const std::vector<store::LabelRecord> labels = {Label("switch", {switch_point})};
   // Keyframes 1.5-2.5 m in front of the wall, looking at it (+z): their depth sees the near face.
   const Intrinsics keyframe_intrinsics = Intrinsics::FromFieldOfView(160, 120, 1.0, 0.0);
   std::vector<SightingView> views;
@@ -579,4 +580,4 @@ TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::identify

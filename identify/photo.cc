@@ -13,7 +13,7 @@
 
 #include "identify/exif.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 // Aspect ratios closer than this are the same camera at another resolution; farther, a crop or
@@ -210,4 +210,4 @@ ChosenIntrinsics ChooseIntrinsics(const Photo& photo, const IntrinsicsHint& hint
   return chosen;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -15,7 +15,7 @@
 #include "core/check.h"
 #include "core/image_header.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 // Where a photo's intrinsics came from.
 enum class IntrinsicsSource { kGiven, kCalibration, kExif, kEstimated };
@@ -108,4 +108,4 @@ struct ChosenIntrinsics {
 // ratio, or not a valid camera).
 ChosenIntrinsics ChooseIntrinsics(const Photo& photo, const IntrinsicsHint& hint);
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

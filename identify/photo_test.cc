@@ -10,7 +10,7 @@
 #include "identify/exif.h"
 #include "identify/exif_testing.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 namespace {
 
 using testing::ExifFields;
@@ -264,4 +264,4 @@ TEST(ReadPhotoFile, NamesTheFileInItsErrors) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -7,7 +7,7 @@
 #include "core/check.h"
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 bool SimModelOptions::Check(std::string* error) const {
   const char* why = nullptr;
@@ -39,10 +39,10 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
   sim::Simulator simulator(sim_options);
   const Intrinsics camera = simulator.options().camera;
 
-  ModelOptions model_options;
+  store::ModelOptions model_options;
   model_options.sync_every_commit = false;  // a throwaway model: speed over power-cut safety
-  Model model = Model::Open(path, model_options);
-  SessionRecord session;
+  store::Model model = store::Model::Open(path, model_options);
+  store::SessionRecord session;
   session.source = "sim:" + options.scene + " (ground-truth poses)";
   session.intrinsics = camera;
   const SessionId session_id = model.BeginSession(session);
@@ -53,8 +53,9 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
   for (int i = 0; i < frames; ++i) {
     const RgbdFrame frame = simulator.RenderFrame(i);
     const Eigen::Isometry3d world_from_cam = simulator.WorldFromCam(i);
-    const Features features = ExtractFeatures(frame.color, frame.depth, camera, options.features);
-    KeyframeRecord keyframe;
+    const Features features =
+        slam::ExtractFeatures(frame.color, frame.depth, camera, options.features);
+    store::KeyframeRecord keyframe;
     keyframe.session = session_id;
     keyframe.timestamp_ns = frame.timestamp_ns;
     keyframe.world_from_cam = world_from_cam;
@@ -71,25 +72,25 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
     summary.world_from_cam.push_back(world_from_cam);
   }
   if (options.write_vocabulary) {
-    model.SetVocabulary(Vocabulary::kFormat,
-                        Vocabulary::Train(training, options.vocabulary).Serialize());
+    model.SetVocabulary(slam::Vocabulary::kFormat,
+                        slam::Vocabulary::Train(training, options.vocabulary).Serialize());
   }
   if (options.label_appliances) {
     for (const sim::Appliance& appliance : simulator.scene().appliances) {
-      LabelRecord label;
+      store::LabelRecord label;
       label.name = appliance.name;
       label.type = appliance.type;
       for (const Eigen::Vector3d& point : appliance.points) {
-        LabelPoint labelled;
+        store::LabelPoint labelled;
         labelled.world = point;
-        labelled.source = LabelPointSource::kTyped;
+        labelled.source = store::LabelPointSource::kTyped;
         label.points.push_back(labelled);
       }
       model.AddLabel(label);
       ++summary.labels;
     }
   }
-  model.EndSession(session_id, SessionEnd::kFinished, 0);
+  model.EndSession(session_id, store::SessionEnd::kFinished, 0);
   summary.keyframes = frames;
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
@@ -117,4 +118,4 @@ bool WalkSawPlace(const std::vector<Eigen::Isometry3d>& keyframes_world_from_cam
   return false;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

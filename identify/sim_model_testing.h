@@ -13,7 +13,7 @@
 #include "slam/features.h"
 #include "slam/vocabulary.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 struct SimModelOptions {
   // The walk: scene, trajectory, session and seed as in SimulatorOptions; keyframes at fps.
@@ -24,11 +24,11 @@ struct SimModelOptions {
   double fps = 1.0;    // [Hz], the mapper's keyframe rate
   int keyframes = 90;  // frames 0 .. keyframes-1 of the walk
   // Keyframe features as the mapper extracts them.
-  FeatureOptions features;
+  slam::FeatureOptions features;
   // The vocabulary is trained from the first vocabulary_keyframes keyframes' descriptors (the
   // mapper trains from its first 30); 0 = all keyframes.
   int vocabulary_keyframes = 30;
-  VocabularyOptions vocabulary;
+  slam::VocabularyOptions vocabulary;
   // false: the model stores no vocabulary, as a map run of fewer keyframes than the mapper trains
   // on leaves it.
   bool write_vocabulary = true;
@@ -59,4 +59,4 @@ bool WalkSawPlace(const std::vector<Eigen::Isometry3d>& keyframes_world_from_cam
                   const Eigen::Isometry3d& photo_world_from_cam, double max_distance_m = 1.5,
                   double max_angle_deg = 40.0);
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -11,7 +11,7 @@
 #include "core/check.h"
 #include "core/voxel_key.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 OcclusionCloudBuilder::OcclusionCloudBuilder(double voxel_m) : voxel_m_(voxel_m) {
   SIGHTMAP_CHECK(voxel_m > 0.0, "the occlusion cloud's voxel size must be positive");
 }
@@ -134,13 +134,13 @@ SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrins
   return view;
 }
 
-LabelSightings SightLabels(const std::vector<LabelRecord>& labels,
+LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
                            const std::vector<SightingView>& views,
                            const VisibilityOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   LabelSightings sightings(labels.size());
   for (size_t l = 0; l < labels.size(); ++l) {
-    for (const LabelPoint& point : labels[l].points) {
+    for (const store::LabelPoint& point : labels[l].points) {
       PointSighting sighting;
       for (const SightingView& view : views) {
         const Eigen::Vector3d cam = view.cam_from_world * point.world;
@@ -166,7 +166,7 @@ LabelSightings SightLabels(const std::vector<LabelRecord>& labels,
   return sightings;
 }
 
-std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& labels,
+std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelRecord>& labels,
                                               const OcclusionCloud* cloud,
                                               const Intrinsics& intrinsics,
                                               const Eigen::Isometry3d& world_from_cam,
@@ -206,7 +206,7 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& la
   };
 
   for (size_t l = 0; l < labels.size(); ++l) {
-    const LabelRecord& label = labels[l];
+    const store::LabelRecord& label = labels[l];
     if (label.points.empty()) continue;
     int in_view = 0;
     int unoccluded = 0;
@@ -214,7 +214,7 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& la
     Eigen::Vector2d sum_in_view = Eigen::Vector2d::Zero();
     double nearest = std::numeric_limits<double>::infinity();
     for (size_t p = 0; p < label.points.size(); ++p) {
-      const LabelPoint& point = label.points[p];
+      const store::LabelPoint& point = label.points[p];
       const PointSighting* sighting = sightings != nullptr ? &(*sightings)[l].at(p) : nullptr;
       const Eigen::Vector3d cam_point = cam_from_world * point.world;
       if (!(cam_point.z() > 0.0)) continue;
@@ -254,4 +254,4 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& la
   return result;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

@@ -16,7 +16,7 @@
 #include "identify/locator.h"
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::identify {
 
 // The model's surfaces as voxel centres in the world frame [m]: what can hide an appliance.
 struct OcclusionCloud {
@@ -105,7 +105,7 @@ using LabelSightings = std::vector<std::vector<PointSighting>>;
 // `depth_mm` resized to `width` x `height` (nearest, so no depth is invented at edges).
 SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
                               const Eigen::Isometry3d& world_from_cam, int width, int height);
-LabelSightings SightLabels(const std::vector<LabelRecord>& labels,
+LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
                            const std::vector<SightingView>& views,
                            const VisibilityOptions& options);
 
@@ -120,11 +120,11 @@ cv::Mat RenderOcclusionDepth(const OcclusionCloud& cloud, const Intrinsics& intr
 // nothing counts as occluded.
 // With `sightings` (SightLabels' answer for `labels`), a point seen from behind its surface is
 // occluded too.
-std::vector<ApplianceInView> AppliancesInView(const std::vector<LabelRecord>& labels,
+std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelRecord>& labels,
                                               const OcclusionCloud* cloud,
                                               const Intrinsics& intrinsics,
                                               const Eigen::Isometry3d& world_from_cam,
                                               const VisibilityOptions& options,
                                               const LabelSightings* sightings = nullptr);
 
-}  // namespace sightmap
+}  // namespace sightmap::identify

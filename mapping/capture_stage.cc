@@ -22,7 +22,7 @@ bool CaptureStageOptions::Check(std::string* error) const {
   return sampler.Check(error);
 }
 
-CaptureStage::CaptureStage(RgbdSource* source, const CaptureStageOptions& options,
+CaptureStage::CaptureStage(capture::RgbdSource* source, const CaptureStageOptions& options,
                            BoundedQueue<RgbdFrame>* frames, MapViewFeed* view)
     : source_(source), options_(options), frames_(frames), view_(view), sampler_(options.sampler) {
   SIGHTMAP_CHECK_OPTIONS(options_);
@@ -52,7 +52,7 @@ bool CaptureStage::BeforeStart(int64_t index, TimestampNs timestamp_ns) const {
 }
 
 void CaptureStage::SkipCheaply() {
-  for (std::optional<RgbdSource::FrameStamp> stamp = source_->PeekStamp();
+  for (std::optional<capture::RgbdSource::FrameStamp> stamp = source_->PeekStamp();
        !stop_ && stamp && BeforeStart(stamp->index, stamp->timestamp_ns);
        stamp = source_->PeekStamp()) {
     source_->SkipNext();
@@ -76,7 +76,7 @@ bool CaptureStage::WaitWhilePaused() {
 }
 
 void CaptureStage::NoteSourceStats() {
-  const SourceStats stats = source_->stats();
+  const capture::SourceStats stats = source_->stats();
   source_missed_ = stats.missed_depth_frames;
   unpaired_ = stats.unpaired_frames;
 }

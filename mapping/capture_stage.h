@@ -38,7 +38,7 @@ struct CaptureStageOptions {
   bool live = false;
   // Pass on one frame per keyframe period (sampler) instead of every take_every-th frame.
   bool sample_keyframes = false;
-  KeyframeSamplerOptions sampler;
+  capture::KeyframeSamplerOptions sampler;
   int take_every = 1;  // [frames]
 
   bool Check(std::string* error) const;
@@ -48,7 +48,7 @@ class CaptureStage {
  public:
   // Starts the thread. `source`, `frames` and `view` (may be null) must outlive the stage; the
   // frame queue is closed when the stage ends (the source ended or failed, or Stop()).
-  CaptureStage(RgbdSource* source, const CaptureStageOptions& options,
+  CaptureStage(capture::RgbdSource* source, const CaptureStageOptions& options,
                BoundedQueue<RgbdFrame>* frames, MapViewFeed* view = nullptr);
   ~CaptureStage();  // Stop() and Join()
   CaptureStage(const CaptureStage&) = delete;
@@ -85,11 +85,11 @@ class CaptureStage {
   // Copies the source's own losses for other threads to read.
   void NoteSourceStats();
 
-  RgbdSource* source_;
+  capture::RgbdSource* source_;
   CaptureStageOptions options_;
   BoundedQueue<RgbdFrame>* frames_;
   MapViewFeed* view_;
-  KeyframeSampler sampler_;
+  capture::KeyframeSampler sampler_;
   std::atomic<bool> stop_{false};
   std::atomic<int64_t> frames_read_{0};
   std::atomic<int64_t> frames_skipped_{0};

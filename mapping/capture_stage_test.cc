@@ -15,7 +15,7 @@
 namespace sightmap::mapping {
 namespace {
 
-std::unique_ptr<RgbdSource> Walk(int frames, double fps = 10.0) {
+std::unique_ptr<capture::RgbdSource> Walk(int frames, double fps = 10.0) {
   sim::SimulatorOptions options;
   options.fps = fps;
   options.frames = frames;
@@ -29,7 +29,7 @@ std::vector<int64_t> DrainIndices(BoundedQueue<RgbdFrame>* frames) {
 }
 
 TEST(CaptureStage, AReplayPassesEveryNthFrameFromTheStartFrameAndDropsNone) {
-  const std::unique_ptr<RgbdSource> source = Walk(20);
+  const std::unique_ptr<capture::RgbdSource> source = Walk(20);
   BoundedQueue<RgbdFrame> frames(1);  // the stage must wait for the slow reader below
   CaptureStageOptions options;
   options.start_frame = 3;
@@ -49,11 +49,11 @@ TEST(CaptureStage, AReplayPassesEveryNthFrameFromTheStartFrameAndDropsNone) {
 
 // A real source behind a counter of the frames it produced; `can_peek` false hides PeekStamp, as
 // a source that cannot tell a frame's stamp without decoding it.
-class CountingSource : public RgbdSource {
+class CountingSource : public capture::RgbdSource {
  public:
-  CountingSource(std::unique_ptr<RgbdSource> source, bool can_peek)
+  CountingSource(std::unique_ptr<capture::RgbdSource> source, bool can_peek)
       : source_(std::move(source)), can_peek_(can_peek) {}
-  const SourceMetadata& metadata() const override { return source_->metadata(); }
+  const capture::SourceMetadata& metadata() const override { return source_->metadata(); }
   std::optional<RgbdFrame> Next() override {
     std::optional<RgbdFrame> frame = source_->Next();
     produced += frame ? 1 : 0;
@@ -63,18 +63,18 @@ class CountingSource : public RgbdSource {
     return can_peek_ ? source_->PeekStamp() : std::nullopt;
   }
   void SkipNext() override { source_->SkipNext(); }
-  SourceStats stats() const override { return source_->stats(); }
+  capture::SourceStats stats() const override { return source_->stats(); }
   int produced = 0;
 
  private:
-  std::unique_ptr<RgbdSource> source_;
+  std::unique_ptr<capture::RgbdSource> source_;
   bool can_peek_;
 };
 
 // A resumed replay starts after the last stored frame's time: the simulator passes over the
 // mapped frames without rendering them; a source that cannot peek reads and drops them.
 TEST(CaptureStage, AResumedReplayPassesOverMappedFramesWithoutProducingThem) {
-  std::unique_ptr<RgbdSource> probe = Walk(40);
+  std::unique_ptr<capture::RgbdSource> probe = Walk(40);
   for (int i = 0; i < 24; ++i) probe->SkipNext();
   const TimestampNs last_stored = probe->PeekStamp()->timestamp_ns;  // frame 24's
   for (const bool can_peek : {true, false}) {
@@ -94,7 +94,7 @@ TEST(CaptureStage, AResumedReplayPassesOverMappedFramesWithoutProducingThem) {
 }
 
 TEST(CaptureStage, WithoutTrackingOneFramePerKeyframePeriodGoesOn) {
-  const std::unique_ptr<RgbdSource> source = Walk(30);  // 3 s at 10 Hz
+  const std::unique_ptr<capture::RgbdSource> source = Walk(30);  // 3 s at 10 Hz
   BoundedQueue<RgbdFrame> frames(4);
   CaptureStageOptions options;
   options.sample_keyframes = true;
@@ -106,7 +106,7 @@ TEST(CaptureStage, WithoutTrackingOneFramePerKeyframePeriodGoesOn) {
 }
 
 TEST(CaptureStage, ALiveSensorNeverWaitsAndTheTrackerGetsTheNewestFrames) {
-  const std::unique_ptr<RgbdSource> source = Walk(12);
+  const std::unique_ptr<capture::RgbdSource> source = Walk(12);
   BoundedQueue<RgbdFrame> frames(2);
   CaptureStageOptions options;
   options.live = true;
@@ -118,10 +118,11 @@ TEST(CaptureStage, ALiveSensorNeverWaitsAndTheTrackerGetsTheNewestFrames) {
 }
 
 // A source that loses every third frame before it is read, as OpenNI2 does behind a live pace.
-class MissingSource : public RgbdSource {
+class MissingSource : public capture::RgbdSource {
  public:
-  explicit MissingSource(std::unique_ptr<RgbdSource> source) : source_(std::move(source)) {}
-  const SourceMetadata& metadata() const override { return source_->metadata(); }
+  explicit MissingSource(std::unique_ptr<capture::RgbdSource> source)
+      : source_(std::move(source)) {}
+  const capture::SourceMetadata& metadata() const override { return source_->metadata(); }
   std::optional<RgbdFrame> Next() override {
     std::optional<RgbdFrame> frame = source_->Next();
     if (frame && frame->index % 3 == 2) {
@@ -130,14 +131,14 @@ class MissingSource : public RgbdSource {
     }
     return frame;
   }
-  SourceStats stats() const override {
-    SourceStats stats = source_->stats();
+  capture::SourceStats stats() const override {
+    capture::SourceStats stats = source_->stats();
     stats.missed_depth_frames = missed_;
     return stats;
   }
 
  private:
-  std::unique_ptr<RgbdSource> source_;
+  std::unique_ptr<capture::RgbdSource> source_;
   int64_t missed_ = 0;
 };
 
@@ -165,7 +166,7 @@ TEST(CaptureStage, AFailingSourceEndsTheStreamWithItsReason) {
 }
 
 TEST(CaptureStage, StopEndsAReplayWaitingForRoomAndDiscardsWhatIsQueued) {
-  const std::unique_ptr<RgbdSource> source = Walk(50);
+  const std::unique_ptr<capture::RgbdSource> source = Walk(50);
   BoundedQueue<RgbdFrame> frames(1);
   CaptureStage stage(source.get(), CaptureStageOptions(), &frames);
   while (frames.size() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -177,7 +178,7 @@ TEST(CaptureStage, StopEndsAReplayWaitingForRoomAndDiscardsWhatIsQueued) {
 }
 
 TEST(CaptureStage, ALiveSensorStopsReadingOnceNobodyTakesFrames) {
-  const std::unique_ptr<RgbdSource> source = Walk(50);
+  const std::unique_ptr<capture::RgbdSource> source = Walk(50);
   BoundedQueue<RgbdFrame> frames(1);
   frames.Close();  // the tracking stage ended
   CaptureStageOptions options;
@@ -189,7 +190,7 @@ TEST(CaptureStage, ALiveSensorStopsReadingOnceNobodyTakesFrames) {
 }
 
 TEST(CaptureStage, BadOptionsAreRefused) {
-  const std::unique_ptr<RgbdSource> source = Walk(1);
+  const std::unique_ptr<capture::RgbdSource> source = Walk(1);
   BoundedQueue<RgbdFrame> frames(1);
   CaptureStageOptions options;
   options.take_every = 0;

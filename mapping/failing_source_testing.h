@@ -11,21 +11,21 @@
 namespace sightmap::testing {
 
 // `inner`'s frames, then "the sensor stopped sending frames (unplugged?)" after `fail_after`.
-class FailingSource : public RgbdSource {
+class FailingSource : public capture::RgbdSource {
  public:
-  FailingSource(std::unique_ptr<RgbdSource> inner, int fail_after)
+  FailingSource(std::unique_ptr<capture::RgbdSource> inner, int fail_after)
       : inner_(std::move(inner)), fail_after_(fail_after) {}
-  const SourceMetadata& metadata() const override { return inner_->metadata(); }
+  const capture::SourceMetadata& metadata() const override { return inner_->metadata(); }
   std::optional<RgbdFrame> Next() override {
     if (delivered_++ == fail_after_) {
       SIGHTMAP_THROW(Error, "the sensor stopped sending frames (unplugged?)");
     }
     return inner_->Next();
   }
-  SourceStats stats() const override { return inner_->stats(); }
+  capture::SourceStats stats() const override { return inner_->stats(); }
 
  private:
-  std::unique_ptr<RgbdSource> inner_;
+  std::unique_ptr<capture::RgbdSource> inner_;
   int fail_after_;
   int delivered_ = 0;
 };

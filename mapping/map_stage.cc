@@ -13,7 +13,7 @@ Error NoGroundTruthError(const std::string& what) {
       what + " has none");
 }
 
-MapStage::MapStage(Mapper* mapper, SessionId session, const Intrinsics& camera,
+MapStage::MapStage(slam::Mapper* mapper, SessionId session, const Intrinsics& camera,
                    const MapStageOptions& options, const RestoredModel& restored)
     : mapper_(mapper),
       session_(session),
@@ -25,7 +25,7 @@ MapStage::MapStage(Mapper* mapper, SessionId session, const Intrinsics& camera,
   SIGHTMAP_CHECK(mapper_ != nullptr, "the map stage needs a mapper");
 }
 
-KeyframeReport MapStage::AddToMapper(KeyframeItem& item) {
+slam::KeyframeReport MapStage::AddToMapper(KeyframeItem& item) {
   const RgbdFrame& frame = item.keyframe.frame;
   if (options_.ground_truth_poses && !frame.world_from_cam_gt) {
     throw NoGroundTruthError("the frame at " + std::to_string(frame.timestamp_ns) + " ns");
@@ -42,8 +42,8 @@ KeyframeReport MapStage::AddToMapper(KeyframeItem& item) {
   return mapper_->AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
 }
 
-WriteTask MapStage::KeyframeTask(const KeyframeReport& report, RgbdFrame& frame,
-                                 std::vector<MapperLink>* deactivated) const {
+WriteTask MapStage::KeyframeTask(const slam::KeyframeReport& report, RgbdFrame& frame,
+                                 std::vector<slam::MapperLink>* deactivated) const {
   WriteTask task;
   task.kind = WriteTask::Kind::kKeyframe;
   task.mapper_id = report.id;
@@ -57,7 +57,7 @@ WriteTask MapStage::KeyframeTask(const KeyframeReport& report, RgbdFrame& frame,
   task.record.features = mapper_->FeaturesOf(report.id);
   // This step's links are the newest of Links(). Older links it switched off were stored active
   // and are switched off with the poses.
-  const std::vector<MapperLink>& links = mapper_->Links();
+  const std::vector<slam::MapperLink>& links = mapper_->Links();
   const size_t first_new = links.size() - report.new_links.size();
   for (size_t i = first_new; i < links.size(); ++i) task.links.push_back(links[i]);
   for (size_t index : report.rejected_links) {
@@ -67,7 +67,7 @@ WriteTask MapStage::KeyframeTask(const KeyframeReport& report, RgbdFrame& frame,
 }
 
 std::vector<WriteTask> MapStage::Map(KeyframeItem item) {
-  const KeyframeReport report = AddToMapper(item);
+  const slam::KeyframeReport report = AddToMapper(item);
   RgbdFrame& frame = item.keyframe.frame;
   keyframe_s_.push_back(report.times.total_s);
   session_ids_.push_back(report.id);
@@ -81,7 +81,7 @@ std::vector<WriteTask> MapStage::Map(KeyframeItem item) {
   }
 
   std::vector<WriteTask> tasks;
-  std::vector<MapperLink> deactivated;
+  std::vector<slam::MapperLink> deactivated;
   tasks.push_back(KeyframeTask(report, frame, &deactivated));
   links_rejected_after_commit_ += static_cast<int64_t>(deactivated.size());
   if (report.optimised) {
@@ -118,7 +118,7 @@ WriteTask MapStage::PosesOf(const std::vector<int64_t>& ids) const {
   return poses;
 }
 
-std::optional<TrajectoryError> MapStage::Accuracy() const {
+std::optional<slam::TrajectoryError> MapStage::Accuracy() const {
   if (ground_truth_.size() < 3 || ground_truth_.size() != session_ids_.size()) return std::nullopt;
   std::vector<StampedPose> estimate;
   estimate.reserve(session_ids_.size());
@@ -126,7 +126,7 @@ std::optional<TrajectoryError> MapStage::Accuracy() const {
     estimate.push_back({ground_truth_[i].timestamp_ns, mapper_->WorldFromCam(session_ids_[i])});
   }
   try {
-    return EvaluateTrajectory(ground_truth_, estimate);
+    return slam::EvaluateTrajectory(ground_truth_, estimate);
   } catch (const sightmap::Error&) {
     return std::nullopt;  // too few poses to align
   }

@@ -36,7 +36,7 @@ class MapStage {
  public:
   // `mapper` (holding the restored model, if any) must outlive the stage; `session` is the model's
   // id of the session the keyframes are written in.
-  MapStage(Mapper* mapper, SessionId session, const Intrinsics& camera,
+  MapStage(slam::Mapper* mapper, SessionId session, const Intrinsics& camera,
            const MapStageOptions& options, const RestoredModel& restored);
 
   // Maps one keyframe and returns its write tasks (the keyframe's first). Throws what the mapper
@@ -53,15 +53,15 @@ class MapStage {
   // Stored loop links an optimisation switched off later.
   int64_t links_rejected_after_commit() const { return links_rejected_after_commit_; }
   // This session's keyframes against their ground truth, when every one had it (and at least 3).
-  std::optional<TrajectoryError> Accuracy() const;
+  std::optional<slam::TrajectoryError> Accuracy() const;
 
  private:
-  KeyframeReport AddToMapper(KeyframeItem& item);
+  slam::KeyframeReport AddToMapper(KeyframeItem& item);
   WriteTask PosesOf(const std::vector<int64_t>& ids) const;
-  WriteTask KeyframeTask(const KeyframeReport& report, RgbdFrame& frame,
-                         std::vector<MapperLink>* deactivated) const;
+  WriteTask KeyframeTask(const slam::KeyframeReport& report, RgbdFrame& frame,
+                         std::vector<slam::MapperLink>* deactivated) const;
 
-  Mapper* mapper_;
+  slam::Mapper* mapper_;
   SessionId session_;
   Intrinsics camera_;
   MapStageOptions options_;

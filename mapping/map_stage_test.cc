@@ -28,7 +28,7 @@ KeyframeItem Untracked(RgbdFrame frame) {
 TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
   sim::Simulator simulator = Walk(34);
   const Intrinsics camera = simulator.options().camera;
-  Mapper mapper(camera);
+  slam::Mapper mapper(camera);
   MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());
   int vocabularies = 0;
   int pose_updates = 0;
@@ -45,7 +45,7 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
     EXPECT_EQ(keyframe.record.color.size(), cv::Size(camera.width, camera.height));
     EXPECT_EQ(keyframe.record.depth.type(), CV_16UC1);
     EXPECT_EQ(keyframe.record.features.keypoints.size(), mapper.FeaturesOf(i).size());
-    for (const MapperLink& link : keyframe.links) {
+    for (const slam::MapperLink& link : keyframe.links) {
       EXPECT_TRUE(link.to == i || link.from == i) << "a keyframe carries its own links";
     }
     if (i > 0 && mapper.SegmentOf(i) == mapper.SegmentOf(i - 1)) {
@@ -73,10 +73,11 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
   EXPECT_FALSE(stage.joined_stored_map());
   // Anchored: the first keyframe sits at its true pose, so the accuracy is in the scene's frame.
   EXPECT_TRUE(mapper.WorldFromCam(0).isApprox(truths.front().world_from_cam, 1e-9));
-  const std::optional<TrajectoryError> accuracy = stage.Accuracy();
+  const std::optional<slam::TrajectoryError> accuracy = stage.Accuracy();
   ASSERT_TRUE(accuracy.has_value());
   EXPECT_EQ(accuracy->matched_poses, 34);
-  EXPECT_DOUBLE_EQ(accuracy->ate_rmse_m, EvaluateTrajectory(truths, mapper.Trajectory()).ate_rmse_m)
+  EXPECT_DOUBLE_EQ(accuracy->ate_rmse_m,
+                   slam::EvaluateTrajectory(truths, mapper.Trajectory()).ate_rmse_m)
       << "this session's keyframes, each against its own ground truth";
   const WriteTask all = stage.AllPoses();
   EXPECT_EQ(all.kind, WriteTask::Kind::kPoses);
@@ -86,7 +87,7 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
 TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {
   sim::Simulator simulator = Walk(2);
   const Intrinsics camera = simulator.options().camera;
-  Mapper mapper(camera);
+  slam::Mapper mapper(camera);
   MapStageOptions options;
   options.ground_truth_poses = true;
   MapStage stage(&mapper, SessionId(1), camera, options, RestoredModel());
@@ -110,7 +111,7 @@ TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {
 TEST(MapStage, NoAccuracyWithoutGroundTruth) {
   sim::Simulator simulator = Walk(4);
   const Intrinsics camera = simulator.options().camera;
-  Mapper mapper(camera);
+  slam::Mapper mapper(camera);
   MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());
   for (int64_t i = 0; i < 4; ++i) {
     RgbdFrame frame = simulator.RenderFrame(i);

@@ -8,16 +8,16 @@
 namespace sightmap::mapping {
 namespace {
 
-ViewMode ToRender(ViewChoice choice) {
+render::ViewMode ToRender(ViewChoice choice) {
   switch (choice) {
     case ViewChoice::kAuto:
-      return ViewMode::kAuto;
+      return render::ViewMode::kAuto;
     case ViewChoice::kPreview:
-      return ViewMode::kPreview;
+      return render::ViewMode::kPreview;
     case ViewChoice::kHeadless:
-      return ViewMode::kHeadless;
+      return render::ViewMode::kHeadless;
   }
-  return ViewMode::kAuto;
+  return render::ViewMode::kAuto;
 }
 
 }  // namespace
@@ -40,8 +40,8 @@ bool MapViewFeedOptions::Check(std::string* error) const {
 
 struct MapViewFeed::Impl {
   MapViewFeedOptions options;
-  std::unique_ptr<MapView> view;
-  KeyframeCloudOptions cloud;
+  std::unique_ptr<render::MapView> view;
+  render::KeyframeCloudOptions cloud;
 };
 
 std::unique_ptr<MapViewFeed> MapViewFeed::Create(const MapViewFeedOptions& options,
@@ -51,14 +51,14 @@ std::unique_ptr<MapViewFeed> MapViewFeed::Create(const MapViewFeedOptions& optio
   impl->options = options;
   impl->cloud.pixel_step = options.cloud_pixel_step;
   impl->cloud.voxel_m = options.cloud_voxel_m;
-  MapViewOptions view;
+  render::MapViewOptions view;
   view.mode = ToRender(options.choice);
   view.progress.png_path = options.progress_png;
   view.progress.every_n_keyframes = options.progress_every_n_keyframes;
   view.progress.world_up = options.world_up.normalized();
   view.preview.world_up = options.world_up.normalized();
   view.preview.title = "sightmap map";
-  impl->view = CreateMapView(view, notices);
+  impl->view = render::CreateMapView(view, notices);
   return std::unique_ptr<MapViewFeed>(new MapViewFeed(std::move(impl)));
 }
 
@@ -68,39 +68,39 @@ MapViewFeed::~MapViewFeed() = default;
 void MapViewFeed::AddKeyframe(int64_t id, int session, const Eigen::Isometry3d& world_from_cam,
                               const cv::Mat& bgr, const cv::Mat& depth_mm,
                               const Intrinsics& intrinsics) {
-  MapKeyframe keyframe = FromRgbd(bgr, depth_mm, intrinsics, impl_->cloud);
+  render::MapKeyframe keyframe = render::FromRgbd(bgr, depth_mm, intrinsics, impl_->cloud);
   keyframe.id = id;
   keyframe.session = std::max(1, session);
   keyframe.world_from_cam = world_from_cam;
-  MapUpdate update;
+  render::MapUpdate update;
   update.keyframes.push_back(std::move(keyframe));
   impl_->view->Submit(std::move(update));
 }
 
 void MapViewFeed::UpdatePoses(
     const std::vector<std::pair<int64_t, Eigen::Isometry3d>>& world_from_cam) {
-  MapUpdate update;
+  render::MapUpdate update;
   update.poses.reserve(world_from_cam.size());
   for (const auto& [id, pose] : world_from_cam) update.poses.push_back({id, pose});
   impl_->view->Submit(std::move(update));
 }
 
 void MapViewFeed::AddLoop(int64_t from_id, int64_t to_id) {
-  MapUpdate update;
+  render::MapUpdate update;
   update.loops.push_back({from_id, to_id});
   impl_->view->Submit(std::move(update));
 }
 
 void MapViewFeed::SetCamera(const Eigen::Isometry3d& world_from_cam) {
-  MapUpdate update;
+  render::MapUpdate update;
   update.camera = world_from_cam;
   impl_->view->Submit(std::move(update));
 }
 
 void MapViewFeed::SetStatus(const FeedStatus& status) {
-  MapUpdate update;
-  update.status = MapStatus{status.keyframes, status.loops, status.tracking, status.keyframes_per_s,
-                            status.elapsed_s};
+  render::MapUpdate update;
+  update.status = render::MapStatus{status.keyframes, status.loops, status.tracking,
+                                    status.keyframes_per_s, status.elapsed_s};
   impl_->view->Submit(std::move(update));
 }
 

@@ -13,9 +13,8 @@
 #include <vector>
 
 #include <Eigen/Geometry>
-#include <opencv2/core.hpp>
-
 #include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
 
 #include "core/camera.h"
 #include "core/tracking_state.h"

@@ -98,8 +98,8 @@ void MappingSession::RequestStop(StopReason reason) {
 
 // The stages of one run and what the session's own loop needs of them.
 struct MappingSession::Pipeline {
-  const SourceMetadata& meta;
-  Mapper& mapper;
+  const capture::SourceMetadata& meta;
+  slam::Mapper& mapper;
   MapViewFeed* view;  // may be null
   CaptureStage& capture;
   TrackStage& track;
@@ -112,8 +112,8 @@ struct MappingSession::Pipeline {
 
 namespace {
 
-std::unique_ptr<MapViewFeed> OpenView(const MappingOptions& options, const SourceMetadata& meta,
-                                      std::ostream* notices) {
+std::unique_ptr<MapViewFeed> OpenView(const MappingOptions& options,
+                                      const capture::SourceMetadata& meta, std::ostream* notices) {
   if (!options.show_view) return nullptr;
   MapViewFeedOptions view_options = options.view;
   // A map anchored to the source's ground truth is in the scene's frame, whose up is +z (the
@@ -150,8 +150,9 @@ CaptureStageOptions CaptureOptions(const MappingOptions& options, bool live, boo
   return capture;
 }
 
-SessionRecord MakeSessionRecord(const MappingOptions& options, const SourceMetadata& meta) {
-  SessionRecord record;
+store::SessionRecord MakeSessionRecord(const MappingOptions& options,
+                                       const capture::SourceMetadata& meta) {
+  store::SessionRecord record;
   record.start_time_ns = WallClockNs();
   record.source = options.source;
   record.device_name = meta.device_name;
@@ -166,14 +167,15 @@ SessionRecord MakeSessionRecord(const MappingOptions& options, const SourceMetad
 
 // The last frame the model stored from this very source (the same SOURCE string), for a resumed
 // replay to continue after; nullopt when no session mapped it.
-std::optional<TimestampNs> LastStoredTimestamp(const Model& model, const std::string& source) {
+std::optional<TimestampNs> LastStoredTimestamp(const store::Model& model,
+                                               const std::string& source) {
   std::vector<SessionId> same_source;
-  for (const SessionRecord& session : model.Sessions()) {
+  for (const store::SessionRecord& session : model.Sessions()) {
     if (session.source == source) same_source.push_back(session.id);
   }
   if (same_source.empty()) return std::nullopt;
   std::optional<TimestampNs> last;
-  for (const KeyframeInfo& keyframe : model.Keyframes()) {
+  for (const store::KeyframeInfo& keyframe : model.Keyframes()) {
     if (std::find(same_source.begin(), same_source.end(), keyframe.session) == same_source.end()) {
       continue;
     }
@@ -183,7 +185,7 @@ std::optional<TimestampNs> LastStoredTimestamp(const Model& model, const std::st
 }
 
 // A start frame past a recording's known end is said before the model is touched.
-void CheckStartFrame(const MappingOptions& options, const SourceMetadata& meta) {
+void CheckStartFrame(const MappingOptions& options, const capture::SourceMetadata& meta) {
   const std::optional<int64_t> frames = meta.depth_frame_count;
   if (frames && options.start_frame >= *frames) {
     SIGHTMAP_THROW(InvalidArgument, "the start frame " << options.start_frame
@@ -231,9 +233,10 @@ void NoteResumed(const MappingOptions& options, const RestoredModel& restored, i
 }
 
 // The figures of the map, its tracking and its accuracy, once every stage has ended.
-void Summarise(const Mapper& mapper, const MapStage& map, const TrackStage& track, bool tracked,
-               const CaptureStage& capture, const Model& model, MappingSummary* summary) {
-  const ModelSummary model_summary = model.Summary();
+void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage& track,
+               bool tracked, const CaptureStage& capture, const store::Model& model,
+               MappingSummary* summary) {
+  const store::ModelSummary model_summary = model.Summary();
   summary->keyframes = map.keyframes();
   summary->model_keyframes = model_summary.keyframes;
   summary->loops = mapper.NumLoopClosures();
@@ -260,7 +263,7 @@ void Summarise(const Mapper& mapper, const MapStage& map, const TrackStage& trac
   summary->frames_skipped = capture.frames_skipped();
   summary->links_rejected_after_commit = map.links_rejected_after_commit();
   summary->joined_stored_map = map.joined_stored_map();
-  if (const std::optional<TrajectoryError> error = map.Accuracy()) {
+  if (const std::optional<slam::TrajectoryError> error = map.Accuracy()) {
     summary->ate_rmse_m = error->ate_rmse_m;
     summary->ate_max_m = error->ate_max_m;
     summary->ate_poses = error->matched_poses;
@@ -268,7 +271,7 @@ void Summarise(const Mapper& mapper, const MapStage& map, const TrackStage& trac
 }
 
 // The PLY and the trajectory, read from the model.
-void WriteExports(const MappingOptions& options, const Model& model, std::ostream* notices,
+void WriteExports(const MappingOptions& options, const store::Model& model, std::ostream* notices,
                   MappingSummary* summary) {
   if (summary->model_keyframes == 0) return;
   if (!options.ply_path.empty()) {
@@ -277,11 +280,11 @@ void WriteExports(const MappingOptions& options, const Model& model, std::ostrea
                << " keyframes\n"
                << std::flush;
     }
-    summary->ply_points = ExportPly(model, options.ply_path, options.ply).written_points;
+    summary->ply_points = store::ExportPly(model, options.ply_path, options.ply).written_points;
     summary->ply_path = options.ply_path;
   }
   if (!options.trajectory_path.empty()) {
-    WriteTumTrajectory(options.trajectory_path, ModelTrajectory(model));
+    WriteTumTrajectory(options.trajectory_path, store::ModelTrajectory(model));
     summary->trajectory_path = options.trajectory_path;
   }
 }
@@ -358,12 +361,12 @@ std::exception_ptr MappingSession::DrainStages(const Pipeline& pipeline) {
   return error;
 }
 
-void MappingSession::EndSession(const Pipeline& pipeline, Model* model, SessionId session,
+void MappingSession::EndSession(const Pipeline& pipeline, store::Model* model, SessionId session,
                                 const std::exception_ptr& map_error, StopReason reason) {
   const bool failed = map_error || pipeline.writer.failed();
-  const SessionEnd end_state = failed || reason == StopReason::kSourceFailed
-                                   ? SessionEnd::kInterrupted
-                                   : SessionEnd::kFinished;
+  const store::SessionEnd end_state = failed || reason == StopReason::kSourceFailed
+                                          ? store::SessionEnd::kInterrupted
+                                          : store::SessionEnd::kFinished;
   try {
     model->EndSession(session, end_state, WallClockNs());
   } catch (const Error&) {
@@ -381,8 +384,9 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   MappingSummary summary;
 
   // The source first: without one, the model is not touched.
-  std::unique_ptr<RgbdSource> source = OpenSource(options_.source, options_.source_options);
-  const SourceMetadata meta = source->metadata();
+  std::unique_ptr<capture::RgbdSource> source =
+      capture::OpenSource(options_.source, options_.source_options);
+  const capture::SourceMetadata meta = source->metadata();
   summary.source_kind = meta.kind;
   const bool live = options_.live || meta.kind == "openni";
   const Intrinsics camera = meta.intrinsics;
@@ -394,10 +398,10 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   CheckStartFrame(options_, meta);
   std::unique_ptr<MapViewFeed> view = OpenView(options_, meta, notices);
 
-  Model model = Model::Open(options_.model_path, options_.model);
+  store::Model model = store::Model::Open(options_.model_path, options_.model);
   // Owned apart so that its memory (features, depth and the graph of every keyframe) is freed
   // before the PLY export, which reads the model: a 3,000-keyframe run would hold both at once.
-  auto mapper = std::make_unique<Mapper>(camera, options_.mapper);
+  auto mapper = std::make_unique<slam::Mapper>(camera, options_.mapper);
   // Sessions a crash left running (with or without keyframes) were interrupted.
   summary.interrupted_sessions_marked = model.MarkRunningSessionsInterrupted(WallClockNs());
   const RestoredModel restored =

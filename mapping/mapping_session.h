@@ -75,17 +75,17 @@ struct MappingOptions {
   // Keyframes and pose updates between SLAM and the writer [items].
   int write_queue_capacity = 8;
 
-  SourceOptions source_options;
-  KeyframeSamplerOptions sampler;  // rate_hz: keyframes per second of source time [Hz]
+  capture::SourceOptions source_options;
+  capture::KeyframeSamplerOptions sampler;  // rate_hz: keyframes per second of source time [Hz]
   // Tracking every frame (tracking.track) between capture and mapping. Its features, registration
   // and depth downscale are the mapper's, and its keyframe rate is sampler.rate_hz, whatever is
   // set here: the mapper takes the tracker's features as they are.
   TrackStageOptions tracking;
   // Track every Nth frame of the source (1: all of them) [frames].
   int track_every = 1;
-  MapperOptions mapper;
-  ModelOptions model;
-  PlyExportOptions ply;
+  slam::MapperOptions mapper;
+  store::ModelOptions model;
+  store::PlyExportOptions ply;
   MapViewFeedOptions view;
   // false: no preview and no progress images at all (tests, benchmarks). `sightmap map` sets it
   // from view: a view is shown when there is a window or an image file to draw into.
@@ -201,7 +201,7 @@ class MappingSession {
   std::exception_ptr DrainStages(const Pipeline& pipeline);
   // Ends the model's session (interrupted after a failure) and rethrows the first failure; nothing
   // mapped from a failed source is its error.
-  void EndSession(const Pipeline& pipeline, Model* model, SessionId session,
+  void EndSession(const Pipeline& pipeline, store::Model* model, SessionId session,
                   const std::exception_ptr& map_error, StopReason reason);
 
   MappingOptions options_;

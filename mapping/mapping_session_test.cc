@@ -62,11 +62,11 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
   EXPECT_EQ(summary.ate_poses, 12);
   EXPECT_TRUE(std::isfinite(*summary.ate_rmse_m));
 
-  const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
+  const store::Model model = store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), 12);
-  const std::vector<SessionRecord> sessions = model.Sessions();
+  const std::vector<store::SessionRecord> sessions = model.Sessions();
   ASSERT_EQ(sessions.size(), 1u);
-  EXPECT_EQ(sessions[0].end_state, SessionEnd::kFinished);
+  EXPECT_EQ(sessions[0].end_state, store::SessionEnd::kFinished);
   EXPECT_EQ(sessions[0].source, "sim:office?fps=1&frames=12");
   // Every link reached the store: the model's graph falls into the mapper's segments.
   EXPECT_EQ(model.Summary().segments, summary.segments);
@@ -77,7 +77,7 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
             static_cast<size_t>(model.Keyframes().back().num_features));
   // The trajectory file holds the model's (final) poses.
   const std::vector<StampedPose> written = ReadTumTrajectory(dir + "/trajectory.txt");
-  const std::vector<StampedPose> stored = ModelTrajectory(model);
+  const std::vector<StampedPose> stored = store::ModelTrajectory(model);
   ASSERT_EQ(written.size(), 12u);
   ASSERT_EQ(stored.size(), 12u);
   for (size_t i = 0; i < 12; ++i) {
@@ -105,18 +105,18 @@ TEST(MappingSession, AnInterruptFinishesTheKeyframeInHandAndEndsTheSession) {
   EXPECT_EQ(summary.keyframes, 3);
   EXPECT_LT(summary.frames_read, 40);
   EXPECT_GT(summary.ply_points, 1000);
-  const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
+  const store::Model model = store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), 3);
-  EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kFinished);
+  EXPECT_EQ(model.Sessions().at(0).end_state, store::SessionEnd::kFinished);
   EXPECT_TRUE(std::filesystem::file_size(dir + "/model.ply") > 0);
 }
 
 TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
-  RegisterSourceOpener(SourceSpec::Kind::kSim,
-                       [](const std::string& location, const SourceOptions&) {
-                         return std::make_unique<testing::FailingSource>(
-                             sim::OpenSimSource(sim::ParseSimLocation(location)), 5);
-                       });
+  capture::RegisterSourceOpener(capture::SourceSpec::Kind::kSim,
+                                [](const std::string& location, const capture::SourceOptions&) {
+                                  return std::make_unique<testing::FailingSource>(
+                                      sim::OpenSimSource(sim::ParseSimLocation(location)), 5);
+                                });
   const std::string dir = testing::MakeTempDir("mapping-unplugged");
   MappingSession session(SimOptions(dir, 20));
   const MappingSummary summary = session.Run();
@@ -124,9 +124,9 @@ TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
   EXPECT_EQ(summary.reason, StopReason::kSourceFailed);
   EXPECT_NE(summary.reason_detail.find("unplugged"), std::string::npos) << summary.reason_detail;
   EXPECT_EQ(summary.keyframes, 5);
-  const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
+  const store::Model model = store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), 5);
-  EXPECT_EQ(model.Sessions().at(0).end_state, SessionEnd::kInterrupted);
+  EXPECT_EQ(model.Sessions().at(0).end_state, store::SessionEnd::kInterrupted);
   EXPECT_EQ(CountPoses(dir + "/trajectory.txt"), 5);
 }
 
@@ -147,9 +147,11 @@ TEST(MappingSession, AResumedReplayContinuesAfterItsLastStoredFrame) {
   EXPECT_EQ(second.frames_read, 20);
   EXPECT_EQ(second.keyframes, 12);
   {
-    const Model model = Model::Open(dir + "/model.db", ModelOptions::ReadOnly());
+    const store::Model model =
+        store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
     std::set<TimestampNs> stamps;
-    for (const KeyframeInfo& keyframe : model.Keyframes()) stamps.insert(keyframe.timestamp_ns);
+    for (const store::KeyframeInfo& keyframe : model.Keyframes())
+      stamps.insert(keyframe.timestamp_ns);
     EXPECT_EQ(model.NumKeyframes(), 20);
     EXPECT_EQ(stamps.size(), 20u) << "a frame was mapped twice";
   }

@@ -9,12 +9,12 @@
 
 namespace sightmap::mapping {
 
-RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool load_color,
-                           Mapper* mapper, MapViewFeed* view) {
+RestoredModel RestoreModel(const store::Model& model, const Intrinsics& camera, bool load_color,
+                           slam::Mapper* mapper, MapViewFeed* view) {
   SIGHTMAP_CHECK(mapper != nullptr && mapper->NumKeyframes() == 0,
                  "a model is restored into an empty mapper");
   RestoredModel restored;
-  const std::vector<KeyframeInfo> stored = model.Keyframes();
+  const std::vector<store::KeyframeInfo> stored = model.Keyframes();
   if (stored.empty()) return restored;
   const Intrinsics& first = stored.front().intrinsics;
   SIGHTMAP_CHECK(first.width == camera.width && first.height == camera.height,
@@ -23,17 +23,17 @@ RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool lo
                               << "x" << camera.height
                               << " — map into a new model or use the same camera mode");
   if (auto vocabulary = model.LoadVocabulary()) {
-    SIGHTMAP_CHECK(vocabulary->first == Vocabulary::kFormat,
+    SIGHTMAP_CHECK(vocabulary->first == slam::Vocabulary::kFormat,
                    "the model's vocabulary is of format '"
-                       << vocabulary->first << "', this sightmap reads '" << Vocabulary::kFormat
-                       << "' — map into a new model");
-    mapper->SetVocabulary(
-        std::make_shared<const Vocabulary>(Vocabulary::Deserialize(vocabulary->second)));
+                       << vocabulary->first << "', this sightmap reads '"
+                       << slam::Vocabulary::kFormat << "' — map into a new model");
+    mapper->SetVocabulary(std::make_shared<const slam::Vocabulary>(
+        slam::Vocabulary::Deserialize(vocabulary->second)));
     restored.vocabulary_restored = true;
   }
 
   std::map<int64_t, int64_t> mapper_id_of;  // model id -> mapper id
-  for (const KeyframeInfo& info : stored) {
+  for (const store::KeyframeInfo& info : stored) {
     const cv::Mat depth = model.LoadDepth(info.id);
     const cv::Mat color = load_color || view ? model.LoadColor(info.id) : cv::Mat();
     const int64_t id = mapper->RestoreKeyframe(info.timestamp_ns, model.LoadFeatures(info.id),
@@ -47,8 +47,8 @@ RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool lo
                         depth, info.intrinsics);
     }
   }
-  for (const LinkRecord& record : model.Links()) {
-    MapperLink link;
+  for (const store::LinkRecord& record : model.Links()) {
+    slam::MapperLink link;
     link.from = mapper_id_of.at(record.from.value());
     link.to = mapper_id_of.at(record.to.value());
     link.to_in_from = record.to_in_from;

@@ -27,7 +27,7 @@ struct RestoredModel {
 // the stored map (a new session). The keyframes' colour is read only with `load_color` or a view (a
 // JPEG to decode per keyframe). Throws sightmap::Error when the model's camera size differs from
 // `camera`'s or its vocabulary has another format, saying what to do.
-RestoredModel RestoreModel(const Model& model, const Intrinsics& camera, bool load_color,
-                           Mapper* mapper, MapViewFeed* view);
+RestoredModel RestoreModel(const store::Model& model, const Intrinsics& camera, bool load_color,
+                           slam::Mapper* mapper, MapViewFeed* view);
 
 }  // namespace sightmap::mapping

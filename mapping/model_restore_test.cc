@@ -34,10 +34,10 @@ const std::string& StoredModel() {
   return path;
 }
 
-Model OpenReadOnly(const std::string& path) {
-  ModelOptions options;
+store::Model OpenReadOnly(const std::string& path) {
+  store::ModelOptions options;
   options.read_only = true;
-  return Model::Open(path, options);
+  return store::Model::Open(path, options);
 }
 
 sim::SimulatorOptions WalkOptions() {
@@ -49,11 +49,11 @@ sim::SimulatorOptions WalkOptions() {
 }
 
 TEST(RestoreModel, TheMapperGetsEveryKeyframeLinkPoseAndTheVocabulary) {
-  const Model model = OpenReadOnly(StoredModel());
+  const store::Model model = OpenReadOnly(StoredModel());
   const Intrinsics camera = WalkOptions().camera;
-  Mapper mapper(camera);
+  slam::Mapper mapper(camera);
   const RestoredModel restored = RestoreModel(model, camera, true, &mapper, nullptr);
-  const std::vector<KeyframeInfo> stored = model.Keyframes();
+  const std::vector<store::KeyframeInfo> stored = model.Keyframes();
   ASSERT_EQ(stored.size(), static_cast<size_t>(kStoredKeyframes));
   ASSERT_EQ(restored.store_ids.size(), stored.size());
   EXPECT_EQ(mapper.NumKeyframes(), stored.size());
@@ -72,11 +72,11 @@ TEST(RestoreModel, TheMapperGetsEveryKeyframeLinkPoseAndTheVocabulary) {
 }
 
 TEST(RestoreModel, AnotherCameraSizeIsRefusedWithWhatToDo) {
-  const Model model = OpenReadOnly(StoredModel());
+  const store::Model model = OpenReadOnly(StoredModel());
   Intrinsics camera = WalkOptions().camera;
   camera.width /= 2;
   camera.height /= 2;
-  Mapper mapper(camera);
+  slam::Mapper mapper(camera);
   try {
     RestoreModel(model, camera, false, &mapper, nullptr);
     FAIL() << "a model of another camera size was restored";
@@ -86,9 +86,9 @@ TEST(RestoreModel, AnotherCameraSizeIsRefusedWithWhatToDo) {
 }
 
 TEST(RestoreModel, ANewSessionWalkingTheSamePlacesJoinsTheStoredMap) {
-  const Model model = OpenReadOnly(StoredModel());
+  const store::Model model = OpenReadOnly(StoredModel());
   const Intrinsics camera = WalkOptions().camera;
-  Mapper mapper(camera);
+  slam::Mapper mapper(camera);
   const RestoredModel restored = RestoreModel(model, camera, true, &mapper, nullptr);
   MapStage stage(&mapper, SessionId(2), camera, MapStageOptions(), restored);
   sim::Simulator simulator(WalkOptions());
@@ -102,7 +102,7 @@ TEST(RestoreModel, ANewSessionWalkingTheSamePlacesJoinsTheStoredMap) {
   }
   EXPECT_TRUE(stage.joined_stored_map());
   int relocalisations = 0;  // from a stored keyframe to a new one
-  for (const MapperLink& link : mapper.Links()) {
+  for (const slam::MapperLink& link : mapper.Links()) {
     relocalisations += link.type == LinkType::kRelocalisation &&
                        std::min(link.from, link.to) < kStoredKeyframes &&
                        std::max(link.from, link.to) >= kStoredKeyframes;

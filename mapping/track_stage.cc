@@ -35,15 +35,15 @@ std::exception_ptr TrackStage::error() const {
 void TrackStage::Run() {
   try {
     if (options_.track) {
-      Tracker tracker(camera_, options_.tracker);
+      slam::Tracker tracker(camera_, options_.tracker);
       bool taken = true;
       while (taken) {
         std::optional<RgbdFrame> frame = frames_->Pop();
         if (!frame) break;
-        TrackResult result = tracker.Track(*frame);
+        slam::TrackResult result = tracker.Track(*frame);
         report_.frame_s.push_back(result.total_s);
         ++tracked_frames_;
-        for (TrackedKeyframe& keyframe : result.keyframes) {
+        for (slam::TrackedKeyframe& keyframe : result.keyframes) {
           // A closed keyframe queue: the mapping stage stopped taking keyframes.
           taken = taken && keyframes_->Push(KeyframeItem{std::move(keyframe), true});
         }

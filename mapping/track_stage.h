@@ -29,7 +29,7 @@ namespace sightmap::mapping {
 struct TrackStageOptions {
   // Track every frame (true), or hand every frame on as a keyframe (false).
   bool track = true;
-  TrackerOptions tracker;
+  slam::TrackerOptions tracker;
 
   bool Check(std::string* error) const;
 };
@@ -38,13 +38,13 @@ void from_json(const nlohmann::json& json, TrackStageOptions& options);
 
 // A keyframe on its way to the mapper. Untracked keyframes carry only their frame.
 struct KeyframeItem {
-  TrackedKeyframe keyframe;
+  slam::TrackedKeyframe keyframe;
   bool tracked = false;
 };
 
 // Per-frame tracking figures, for the summary and the benchmark.
 struct TrackStageReport {
-  TrackerCounters counters;
+  slam::TrackerCounters counters;
   std::vector<double> frame_s;  // tracking time of each frame [s]
 };
 

@@ -6,7 +6,7 @@
 
 namespace sightmap::mapping {
 
-WriteStage::WriteStage(Model* model, MapViewFeed* view, int session_number,
+WriteStage::WriteStage(store::Model* model, MapViewFeed* view, int session_number,
                        std::vector<KeyframeId> store_ids, size_t queue_capacity)
     : model_(model),
       view_(view),
@@ -48,7 +48,7 @@ void WriteStage::Write(WriteTask& task) {
       WritePoses(task);
       break;
     case WriteTask::Kind::kVocabulary:
-      model_->SetVocabulary(Vocabulary::kFormat, task.vocabulary);
+      model_->SetVocabulary(slam::Vocabulary::kFormat, task.vocabulary);
       break;
   }
 }
@@ -63,9 +63,9 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
   SIGHTMAP_CHECK(task.mapper_id == static_cast<int64_t>(store_ids_.size()),
                  "keyframe " << task.mapper_id << " reached the writer out of order (expected "
                              << store_ids_.size() << ")");
-  KeyframeRecord& record = task.record;
-  for (const MapperLink& link : task.links) {
-    LinkRecord stored;
+  store::KeyframeRecord& record = task.record;
+  for (const slam::MapperLink& link : task.links) {
+    store::LinkRecord stored;
     // The new keyframe's own end is left unset: the model fills in the id it gives it.
     stored.from = link.from == task.mapper_id ? KeyframeId() : StoreId(link.from);
     stored.to = link.to == task.mapper_id ? KeyframeId() : StoreId(link.to);
@@ -80,7 +80,7 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
   if (!view_) return;
   view_->AddKeyframe(task.mapper_id, session_number_, record.world_from_cam, record.color,
                      record.depth, record.intrinsics);
-  for (const MapperLink& link : task.links) {
+  for (const slam::MapperLink& link : task.links) {
     if (link.active && link.type != LinkType::kOdometry) view_->AddLoop(link.from, link.to);
   }
   view_->SetCamera(record.world_from_cam);
@@ -95,8 +95,8 @@ void WriteStage::WritePoses(const WriteTask& task) {
       poses.emplace_back(store_ids_[static_cast<size_t>(id)], pose);
     }
   }
-  std::vector<LinkKey> deactivated;
-  for (const MapperLink& link : task.deactivated) {
+  std::vector<store::LinkKey> deactivated;
+  for (const slam::MapperLink& link : task.deactivated) {
     deactivated.push_back({StoreId(link.from), StoreId(link.to), link.type});
   }
   model_->UpdateGraph(poses, deactivated);

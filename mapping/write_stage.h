@@ -30,13 +30,13 @@ struct WriteTask {
   // kKeyframe: the record (links left empty) and its links with mapper ids at both ends (the new
   // keyframe's own id among them).
   int64_t mapper_id = -1;
-  KeyframeRecord record;
-  std::vector<MapperLink> links;
+  store::KeyframeRecord record;
+  std::vector<slam::MapperLink> links;
   FeedStatus status;
   // kPoses: optimised poses by mapper id (ids not written yet are skipped), and stored links the
   // optimisation switched off.
   std::vector<std::pair<int64_t, Eigen::Isometry3d>> poses;
-  std::vector<MapperLink> deactivated;
+  std::vector<slam::MapperLink> deactivated;
   // kVocabulary: Vocabulary::Serialize()'s bytes.
   std::vector<uint8_t> vocabulary;
 };
@@ -46,8 +46,8 @@ class WriteStage {
   // Starts the thread. `store_ids` maps the mapper ids of the keyframes already in the model
   // (restored, in mapper order) to their model ids; `session_number` (>= 1) colours the view's
   // track. `model` and `view` (may be null) must outlive the stage.
-  WriteStage(Model* model, MapViewFeed* view, int session_number, std::vector<KeyframeId> store_ids,
-             size_t queue_capacity);
+  WriteStage(store::Model* model, MapViewFeed* view, int session_number,
+             std::vector<KeyframeId> store_ids, size_t queue_capacity);
   ~WriteStage();
   WriteStage(const WriteStage&) = delete;
   WriteStage& operator=(const WriteStage&) = delete;
@@ -71,7 +71,7 @@ class WriteStage {
   void WritePoses(const WriteTask& task);
   KeyframeId StoreId(int64_t mapper_id) const;
 
-  Model* model_;
+  store::Model* model_;
   MapViewFeed* view_;
   int session_number_;
   std::vector<KeyframeId> store_ids_;  // by mapper id; only the thread touches it once started

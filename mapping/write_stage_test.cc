@@ -31,8 +31,8 @@ Eigen::Isometry3d At(double x) {
   return pose;
 }
 
-MapperLink Link(int64_t from, int64_t to, LinkType type) {
-  MapperLink link;
+slam::MapperLink Link(int64_t from, int64_t to, LinkType type) {
+  slam::MapperLink link;
   link.from = from;
   link.to = to;
   link.type = type;
@@ -40,7 +40,7 @@ MapperLink Link(int64_t from, int64_t to, LinkType type) {
   return link;
 }
 
-WriteTask KeyframeTask(SessionId session, int64_t mapper_id, std::vector<MapperLink> links) {
+WriteTask KeyframeTask(SessionId session, int64_t mapper_id, std::vector<slam::MapperLink> links) {
   WriteTask task;
   task.kind = WriteTask::Kind::kKeyframe;
   task.mapper_id = mapper_id;
@@ -55,8 +55,8 @@ WriteTask KeyframeTask(SessionId session, int64_t mapper_id, std::vector<MapperL
   return task;
 }
 
-SessionId Begin(Model& model) {
-  SessionRecord record;
+SessionId Begin(store::Model& model) {
+  store::SessionRecord record;
   record.source = "test";
   record.intrinsics = SmallCamera();
   return model.BeginSession(record);
@@ -65,7 +65,7 @@ SessionId Begin(Model& model) {
 TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
   const std::string path = testing::MakeTempDir("write-stage") + "/model.db";
   {
-    Model model = Model::Open(path);
+    store::Model model = store::Model::Open(path);
     const SessionId session = Begin(model);
     WriteStage stage(&model, nullptr, 1, {}, 2);
     ASSERT_TRUE(stage.Push(KeyframeTask(session, 0, {})));
@@ -85,18 +85,18 @@ TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
     EXPECT_FALSE(stage.failed());
     EXPECT_EQ(stage.committed(), 3);
   }
-  ModelOptions read_only;
+  store::ModelOptions read_only;
   read_only.read_only = true;
-  const Model model = Model::Open(path, read_only);
-  const std::vector<KeyframeInfo> keyframes = model.Keyframes();
+  const store::Model model = store::Model::Open(path, read_only);
+  const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
   ASSERT_EQ(keyframes.size(), 3u);
   EXPECT_NEAR(keyframes[0].world_from_cam.translation().x(), 0.5, 1e-9);
   EXPECT_NEAR(keyframes[1].world_from_cam.translation().x(), 1.0, 1e-9);
   EXPECT_NEAR(keyframes[2].world_from_cam.translation().x(), 2.5, 1e-9);
-  const std::vector<LinkRecord> links = model.Links();
+  const std::vector<store::LinkRecord> links = model.Links();
   ASSERT_EQ(links.size(), 3u);
   int loops = 0;
-  for (const LinkRecord& link : links) {
+  for (const store::LinkRecord& link : links) {
     if (link.type == LinkType::kLoopClosure) {
       ++loops;
       EXPECT_EQ(link.from, keyframes[0].id);
@@ -120,7 +120,7 @@ TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
 
 TEST(WriteStage, LinksToRestoredKeyframesUseTheirModelIds) {
   const std::string path = testing::MakeTempDir("write-stage-restored") + "/model.db";
-  Model model = Model::Open(path);
+  store::Model model = store::Model::Open(path);
   const SessionId first = Begin(model);
   std::vector<KeyframeId> restored;
   {
@@ -129,13 +129,13 @@ TEST(WriteStage, LinksToRestoredKeyframesUseTheirModelIds) {
     stage.Push(KeyframeTask(first, 1, {Link(0, 1, LinkType::kOdometry)}));
     stage.Finish();
   }
-  for (const KeyframeInfo& info : model.Keyframes()) restored.push_back(info.id);
+  for (const store::KeyframeInfo& info : model.Keyframes()) restored.push_back(info.id);
   const SessionId second = Begin(model);
   WriteStage stage(&model, nullptr, 2, restored, 2);
   stage.Push(KeyframeTask(second, 2, {Link(1, 2, LinkType::kRelocalisation)}));
   stage.Finish();
   ASSERT_FALSE(stage.failed());
-  const std::vector<LinkRecord> links = model.Links();
+  const std::vector<store::LinkRecord> links = model.Links();
   ASSERT_EQ(links.size(), 2u);
   EXPECT_EQ(links[1].type, LinkType::kRelocalisation);
   EXPECT_EQ(links[1].from, restored[1]);
@@ -144,7 +144,7 @@ TEST(WriteStage, LinksToRestoredKeyframesUseTheirModelIds) {
 
 TEST(WriteStage, AFailedWriteStopsTheStageAndKeepsWhatWasCommitted) {
   const std::string path = testing::MakeTempDir("write-stage-failure") + "/model.db";
-  Model model = Model::Open(path);
+  store::Model model = store::Model::Open(path);
   const SessionId session = Begin(model);
   WriteStage stage(&model, nullptr, 1, {}, 4);
   ASSERT_TRUE(stage.Push(KeyframeTask(session, 0, {})));

@@ -4,7 +4,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 // Generated from ASCII art ('#' = lit), one row per entry, top row first, bit 4 = left column.
@@ -178,4 +178,4 @@ void DrawText(std::string_view text, cv::Point top_left, int scale, const cv::Ve
   });
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -11,7 +11,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-namespace sightmap {
+namespace sightmap::render {
 
 constexpr int kGlyphWidth = 5;    // font pixels
 constexpr int kGlyphHeight = 7;   // font pixels
@@ -34,4 +34,4 @@ void AppendTextTriangles(std::string_view text, float x, float y, float scale,
 void DrawText(std::string_view text, cv::Point top_left, int scale, const cv::Vec3b& color,
               cv::Mat* image);
 
-}  // namespace sightmap
+}  // namespace sightmap::render

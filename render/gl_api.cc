@@ -4,7 +4,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 void GlApi::Load(GlProcLoader loader) {
   SIGHTMAP_CHECK(loader != nullptr, "no GL loader given");
@@ -34,4 +34,4 @@ const GlApi& OsMesaGl() {
   return api;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

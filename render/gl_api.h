@@ -12,7 +12,7 @@
 
 #include "render/gl_proc.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 // Legacy (compatibility profile) GL 1.x, declared by GL/gl.h (X: the type is taken from that
 // declaration, nothing is linked by name), plus the GL 1.5 buffer objects (T: glext.h's types).
@@ -83,4 +83,4 @@ struct GlApi {
 // context is an OSMesa context.
 const GlApi& OsMesaGl();
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -10,10 +10,10 @@
 // Loading through each context's loader works in any link order and with any vendor's libGL.
 #pragma once
 
-namespace sightmap {
+namespace sightmap::render {
 
 using GlProc = void (*)();
 // Returns the entry point `name` ("glClear") of the GL implementation behind a context, or null.
 using GlProcLoader = GlProc (*)(const char* name);
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -9,7 +9,7 @@
 #include "core/atomic_file.h"
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 void WriteImageAtomically(const std::string& path, const cv::Mat& image) {
   SIGHTMAP_CHECK(!image.empty(), "refusing to write an empty image to " << path);
@@ -26,4 +26,4 @@ void WriteImageAtomically(const std::string& path, const cv::Mat& image) {
                       std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

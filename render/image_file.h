@@ -5,11 +5,11 @@
 
 #include <opencv2/core.hpp>
 
-namespace sightmap {
+namespace sightmap::render {
 
 // Encodes `image` by the extension of `path` (.png, .jpg), writes PATH.tmp beside it and renames
 // it over `path` (atomic on POSIX file systems). Throws sightmap::Error on failure and removes the
 // temporary file.
 void WriteImageAtomically(const std::string& path, const cv::Mat& image);
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -14,7 +14,7 @@
 #include "render/bitmap_font.h"
 #include "render/gl_api.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -773,4 +773,4 @@ cv::Mat MapRenderer::ReadImage(int width, int height) {
   return bgr;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -21,7 +21,7 @@
 #include "render/gl_proc.h"
 #include "render/map_scene.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 struct MapRenderOptions {
   int width = 1280;  // progress image [px]: floor plan on the left half, camera view on the right
@@ -146,4 +146,4 @@ struct ProgressLayout {
 ProgressLayout MakeProgressLayout(const MapScene& scene, int width, int height,
                                   const MapRenderOptions& options);
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -9,7 +9,7 @@
 #include "render/bitmap_font.h"
 #include "render/offscreen_context.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 // A pose that is not axis-aligned, so frame mix-ups show.
@@ -307,4 +307,4 @@ TEST(MapScene, MergedUpdatesEqualUpdatesInOrder) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::render

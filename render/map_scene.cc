@@ -6,7 +6,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 bool KeyframeCloudOptions::Check(std::string* error) const {
   if (!(voxel_m > 0.0)) {
@@ -187,4 +187,4 @@ Eigen::Vector3f SessionColor(int session) {
   return kPalette[index];
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -22,7 +22,7 @@
 #include "core/camera.h"
 #include "core/tracking_state.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 struct MapKeyframe {
   int64_t id = 0;
@@ -121,4 +121,4 @@ class MapScene {
 // Colour of session `session`'s trajectory, RGB in [0, 1] (a fixed palette, repeating).
 Eigen::Vector3f SessionColor(int session);
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -11,7 +11,7 @@
 
 #include "render/map_scene.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 class MapView {
  public:
@@ -107,4 +107,4 @@ class MapMailbox {
   uint64_t done_ = 0;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::render

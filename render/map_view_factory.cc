@@ -5,7 +5,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 bool HasDisplay() {
@@ -48,4 +48,4 @@ std::unique_ptr<MapView> CreateMapView(const MapViewOptions& options, std::ostre
   return std::make_unique<ProgressWriter>(options.progress);
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

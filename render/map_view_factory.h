@@ -12,7 +12,7 @@
 #include "render/preview_window.h"
 #include "render/progress_writer.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 enum class ViewMode { kAuto, kPreview, kHeadless };
 
@@ -25,4 +25,4 @@ struct MapViewOptions {
 // `notices` receives the fallback notice (one line), e.g. &std::cerr; may be null.
 std::unique_ptr<MapView> CreateMapView(const MapViewOptions& options, std::ostream* notices);
 
-}  // namespace sightmap
+}  // namespace sightmap::render

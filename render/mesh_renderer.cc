@@ -8,7 +8,7 @@
 #include "core/check.h"
 #include "render/gl_api.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 // One face as seen from outside: corners bottom-left, bottom-right, top-right, top-left.
@@ -356,4 +356,4 @@ cv::Mat MeshRenderer::RenderIds(const Intrinsics& intrinsics,
   return ids;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

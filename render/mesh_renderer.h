@@ -19,7 +19,7 @@
 #include "core/camera.h"
 #include "render/offscreen_context.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 struct Material {
   Eigen::Vector3f color_rgb = Eigen::Vector3f(0.8f, 0.8f, 0.8f);  // [0, 1]; multiplies the texture
@@ -103,4 +103,4 @@ class MeshRenderer {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -6,7 +6,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 Intrinsics TestCamera() {
@@ -138,4 +138,4 @@ TEST(MeshRenderer, FarWallDepthAndNoDepthMask) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::render

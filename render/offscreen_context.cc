@@ -7,7 +7,7 @@
 #include "core/check.h"
 #include "render/gl_api.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 struct OffscreenContext::Impl {
   OSMesaContext context = nullptr;
@@ -64,4 +64,4 @@ std::string OffscreenContext::GlRenderer() const {
   return text == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(text));
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

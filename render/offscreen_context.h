@@ -13,7 +13,7 @@
 
 #include "render/gl_proc.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 class OffscreenContext {
  public:
@@ -44,4 +44,4 @@ class OffscreenContext {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::render

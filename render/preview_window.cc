@@ -18,7 +18,7 @@
 #include "core/check.h"
 #include "render/image_file.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -399,4 +399,4 @@ std::string PreviewWindow::last_snapshot() const {
   return impl_->last_snapshot;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -21,7 +21,7 @@
 #include "render/map_renderer.h"
 #include "render/map_view.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 struct PreviewOptions {
   int width = 1280;  // window size [screen px]
@@ -72,4 +72,4 @@ class PreviewWindow : public MapView {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::render

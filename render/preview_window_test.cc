@@ -16,7 +16,7 @@
 #include "core/check.h"
 #include "render/map_view_factory.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 MapUpdate SmallMap() {
@@ -173,4 +173,4 @@ TEST(NoDisplay, AutoFallsBackToOffscreenWithAOneLineNoticeAndPreviewThrows) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::render

@@ -15,7 +15,8 @@
 #include "sim/simulator.h"
 
 int main(int argc, char** argv) {
-  using namespace sightmap;  // NOLINT: a small tool
+  using namespace sightmap;          // NOLINT: a small tool
+  using namespace sightmap::render;  // NOLINT
   const std::string output = argc > 1 ? argv[1] : "/tmp/progress-sample.png";
   const int keyframes = argc > 2 ? std::atoi(argv[2]) : 100;
   const int sessions = argc > 3 ? std::atoi(argv[3]) : 1;

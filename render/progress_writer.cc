@@ -12,7 +12,7 @@
 #include "render/image_file.h"
 #include "render/offscreen_context.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 bool ProgressWriterOptions::Check(std::string* error) const {
   if (min_interval_s < 0.0 || nice_increment < 0 || nice_increment > 19) {
@@ -160,4 +160,4 @@ void ProgressWriter::Run() {
   mailbox_.MarkAllDone();
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::render

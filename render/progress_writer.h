@@ -18,7 +18,7 @@
 #include "render/map_renderer.h"
 #include "render/map_view.h"
 
-namespace sightmap {
+namespace sightmap::render {
 
 struct ProgressWriterOptions {
   std::string png_path;        // rewritten atomically (PATH.tmp, then rename); empty = no file
@@ -79,4 +79,4 @@ class ProgressWriter : public MapView {
   std::thread thread_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::render

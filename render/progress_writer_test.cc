@@ -11,7 +11,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 std::string TempPath(const std::string& name) {
@@ -179,4 +179,4 @@ TEST(ProgressWriter, AnUnwritableFileIsReportedNotThrown) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::render

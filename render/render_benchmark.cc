@@ -10,7 +10,7 @@
 #include "render/map_renderer.h"
 #include "render/offscreen_context.h"
 
-namespace sightmap {
+namespace sightmap::render {
 namespace {
 
 constexpr int kWidth = 1280;
@@ -122,6 +122,6 @@ void BM_Upload(benchmark::State& state) {
 BENCHMARK(BM_Upload)->Arg(5)->ArgName("Mpoints")->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::render
 
 BENCHMARK_MAIN();

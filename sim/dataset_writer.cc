@@ -109,11 +109,11 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
   WriteTumTrajectory((dir / "groundtruth.txt").string(), groundtruth,
                      "ground truth trajectory; " + header.substr(2));
 
-  RgbdCalibration calibration;
+  capture::RgbdCalibration calibration;
   calibration.color = so.camera;
   calibration.depth = so.camera;
   calibration.color_from_depth = Eigen::Isometry3d::Identity();
-  WriteCalibrationFile((dir / "calibration.json").string(), calibration);
+  capture::WriteCalibrationFile((dir / "calibration.json").string(), calibration);
 
   const Scene& scene = simulator.scene();
   json appliances = json::array();

@@ -260,7 +260,7 @@ std::string TextureDirectory() {
   return "/usr/share/doc/opencv-doc/examples/data";
 }
 
-void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
+void AddSceneToRenderer(const Scene& scene, render::MeshRenderer* renderer) {
   const std::filesystem::path scene_dir = std::filesystem::path(scene.source).has_parent_path()
                                               ? std::filesystem::path(scene.source).parent_path()
                                               : std::filesystem::path(".");
@@ -301,20 +301,21 @@ void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer) {
   // Boxes sharing a material and an appliance ID go into one mesh: a furnished floor has a
   // thousand boxes (books, radiator ribs, notes) but a few dozen materials, and the renderer
   // pays per mesh (state changes and a draw call each).
-  std::map<std::pair<int, std::string>, TriangleMesh> merged;
+  std::map<std::pair<int, std::string>, render::TriangleMesh> merged;
   auto add_box = [&](const SceneBox& box, int id) {
     const SceneMaterial& m = scene.materials.at(box.material);
-    Material material;
+    render::Material material;
     material.color_rgb = m.color_rgb;
     material.texture = m.texture.empty() ? -1 : handle_of(m);
     material.texture_scale_m = m.scale_m;
     material.no_depth = m.no_depth;
     material.unlit = m.unlit;
-    const TriangleMesh mesh = MakeBox(box.center.cast<float>(), box.size.cast<float>(),
-                                      static_cast<float>(box.yaw_rad), material, id);
+    const render::TriangleMesh mesh =
+        render::MakeBox(box.center.cast<float>(), box.size.cast<float>(),
+                        static_cast<float>(box.yaw_rad), material, id);
     auto [it, inserted] = merged.try_emplace({id, box.material}, mesh);
     if (inserted) return;
-    TriangleMesh& all = it->second;
+    render::TriangleMesh& all = it->second;
     all.positions.insert(all.positions.end(), mesh.positions.begin(), mesh.positions.end());
     all.normals.insert(all.normals.end(), mesh.normals.begin(), mesh.normals.end());
     all.uvs.insert(all.uvs.end(), mesh.uvs.begin(), mesh.uvs.end());

@@ -119,6 +119,6 @@ std::string TextureDirectory();
 // Loads the textures (cached by the renderer's lifetime) and adds every box as a mesh; appliance
 // boxes carry their appliance ID. Throws sightmap::Error naming a missing texture file and the
 // package that provides it.
-void AddSceneToRenderer(const Scene& scene, MeshRenderer* renderer);
+void AddSceneToRenderer(const Scene& scene, render::MeshRenderer* renderer);
 
 }  // namespace sightmap::sim

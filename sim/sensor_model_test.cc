@@ -15,14 +15,15 @@ namespace {
 
 // A camera at the origin looking along world +x with a wall (and optionally a post) ahead.
 struct WallRig {
-  MeshRenderer renderer;
+  render::MeshRenderer renderer;
   Intrinsics k = KinectIntrinsics();
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
 
   explicit WallRig(double wall_distance_m) {
-    Material plain;
-    renderer.AddMesh(MakeBox(Eigen::Vector3f(static_cast<float>(wall_distance_m) + 0.05f, 0, 0),
-                             Eigen::Vector3f(0.1f, 20, 20), 0, plain));
+    render::Material plain;
+    renderer.AddMesh(
+        render::MakeBox(Eigen::Vector3f(static_cast<float>(wall_distance_m) + 0.05f, 0, 0),
+                        Eigen::Vector3f(0.1f, 20, 20), 0, plain));
     world_from_cam.linear() = WorldFromCamRotation(0.0, 0.0, 0.0);
   }
 };
@@ -33,7 +34,7 @@ TEST(SensorModel, FlatWallNoiseMatchesTheModelAt1To3Metres) {
   const DepthSensorOptions options;
   for (const double z : {1.0, 2.0, 3.0}) {
     WallRig rig(z);
-    const RenderedView view = rig.renderer.Render(rig.k, rig.world_from_cam);
+    const render::RenderedView view = rig.renderer.Render(rig.k, rig.world_from_cam);
     const cv::Mat depth = SimulateDepth(view.depth, view.no_depth, rig.k, options, 42);
     double sum = 0, sum2 = 0;
     int n = 0;
@@ -84,10 +85,10 @@ TEST(SensorModel, RangeBorderAndNoReturnSurfaces) {
 // depth left of the post, f * b * (1/1 - 1/3) = 26 px wide, and none on its right.
 TEST(SensorModel, ProjectorShadowLeftOfForegroundObjects) {
   WallRig rig(3.0);
-  Material plain;
+  render::Material plain;
   rig.renderer.AddMesh(
-      MakeBox(Eigen::Vector3f(1.05f, 0, 0), Eigen::Vector3f(0.1f, 0.3f, 2.0f), 0, plain));
-  const RenderedView view = rig.renderer.Render(rig.k, rig.world_from_cam);
+      render::MakeBox(Eigen::Vector3f(1.05f, 0, 0), Eigen::Vector3f(0.1f, 0.3f, 2.0f), 0, plain));
+  const render::RenderedView view = rig.renderer.Render(rig.k, rig.world_from_cam);
   DepthSensorOptions options;
   options.discontinuity_dropout = 0.0;  // isolate the shadow
   const cv::Mat depth = SimulateDepth(view.depth, view.no_depth, rig.k, options, 3);
@@ -110,14 +111,15 @@ TEST(SensorModel, ProjectorShadowLeftOfForegroundObjects) {
 
 // Surfaces seen at grazing incidence lose their depth: the floor far ahead of a low camera.
 TEST(SensorModel, GrazingAnglesDropOut) {
-  MeshRenderer renderer;
-  Material plain;
-  renderer.AddMesh(MakeBox(Eigen::Vector3f(5, 0, -0.05f), Eigen::Vector3f(20, 20, 0.1f), 0, plain));
+  render::MeshRenderer renderer;
+  render::Material plain;
+  renderer.AddMesh(
+      render::MakeBox(Eigen::Vector3f(5, 0, -0.05f), Eigen::Vector3f(20, 20, 0.1f), 0, plain));
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   world_from_cam.linear() = WorldFromCamRotation(0.0, 0.0, 0.0);
   world_from_cam.translation() = Eigen::Vector3d(0, 0, 0.3);
   const Intrinsics k = KinectIntrinsics();
-  const RenderedView view = renderer.Render(k, world_from_cam);
+  const render::RenderedView view = renderer.Render(k, world_from_cam);
   const cv::Mat depth = SimulateDepth(view.depth, view.no_depth, k, DepthSensorOptions(), 5);
   // Row v sees the floor at z = 0.3 * fy / (v - cy); incidence 90 deg - atan(0.3 / z).
   // Rows near the horizon (incidence > 84 deg, z > 2.85 m) have nothing; rows at z ~0.9 m

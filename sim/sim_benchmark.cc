@@ -48,7 +48,7 @@ BENCHMARK(BM_RenderOnly)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTi
 
 void BM_SensorModels(benchmark::State& state) {
   Simulator simulator(Options(0));
-  const sightmap::RenderedView view =
+  const sightmap::render::RenderedView view =
       simulator.renderer().Render(simulator.options().camera, simulator.WorldFromCam(40));
   uint64_t seed = 1;
   for (auto _ : state) {

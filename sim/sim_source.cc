@@ -7,7 +7,7 @@
 namespace sightmap::sim {
 namespace {
 
-class SimSource : public RgbdSource {
+class SimSource : public capture::RgbdSource {
  public:
   explicit SimSource(const SimulatorOptions& options) : simulator_(options) {
     const Intrinsics& k = simulator_.options().camera;
@@ -19,7 +19,7 @@ class SimSource : public RgbdSource {
     metadata_.color_height = metadata_.depth_height = k.height;
     metadata_.intrinsics = k;
     metadata_.intrinsics_origin = "simulator";
-    metadata_.registration = DepthRegistration::kSource;
+    metadata_.registration = capture::DepthRegistration::kSource;
     metadata_.nominal_fps = options.fps;
     metadata_.depth_frame_count = simulator_.num_frames();
     metadata_.color_frame_count = simulator_.num_frames();
@@ -31,7 +31,7 @@ class SimSource : public RgbdSource {
     metadata_.notes.push_back(note.str());
   }
 
-  const SourceMetadata& metadata() const override { return metadata_; }
+  const capture::SourceMetadata& metadata() const override { return metadata_; }
 
   std::optional<RgbdFrame> Next() override {
     if (next_ >= simulator_.num_frames()) return std::nullopt;
@@ -49,12 +49,12 @@ class SimSource : public RgbdSource {
 
   void SkipNext() override { ++next_; }
 
-  SourceStats stats() const override { return stats_; }
+  capture::SourceStats stats() const override { return stats_; }
 
  private:
   Simulator simulator_;
-  SourceMetadata metadata_;
-  SourceStats stats_;
+  capture::SourceMetadata metadata_;
+  capture::SourceStats stats_;
   int64_t next_ = 0;
 };
 
@@ -109,15 +109,16 @@ SimulatorOptions ParseSimLocation(const std::string& location) {
   return options;
 }
 
-std::unique_ptr<RgbdSource> OpenSimSource(const SimulatorOptions& options) {
+std::unique_ptr<capture::RgbdSource> OpenSimSource(const SimulatorOptions& options) {
   return std::make_unique<SimSource>(options);
 }
 
 void RegisterSimSource() {
-  RegisterSourceOpener(SourceSpec::Kind::kSim,
-                       [](const std::string& location, const SourceOptions& /*options*/) {
-                         return OpenSimSource(ParseSimLocation(location));
-                       });
+  capture::RegisterSourceOpener(
+      capture::SourceSpec::Kind::kSim,
+      [](const std::string& location, const capture::SourceOptions& /*options*/) {
+        return OpenSimSource(ParseSimLocation(location));
+      });
 }
 
 }  // namespace sightmap::sim

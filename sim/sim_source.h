@@ -22,7 +22,7 @@ namespace sightmap::sim {
 // Parses "NAME?key=value&..." (the part after "sim:"). Throws InvalidArgument naming a bad key.
 SimulatorOptions ParseSimLocation(const std::string& location);
 
-std::unique_ptr<RgbdSource> OpenSimSource(const SimulatorOptions& options);
+std::unique_ptr<capture::RgbdSource> OpenSimSource(const SimulatorOptions& options);
 
 // Makes OpenSource("sim:...") open the simulator. Call once at start-up (cli main does).
 void RegisterSimSource();

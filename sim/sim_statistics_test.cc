@@ -42,7 +42,7 @@ struct FrameStatistics {
 
 FrameStatistics FromSource(const std::string& source, int max_frames, int stride) {
   FrameStatistics stats;
-  auto reader = OpenSource(source);
+  auto reader = capture::OpenSource(source);
   int index = 0;
   while (auto frame = reader->Next()) {
     if (index++ % stride != 0) continue;

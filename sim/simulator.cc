@@ -19,15 +19,15 @@ uint64_t SessionSeed(uint64_t seed, int session) {
 }
 
 // Lighting of a session: the ambient level and two roughly overhead lights differ per day.
-RenderOptions SessionLighting(int session, uint64_t seed) {
+render::RenderOptions SessionLighting(int session, uint64_t seed) {
   std::mt19937_64 rng(MixSeed(SessionSeed(seed, session), 11));
-  RenderOptions options;
+  render::RenderOptions options;
   options.near_m = 0.1;
   options.far_m = 40.0;
   options.ambient = static_cast<float>(session == 1 ? 0.55 : UniformReal(rng, 0.42, 0.62));
   options.lights.clear();
   for (int i = 0; i < 2; ++i) {
-    DirectionalLight light;
+    render::DirectionalLight light;
     const double azimuth = session == 1 ? 0.7 + 2.2 * i : UniformReal(rng, -kPi, kPi);
     const double elevation = session == 1 ? 0.9 : UniformReal(rng, 0.6, 1.2);
     light.direction_to_light =
@@ -128,7 +128,8 @@ Simulator::Simulator(const SimulatorOptions& options) : options_(options) {
   trajectory_options.session = options.session;
   trajectory_options.seed = options.seed;
   trajectory_ = std::make_unique<Trajectory>(scene_, trajectory_options);
-  renderer_ = std::make_unique<MeshRenderer>(SessionLighting(options.session, options.seed));
+  renderer_ =
+      std::make_unique<render::MeshRenderer>(SessionLighting(options.session, options.seed));
   AddSceneToRenderer(scene_, renderer_.get());
   num_frames_ = options.frames >= 0
                     ? options.frames
@@ -152,7 +153,7 @@ RgbdFrame Simulator::RenderFrame(int64_t index) {
   const double t = static_cast<double>(TimestampOf(index)) * 1e-9;
   const Eigen::Isometry3d world_from_cam = trajectory_->WorldFromCam(t);
   const Intrinsics& k = options_.camera;
-  const RenderedView view = renderer_->Render(k, world_from_cam);
+  const render::RenderedView view = renderer_->Render(k, world_from_cam);
 
   // Image motion during the exposure: where a point 2 m ahead of the image centre moves.
   const Eigen::Isometry3d later = trajectory_->WorldFromCam(t + options_.color.exposure_s);
@@ -226,7 +227,7 @@ QueryPhoto Simulator::RenderQuery(const Intrinsics& intrinsics,
   QueryPhoto photo;
   photo.intrinsics = intrinsics;
   photo.world_from_cam = world_from_cam;
-  const RenderedView view = renderer_->Render(intrinsics, world_from_cam);
+  const render::RenderedView view = renderer_->Render(intrinsics, world_from_cam);
   // A phone: less read noise than a Kinect's colour camera, no motion (photos are taken still).
   ColorSensorOptions phone = options_.color;
   phone.read_noise = 1.0;

@@ -124,13 +124,13 @@ class Simulator {
                                                       const Eigen::Isometry3d& world_from_cam,
                                                       const VisibilityThresholds& thresholds);
 
-  MeshRenderer& renderer() { return *renderer_; }
+  render::MeshRenderer& renderer() { return *renderer_; }
 
  private:
   SimulatorOptions options_;
   Scene scene_;
   std::unique_ptr<Trajectory> trajectory_;
-  std::unique_ptr<MeshRenderer> renderer_;
+  std::unique_ptr<render::MeshRenderer> renderer_;
   int64_t num_frames_ = 0;
   double exposure_phase_ = 0.0;
 };

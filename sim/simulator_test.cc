@@ -234,7 +234,7 @@ TEST(Simulator, PhonePhotosAreAimedAtAppliancesWithinTheEnvelope) {
 
 TEST(SimSource, OpensThroughOpenSourceWithOptions) {
   RegisterSimSource();
-  auto source = OpenSource("sim:office?trajectory=robot&session=2&seed=3&frames=3&fps=1");
+  auto source = capture::OpenSource("sim:office?trajectory=robot&session=2&seed=3&frames=3&fps=1");
   EXPECT_EQ(source->metadata().kind, "sim");
   EXPECT_TRUE(source->metadata().has_ground_truth);
   EXPECT_EQ(source->metadata().intrinsics.fx, 525.0);
@@ -253,7 +253,7 @@ TEST(SimSource, OpensThroughOpenSourceWithOptions) {
   EXPECT_THROW(ParseSimLocation("office?frames=many"), InvalidArgument);
   EXPECT_THROW(ParseSimLocation("office?trajectory=drone"), InvalidArgument);
   EXPECT_EQ(ParseSimLocation("office").frames, -1);
-  EXPECT_THROW(OpenSource("sim:/no/such/scene.json"), Error);
+  EXPECT_THROW(capture::OpenSource("sim:/no/such/scene.json"), Error);
 }
 
 }  // namespace

@@ -13,7 +13,7 @@
 #include "core/options_json.h"
 #include "core/rotation.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
@@ -254,4 +254,4 @@ SIGHTMAP_OPTIONS_JSON(DenseAlignmentOptions, downscale, iterations_per_level, mi
                       max_depth_m, information_stride_px, max_pair_distance_m, depth_noise_coeff,
                       min_pairs)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

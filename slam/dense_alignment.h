@@ -20,13 +20,12 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <opencv2/core.hpp>
-
 #include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
 
 #include "core/camera.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct DenseAlignmentOptions {
   // Images are reduced to 1/downscale of the sensor's size (grey by area, depth by nearest
@@ -133,4 +132,4 @@ class DenseAligner {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

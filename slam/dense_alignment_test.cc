@@ -12,7 +12,7 @@
 #include "sim/simulator.h"
 #include "slam/sim_walk_testing.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
@@ -153,4 +153,4 @@ TEST(DenseAlignment, ChecksItsOptionsAndImages) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -8,7 +8,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 cv::Ptr<cv::Feature2D> MakeDetector(const FeatureOptions& options, int max_features) {
@@ -144,4 +144,4 @@ SIGHTMAP_OPTIONS_JSON(FeatureOptions, type, max_features, grid_cols, grid_rows, 
                       orb_scale_factor, orb_fast_threshold, min_depth_m, max_depth_m,
                       depth_window_radius_px, depth_edge_ratio)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -12,7 +12,7 @@
 #include "core/camera.h"
 #include "core/features.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct FeatureOptions {
   // kSift is refused by Check(): everything downstream takes binary ORB descriptors.
@@ -49,4 +49,4 @@ void from_json(const nlohmann::json& json, FeatureOptions& options);
 Features ExtractFeatures(const cv::Mat& image, const cv::Mat& depth_mm, const Intrinsics& camera,
                          const FeatureOptions& options = FeatureOptions());
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <cstring>
 
-namespace sightmap {
+namespace sightmap::slam {
 
 inline int Hamming256(const uint64_t* a, const uint64_t* b) {
   return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
@@ -21,4 +21,4 @@ inline int Hamming256(const uint8_t* a, const uint8_t* b) {
   return Hamming256(wa, wb);
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -11,7 +11,7 @@
 #include "core/options_json.h"
 #include "core/rotation.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -775,4 +775,4 @@ SIGHTMAP_OPTIONS_JSON(MapperOptions, features, registration, odometry_window, ex
                       link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m,
                       dense_max_correction_deg, dense_link_min_sigma_m, dense_link_min_sigma_rad)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

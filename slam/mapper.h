@@ -22,9 +22,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <opencv2/core.hpp>
-
 #include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
 
 #include "core/camera.h"
 #include "core/link_type.h"
@@ -38,7 +37,7 @@
 #include "slam/tracker.h"
 #include "slam/vocabulary.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct MapperOptions {
   FeatureOptions features;
@@ -348,4 +347,4 @@ class Mapper {
   std::optional<PendingJoin> pending_join_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

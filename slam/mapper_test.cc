@@ -16,7 +16,7 @@
 #include "slam/sim_walk_testing.h"
 #include "slam/trajectory_eval.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 using Walk = testing::SimWalk;
@@ -379,4 +379,4 @@ TEST(Mapper, RefusesImagesThatDoNotFitTheCamera) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -5,7 +5,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 bool MatchOptions::Check(std::string* error) const {
   if (!(ratio > 0.0 && ratio <= 1.0)) {
@@ -50,4 +50,4 @@ std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& re
 
 SIGHTMAP_OPTIONS_JSON(MatchOptions, ratio, mutual)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -7,7 +7,7 @@
 #include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct MatchOptions {
   // A match is kept when its distance is below ratio x the second-nearest distance.
@@ -28,4 +28,4 @@ void from_json(const nlohmann::json& json, MatchOptions& options);
 std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& reference,
                                          const MatchOptions& options = MatchOptions());
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -5,7 +5,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 void PlaceIndex::Add(int64_t id, BowVector bow) {
   if (Contains(id)) SIGHTMAP_THROW(InvalidArgument, "PlaceIndex already holds keyframe " << id);
@@ -64,4 +64,4 @@ const BowVector& PlaceIndex::Get(int64_t id) const {
   return bows_[slot->second];
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

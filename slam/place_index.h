@@ -9,7 +9,7 @@
 
 #include "slam/vocabulary.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct PlaceCandidate {
   int64_t id = -1;     // the keyframe's id as given to PlaceIndex::Add
@@ -50,4 +50,4 @@ class PlaceIndex {
   std::unordered_map<int, std::vector<Posting>> postings_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -16,12 +16,12 @@
 #include <Eigen/Eigenvalues>
 
 #include "core/check.h"
+#include "core/link_type.h"
 #include "core/options_json.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 bool IsRigid(const Eigen::Isometry3d& transform) {
@@ -541,4 +541,4 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
 SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_threads,
                       function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

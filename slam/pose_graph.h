@@ -35,7 +35,7 @@
 #include <Eigen/Geometry>
 #include <nlohmann/json_fwd.hpp>
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct PoseGraphOptions {
   // Bounds of each solve; Optimize() solves once plus once per switched-off edge.
@@ -179,4 +179,4 @@ class PoseGraph {
   std::vector<bool> active_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

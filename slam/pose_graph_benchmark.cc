@@ -8,7 +8,7 @@
 #include "slam/pose_graph.h"
 #include "slam/synthetic_pose_graph.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 synthetic::Scene MakeScene(bool with_false_loop) {
@@ -56,6 +56,6 @@ void BM_Optimize2000Poses(benchmark::State& state) {
 BENCHMARK(BM_Optimize2000Poses)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam
 
 BENCHMARK_MAIN();

@@ -9,12 +9,12 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
+#include "core/link_type.h"
 #include "slam/synthetic_pose_graph.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 using synthetic::ExpSe3;
 using synthetic::Information;
@@ -556,4 +556,4 @@ TEST(PoseGraph, LargeGraphFigures) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -11,7 +11,7 @@
 #include "slam/hamming.h"
 #include "slam/rigid_alignment.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 struct Correspondence {
@@ -517,4 +517,4 @@ SIGHTMAP_OPTIONS_JSON(RegistrationOptions, matching, ransac_max_iterations, rans
                       verify_stride_px, verify_min_tolerance_m, min_consistent_fraction,
                       max_violation_fraction, min_overlap_samples)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -12,15 +12,14 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <opencv2/core.hpp>
-
 #include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
 
 #include "core/camera.h"
 #include "slam/features.h"
 #include "slam/matching.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct RegistrationOptions {
   MatchOptions matching;
@@ -116,4 +115,4 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const RegistrationOptions& options = RegistrationOptions(),
                                 const Eigen::Isometry3d* prior = nullptr);
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -11,7 +11,7 @@
 #include "core/rotation.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 // Source features at random points in front of the camera; the target sees the same points
@@ -96,7 +96,7 @@ TEST(Registration, RefusesFramesWithoutDepth) {
 // 2 deg, or be refused — never a wrong pose.
 TEST(Registration, RealLoungeFramesRegisterOrAreRefusedNeverWrong) {
   SIGHTMAP_REQUIRE_SHARED_DATA(dir, "rgbd/3dmatch-lounge/seq-01");
-  std::unique_ptr<RgbdSource> source = OpenSource("3dmatch:" + dir);
+  std::unique_ptr<capture::RgbdSource> source = capture::OpenSource("3dmatch:" + dir);
   const Intrinsics camera = source->metadata().intrinsics;
   std::vector<RgbdFrame> frames;
   std::vector<Features> features;
@@ -143,4 +143,4 @@ TEST(Registration, RealLoungeFramesRegisterOrAreRefusedNeverWrong) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

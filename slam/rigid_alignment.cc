@@ -4,7 +4,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 bool AlignRigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
                 const std::vector<double>& weights, Eigen::Isometry3d* dst_from_src) {
@@ -48,4 +48,4 @@ bool AlignRigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen
   return true;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

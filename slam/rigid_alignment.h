@@ -7,7 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-namespace sightmap {
+namespace sightmap::slam {
 
 // The rigid transform dst_from_src minimising sum_i w_i |dst_i - (R src_i + t)|^2. Weights are
 // optional (empty = all 1). Returns false when the points are too few (< 3) or degenerate
@@ -15,4 +15,4 @@ namespace sightmap {
 bool AlignRigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
                 const std::vector<double>& weights, Eigen::Isometry3d* dst_from_src);
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 Eigen::Isometry3d SomeMotion() {
@@ -52,4 +52,4 @@ TEST(AlignRigid, RefusesTooFewAndCollinearPoints) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

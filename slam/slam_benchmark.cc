@@ -34,7 +34,7 @@
 #include "slam/tracker.h"
 #include "slam/trajectory_eval.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 struct Frame {
@@ -195,8 +195,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   // Every accepted loop against ground truth.
   for (const MapperLink& link : mapper.Links()) {
     // Priors are the motion model's guesses, not place recognition's claims.
-    if (link.type == LinkType::kOdometry || link.type == LinkType::kPrior ||
-        !link.active) {
+    if (link.type == LinkType::kOdometry || link.type == LinkType::kPrior || !link.active) {
       continue;
     }
     if (link.from == false_from && link.to == false_to) continue;
@@ -546,11 +545,11 @@ int Main(int argc, char** argv) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam
 
 int main(int argc, char** argv) {
   try {
-    return sightmap::Main(argc, argv);
+    return sightmap::slam::Main(argc, argv);
   } catch (const std::exception& error) {
     std::cerr << "error: " << error.what() << "\n";
     return 1;

@@ -13,7 +13,7 @@
 
 #include "slam/pose_graph.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace synthetic {
 
 // [R(w) | t] for delta = (t, w): the perturbation PoseGraphEdge::information is defined on.
@@ -145,4 +145,4 @@ inline double PositionRmse(const PoseGraph& graph, const std::vector<Eigen::Isom
 }
 
 }  // namespace synthetic
-}  // namespace sightmap
+}  // namespace sightmap::slam

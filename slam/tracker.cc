@@ -11,7 +11,7 @@
 #include "core/options_json.h"
 #include "core/rotation.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -135,8 +135,8 @@ struct Tracker::DenseFrame {
 
 namespace {
 
-KeyframeSamplerOptions RateOf(const TrackerOptions& options) {
-  KeyframeSamplerOptions rate;
+capture::KeyframeSamplerOptions RateOf(const TrackerOptions& options) {
+  capture::KeyframeSamplerOptions rate;
   rate.rate_hz = options.keyframe_rate_hz;
   return rate;
 }
@@ -385,4 +385,4 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
                       min_reference_points)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -27,9 +27,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <opencv2/core.hpp>
-
 #include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
 
 #include "capture/keyframe_sampler.h"
 #include "core/camera.h"
@@ -38,7 +37,7 @@
 #include "slam/features.h"
 #include "slam/registration.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct TrackerOptions {
   FeatureOptions features;
@@ -197,10 +196,10 @@ class Tracker {
   int reference_best_inliers_ = 0;     // the most inliers a frame had against the reference
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();  // last step: previous_from_last
   double velocity_dt_s_ = 0.0;
-  KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
+  capture::KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
   TrackerCounters counters_;
   DenseAligner aligner_;
   std::unique_ptr<DenseFrame> last_dense_;  // last_ prepared for alignment, when first needed
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -13,7 +13,7 @@
 #include "slam/mapper.h"
 #include "slam/sim_walk_testing.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 using Walk = testing::SimWalk;
@@ -200,4 +200,4 @@ TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -10,7 +10,7 @@
 #include "core/rotation.h"
 #include "slam/rigid_alignment.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 struct MatchedPose {
@@ -177,4 +177,4 @@ TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
   return result;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

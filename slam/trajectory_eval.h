@@ -9,7 +9,7 @@
 
 #include "core/rgbd_frame.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct TrajectoryEvalOptions {
   // Estimated and ground-truth poses are matched one-to-one, closest timestamps first, when no
@@ -50,4 +50,4 @@ TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
                                    const std::vector<StampedPose>& estimate,
                                    const TrajectoryEvalOptions& options = TrajectoryEvalOptions());
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -6,7 +6,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 // A 4 m x 3 m rectangle walked at 0.5 m/s, one pose per second, looking along the path.
@@ -143,4 +143,4 @@ TEST(TrajectoryEval, MatchesOneToOneWhenTheEstimateIsDenser) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

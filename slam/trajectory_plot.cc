@@ -8,7 +8,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
@@ -200,4 +200,4 @@ cv::Mat DrawTrajectoryPlot(const TrajectoryError& error, const TrajectoryPlotOpt
   return image;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

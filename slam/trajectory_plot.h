@@ -17,7 +17,7 @@
 
 #include "slam/trajectory_eval.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 
 struct TrajectoryPlotOptions {
   // Image size [px].
@@ -74,4 +74,4 @@ inline const cv::Scalar kPlotErrorColor(235, 170, 120);    // light blue
 cv::Mat DrawTrajectoryPlot(const TrajectoryError& error,
                            const TrajectoryPlotOptions& options = TrajectoryPlotOptions());
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -5,7 +5,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 bool HasColor(const cv::Mat& image, const cv::Scalar& color) {
@@ -120,4 +120,4 @@ TEST(TrajectoryPlot, RefusesBadOptions) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

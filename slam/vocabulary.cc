@@ -14,7 +14,7 @@
 #include "core/options_json.h"
 #include "slam/hamming.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 constexpr int kDescriptorBytes = 32;
@@ -508,4 +508,4 @@ double Vocabulary::Score(const BowVector& a, const BowVector& b) {
 SIGHTMAP_OPTIONS_JSON(VocabularyOptions, branching, depth, kmeans_iterations,
                       max_training_descriptors, seed)
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

@@ -12,7 +12,7 @@
 #include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
-namespace sightmap {
+namespace sightmap::slam {
 
 // Sparse tf-idf vector: (word id, weight) sorted by word id, weights positive and summing to 1
 // (empty when the image has no descriptor or only words every training image has).
@@ -99,4 +99,4 @@ class Vocabulary {
   std::vector<float> idf_;  // per word
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::slam

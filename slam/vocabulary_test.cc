@@ -19,7 +19,7 @@
 #include "slam/place_index.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::slam {
 namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -421,7 +421,7 @@ struct RealImage {
 
 std::vector<RealImage> LoadFrames(const std::string& source_name, const std::string& scene,
                                   const std::vector<int>& frame_numbers) {
-  std::unique_ptr<RgbdSource> source = OpenSource(source_name);
+  std::unique_ptr<capture::RgbdSource> source = capture::OpenSource(source_name);
   const Intrinsics camera = source->metadata().intrinsics;
   std::vector<RealImage> images;
   int index = 0;
@@ -546,4 +546,4 @@ TEST(PlaceRecognition, RealFramesFindTheirNeighbourAmongOtherRooms) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::slam

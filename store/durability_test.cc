@@ -19,7 +19,7 @@
 #include "store/synthetic_model.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 constexpr int kFeaturesPerKeyframe = 300;
@@ -163,4 +163,4 @@ TEST(Durability, FullDiskEndsTheWriterWithAClearErrorAndKeepsTheModel) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -14,7 +14,7 @@
 #include "store/trajectory.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 SyntheticKeyframeOptions WallKeyframes() {
@@ -346,4 +346,4 @@ TEST(Trajectory, ModelTrajectoryUsesOptimisedOrOdometryPoses) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::store

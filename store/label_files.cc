@@ -13,7 +13,7 @@
 #include "core/atomic_file.h"
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 // Parses three leading numbers separated by spaces, tabs, commas or semicolons.
@@ -150,4 +150,4 @@ int ImportLabels(Model& model, const std::string& dir, const std::string& type) 
   return static_cast<int>(labels.size());
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -9,7 +9,7 @@
 
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 // Points of one file; lines that do not start with three numbers (headers, comments) are skipped.
 // Throws Error when the file cannot be read or holds no point.
@@ -28,4 +28,4 @@ int ExportLabels(const Model& model, const std::string& dir);
 // are written, or none when a file is bad. Returns how many.
 int ImportLabels(Model& model, const std::string& dir, const std::string& type = "appliance");
 
-}  // namespace sightmap
+}  // namespace sightmap::store

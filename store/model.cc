@@ -21,7 +21,7 @@
 #include "store/sqlite_util.h"
 #include "store/writer_lock.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 namespace {
 // No building is 20 km across: a coordinate beyond this is a typo or a unit mix-up [m].
@@ -72,9 +72,9 @@ bool ValidLabelText(const std::string& name, LabelField field, std::string* why)
   return true;
 }
 
-using store_internal::Exec;
-using store_internal::Statement;
-using store_internal::Transaction;
+using internal::Exec;
+using internal::Statement;
+using internal::Transaction;
 
 namespace {
 
@@ -380,7 +380,7 @@ static constexpr const char* kKeyframeColumns =
     "odom_qx, odom_qy, odom_qz, odom_qw, width, height, fx, fy, cx, cy, num_features, "
     "color_bytes, depth_bytes";
 
-int Model::LatestSchemaVersion() { return store_internal::LatestSchemaVersion(); }
+int Model::LatestSchemaVersion() { return internal::LatestSchemaVersion(); }
 
 Model::Model(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Model::Model(Model&&) noexcept = default;
@@ -474,7 +474,7 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
                                   ".db file that sightmap wrote");
   }
   if (rc != SQLITE_OK) {
-    store_internal::ThrowSqliteError(db, rc, "open", __FILE__, __LINE__);
+    internal::ThrowSqliteError(db, rc, "open", __FILE__, __LINE__);
   }
 
   auto read_application_id = [db]() {
@@ -488,7 +488,7 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
     return static_cast<int>(query.Int(0));
   };
   auto check_ours = [&](int application_id, int64_t objects) {
-    if (application_id != store_internal::kApplicationId && objects > 0) {
+    if (application_id != internal::kApplicationId && objects > 0) {
       SIGHTMAP_THROW(Error, what << " is a SQLite database of another application, not a sightmap "
                                     "model: pass a sightmap model, or a new file name to create "
                                     "one");
@@ -526,7 +526,7 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
                                      << ", newer than this sightmap reads (" << latest
                                      << "): update sightmap");
     }
-    if (version < latest) store_internal::ApplyMigrations(db, version, latest);
+    if (version < latest) internal::ApplyMigrations(db, version, latest);
     transaction.Commit();
     impl->schema_version = latest;
   }
@@ -1002,4 +1002,4 @@ std::string Model::IntegrityCheck() const {
 SIGHTMAP_OPTIONS_JSON(ModelOptions, read_only, create_if_missing, jpeg_quality, png_compression,
                       sync_every_commit, busy_timeout_ms)
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -12,40 +12,16 @@
 #include <vector>
 
 #include <Eigen/Geometry>
-#include <opencv2/core.hpp>
-
 #include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
 
 #include "core/camera.h"
 #include "core/features.h"
+#include "core/ids.h"
 #include "core/link_type.h"
 #include "core/rgbd_frame.h"
 
-namespace sightmap {
-
-// IDs are SQLite row ids: positive once stored; 0 is "none". A distinct type per table so a
-// keyframe id cannot be passed where a label id is expected.
-template <typename Tag>
-class StoreId {
- public:
-  constexpr StoreId() = default;
-  constexpr explicit StoreId(int64_t value) : value_(value) {}
-  constexpr int64_t value() const { return value_; }
-  constexpr bool valid() const { return value_ > 0; }
-  constexpr bool operator==(StoreId other) const { return value_ == other.value_; }
-  constexpr bool operator!=(StoreId other) const { return value_ != other.value_; }
-  constexpr bool operator<(StoreId other) const { return value_ < other.value_; }
-
- private:
-  int64_t value_ = 0;
-};
-
-using SessionId = StoreId<struct SessionIdTag>;
-using KeyframeId = StoreId<struct KeyframeIdTag>;
-using LinkId = StoreId<struct LinkIdTag>;
-using LabelId = StoreId<struct LabelIdTag>;
-
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
+namespace sightmap::store {
 
 // How a session ended. kRunning is also what a crashed session looks like until
 // Model::MarkRunningSessionsInterrupted() is called by whoever resumes.
@@ -255,4 +231,4 @@ class Model {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -15,7 +15,7 @@
 #include "tests/command_runner.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 using testing::CountLines;
@@ -387,7 +387,7 @@ void MakeVersionOneModel(const std::string& path) {
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
   ASSERT_EQ(sqlite3_exec(db, "BEGIN", nullptr, nullptr, nullptr), SQLITE_OK);
-  store_internal::ApplyMigrations(db, 0, 1);
+  internal::ApplyMigrations(db, 0, 1);
   ASSERT_EQ(sqlite3_exec(db,
                          "INSERT INTO labels (name, type, created_ns, updated_ns) VALUES "
                          "('old-lamp', 'lamp', 1, 1); COMMIT",
@@ -529,4 +529,4 @@ TEST(Model, OptionsAreChecked) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::store

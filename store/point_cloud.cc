@@ -19,7 +19,7 @@
 #include "core/options_json.h"
 #include "core/voxel_key.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 // Back-projected points are summed per voxel as they arrive (a voxel grid's answer: each voxel's
@@ -462,4 +462,4 @@ std::vector<ColoredPoint> ReadPly(const std::string& path) {
 SIGHTMAP_OPTIONS_JSON(PlyExportOptions, pixel_step, min_depth_m, max_depth_m, voxel_size_m,
                       remove_outliers, outlier_neighbours, outlier_stddev)
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -7,12 +7,11 @@
 #include <vector>
 
 #include <Eigen/Core>
-
 #include <nlohmann/json_fwd.hpp>
 
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 struct PlyExportOptions {
   // Back-project every pixel_step-th pixel along u and v (16x fewer points at 4) [px].
@@ -56,4 +55,4 @@ PlyExportStats ExportPly(const Model& model, const std::string& path,
 // it cannot read.
 std::vector<ColoredPoint> ReadPly(const std::string& path);
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -6,7 +6,7 @@
 
 #include "store/sqlite_util.h"
 
-namespace sightmap::store_internal {
+namespace sightmap::store::internal {
 namespace {
 
 // Never edit a migration that has shipped: add a new one. Image blobs live in their own table so
@@ -142,4 +142,4 @@ void ApplyMigrations(sqlite3* db, int from_version, int to_version) {
   }
 }
 
-}  // namespace sightmap::store_internal
+}  // namespace sightmap::store::internal

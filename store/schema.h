@@ -4,7 +4,7 @@
 
 #include <sqlite3.h>
 
-namespace sightmap::store_internal {
+namespace sightmap::store::internal {
 
 // PRAGMA application_id of every sightmap model ("SMAP"), which tells our files from other
 // applications' SQLite databases without guessing from table names.
@@ -16,4 +16,4 @@ int LatestSchemaVersion();
 // is all or nothing.
 void ApplyMigrations(sqlite3* db, int from_version, int to_version);
 
-}  // namespace sightmap::store_internal
+}  // namespace sightmap::store::internal

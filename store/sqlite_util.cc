@@ -2,7 +2,7 @@
 
 #include <cstring>
 
-namespace sightmap::store_internal {
+namespace sightmap::store::internal {
 
 void ThrowSqliteError(sqlite3* db, int code, const char* call, const char* file, int line) {
   const char* path = db ? sqlite3_db_filename(db, "main") : nullptr;
@@ -131,4 +131,4 @@ void Transaction::Commit() {
   done_ = true;
 }
 
-}  // namespace sightmap::store_internal
+}  // namespace sightmap::store::internal

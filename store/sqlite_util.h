@@ -10,7 +10,7 @@
 
 #include "core/check.h"
 
-namespace sightmap::store_internal {
+namespace sightmap::store::internal {
 
 // Turns a failed sqlite3 return code into sightmap::Error with SQLite's own explanation, and a hint
 // when the cause is one the user can fix (full disk, read-only file).
@@ -19,14 +19,14 @@ namespace sightmap::store_internal {
 
 // SIGHTMAP_SQLITE3_CALL(db, sqlite3_exec(...)): every sqlite3 call goes through this (as COLMAP's
 // SQLITE3_CALL), so no return code is silently dropped.
-#define SIGHTMAP_SQLITE3_CALL(db, call)                                                      \
-  do {                                                                                       \
-    const int sightmap_sqlite_rc_ = (call);                                                  \
-    if (sightmap_sqlite_rc_ != SQLITE_OK && sightmap_sqlite_rc_ != SQLITE_ROW &&             \
-        sightmap_sqlite_rc_ != SQLITE_DONE) {                                                \
-      ::sightmap::store_internal::ThrowSqliteError(db, sightmap_sqlite_rc_, #call, __FILE__, \
-                                                   __LINE__);                                \
-    }                                                                                        \
+#define SIGHTMAP_SQLITE3_CALL(db, call)                                                       \
+  do {                                                                                        \
+    const int sightmap_sqlite_rc_ = (call);                                                   \
+    if (sightmap_sqlite_rc_ != SQLITE_OK && sightmap_sqlite_rc_ != SQLITE_ROW &&              \
+        sightmap_sqlite_rc_ != SQLITE_DONE) {                                                 \
+      ::sightmap::store::internal::ThrowSqliteError(db, sightmap_sqlite_rc_, #call, __FILE__, \
+                                                    __LINE__);                                \
+    }                                                                                         \
   } while (false)
 
 // Runs one or more statements without results.
@@ -80,4 +80,4 @@ class Transaction {
   bool done_ = false;
 };
 
-}  // namespace sightmap::store_internal
+}  // namespace sightmap::store::internal

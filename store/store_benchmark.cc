@@ -19,7 +19,7 @@
 #include "store/model.h"
 #include "store/synthetic_model.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -162,7 +162,7 @@ void LargeModel(const std::string& dir, int count) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::store
 
 int main(int argc, char** argv) {
   int count = 200;
@@ -178,9 +178,9 @@ int main(int argc, char** argv) {
   }
   std::filesystem::create_directories(dir);
   try {
-    sightmap::WriteThroughput(dir, count, true, png_compression);
-    sightmap::WriteThroughput(dir, count, false, png_compression);
-    sightmap::LargeModel(dir, large);
+    sightmap::store::WriteThroughput(dir, count, true, png_compression);
+    sightmap::store::WriteThroughput(dir, count, false, png_compression);
+    sightmap::store::LargeModel(dir, large);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;

@@ -5,7 +5,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 bool SyntheticKeyframeOptions::Check(std::string* error) const {
   auto fail = [error](const char* message) {
@@ -81,4 +81,4 @@ KeyframeRecord MakeSyntheticKeyframe(SessionId session, int index,
   return keyframe;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -6,7 +6,7 @@
 
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 struct SyntheticKeyframeOptions {
   int width = 640;               // [px]
@@ -27,4 +27,4 @@ KeyframeRecord MakeSyntheticKeyframe(SessionId session, int index,
 // Intrinsics of the synthetic camera (a 640x480 Kinect-like field of view, scaled).
 Intrinsics SyntheticIntrinsics(int width, int height);
 
-}  // namespace sightmap
+}  // namespace sightmap::store

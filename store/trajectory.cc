@@ -1,6 +1,6 @@
 #include "store/trajectory.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 std::vector<StampedPose> ModelTrajectory(const Model& model, bool odometry) {
   std::vector<StampedPose> poses;
@@ -11,4 +11,4 @@ std::vector<StampedPose> ModelTrajectory(const Model& model, bool odometry) {
   return poses;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -8,9 +8,9 @@
 #include "core/tum_format.h"
 #include "store/model.h"
 
-namespace sightmap {
+namespace sightmap::store {
 
 // The model's keyframes in id order: optimised poses, or the raw odometry.
 std::vector<StampedPose> ModelTrajectory(const Model& model, bool odometry = false);
 
-}  // namespace sightmap
+}  // namespace sightmap::store

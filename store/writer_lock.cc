@@ -11,7 +11,7 @@
 
 #include "core/check.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 std::string ReadHolder(int fd) {
@@ -73,4 +73,4 @@ WriterLock& WriterLock::operator=(WriterLock&& other) noexcept {
   return *this;
 }
 
-}  // namespace sightmap
+}  // namespace sightmap::store

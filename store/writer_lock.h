@@ -10,7 +10,7 @@
 
 #include <string>
 
-namespace sightmap {
+namespace sightmap::store {
 
 class WriterLock {
  public:
@@ -30,4 +30,4 @@ class WriterLock {
   int fd_ = -1;
 };
 
-}  // namespace sightmap
+}  // namespace sightmap::store

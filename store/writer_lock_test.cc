@@ -16,7 +16,7 @@
 #include "store/model.h"
 #include "tests/test_data.h"
 
-namespace sightmap {
+namespace sightmap::store {
 namespace {
 
 std::string ErrorOf(const std::function<void()>& open) {
@@ -71,4 +71,4 @@ TEST(WriterLock, AKilledWriterLeavesTheModelFree) {
 }
 
 }  // namespace
-}  // namespace sightmap
+}  // namespace sightmap::store

@@ -147,8 +147,8 @@ TEST(Cli, DevicesExitsZeroWithoutASensor) {
 // nothing, one loop closure inside the first, two labels.
 std::string MakeSmallModel(const std::string& name) {
   const std::string path = testing::MakeTempDir(name) + "/model.db";
-  Model model = Model::Open(path);
-  SyntheticKeyframeOptions options;
+  store::Model model = store::Model::Open(path);
+  store::SyntheticKeyframeOptions options;
   options.width = 160;
   options.height = 120;
   options.num_features = 20;
@@ -156,25 +156,26 @@ std::string MakeSmallModel(const std::string& name) {
   for (int session_index = 0; session_index < 2; ++session_index) {
     const SessionId session = model.BeginSession({});
     for (int i = 0; i < 2; ++i) {
-      KeyframeRecord keyframe = MakeSyntheticKeyframe(session, session_index * 2 + i, options);
+      store::KeyframeRecord keyframe =
+          store::MakeSyntheticKeyframe(session, session_index * 2 + i, options);
       if (i > 0) {
-        LinkRecord odometry;
+        store::LinkRecord odometry;
         odometry.from = ids.back();
         keyframe.links.push_back(odometry);
       }
       ids.push_back(model.AddKeyframe(keyframe));
     }
-    model.EndSession(session, SessionEnd::kFinished, 1);
+    model.EndSession(session, store::SessionEnd::kFinished, 1);
   }
-  LinkRecord loop;
+  store::LinkRecord loop;
   loop.from = ids[1];
   loop.to = ids[0];
   loop.type = LinkType::kLoopClosure;
   model.AddLink(loop);
   for (const char* name_of_label : {"lamp", "projector"}) {
-    LabelRecord label;
+    store::LabelRecord label;
     label.name = name_of_label;
-    LabelPoint point;
+    store::LabelPoint point;
     point.world = Eigen::Vector3d(1.0, 0.5, 2.0);
     label.points.push_back(point);
     model.AddLabel(label);
@@ -192,7 +193,7 @@ TEST(Cli, InfoJsonKeysOfASmallModel) {
   EXPECT_EQ(info.at("loop_closures"), 1);
   EXPECT_EQ(info.at("segments"), 2);
   EXPECT_EQ(info.at("labels"), 2);
-  EXPECT_EQ(info.at("schema_version"), Model::LatestSchemaVersion());
+  EXPECT_EQ(info.at("schema_version"), store::Model::LatestSchemaVersion());
   EXPECT_GT(info.at("size_bytes").get<int64_t>(), 10000);
   EXPECT_EQ(info.at("links").at("odometry"), 2);
   EXPECT_NEAR(info.at("bounding_box").at("max")[0].get<double>(), 1.0, 1e-9);
@@ -210,7 +211,7 @@ TEST(Cli, ExportWritesPlyTrajectoryAndLabels) {
                out + "/poses.txt --labels " + out + "/labels");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_TRUE(run.err.empty()) << run.err;
-  const std::vector<ColoredPoint> cloud = ReadPly(out + "/cloud.ply");
+  const std::vector<store::ColoredPoint> cloud = store::ReadPly(out + "/cloud.ply");
   EXPECT_GT(cloud.size(), 100u);
   EXPECT_NE(run.out.find(std::to_string(cloud.size()) + " points from 4 keyframes"),
             std::string::npos)
@@ -219,11 +220,11 @@ TEST(Cli, ExportWritesPlyTrajectoryAndLabels) {
   ASSERT_EQ(poses.size(), 4u);
   EXPECT_EQ(poses[3].timestamp_ns, 3000000000);
   EXPECT_NEAR(poses[3].world_from_cam.translation().x(), 0.3, 1e-9);
-  EXPECT_EQ(ReadPointList(out + "/labels/projector.txt").size(), 1u);
+  EXPECT_EQ(store::ReadPointList(out + "/labels/projector.txt").size(), 1u);
   EXPECT_TRUE(std::ifstream(out + "/labels/lamp.txt").good());
   // A coarser voxel gives fewer points.
   ASSERT_EQ(Sightmap("export " + path + " --ply " + out + "/coarse.ply --voxel 0.2").exit_code, 0);
-  EXPECT_LT(ReadPly(out + "/coarse.ply").size(), cloud.size());
+  EXPECT_LT(store::ReadPly(out + "/coarse.ply").size(), cloud.size());
 }
 
 TEST(Cli, BadModelFilesExitOneWithOneLine) {

@@ -24,14 +24,14 @@ using testing::Sightmap;
 // Two 160x120 keyframes facing the synthetic wall 2 m away, the second 0.1 m along x.
 std::string MakeModel(const std::string& dir) {
   const std::string path = dir + "/model.db";
-  Model model = Model::Open(path);
-  SyntheticKeyframeOptions options;
+  store::Model model = store::Model::Open(path);
+  store::SyntheticKeyframeOptions options;
   options.width = 160;
   options.height = 120;
   options.num_features = 10;
   const SessionId session = model.BeginSession({});
-  for (int i = 0; i < 2; ++i) model.AddKeyframe(MakeSyntheticKeyframe(session, i, options));
-  model.EndSession(session, SessionEnd::kFinished, 1);
+  for (int i = 0; i < 2; ++i) model.AddKeyframe(store::MakeSyntheticKeyframe(session, i, options));
+  model.EndSession(session, store::SessionEnd::kFinished, 1);
   return path;
 }
 
@@ -49,7 +49,7 @@ void ExpectPoint(const nlohmann::json& point, const Eigen::Vector3d& expected) {
 TEST(LabelCommand, AddListRemoveExport) {
   const std::string dir = testing::MakeTempDir("label_cli_add");
   const std::string model = MakeModel(dir);
-  const Intrinsics k = SyntheticIntrinsics(160, 120);
+  const Intrinsics k = store::SyntheticIntrinsics(160, 120);
 
   CommandResult run =
       Sightmap("label add --model " + model + " --name lamp --keyframe 2 --pixel 30,40");
@@ -83,7 +83,7 @@ TEST(LabelCommand, AddListRemoveExport) {
 
   run = Sightmap("label export --model " + model + " --dir " + dir + "/labels");
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  EXPECT_EQ(ReadPointList(dir + "/labels/lamp.txt").size(), 2u);
+  EXPECT_EQ(store::ReadPointList(dir + "/labels/lamp.txt").size(), 2u);
 
   run = Sightmap("label remove --model " + model + " --name lamp");
   ASSERT_EQ(run.exit_code, 0) << run.err;

@@ -100,7 +100,7 @@ class Background {
 int64_t CommittedKeyframes(const std::string& path) {
   if (!std::filesystem::exists(path)) return 0;
   try {
-    return Model::Open(path, ModelOptions::ReadOnly()).NumKeyframes();
+    return store::Model::Open(path, store::ModelOptions::ReadOnly()).NumKeyframes();
   } catch (const std::exception&) {
     return 0;  // created but the schema not committed yet
   }
@@ -124,14 +124,14 @@ nlohmann::json Info(const std::string& model) {
 }
 
 // Whether two keyframes are joined by a chain of links.
-bool Connected(const std::vector<LinkRecord>& links, KeyframeId a, KeyframeId b) {
+bool Connected(const std::vector<store::LinkRecord>& links, KeyframeId a, KeyframeId b) {
   std::map<int64_t, int64_t> parent;
   std::function<int64_t(int64_t)> root = [&](int64_t id) {
     auto it = parent.find(id);
     if (it == parent.end() || it->second == id) return id;
     return it->second = root(it->second);
   };
-  for (const LinkRecord& link : links) {
+  for (const store::LinkRecord& link : links) {
     const int64_t from = root(link.from.value());
     const int64_t to = root(link.to.value());
     if (from != to) parent[from] = to;
@@ -154,11 +154,11 @@ void ExpectRecordingMapsEveryFrame(const std::string& recording, int frames) {
   EXPECT_EQ(summary.at("dropped_frames"), 0) << "a replay waits for the mapper";
   EXPECT_EQ(summary.at("reason"), "the source ended");
   EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), frames);
-  const Model model = Model::Open(dir + "/m.db", ModelOptions::ReadOnly());
+  const store::Model model = store::Model::Open(dir + "/m.db", store::ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), frames);
   ASSERT_EQ(model.Sessions().size(), 1u);
-  EXPECT_EQ(model.Sessions()[0].end_state, SessionEnd::kFinished);
-  const std::vector<ColoredPoint> cloud = ReadPly(dir + "/m.ply");
+  EXPECT_EQ(model.Sessions()[0].end_state, store::SessionEnd::kFinished);
+  const std::vector<store::ColoredPoint> cloud = store::ReadPly(dir + "/m.ply");
   EXPECT_GT(cloud.size(), 1000u);
   EXPECT_EQ(static_cast<int64_t>(cloud.size()), summary.at("ply_points").get<int64_t>());
 }
@@ -221,7 +221,7 @@ TEST(Map, ASimWalkWritesProgressImageTrajectoryAndAte) {
   EXPECT_GT(stddev[0] + stddev[1] + stddev[2], 10.0) << "the progress image is blank";
   EXPECT_FALSE(std::filesystem::exists(dir + "/p.png.tmp"));
   EXPECT_EQ(ReadTumTrajectory(dir + "/t.txt").size(), 40u);
-  EXPECT_GT(ReadPly(dir + "/m.ply").size(), 10000u);
+  EXPECT_GT(store::ReadPly(dir + "/m.ply").size(), 10000u);
 }
 
 // The summary's ATE is the one `eval trajectory` computes from the exported trajectory and the
@@ -427,15 +427,15 @@ TEST(Map, CtrlCFinishesCommitsWritesThePlyAndExitsZero) {
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("stopped: interrupted"), std::string::npos) << result.out;
   EXPECT_LT(stop_s, 30.0);
-  const Model reopened = Model::Open(model, ModelOptions::ReadOnly());
+  const store::Model reopened = store::Model::Open(model, store::ModelOptions::ReadOnly());
   const int64_t keyframes = reopened.NumKeyframes();
   EXPECT_GE(keyframes, 5);
   EXPECT_LT(keyframes, 300);
   EXPECT_NE(result.out.find("map: " + std::to_string(keyframes) + " keyframes"), std::string::npos)
       << result.out;
   ASSERT_EQ(reopened.Sessions().size(), 1u);
-  EXPECT_EQ(reopened.Sessions()[0].end_state, SessionEnd::kFinished);
-  EXPECT_GT(ReadPly(dir + "/m.ply").size(), 1000u);
+  EXPECT_EQ(reopened.Sessions()[0].end_state, store::SessionEnd::kFinished);
+  EXPECT_GT(store::ReadPly(dir + "/m.ply").size(), 1000u);
   std::printf("SIGINT after >= 5 keyframes: %lld keyframes kept, stopped in %.2f s\n",
               static_cast<long long>(keyframes), stop_s);
 }
@@ -457,7 +457,7 @@ TEST(Map, ASecondCtrlCExitsAtOnceAndTheModelStillOpens) {
   const CommandResult result = run.Wait();
   EXPECT_EQ(result.exit_code, 128 + SIGINT) << result.err;
   EXPECT_NE(result.err.find("second signal"), std::string::npos) << result.err;
-  const Model reopened = Model::Open(model, ModelOptions::ReadOnly());
+  const store::Model reopened = store::Model::Open(model, store::ModelOptions::ReadOnly());
   EXPECT_EQ(reopened.IntegrityCheck(), "ok");
   EXPECT_GE(reopened.NumKeyframes(), 10);
 }
@@ -487,11 +487,12 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
     std::this_thread::sleep_for(std::chrono::milliseconds(extra_ms));
     run.Signal(SIGKILL);
     EXPECT_EQ(run.Wait().exit_code, 128 + SIGKILL);
-    const Model killed = Model::Open(model, ModelOptions::ReadOnly());
+    const store::Model killed = store::Model::Open(model, store::ModelOptions::ReadOnly());
     EXPECT_EQ(killed.IntegrityCheck(), "ok");
     committed = killed.NumKeyframes();
     ASSERT_EQ(killed.Sessions().size(), 1u);
-    EXPECT_EQ(killed.Sessions()[0].end_state, SessionEnd::kRunning) << "as a crash leaves it";
+    EXPECT_EQ(killed.Sessions()[0].end_state, store::SessionEnd::kRunning)
+        << "as a crash leaves it";
     EXPECT_TRUE(killed.LoadVocabulary().has_value());
   }
   const int64_t segments_before = Info(model).at("segments").get<int64_t>();
@@ -511,13 +512,13 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
   EXPECT_EQ(summary.at("keyframes"), 15);
   EXPECT_EQ(summary.at("joined_stored_map"), true) << resumed.out;
 
-  const Model after = Model::Open(model, ModelOptions::ReadOnly());
+  const store::Model after = store::Model::Open(model, store::ModelOptions::ReadOnly());
   EXPECT_EQ(after.IntegrityCheck(), "ok");
   EXPECT_EQ(after.NumKeyframes(), committed + 15);
-  const std::vector<SessionRecord> sessions = after.Sessions();
+  const std::vector<store::SessionRecord> sessions = after.Sessions();
   ASSERT_EQ(sessions.size(), 2u);
-  EXPECT_EQ(sessions[0].end_state, SessionEnd::kInterrupted);
-  EXPECT_EQ(sessions[1].end_state, SessionEnd::kFinished);
+  EXPECT_EQ(sessions[0].end_state, store::SessionEnd::kInterrupted);
+  EXPECT_EQ(sessions[1].end_state, store::SessionEnd::kFinished);
   const nlohmann::json info = Info(model);
   EXPECT_EQ(info.at("sessions"), 2);
   EXPECT_GE(info.at("links").at("relocalisation").get<int64_t>(), 1);
@@ -525,12 +526,12 @@ TEST(Map, AKilledRunResumesIntoTheSameGraph) {
   // keyframe of the same frame (through any chain of links) must land where the first session put
   // that frame; at least one must (at 1 Hz odometry is lost now and then, so not every revisit
   // joins, and the total segment count may grow by ordinary losses: that is slam's business).
-  const std::vector<KeyframeInfo> keyframes = after.Keyframes();
-  const std::vector<LinkRecord> links = after.Links();
+  const std::vector<store::KeyframeInfo> keyframes = after.Keyframes();
+  const std::vector<store::LinkRecord> links = after.Links();
   int joined_revisits = 0;
   for (int64_t i = 0; i < 15; ++i) {
-    const KeyframeInfo& twin = keyframes[static_cast<size_t>(start + i)];
-    const KeyframeInfo& again = keyframes[static_cast<size_t>(committed + i)];
+    const store::KeyframeInfo& twin = keyframes[static_cast<size_t>(start + i)];
+    const store::KeyframeInfo& again = keyframes[static_cast<size_t>(committed + i)];
     if (!Connected(links, twin.id, again.id)) continue;
     ++joined_revisits;
     EXPECT_LT((twin.world_from_cam.translation() - again.world_from_cam.translation()).norm(), 0.10)
@@ -563,7 +564,8 @@ TEST(Map, ARecordingAtItsRecordedPaceTakesTheLiveSensorPath) {
   EXPECT_EQ(keyframes + dropped + unpaired, 12)
       << "every frame is mapped, or counted as dropped (behind the recorded pace) or unpaired";
   EXPECT_GE(summary.at("elapsed_s").get<double>(), 0.3) << "12 frames recorded over 0.367 s";
-  EXPECT_EQ(Model::Open(dir + "/m.db", ModelOptions::ReadOnly()).NumKeyframes(), keyframes);
+  EXPECT_EQ(store::Model::Open(dir + "/m.db", store::ModelOptions::ReadOnly()).NumKeyframes(),
+            keyframes);
   std::printf("realtime replay of 12 frames at 30 Hz: %lld mapped, %lld dropped, %lld unpaired\n",
               static_cast<long long>(keyframes), static_cast<long long>(dropped),
               static_cast<long long>(unpaired));

@@ -49,13 +49,13 @@ nlohmann::json ChangeEveryLeaf(const nlohmann::json& json, const std::string& ke
 template <typename Options>
 class OptionsJson : public ::testing::Test {};
 
-using AllOptions =
-    ::testing::Types<SourceOptions, KeyframeSamplerOptions, FeatureOptions, MatchOptions,
-                     RegistrationOptions, PoseGraphOptions, VocabularyOptions,
-                     DenseAlignmentOptions, TrackerOptions, MapperOptions, ModelOptions,
-                     PlyExportOptions, mapping::TrackStageOptions, mapping::MapViewFeedOptions,
-                     mapping::MappingOptions, LocatorOptions, PixelLabelOptions, LabelViewOptions,
-                     cli::LocateServerOptions, cli::LabelServiceOptions>;
+using AllOptions = ::testing::Types<
+    capture::SourceOptions, capture::KeyframeSamplerOptions, slam::FeatureOptions,
+    slam::MatchOptions, slam::RegistrationOptions, slam::PoseGraphOptions, slam::VocabularyOptions,
+    slam::DenseAlignmentOptions, slam::TrackerOptions, slam::MapperOptions, store::ModelOptions,
+    store::PlyExportOptions, mapping::TrackStageOptions, mapping::MapViewFeedOptions,
+    mapping::MappingOptions, identify::LocatorOptions, identify::PixelLabelOptions,
+    identify::LabelViewOptions, cli::LocateServerOptions, cli::LabelServiceOptions>;
 TYPED_TEST_SUITE(OptionsJson, AllOptions);
 
 TYPED_TEST(OptionsJson, EveryFieldReadsBackWhatWasWritten) {
@@ -84,7 +84,7 @@ TEST(MappingOptionsJson, NestedOptionsAreReadIntoTheirOwnStruct) {
             options);
   EXPECT_EQ(options.sampler.rate_hz, 2.5);
   EXPECT_EQ(options.mapper.pose_graph.max_iterations, 7);
-  EXPECT_EQ(options.mapper.features.type, FeatureOptions::Type::kSift);
+  EXPECT_EQ(options.mapper.features.type, slam::FeatureOptions::Type::kSift);
   EXPECT_EQ(options.view.world_up, Eigen::Vector3d::UnitZ());
   EXPECT_EQ(options.view.choice, mapping::ViewChoice::kPreview);
   // What the struct sets apart from its members' defaults survives a partial config.

@@ -144,9 +144,9 @@ class ServeTest : public ::testing::Test {
     // still sending: the write fails with EPIPE, which must not kill the test.
     ::signal(SIGPIPE, SIG_IGN);
     dir_ = new fs::path(testing::MakeTempDir("serve-test"));
-    SimModelOptions options;
+    identify::SimModelOptions options;
     options.keyframes = 60;
-    BuildSimulatorModel((*dir_ / "model.db").string(), options);
+    identify::BuildSimulatorModel((*dir_ / "model.db").string(), options);
     // Phone photos of another day (session 2), with ground truth, as a phone would send them.
     const testing::CommandResult generated = testing::RunCommand(
         SIGHTMAP_BINARY,
