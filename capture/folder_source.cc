@@ -78,12 +78,6 @@ struct FolderFrame {
 // ------------------------------------------------------------------------------------------------
 // Text files
 
-[[noreturn]] void ThrowMalformed(const fs::path& path, int line_number, const std::string& line,
-                                 const std::string& expected) {
-  SIGHTMAP_THROW(Error, path.string() << ":" << line_number << ": expected " << expected
-                                      << " but found \"" << line << "\"; fix or delete the line");
-}
-
 // Calls parse(tokens, line_number, line) for every line that is neither blank nor a comment.
 // Commas separate fields too, as in TUM's own tools.
 template <typename ParseFn>
@@ -93,10 +87,11 @@ void ForEachDataLine(const fs::path& path, ParseFn&& parse) {
   ForEachTumLine(in, parse);
 }
 
-bool ParseDouble(const std::string& text, double* value) {
+// 3DMatch marks a frame without a pose by a matrix of -inf: infinities are numbers here.
+bool ParseNumberOrInfinity(const std::string& text, double* value) {
   char* end = nullptr;
   *value = std::strtod(text.c_str(), &end);
-  return !text.empty() && end == text.c_str() + text.size();
+  return !text.empty() && end == text.c_str() + text.size() && !std::isnan(*value);
 }
 
 bool AllDigits(const std::string& text) {
@@ -117,7 +112,8 @@ std::vector<TimedFile> ReadTumFileList(const fs::path& path) {
       path, [&](const std::vector<std::string>& tokens, int line_number, const std::string& line) {
         TimedFile entry;
         if (tokens.size() != 2 || !ParseTimestampNs(tokens[0], &entry.ns)) {
-          ThrowMalformed(path, line_number, line, "\"timestamp filename\" (seconds, then a path)");
+          ThrowMalformedLine(path.string(), line_number, line,
+                             "\"timestamp filename\" (seconds, then a path)");
         }
         entry.file = tokens[1];
         entry.line = line_number;
@@ -507,7 +503,7 @@ std::vector<double> ReadNumbers(const fs::path& path) {
   std::string token;
   while (in >> token) {
     double value = 0.0;
-    SIGHTMAP_CHECK(ParseDouble(token, &value),
+    SIGHTMAP_CHECK(ParseNumberOrInfinity(token, &value),
                    path.string() << ": \"" << token << "\" is not a number; fix the file");
     numbers.push_back(value);
   }

@@ -21,6 +21,10 @@ TEST(WebAssets, PagesAreServedAtTheirRoutesWithTheirTypes) {
   EXPECT_EQ(FindWebAsset("/static/sightmap.css")->content_type, "text/css; charset=utf-8");
   EXPECT_FALSE(FindWebAsset("/static/label.html")) << "pages only at their routes";
   EXPECT_FALSE(FindWebAsset("/static/none.js"));
+  ASSERT_TRUE(FindWebAsset("/static/marks.js"));
+  for (const char* page : {"/", "/label"}) {
+    EXPECT_NE(FindWebAsset(page)->bytes.find("/static/marks.js"), std::string_view::npos) << page;
+  }
   EXPECT_FALSE(FindWebAsset("/nowhere"));
 }
 

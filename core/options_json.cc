@@ -56,7 +56,8 @@ std::string PlainMessage(const nlohmann::json::exception& error) {
 void CheckKeys(const nlohmann::json& json, const char* fields) {
   if (!json.is_object()) throw OptionsJsonError("", "must be an object ({...})");
   const std::vector<std::string> names = SplitFieldList(fields);
-  for (const auto& [key, value] : json.items()) {
+  for (auto item = json.begin(); item != json.end(); ++item) {
+    const std::string& key = item.key();
     if (std::find(names.begin(), names.end(), key) != names.end()) continue;
     std::string reason = "unknown option";
     // A typo is a few letters off; anything further is not worth a guess.

@@ -23,13 +23,19 @@ bool AllDigits(const std::string& text) {
                      [](char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; });
 }
 
-bool ParseDouble(const std::string& text, double* value) {
+}  // namespace
+
+bool ParseFiniteDouble(const std::string& text, double* value) {
   char* end = nullptr;
   *value = std::strtod(text.c_str(), &end);
   return !text.empty() && end == text.c_str() + text.size() && std::isfinite(*value);
 }
 
-}  // namespace
+void ThrowMalformedLine(const std::string& path, int line_number, const std::string& line,
+                        const std::string& expected) {
+  SIGHTMAP_THROW(Error, path << ":" << line_number << ": expected " << expected << " but found \""
+                             << line << "\"; fix or delete the line");
+}
 
 bool ParseTimestampNs(const std::string& text, TimestampNs* ns) {
   const bool negative = !text.empty() && text[0] == '-';
@@ -97,13 +103,11 @@ std::vector<StampedPose> ReadTumTrajectory(const std::string& path) {
         StampedPose pose;
         std::array<double, 7> v{};
         bool ok = tokens.size() == 8 && ParseTimestampNs(tokens[0], &pose.timestamp_ns);
-        for (size_t i = 0; ok && i < v.size(); ++i) ok = ParseDouble(tokens[i + 1], &v[i]);
+        for (size_t i = 0; ok && i < v.size(); ++i) ok = ParseFiniteDouble(tokens[i + 1], &v[i]);
         const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);  // the file's order is x y z w
         if (!ok || !(q.norm() > 1e-6)) {
-          SIGHTMAP_THROW(Error, path << ":" << line_number
-                                     << ": expected \"timestamp tx ty tz qx qy qz qw\" with a "
-                                        "non-zero quaternion but found \""
-                                     << line << "\"; fix or delete the line");
+          ThrowMalformedLine(path, line_number, line,
+                             "\"timestamp tx ty tz qx qy qz qw\" with a non-zero quaternion");
         }
         pose.world_from_cam.linear() = q.normalized().toRotationMatrix();
         pose.world_from_cam.translation() = Eigen::Vector3d(v[0], v[1], v[2]);

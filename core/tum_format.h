@@ -20,6 +20,14 @@ bool ParseTimestampNs(const std::string& text, TimestampNs* ns);
 // 1305031102175304000 ns -> "1305031102.175304000".
 std::string FormatTimestamp(TimestampNs ns);
 
+// A whole field as a finite number ("1.5", "-2e3"); false for "", "1.5x", "nan" or "inf".
+bool ParseFiniteDouble(const std::string& text, double* value);
+
+// Throws Error "<path>:<line_number>: expected <expected> but found "<line>"; fix or delete the
+// line": what every reader of a line-based text file says about a line it cannot read.
+[[noreturn]] void ThrowMalformedLine(const std::string& path, int line_number,
+                                     const std::string& line, const std::string& expected);
+
 // Calls fields_of_line(fields, line_number, line) for every line of `in` that is neither blank nor
 // a '#' comment: its fields separated by spaces or commas, its 1-based number, and the line as
 // written (a trailing '\r' dropped), for error messages.

@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
-#include "mapping/failing_source_testing.h"
+#include "mapping/source_testing.h"
 #include "sim/sim_source.h"
 
 namespace sightmap::mapping {
@@ -49,25 +49,21 @@ TEST(CaptureStage, AReplayPassesEveryNthFrameFromTheStartFrameAndDropsNone) {
 
 // A real source behind a counter of the frames it produced; `can_peek` false hides PeekStamp, as
 // a source that cannot tell a frame's stamp without decoding it.
-class CountingSource : public capture::RgbdSource {
+class CountingSource : public testing::ForwardingSource {
  public:
   CountingSource(std::unique_ptr<capture::RgbdSource> source, bool can_peek)
-      : source_(std::move(source)), can_peek_(can_peek) {}
-  const capture::SourceMetadata& metadata() const override { return source_->metadata(); }
+      : ForwardingSource(std::move(source)), can_peek_(can_peek) {}
   std::optional<RgbdFrame> Next() override {
-    std::optional<RgbdFrame> frame = source_->Next();
+    std::optional<RgbdFrame> frame = ForwardingSource::Next();
     produced += frame ? 1 : 0;
     return frame;
   }
   std::optional<FrameStamp> PeekStamp() const override {
-    return can_peek_ ? source_->PeekStamp() : std::nullopt;
+    return can_peek_ ? ForwardingSource::PeekStamp() : std::nullopt;
   }
-  void SkipNext() override { source_->SkipNext(); }
-  capture::SourceStats stats() const override { return source_->stats(); }
   int produced = 0;
 
  private:
-  std::unique_ptr<capture::RgbdSource> source_;
   bool can_peek_;
 };
 
@@ -118,27 +114,26 @@ TEST(CaptureStage, ALiveSensorNeverWaitsAndTheTrackerGetsTheNewestFrames) {
 }
 
 // A source that loses every third frame before it is read, as OpenNI2 does behind a live pace.
-class MissingSource : public capture::RgbdSource {
+class MissingSource : public testing::ForwardingSource {
  public:
-  explicit MissingSource(std::unique_ptr<capture::RgbdSource> source)
-      : source_(std::move(source)) {}
-  const capture::SourceMetadata& metadata() const override { return source_->metadata(); }
+  using ForwardingSource::ForwardingSource;
   std::optional<RgbdFrame> Next() override {
-    std::optional<RgbdFrame> frame = source_->Next();
+    std::optional<RgbdFrame> frame = ForwardingSource::Next();
     if (frame && frame->index % 3 == 2) {
       ++missed_;
-      frame = source_->Next();
+      frame = ForwardingSource::Next();
     }
     return frame;
   }
+  // Which frame comes next is not known until it arrives.
+  std::optional<FrameStamp> PeekStamp() const override { return std::nullopt; }
   capture::SourceStats stats() const override {
-    capture::SourceStats stats = source_->stats();
+    capture::SourceStats stats = ForwardingSource::stats();
     stats.missed_depth_frames = missed_;
     return stats;
   }
 
  private:
-  std::unique_ptr<capture::RgbdSource> source_;
   int64_t missed_ = 0;
 };
 

@@ -12,7 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
-#include "mapping/failing_source_testing.h"
+#include "mapping/source_testing.h"
 #include "sim/sim_source.h"
 #include "store/trajectory.h"
 #include "tests/test_data.h"

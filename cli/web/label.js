@@ -125,23 +125,18 @@ function drawKeyframe() {
   canvas.height = image.naturalHeight;
   const context = canvas.getContext('2d');
   context.drawImage(image, 0, 0);
-  // Marks sized for the screen, whatever the image's resolution: 7 CSS px.
-  const imagePxPerCssPx = canvas.width / (canvas.getBoundingClientRect().width || canvas.width);
-  const unit = 7 * imagePxPerCssPx;
+  const unit = markUnit(canvas, 7);
   context.font = `600 ${Math.round(unit * 1.7)}px system-ui, sans-serif`;
   context.textBaseline = 'middle';
   for (const label of state.seen) {
     for (const point of label.points) {
       const [u, v] = point.pixel;
-      context.beginPath();
-      context.arc(u, v, unit, 0, 2 * Math.PI);
-      context.lineWidth = unit / 2.5;
-      context.setLineDash(point.hidden ? [unit / 2, unit / 3] : []);
-      context.strokeStyle = point.hidden ? '#7a8494' : '#ffffff';
-      context.fillStyle = point.hidden ? 'rgba(255,255,255,0.4)' : '#0a8a4a';
-      context.fill();
-      context.stroke();
-      context.setLineDash([]);
+      drawMark(context, u, v, unit, {
+        lineWidthRatio: 1 / 2.5,
+        dashed: point.hidden,
+        fill: point.hidden ? 'rgba(255,255,255,0.4)' : '#0a8a4a',
+        stroke: point.hidden ? '#7a8494' : '#ffffff',
+      });
       const text = label.name + (point.hidden ? ' (behind)' : '');
       const width = context.measureText(text).width;
       const x = Math.min(u + unit * 1.5, canvas.width - width - unit);

@@ -126,9 +126,7 @@ function drawAnswer(bitmap, answer) {
   canvas.height = bitmap.height;
   const context = canvas.getContext('2d');
   context.drawImage(bitmap, 0, 0);
-  // Marks sized for the screen, whatever the photo's resolution: 11 CSS px.
-  const imagePxPerCssPx = canvas.width / (canvas.getBoundingClientRect().width || canvas.width);
-  const unit = 11 * imagePxPerCssPx;
+  const unit = markUnit(canvas, 11);
   context.font = `600 ${Math.round(unit * 1.2)}px system-ui, sans-serif`;
   context.textBaseline = 'middle';
   const colours = {visible: '#0a8a4a', partly: '#c77700', hidden: '#7a8494'};
@@ -137,15 +135,12 @@ function drawAnswer(bitmap, answer) {
   for (const {appliance, index} of order) {
     const [u, v] = appliance.pixel;
     const look = visibilityOf(appliance);
-    context.lineWidth = unit / 3;
-    context.setLineDash(look.css === 'visible' ? [] : [unit / 2, unit / 3]);
-    context.beginPath();
-    context.arc(u, v, unit, 0, 2 * Math.PI);
-    context.fillStyle = look.css === 'visible' ? colours.visible : 'rgba(255,255,255,0.6)';
-    context.fill();
-    context.strokeStyle = look.css === 'visible' ? '#ffffff' : colours[look.css];
-    context.stroke();
-    context.setLineDash([]);
+    drawMark(context, u, v, unit, {
+      lineWidthRatio: 1 / 3,
+      dashed: look.css !== 'visible',
+      fill: look.css === 'visible' ? colours.visible : 'rgba(255,255,255,0.6)',
+      stroke: look.css === 'visible' ? '#ffffff' : colours[look.css],
+    });
     context.fillStyle = look.css === 'visible' ? '#ffffff' : colours[look.css];
     context.textAlign = 'center';
     context.fillText(String(index + 1), u, v);
