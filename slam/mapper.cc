@@ -262,10 +262,7 @@ void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
   edge.to = link.to;
   edge.to_in_from = link.to_in_from;
   edge.information = link.information;
-  // A prior is odometry to the graph: switching it off would split the map it holds together.
-  edge.type = link.type == LinkType::kOdometry || link.type == LinkType::kPrior
-                  ? PoseGraphEdgeType::kOdometry
-                  : PoseGraphEdgeType::kLoop;
+  edge.type = link.type;
   // Links and graph edges are added together only here, so a link's index is its edge's index.
   const size_t index = graph_.AddEdge(edge);
   SIGHTMAP_CHECK(index == links_.size(), "pose graph edges and mapper links out of step");

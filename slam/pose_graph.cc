@@ -20,6 +20,8 @@
 #include "core/options_json.h"
 
 namespace sightmap::slam {
+
+bool IsLoopEdge(LinkType type) { return type != LinkType::kOdometry && type != LinkType::kPrior; }
 namespace {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
@@ -353,8 +355,7 @@ bool PoseGraph::WindowFits(const PoseGraphSummary& summary,
                            double max_border_chi2_rise, double max_loop_chi2) const {
   if (!summary.usable) return false;
   for (size_t e = 0; e < edges_.size(); ++e) {
-    if (active_[e] && edges_[e].type == PoseGraphEdgeType::kLoop &&
-        summary.edge_chi2[e] > max_loop_chi2) {
+    if (active_[e] && IsLoopEdge(edges_[e].type) && summary.edge_chi2[e] > max_loop_chi2) {
       return false;
     }
   }
@@ -456,10 +457,9 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     for (size_t e = 0; e < edges_.size(); ++e) {
       if (!active_[e] || !selected[e]) continue;
       const auto [a, b] = ends[e];
-      problem.AddResidualBlock(
-          EdgeCost::Create(edges_[e].to_in_from, sqrt_information[e]),
-          edges_[e].type == PoseGraphEdgeType::kLoop ? &loop_loss : odometry_loss.get(),
-          parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
+      problem.AddResidualBlock(EdgeCost::Create(edges_[e].to_in_from, sqrt_information[e]),
+                               IsLoopEdge(edges_[e].type) ? &loop_loss : odometry_loss.get(),
+                               parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
       in_problem[a] = in_problem[b] = true;
       // An edge without information does not tie its poses together.
       if (!edges_[e].information.isZero()) components.Join(a, b);
@@ -510,7 +510,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     size_t worst = edges_.size();
     double worst_chi2 = options.max_loop_chi2;
     for (size_t e = 0; e < edges_.size(); ++e) {
-      if (!active_[e] || !selected[e] || edges_[e].type != PoseGraphEdgeType::kLoop) continue;
+      if (!active_[e] || !selected[e] || !IsLoopEdge(edges_[e].type)) continue;
       const double chi2 = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
       if (chi2 > worst_chi2) {
         worst = e;

@@ -13,7 +13,7 @@
 // r^T W r (the chi-square of a 6-dof error when W is the inverse covariance); Ceres is given
 // S r with S^T S = W.
 //
-// Loop-closure edges (kLoop) get a Cauchy loss (odometry edges too, when odometry_loss_scale is
+// Loop edges (IsLoopEdge) get a Cauchy loss (odometry edges too, when odometry_loss_scale is
 // set), and after each solve the loop edge with the largest chi-square above
 // PoseGraphOptions::max_loop_chi2 is switched off and the graph solved again from the poses it
 // had when Optimize() was called, until every active loop edge passes.
@@ -34,6 +34,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <nlohmann/json_fwd.hpp>
+
+#include "core/link_type.h"
 
 namespace sightmap::slam {
 
@@ -74,7 +76,9 @@ struct PoseGraphOptions {
 void to_json(nlohmann::json& json, const PoseGraphOptions& options);
 void from_json(const nlohmann::json& json, PoseGraphOptions& options);
 
-enum class PoseGraphEdgeType { kOdometry, kLoop };
+// Odometry and priors hold the graph together (switching a prior off would split the map it
+// bridges); every other link type is checked as a loop.
+bool IsLoopEdge(LinkType type);
 
 struct PoseGraphEdge {
   int64_t from = 0;  // pose ids
@@ -84,7 +88,7 @@ struct PoseGraphEdge {
   // Inverse covariance of the error r = (translation x, y, z, left rotation x, y, z) defined in
   // the header comment; symmetric positive semi-definite.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
-  PoseGraphEdgeType type = PoseGraphEdgeType::kOdometry;
+  LinkType type = LinkType::kOdometry;
 };
 
 struct PoseGraphSummary {

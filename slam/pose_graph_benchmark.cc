@@ -23,7 +23,7 @@ synthetic::Scene MakeScene(bool with_false_loop) {
         (Eigen::Matrix<double, 6, 1>() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished());
     const synthetic::CircleOptions options = synthetic::LargeCircleOptions();
     edge.information = synthetic::Information(options.loop_sigma_m, options.loop_sigma_rad);
-    edge.type = PoseGraphEdgeType::kLoop;
+    edge.type = LinkType::kLoopClosure;
     scene.graph.AddEdge(edge);
   }
   return scene;

@@ -27,8 +27,7 @@ Eigen::Isometry3d Translation(double x, double y = 0.0, double z = 0.0) {
 }
 
 PoseGraphEdge MakeEdge(int64_t from, int64_t to, const Eigen::Isometry3d& to_in_from,
-                       const Matrix6d& information,
-                       PoseGraphEdgeType type = PoseGraphEdgeType::kOdometry) {
+                       const Matrix6d& information, LinkType type = LinkType::kOdometry) {
   PoseGraphEdge edge;
   edge.from = from;
   edge.to = to;
@@ -246,10 +245,10 @@ TEST(PoseGraph, FalseLoopsAreSwitchedOffAndDoNotBendTheMap) {
       MakeEdge(10, 30,
                ExpSe3((Vector6d() << 0.25, -0.2, 0.15, 0.0, 0.05, 0.1).finished()) *
                    truth[10].inverse() * truth[30],
-               loop_information, PoseGraphEdgeType::kLoop);
+               loop_information, LinkType::kLoopClosure);
   const PoseGraphEdge gross =
       MakeEdge(5, 25, ExpSe3((Vector6d() << 0.0, 0.0, 0.3, 0.0, 0.09, 0.0).finished()),
-               loop_information, PoseGraphEdgeType::kLoop);
+               loop_information, LinkType::kLoopClosure);
   auto largest_difference = [&](const PoseGraph& graph) {
     double largest = 0.0;
     for (size_t i = 0; i < truth.size(); ++i) {
@@ -363,7 +362,7 @@ TEST(PoseGraph, OptimizeAroundMovesOnlyThePartTiedToThePose) {
     graph.AddEdge(MakeEdge(10 + i, 11 + i, step, 1e4 * Matrix6d::Identity()));
   }
   const size_t false_loop = graph.AddEdge(
-      MakeEdge(10, 14, Translation(-2.0), Matrix6d::Identity(), PoseGraphEdgeType::kLoop));
+      MakeEdge(10, 14, Translation(-2.0), Matrix6d::Identity(), LinkType::kLoopClosure));
   std::vector<Eigen::Isometry3d> second;
   for (int64_t i = 10; i < 15; ++i) second.push_back(graph.Pose(i));
 
@@ -402,7 +401,7 @@ synthetic::Scene SettledTwoLaps() {
 PoseGraphEdge LoopAsTheMapHasIt(const PoseGraph& graph, int64_t from, int64_t to,
                                 const Eigen::Isometry3d& error = Eigen::Isometry3d::Identity()) {
   return MakeEdge(from, to, error * graph.Pose(from).inverse() * graph.Pose(to),
-                  Information(0.003, 0.001), PoseGraphEdgeType::kLoop);
+                  Information(0.003, 0.001), LinkType::kLoopClosure);
 }
 
 TEST(PoseGraph, OptimizeNearMovesOnlyThePosesNearALoopThatFitsTheMap) {
@@ -538,9 +537,9 @@ TEST(PoseGraph, LargeGraphFigures) {
   ASSERT_EQ(scene.loop_edges.size(), 20u);
   // Place recognition confuses pose 350 (on the far side of the circle) with a view 30 cm in front
   // of pose 100.
-  const size_t false_index = scene.graph.AddEdge(MakeEdge(
-      100, 350, ExpSe3((Vector6d() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished()),
-      Information(options.loop_sigma_m, options.loop_sigma_rad), PoseGraphEdgeType::kLoop));
+  const size_t false_index = scene.graph.AddEdge(
+      MakeEdge(100, 350, ExpSe3((Vector6d() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished()),
+               Information(options.loop_sigma_m, options.loop_sigma_rad), LinkType::kLoopClosure));
   const double before = PositionRmse(scene.graph, scene.truth);
   PoseGraphOptions pose_graph_options;
   pose_graph_options.max_solver_time_s = 10.0;  // a loaded test machine must not cut it short

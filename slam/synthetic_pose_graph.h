@@ -118,7 +118,7 @@ inline Scene MakeCircleScene(const CircleOptions& options) {
       edge.to_in_from = noise(options.loop_sigma_m, options.loop_sigma_rad) *
                         scene.truth[i].inverse() * scene.truth[i + options.poses_per_lap];
       edge.information = Information(options.loop_sigma_m, options.loop_sigma_rad);
-      edge.type = PoseGraphEdgeType::kLoop;
+      edge.type = LinkType::kLoopClosure;
       scene.loop_edges.push_back(scene.graph.AddEdge(edge));
     }
   }
@@ -128,7 +128,7 @@ inline Scene MakeCircleScene(const CircleOptions& options) {
     edge.to = 0;
     edge.to_in_from = scene.truth[count - 1].inverse() * scene.truth[0];
     edge.information = Information(options.loop_sigma_m, options.loop_sigma_rad);
-    edge.type = PoseGraphEdgeType::kLoop;
+    edge.type = LinkType::kLoopClosure;
     scene.loop_edges.push_back(scene.graph.AddEdge(edge));
   }
   return scene;
