@@ -90,24 +90,24 @@ void MakeParentFolder(const std::string& path, const std::string& option) {
 }
 
 std::string ReadConfigFile(const std::string& path) {
-  constexpr std::uintmax_t kMaxBytes = 1 << 20;
+  constexpr std::streamsize kMaxBytes = 1 << 20;
   std::error_code error;
   if (std::filesystem::is_directory(path, error)) {
     SIGHTMAP_THROW(InvalidArgument, "--config " << path << " is a folder, not a JSON file");
   }
-  const std::uintmax_t bytes = std::filesystem::file_size(path, error);
-  if (error) {
-    SIGHTMAP_THROW(InvalidArgument, "--config " << path << ": " << error.message());
-  }
-  if (bytes > kMaxBytes) {
-    SIGHTMAP_THROW(InvalidArgument, "--config " << path << " is " << bytes
-                                                << " bytes; a config is a small JSON file");
-  }
+  // Read as a stream, not by its size: `--config /dev/stdin` takes a pipe.
   std::ifstream in(path, std::ios::binary);
   if (!in.is_open()) {
     SIGHTMAP_THROW(InvalidArgument, "--config " << path << ": " << std::strerror(errno));
   }
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  std::string text(static_cast<size_t>(kMaxBytes) + 1, '\0');
+  in.read(text.data(), kMaxBytes + 1);
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (static_cast<std::streamsize>(text.size()) > kMaxBytes) {
+    SIGHTMAP_THROW(InvalidArgument,
+                   "--config " << path << " is over 1 MiB; a config is a small JSON file");
+  }
+  return text;
 }
 
 int RequireGiven(const CLI::App& app, std::initializer_list<const CLI::Option*> options) {

@@ -132,7 +132,7 @@ void ParseInto(const std::string& text, const std::string& origin, Options& opti
   nlohmann::json json;
   try {
     json = nlohmann::json::parse(text, nullptr, true, /*ignore_comments=*/true);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // a parse error, or a number like 1e999
     SIGHTMAP_THROW(InvalidArgument,
                    origin << " is not valid JSON: " << options_json::PlainMessage(e));
   }

@@ -131,6 +131,15 @@ TEST(OptionsJson, ABrokenFileSaysWhereItBreaks) {
   EXPECT_EQ(message.find("json.exception"), std::string::npos) << message;
 }
 
+TEST(OptionsJson, ANumberBeyondDoubleIsABrokenFileNotACrash) {
+  // Found by the options_json fuzzer: nlohmann throws out_of_range, not parse_error, for it.
+  EXPECT_EQ(ReadError("22e888").rfind("config.json is not valid JSON: number overflow", 0), 0u)
+      << ReadError("22e888");
+  EXPECT_EQ(ReadError(R"({"inner": {"scale_m": 1e999}})")
+                .rfind("config.json is not valid JSON: number overflow", 0),
+            0u);
+}
+
 TEST(OptionsJson, AFailedReadNamesOnlyTheFirstProblem) {
   // One line for the user, however many mistakes the file holds.
   const std::string message = ReadError(R"({"seed": "x", "colour": 1})");

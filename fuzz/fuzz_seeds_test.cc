@@ -78,6 +78,7 @@ TEST(FuzzSeeds, OptionsJson) {
   std::ofstream(dir + "/map.json") << nlohmann::json(mapping::MappingOptions()).dump(2);
   std::ofstream(dir + "/serve.json") << nlohmann::json(cli::LocateServerOptions()).dump(2);
   std::ofstream(dir + "/partial.json") << R"({"mapper": {"pose_graph": {"max_iterations": 7}}})";
+  std::ofstream(dir + "/overflow.json") << "22e888";  // a crash the fuzzer found
   EXPECT_GT(std::filesystem::file_size(dir + "/map.json"), 1000u);
 }
 

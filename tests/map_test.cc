@@ -385,6 +385,9 @@ TEST(Map, ABadConfigIsOneLineThatNamesTheFileAndTheKey) {
       "--config " + dir + "/none.json: No such file or directory");
   testing::ExpectOneLineError(Sightmap("map --config " + dir + " --model " + dir + "/m.db"), 2,
                               "is a folder");
+  testing::ExpectOneLineError(run_with(R"({"live": )" + std::string(1 << 20, ' ') + "true}"), 2,
+                              "c.json is over 1 MiB");
+  testing::ExpectOneLineError(run_with(R"({"sampler": {"rate_hz": 1e999}})"), 2, "number overflow");
   EXPECT_FALSE(std::filesystem::exists(dir + "/m.db")) << "no model from a bad config";
   // The defaults need neither a model nor a source.
   const CommandResult defaults = Sightmap("map --print-config");
