@@ -419,6 +419,8 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   if (continue_after) {
     summary.continued_after_s = 1e-9 * static_cast<double>(*continue_after);
     NoteContinued(options_, *continue_after, notices);
+    // The camera is where the last stored frame left it.
+    if (*continue_after == restored.last_timestamp_ns) mapper->ContinueWalk();
   }
 
   summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;

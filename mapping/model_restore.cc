@@ -41,6 +41,7 @@ RestoredModel RestoreModel(const store::Model& model, const Intrinsics& camera, 
     SIGHTMAP_CHECK(id == static_cast<int64_t>(restored.store_ids.size()),
                    "the mapper restored keyframe " << info.id.value() << " as " << id);
     restored.store_ids.push_back(info.id);
+    restored.last_timestamp_ns = info.timestamp_ns;
     mapper_id_of[info.id.value()] = id;
     if (view) {
       view->AddKeyframe(id, static_cast<int>(info.session.value()), info.world_from_cam, color,

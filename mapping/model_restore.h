@@ -20,6 +20,8 @@ struct RestoredModel {
   // in the segment of one of them joined the stored map.
   std::vector<int64_t> segment_members;
   bool vocabulary_restored = false;
+  // Source time of the newest restored keyframe, the mapper's last [ns]; 0 when none.
+  TimestampNs last_timestamp_ns = 0;
 };
 
 // Gives `mapper` (which holds no keyframe yet) everything `model` holds, and `view` (may be null)

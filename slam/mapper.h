@@ -231,6 +231,11 @@ class Mapper {
     start_new_segment_ = true;
     ++walk_;  // the capture is interrupted: the next keyframe starts another walk
   }
+  // Undoes StartNewSegment for the next keyframe: it continues the walk of the newest keyframe (a
+  // replay resumed right after its last stored frame), so it is registered to the newest
+  // keyframes as odometry, and starts a segment of its own only when that fails. Without it the
+  // resumed walk hangs off the stored map by its first relocalisation alone.
+  void ContinueWalk() { start_new_segment_ = false; }
 
   // A vocabulary to use instead of training one (before the first keyframe).
   void SetVocabulary(std::shared_ptr<const Vocabulary> vocabulary);

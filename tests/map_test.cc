@@ -272,6 +272,19 @@ TEST(Map, TheSameCommandAgainContinuesTheWalkAndStartFrameOverrides) {
   EXPECT_EQ(summary.at("keyframes"), 7);
   EXPECT_EQ(summary.at("frames_skipped"), 5);
   EXPECT_DOUBLE_EQ(summary.at("continued_after_s").get<double>(), 4.0);
+  {
+    // The camera is where the stored walk left it: the first new keyframe is odometry from the
+    // last stored one, not a part of its own that waits for a relocalisation to hang it on.
+    const store::Model model = store::Model::Open(dir + "/m.db", store::ModelOptions::ReadOnly());
+    const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
+    ASSERT_EQ(keyframes.size(), 12u);
+    bool continued = false;
+    for (const store::LinkRecord& link : model.Links()) {
+      continued |= link.from == keyframes[4].id && link.to == keyframes[5].id &&
+                   link.type == LinkType::kOdometry;
+    }
+    EXPECT_TRUE(continued);
+  }
 
   const CommandResult third = Sightmap(command);
   EXPECT_EQ(third.exit_code, 1);
