@@ -8,12 +8,13 @@ size_t Features::NumPoints() const {
   return static_cast<size_t>(std::count(has_point.begin(), has_point.end(), true));
 }
 
+bool Features::PointsMatchKeypoints() const {
+  return points_cam.size() == has_point.size() &&
+         (points_cam.empty() || points_cam.size() == keypoints.size());
+}
+
 bool Features::IsConsistent() const {
-  const bool descriptors_match = descriptors.rows == static_cast<int>(keypoints.size()) ||
-                                 (keypoints.empty() && descriptors.empty());
-  const bool points_match = points_cam.size() == has_point.size() &&
-                            (points_cam.empty() || points_cam.size() == keypoints.size());
-  return descriptors_match && points_match;
+  return descriptors.rows == static_cast<int>(keypoints.size()) && PointsMatchKeypoints();
 }
 
 }  // namespace sightmap

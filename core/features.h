@@ -22,7 +22,9 @@ struct Features {
 
   size_t size() const { return keypoints.size(); }
   size_t NumPoints() const;
-  // One descriptor row per keypoint, and a point slot per keypoint or none at all.
+  // A point slot (points_cam and has_point) per keypoint, or none at all.
+  bool PointsMatchKeypoints() const;
+  // One descriptor row per keypoint, and PointsMatchKeypoints().
   bool IsConsistent() const;
 };
 

@@ -50,9 +50,8 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
 
 // Features handed in (restored or tracked) must be one consistent set.
 void CheckFeatures(const Features& features, const char* what) {
-  SIGHTMAP_CHECK(features.has_point.size() == features.size() &&
-                     features.points_cam.size() == features.size() &&
-                     features.descriptors.rows == static_cast<int>(features.size()),
+  // The mapper registers by points: every keypoint has its slot, even where there is no depth.
+  SIGHTMAP_CHECK(features.IsConsistent() && features.has_point.size() == features.size(),
                  what << "'s features are inconsistent");
 }
 

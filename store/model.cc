@@ -623,9 +623,11 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   SIGHTMAP_CHECK(keyframe.color.type() == CV_8UC3 && keyframe.depth.type() == CV_16UC1 &&
                      keyframe.color.size() == keyframe.depth.size(),
                  "a keyframe needs 8-bit BGR colour and 16-bit depth of the same size");
-  SIGHTMAP_CHECK(features.descriptors.empty() || features.IsConsistent(),
-                 "a keyframe needs one descriptor row per keypoint and a point slot per keypoint "
-                 "or none");
+  SIGHTMAP_CHECK(features.descriptors.empty() ||
+                     features.descriptors.rows == static_cast<int>(features.size()),
+                 "a keyframe needs one descriptor row per keypoint");
+  SIGHTMAP_CHECK(features.PointsMatchKeypoints(),
+                 "a keyframe needs a 3D point slot per keypoint, or none");
 
   // Encode before taking the write lock: the lock is held only for the inserts.
   std::vector<uint8_t> jpeg;
@@ -782,10 +784,9 @@ Features Model::LoadFeatures(KeyframeId id) const {
   SIGHTMAP_CHECK(points.size() % sizeof(Eigen::Vector3f) == 0,
                  "corrupt 3D points of keyframe " << id.value());
   DecodePoints(points, &features);
-  SIGHTMAP_CHECK(
-      features.points_cam.empty() || features.points_cam.size() == features.keypoints.size(),
-      "keyframe " << id.value() << " has " << features.points_cam.size() << " 3D points for "
-                  << features.keypoints.size() << " keypoints");
+  SIGHTMAP_CHECK(features.PointsMatchKeypoints(),
+                 "keyframe " << id.value() << " has " << features.points_cam.size()
+                             << " 3D points for " << features.keypoints.size() << " keypoints");
   SIGHTMAP_CHECK(static_cast<int64_t>(features.keypoints.size()) == query.Int(0),
                  "keyframe " << id.value() << " lists " << query.Int(0) << " features but has "
                              << features.keypoints.size());

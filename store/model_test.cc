@@ -160,6 +160,11 @@ TEST(Model, BadKeyframesAreRejectedAndLeaveNothingBehind) {
   KeyframeRecord unflagged = MakeSyntheticKeyframe(session, 2, SmallKeyframes());
   unflagged.features.has_point.pop_back();
   EXPECT_THROW(model.AddKeyframe(unflagged), Error);
+  KeyframeRecord undescribed = MakeSyntheticKeyframe(session, 3, SmallKeyframes());
+  undescribed.features.descriptors = cv::Mat();  // allowed, but the points must still match
+  undescribed.features.points_cam.pop_back();
+  undescribed.features.has_point.pop_back();
+  EXPECT_THROW(model.AddKeyframe(undescribed), Error);
   EXPECT_EQ(model.NumKeyframes(), 0);
 }
 
