@@ -120,12 +120,6 @@ int RequireGiven(const CLI::App& app, std::initializer_list<const CLI::Option*> 
   return -1;
 }
 
-CLI::Option* AddPrintConfigFlag(CLI::App& app, bool& print_config) {
-  return app.add_flag("--print-config", print_config,
-                      "print every option as the JSON --config reads (after --config and the "
-                      "flags), and exit");
-}
-
 void CheckOutputFile(const std::string& path, const std::string& option) {
   if (path.empty()) return;
   namespace fs = std::filesystem;

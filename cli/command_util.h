@@ -56,32 +56,34 @@ void CheckOutputFolder(const std::string& dir, const std::string& option);
 // The text of a config file; throws InvalidArgument when it cannot be read or is over 1 MiB.
 std::string ReadConfigFile(const std::string& path);
 
-// `--config FILE`: `options` as JSON (what `--print-config` prints, and `info --json` shows of a
-// map session), read while the command line is parsed: CLI11 assigns the other flags after
-// parsing, so a flag on the command line overrides the file whatever their order. A key the file
-// leaves out keeps its default. Errors (a missing file, bad JSON, an unknown key) throw
-// InvalidArgument naming the file and the key.
+// `--config FILE` and `--print-config`. The file holds `options` as JSON (what `--print-config`
+// prints, and `info --json` shows of a map session) and is read while the command line is parsed:
+// CLI11 assigns the other flags after parsing, so a flag on the command line overrides the file
+// whatever their order. A key the file leaves out keeps its default. Errors (a missing file, bad
+// JSON, an unknown key) throw InvalidArgument naming the file and the key. `print_config` is set
+// by `--print-config`: print every option (PrintConfig) and do nothing else.
 template <typename Options>
-CLI::Option* AddConfigOption(CLI::App& app, Options& options) {
-  return app
-      .add_option_function<std::string>(
-          "--config",
-          [&options](const std::string& path) {
-            options_json::ParseInto(ReadConfigFile(path), "--config " + path, options);
-          },
-          "read the options from this JSON file (see --print-config); flags given here override it")
+void AddConfigOptions(CLI::App& app, Options& options, bool& print_config) {
+  app.add_option_function<std::string>(
+         "--config",
+         [&options](const std::string& path) {
+           options_json::ParseInto(ReadConfigFile(path), "--config " + path, options);
+         },
+         "read the options from this JSON file (see --print-config); flags given here override it")
       ->trigger_on_parse();
+  app.add_flag("--print-config", print_config,
+               "print every option as the JSON --config reads (after --config and the flags), "
+               "and exit");
 }
-// `--print-config`: print every option as the JSON --config reads, and do nothing else.
-CLI::Option* AddPrintConfigFlag(CLI::App& app, bool& print_config);
+// Prints `options` as --config reads them; returns kExitSuccess.
+template <typename Options>
+int PrintConfig(const Options& options) {
+  std::cout << nlohmann::json(options).dump(2) << "\n";
+  return kExitSuccess;
+}
 // The options a command needs unless it only prints its config: returns kExitUsage (printed as
 // CLI11 prints a missing required option) when one of them was not given, else -1.
 int RequireGiven(const CLI::App& app, std::initializer_list<const CLI::Option*> options);
-// Prints `options` as --config reads them.
-template <typename Options>
-void PrintConfig(const Options& options) {
-  std::cout << nlohmann::json(options).dump(2) << "\n";
-}
 
 // Prints `error: <message>` as one line on stderr.
 void PrintError(const std::string& message);

@@ -122,14 +122,10 @@ int RunLocate(int argc, char** argv) {
       ->excludes(intrinsics_option);
   app.add_flag("--json", json, "print the answer as one JSON object (stable keys)");
   identify::LocatorOptions options;
-  AddConfigOption(app, options);
   bool print_config = false;
-  AddPrintConfigFlag(app, print_config);
+  AddConfigOptions(app, options, print_config);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
-  if (print_config) {
-    PrintConfig(options);
-    return kExitSuccess;
-  }
+  if (print_config) return PrintConfig(options);
   if (const int code = RequireGiven(app, {model_option, photo_option}); code >= 0) return code;
   SIGHTMAP_CHECK_OPTIONS(options);
 

@@ -242,9 +242,8 @@ int RunMap(int argc, char** argv) {
                "register keyframes to each other only, not the frames in between (the paper's "
                "1 Hz capture)");
   app.add_flag("--json", json, "print the summary as one JSON object (stable keys)");
-  AddConfigOption(app, options);
   bool print_config = false;
-  AddPrintConfigFlag(app, print_config);
+  AddConfigOptions(app, options, print_config);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
   // What the flags imply, over what a --config file set.
   if (start_frame_option->count() > 0) options.continue_replay = false;
@@ -257,10 +256,7 @@ int RunMap(int argc, char** argv) {
   options.show_view = !options.view.progress_png.empty() ||
                       options.view.choice == mapping::ViewChoice::kPreview ||
                       (options.view.choice == mapping::ViewChoice::kAuto && has_display);
-  if (print_config) {
-    PrintConfig(options);
-    return kExitSuccess;
-  }
+  if (print_config) return PrintConfig(options);
   if (const int code = RequireGiven(app, {model_option}); code >= 0) return code;
   // Before any thread exists; a Ctrl-C from here on waits for the session to take it.
   std::atomic<bool> stop_requested{false};

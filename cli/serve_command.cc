@@ -83,18 +83,14 @@ int RunServe(int argc, char** argv) {
   app.add_option("--token", options.edit_token,
                  "label edits must carry this token (made up and printed when --host is not a "
                  "loopback address; the phone page needs none)");
-  AddConfigOption(app, options);
   bool print_config = false;
-  AddPrintConfigFlag(app, print_config);
+  AddConfigOptions(app, options, print_config);
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
   if (timeout_s) {
     options.read_timeout_s = *timeout_s;
     options.write_timeout_s = *timeout_s;
   }
-  if (print_config) {
-    PrintConfig(options);
-    return kExitSuccess;
-  }
+  if (print_config) return PrintConfig(options);
   if (const int code = RequireGiven(app, {model_option}); code >= 0) return code;
   if (!options.read_only) {
     const std::string why = WhyNotWritable(model_path);

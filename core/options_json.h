@@ -20,6 +20,7 @@
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
@@ -80,6 +81,11 @@ void ReadNumber(const nlohmann::json& json, T& value) {
   }
 }
 
+template <typename T>
+struct IsNumberVector : std::false_type {};
+template <typename T>
+struct IsNumberVector<std::vector<T>> : std::is_arithmetic<T> {};
+
 // Reads json[key] into `value` when present, naming `key` in any error (nested structs prefix
 // their own path: "mapper.pose_graph.max_iterations").
 template <typename T>
@@ -92,11 +98,23 @@ void ReadField(const nlohmann::json& json, const char* key, T& value) {
     } else if constexpr (std::is_same_v<T, std::string>) {
       if (!it->is_string()) throw OptionsJsonError("", "must be a string");
       value = it->template get<std::string>();
+    } else if constexpr (IsNumberVector<T>::value) {
+      if (!it->is_array()) throw OptionsJsonError("", "must be an array of numbers");
+      T numbers(it->size());
+      for (size_t i = 0; i < numbers.size(); ++i) {
+        try {
+          ReadNumber((*it)[i], numbers[i]);
+        } catch (const OptionsJsonError& e) {
+          throw OptionsJsonError("[" + std::to_string(i) + "]", e.reason());
+        }
+      }
+      value = std::move(numbers);
     } else {
       it->get_to(value);
     }
   } catch (const OptionsJsonError& e) {
-    throw OptionsJsonError(e.path().empty() ? key : std::string(key) + "." + e.path(), e.reason());
+    const std::string separator = e.path().empty() || e.path().front() == '[' ? "" : ".";
+    throw OptionsJsonError(std::string(key) + separator + e.path(), e.reason());
   } catch (const nlohmann::json::exception& e) {
     throw OptionsJsonError(key, PlainMessage(e));
   }
@@ -139,8 +157,7 @@ void ParseInto(const std::string& text, const std::string& origin, Options& opti
   try {
     from_json(json, options);
   } catch (const OptionsJsonError& e) {
-    SIGHTMAP_THROW(InvalidArgument,
-                   origin << ": " << (e.path().empty() ? "" : e.path() + ": ") << e.reason());
+    SIGHTMAP_THROW(InvalidArgument, origin << ": " << e.what());
   }
 }
 

@@ -119,7 +119,10 @@ TEST(OptionsJson, RefusesWhatNlohmannWouldQuietlyConvert) {
             "config.json: inner.scale_m: must be a number");
   EXPECT_EQ(ReadError(R"({"shape": "oval"})"), "config.json: shape: must be one of round, square");
   EXPECT_EQ(ReadError(R"({"up": [0, 1]})"), "config.json: up: must be an array of 3 numbers");
-  EXPECT_EQ(ReadError(R"({"levels": [1, "two"]})").rfind("config.json: levels: ", 0), 0u);
+  EXPECT_EQ(ReadError(R"({"levels": [1, "two"]})"),
+            "config.json: levels[1]: must be a whole number");
+  EXPECT_EQ(ReadError(R"({"levels": [2.5]})"), "config.json: levels[0]: must be a whole number");
+  EXPECT_EQ(ReadError(R"({"levels": 3})"), "config.json: levels: must be an array of numbers");
   EXPECT_EQ(ReadError(R"({"inner": 4})"), "config.json: inner: must be an object ({...})");
   EXPECT_EQ(ReadError("[1, 2]"), "config.json: must be an object ({...})");
 }
