@@ -80,6 +80,13 @@ bool MapperOptions::Check(std::string* error) const {
   if (loop_min_inliers < 0) return fail("loop_min_inliers must not be negative");
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
+  if (proximity_candidates < 0 || proximity_min_inliers < 0) {
+    return fail("proximity_candidates and proximity_min_inliers must not be negative");
+  }
+  if (!(proximity_radius_m > 0.0) || !(proximity_max_angle_deg > 0.0) ||
+      !(proximity_max_disagreement_m > 0.0) || !(proximity_max_disagreement_deg > 0.0)) {
+    return fail("proximity_radius_m, _max_angle_deg and _max_disagreement_* must be positive");
+  }
   if (local_loop_hops < 0) return fail("local_loop_hops must not be negative (0: never local)");
   if (!(local_loop_max_border_chi2_rise >= 0.0)) {
     return fail("local_loop_max_border_chi2_rise must not be negative");
@@ -497,6 +504,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
     TrainVocabulary(&report->times);
   } else if (vocabulary_) {
     relocalised = SearchPlaces(inserted, report);
+    if (!relocalised && !report->loop_closed) SearchNearby(inserted, report);
   }
   // Lost: this keyframe could not be registered to the last ones and starts a segment of its own
   // (NumSegments() says how many parts of the map are not joined yet). The first keyframe of a
@@ -676,6 +684,66 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
   return false;
 }
 
+std::vector<int64_t> Mapper::NearbyKeyframes(const Keyframe& keyframe) const {
+  const int root = Root(keyframe.segment);
+  const Eigen::Isometry3d world_from_cam = graph_.Pose(keyframe.id);
+  const double min_cos = std::cos(options_.proximity_max_angle_deg * M_PI / 180.0);
+  std::vector<std::pair<double, int64_t>> nearby;
+  const int64_t newest_allowed = keyframe.id - options_.loop_exclude_recent;
+  for (int64_t id = 0; id <= newest_allowed; ++id) {
+    const Keyframe& other = keyframes_[static_cast<size_t>(id)];
+    if (Root(other.segment) != root) continue;
+    const Eigen::Isometry3d other_pose = graph_.Pose(id);
+    const double distance = (other_pose.translation() - world_from_cam.translation()).norm();
+    if (distance > options_.proximity_radius_m) continue;
+    // Optical axes (each camera's z in the world).
+    if (other_pose.linear().col(2).dot(world_from_cam.linear().col(2)) < min_cos) continue;
+    nearby.emplace_back(distance, id);
+  }
+  const size_t kept = std::min(nearby.size(), static_cast<size_t>(options_.proximity_candidates));
+  std::partial_sort(nearby.begin(), nearby.begin() + static_cast<std::ptrdiff_t>(kept),
+                    nearby.end());
+  std::vector<int64_t> ids;
+  for (size_t i = 0; i < kept; ++i) ids.push_back(nearby[i].second);
+  return ids;
+}
+
+bool Mapper::SearchNearby(const Keyframe& keyframe, KeyframeReport* report) {
+  if (options_.proximity_candidates == 0 ||
+      keyframe.id - last_loop_keyframe_ < options_.loop_min_spacing) {
+    return false;
+  }
+  for (const int64_t id : NearbyKeyframes(keyframe)) {
+    const Keyframe& target = keyframes_[static_cast<size_t>(id)];
+    const Eigen::Isometry3d prior = graph_.Pose(id).inverse() * graph_.Pose(keyframe.id);
+    const RegistrationResult result =
+        Register(keyframe, target, &report->times, &prior, /*require_dense=*/true);
+    const Eigen::Isometry3d disagreement = prior.inverse() * result.target_from_source;
+    if (!result.success || result.inliers < options_.proximity_min_inliers) continue;
+    if (disagreement.translation().norm() > options_.proximity_max_disagreement_m ||
+        RotationAngleDeg(disagreement) > options_.proximity_max_disagreement_deg) {
+      continue;
+    }
+    MapperLink link;
+    link.from = target.id;
+    link.to = keyframe.id;
+    link.to_in_from = result.target_from_source;
+    link.information = result.information;
+    link.inliers = result.inliers;
+    link.type = LinkType::kLoopClosure;
+    AddLink(link, report);
+    last_loop_keyframe_ = keyframe.id;
+    if (options_.local_loop_hops > 0) {
+      OptimiseNear(links_.size() - 1, report);
+    } else {
+      Optimise(keyframe.id, report);
+    }
+    report->loop_closed = links_.back().active;
+    return report->loop_closed;
+  }
+  return false;
+}
+
 Eigen::Isometry3d Mapper::JoinCorrection(int newer_root, const MapperLink& link) const {
   // The pose `link.to` should have in the frame of `link.from`'s segment, and the rigid motion
   // that takes the whole of its segment there.
@@ -764,7 +832,9 @@ SIGHTMAP_OPTIONS_JSON(MapperOptions, features, registration, odometry_window, ex
                       extra_link_max_disagreement_m, extra_link_max_disagreement_deg,
                       depth_downscale, vocabulary, vocabulary_training_keyframes,
                       loop_exclude_recent, loop_candidates, loop_min_relative_score,
-                      loop_min_inliers, loop_min_spacing, local_loop_hops,
+                      loop_min_inliers, loop_min_spacing, proximity_candidates, proximity_radius_m,
+                      proximity_max_angle_deg, proximity_min_inliers, proximity_max_disagreement_m,
+                      proximity_max_disagreement_deg, local_loop_hops,
                       local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m,
                       join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
                       walk_slack_m, walk_slack_deg, walk_max_gap_s, link_min_sigma_m,

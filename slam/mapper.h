@@ -77,6 +77,20 @@ struct MapperOptions {
   // Loops closer than this to the last accepted loop (in keyframes) are not searched: one
   // revisit gives one loop every few keyframes, not one every keyframe [keyframes].
   int loop_min_spacing = 3;
+  // Proximity (RTAB-Map's detection by space): a revisit the bag of words missed (few or common
+  // features: a wall with a door, a repeated desk) is still near where the graph puts it. When
+  // place recognition closed no loop, up to proximity_candidates keyframes of the same part (not
+  // the loop_exclude_recent newest) whose graph pose lies within proximity_radius_m and whose
+  // viewing direction is within proximity_max_angle_deg are registered with the graph's relative
+  // pose as prior, nearest first. Such a link must land within proximity_max_disagreement_* of
+  // the prior (drift since the first visit is centimetres; a pose further off matched a look-alike)
+  // and is then a loop closure like any other, refined and confirmed densely. 0 candidates: off.
+  int proximity_candidates = 1;
+  double proximity_radius_m = 1.0;        // [m]
+  double proximity_max_angle_deg = 30.0;  // [deg]
+  int proximity_min_inliers = 20;
+  double proximity_max_disagreement_m = 1.0;     // [m]
+  double proximity_max_disagreement_deg = 15.0;  // [deg]
   // A loop moves only the keyframes within local_loop_hops links of its ends when that fits the
   // rest of the map: it closes a cycle inside that window, and the links at the window's border
   // rise by at most local_loop_max_border_chi2_rise in chi-square; else the window grows
@@ -310,6 +324,11 @@ class Mapper {
   // Looks up `keyframe` for loop closures (same segment) or relocalisation (other segments);
   // true when it joined two segments.
   bool SearchPlaces(Keyframe& keyframe, KeyframeReport* report);
+  // Looks for a loop closure among the keyframes the graph places near `keyframe`
+  // (MapperOptions::proximity_candidates); true when one was accepted.
+  bool SearchNearby(const Keyframe& keyframe, KeyframeReport* report);
+  // The keyframes SearchNearby registers to, nearest first.
+  std::vector<int64_t> NearbyKeyframes(const Keyframe& keyframe) const;
   Eigen::Isometry3d JoinCorrection(int newer_root, const MapperLink& link) const;
   // False when moving the newer segment by `correction` would make the walk jump: see
   // MapperOptions::walk_max_speed_mps.

@@ -112,6 +112,15 @@ MappedWalk ThereAndBack(const Walk& walk, const MapperOptions& options) {
   }
   mapped.trajectory = mapper.Trajectory();
   mapped.loops = mapper.NumLoopClosures();
+  for (const MapperLink& link : mapper.Links()) {
+    if (!link.active || link.type != LinkType::kLoopClosure) continue;
+    const Eigen::Isometry3d truth =
+        frames[static_cast<size_t>(link.from)]->world_from_cam_gt->inverse() *
+        *frames[static_cast<size_t>(link.to)]->world_from_cam_gt;
+    const Eigen::Isometry3d off = truth.inverse() * link.to_in_from;
+    EXPECT_LT(off.translation().norm(), 0.10) << "loop " << link.from << " -> " << link.to;
+    EXPECT_LT(RotationAngleDeg(off), 3.0) << "loop " << link.from << " -> " << link.to;
+  }
   return mapped;
 }
 
@@ -129,6 +138,24 @@ TEST(Mapper, LoopsThatFitTheMapMoveOnlyTheKeyframesNearThem) {
   std::printf("there and back, %d loops: %d optimised locally, ATE %.4f m (whole part: %.4f m)\n",
               local.loops, local.local_optimisations, local_m, whole_m);
   EXPECT_LT(std::abs(local_m - whole_m), 0.003);
+}
+
+// Proximity alone (no bag of words): on the way back every keyframe is near where the graph put
+// the way there, and the loops it closes are the true ones.
+TEST(Mapper, ProximityClosesLoopsThePlaceIndexIsNotAskedFor) {
+  const Walk& walk = HandheldWalk();
+  MapperOptions options = SmallVocabulary();
+  options.loop_candidates = 0;
+  const MappedWalk nearby = ThereAndBack(walk, options);
+  options.proximity_candidates = 0;
+  const MappedWalk none = ThereAndBack(walk, options);
+  EXPECT_EQ(none.loops, 0);
+  EXPECT_GE(nearby.loops, 5);
+  const double nearby_m = EvaluateTrajectory(nearby.ground_truth, nearby.trajectory).ate_rmse_m;
+  const double none_m = EvaluateTrajectory(none.ground_truth, none.trajectory).ate_rmse_m;
+  std::printf("there and back by proximity: %d loops, ATE %.4f m (without: %.4f m)\n", nearby.loops,
+              nearby_m, none_m);
+  EXPECT_LT(nearby_m, 0.5 * none_m);
 }
 
 // The median translation error of the mapper's odometry links against the ground truth [m].

@@ -27,6 +27,7 @@
 
 #include "core/check.h"
 #include "core/rotation.h"
+#include "core/tum_format.h"
 #include "sim/simulator.h"
 #include "slam/features.h"
 #include "slam/mapper.h"
@@ -72,9 +73,19 @@ struct RunResult {
   int largest_keyframes = 0;
   TrajectoryError largest_error;
   double mapping_s = 0.0;
-  int optimisations = 0;        // over the whole part of the map
-  int local_optimisations = 0;  // near a loop that agreed with the map
+  int optimisations = 0;                  // over the whole part of the map
+  int local_optimisations = 0;            // near a loop that agreed with the map
+  std::vector<StampedPose> estimate;      // the keyframes' poses at the end
+  std::vector<StampedPose> ground_truth;  // and their true poses
 };
+
+// --trajectory-out: the estimate to FILE and the ground truth to FILE.gt, both TUM, to study
+// where the error lies.
+void WriteTrajectories(const RunResult& run, const std::string& path) {
+  if (path.empty()) return;
+  WriteTumTrajectory(path, run.estimate, "slam_benchmark estimate");
+  WriteTumTrajectory(path + ".gt", run.ground_truth, "slam_benchmark ground truth");
+}
 
 // Gives the mapper its next keyframe (and that keyframe's true pose); nullopt at the end.
 using KeyframeFeed =
@@ -219,6 +230,8 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
     ground_truth.push_back({trajectory[i].timestamp_ns, truths[i]});
   }
   run.error = EvaluateTrajectory(ground_truth, trajectory);
+  run.estimate = trajectory;
+  run.ground_truth = ground_truth;
   std::map<int, std::vector<StampedPose>> parts;
   const std::vector<StampedPose> estimate = mapper.Trajectory();
   for (size_t i = 0; i < estimate.size(); ++i) {
@@ -408,7 +421,7 @@ void PrintFalseLoop(const RunResult& clean, const RunResult& injected, int at) {
 // --track: the walk tracked frame by frame, as `sightmap map` does (on one thread here, so the
 // times are the tracker's and the mapper's alone).
 int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOptions& options,
-                        bool false_loop) {
+                        bool false_loop, const std::string& trajectory_out) {
   TrackerOptions tracker;
   tracker.features = options.features;
   tracker.registration = options.registration;
@@ -422,6 +435,7 @@ int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOp
   const auto start = std::chrono::steady_clock::now();
   const RunResult clean = Run(TrackedFrames(simulator, tracker, &figures),
                               simulator.options().camera, options, -1, true);
+  WriteTrajectories(clean, trajectory_out);
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double walk_s = static_cast<double>(simulator.num_frames()) / sim_options.fps;
@@ -467,6 +481,7 @@ int Main(int argc, char** argv) {
   int local_loop_hops = MapperOptions().local_loop_hops;
   int laps = 1;
   bool track = false;
+  std::string trajectory_out;
   app.add_option("--trajectory", trajectory, "handheld or robot")
       ->check(CLI::IsMember({"handheld", "robot"}));
   app.add_option("--session", session, "simulator session (>= 1)");
@@ -493,6 +508,8 @@ int Main(int argc, char** argv) {
                "track every frame of the walk at --fps (rendered as it goes, not kept) and map the "
                "keyframes the tracker emits at 1 Hz and where the overlap runs out, as `sightmap "
                "map` does");
+  app.add_option("--trajectory-out", trajectory_out,
+                 "write the keyframes' final poses to FILE and their true poses to FILE.gt (TUM)");
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
@@ -507,7 +524,7 @@ int Main(int argc, char** argv) {
   MapperOptions options;
   if (no_walk_check) options.walk_max_gap_s = 0.0;
   options.local_loop_hops = local_loop_hops;
-  if (track) return RunTrackedBenchmark(sim_options, options, false_loop);
+  if (track) return RunTrackedBenchmark(sim_options, options, false_loop, trajectory_out);
   std::vector<Frame> frames;
   const auto render_start = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < simulator.num_frames(); ++i) {
@@ -536,6 +553,7 @@ int Main(int argc, char** argv) {
   }
   const RunResult clean =
       Run(EveryFrame(frames), camera, options, -1, true, laps > 1 ? lap_length : 0);
+  WriteTrajectories(clean, trajectory_out);
   if (false_loop) {
     const RunResult injected =
         Run(EveryFrame(frames), camera, options, static_cast<int>(frames.size()) * 3 / 4, false);

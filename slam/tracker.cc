@@ -96,6 +96,7 @@ bool TrackerOptions::Check(std::string* error) const {
   if (!(richer_reference_ratio >= 1.0)) return fail("richer_reference_ratio must be >= 1");
   if (depth_downscale < 1) return fail("depth_downscale must be at least 1");
   if (!dense.Check(error)) return false;
+  if (!(dense_max_interval_s > 0.0)) return fail("dense_max_interval_s must be positive");
   if (!(dense_max_deviation_mps > 0.0) || !(dense_max_deviation_dps > 0.0) ||
       !(dense_slack_m >= 0.0) || !(dense_slack_deg >= 0.0)) {
     return fail("the dense deviation bounds must be positive and the slacks not negative");
@@ -306,7 +307,8 @@ FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
   }
   FrameTracking tracking = FrameTracking::kRegistered;
   if (!registered) {
-    const bool dense = options_.dense_fallback && RegisterDensely(frame, predicted, dt_s, result);
+    const bool dense = options_.dense_fallback && dt_s <= options_.dense_max_interval_s &&
+                       RegisterDensely(frame, predicted, dt_s, result);
     tracking = dense ? FrameTracking::kDense : FrameTracking::kBlind;
     if (!dense) PlaceBlind(frame, predicted, dt_s);
   }
@@ -379,10 +381,10 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
 SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       min_reference_inlier_ratio, richer_reference_ratio, min_keyframe_interval_s,
                       depth_downscale, max_deviation_mps, max_deviation_dps, deviation_slack_m,
-                      deviation_slack_deg, dense_fallback, dense, dense_max_deviation_mps,
-                      dense_max_deviation_dps, dense_slack_m, dense_slack_deg, dense_step_sigma_m,
-                      dense_step_sigma_rad, prior_sigma_m, prior_sigma_mps, prior_sigma_rad,
-                      prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
-                      min_reference_points)
+                      deviation_slack_deg, dense_fallback, dense_max_interval_s, dense,
+                      dense_max_deviation_mps, dense_max_deviation_dps, dense_slack_m,
+                      dense_slack_deg, dense_step_sigma_m, dense_step_sigma_rad, prior_sigma_m,
+                      prior_sigma_mps, prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
+                      blind_keyframe_after_s, min_reference_points)
 
 }  // namespace sightmap::slam

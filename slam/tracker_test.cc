@@ -152,6 +152,32 @@ TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
   EXPECT_GT(registered, 0);
 }
 
+// A frame without features (grey colour, its depth as measured) is placed by dense alignment when
+// it follows the last frame closely, and by the motion model when the frames are a second apart,
+// beyond what alignment converges from.
+TEST(Tracker, DenseAlignmentBridgesOnlyFramesCloseInTime) {
+  const Walk& walk = HandheldWalk();
+  // The same images each time; only their timestamps (and the interval allowed) differ.
+  const auto last_tracking = [&walk](double stretch, double dense_max_interval_s) {
+    TrackerOptions options;
+    options.dense_max_interval_s = dense_max_interval_s;
+    Tracker tracker(walk.camera, options);
+    FrameTracking last = FrameTracking::kRegistered;
+    for (size_t i = 20; i < 30; ++i) {
+      RgbdFrame frame = walk.frames[i];
+      frame.timestamp_ns =
+          static_cast<TimestampNs>(stretch * static_cast<double>(frame.timestamp_ns));
+      if (i == 29) frame.color = cv::Mat(frame.color.size(), CV_8UC3, cv::Scalar(128, 128, 128));
+      last = tracker.Track(frame).tracking;
+    }
+    return last;
+  };
+  const double interval_s = TrackerOptions().dense_max_interval_s;
+  EXPECT_EQ(last_tracking(1.0, interval_s), FrameTracking::kDense);
+  EXPECT_EQ(last_tracking(10.0, interval_s), FrameTracking::kBlind);
+  EXPECT_EQ(last_tracking(10.0, 2.0), FrameTracking::kDense);
+}
+
 TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
   const Walk& walk = HandheldWalk();
   TrackerOptions options;
