@@ -123,6 +123,7 @@ int StatusFor(identify::PhotoProblem problem) {
       return 415;
     case identify::PhotoProblem::kTooLarge:
       return 413;
+    case identify::PhotoProblem::kTooSmall:
     case identify::PhotoProblem::kTruncated:
     case identify::PhotoProblem::kCorrupt:
       return 400;

@@ -657,6 +657,15 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
                         std::max(1, static_cast<int>(std::lround(photo.rows * scale)))),
                0.0, 0.0, cv::INTER_AREA);
   }
+  // The photo rule refuses a side under kMinPhotoSidePx, but a caller may hand pixels directly,
+  // and downscaling a long thin photo shrinks its short side: ORB's pyramid throws on a side it
+  // shrinks to nothing, and finds nothing on one this short.
+  if (std::min(grey.cols, grey.rows) < kMinPhotoSidePx) {
+    std::ostringstream why;
+    why << "the photo is too small or too narrow to hold features (" << grey.cols << "x"
+        << grey.rows << " px as matched, at least " << kMinPhotoSidePx << " px a side needed).";
+    return finish(UnmatchedReason::kFewFeatures, why.str());
+  }
   const Features features = slam::ExtractFeatures(
       grey, cv::Mat(), full_candidates.front().Scaled(grey.cols, grey.rows), options.features);
   result.photo_features = static_cast<int>(features.size());

@@ -136,6 +136,12 @@ Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
             << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
     throw PhotoRejected(PhotoProblem::kTooLarge, message.str());
   }
+  if (std::min(header->width, header->height) < kMinPhotoSidePx) {
+    throw PhotoRejected(PhotoProblem::kTooSmall,
+                        "photo too small: " + SizeText(header->width, header->height) +
+                            ", each side must be at least " + std::to_string(kMinPhotoSidePx) +
+                            " px to hold features to match; send the full photo, not a thumbnail");
+  }
   if (!ImageIsComplete(data, size, header->format)) {
     throw PhotoRejected(PhotoProblem::kTruncated,
                         std::string("the ") + ToString(header->format) +

@@ -322,6 +322,19 @@ TEST(Cli, LocateAndServeReadTheirConfigAndPrintIt) {
   ExpectOneLineError(Sightmap("serve --config " + dir + "/serve.json"), 2, "--model is required");
 }
 
+// A photo too small to hold a feature is a bad photo: exit 2 with one line. The photo is read
+// before the model, so no model is needed to see it refused.
+TEST(Cli, LocateRefusesTinyAndCorruptPhotos) {
+  const std::string dir = testing::MakeTempDir("cli_bad_photos");
+  ASSERT_TRUE(cv::imwrite(dir + "/1x1.png", cv::Mat(1, 1, CV_8UC3, cv::Scalar(1, 2, 3))));
+  ASSERT_TRUE(cv::imwrite(dir + "/1x1000.jpg", cv::Mat(1000, 1, CV_8UC3, cv::Scalar(1, 2, 3))));
+  ASSERT_TRUE(cv::imwrite(dir + "/1000x1.png", cv::Mat(1, 1000, CV_8UC3, cv::Scalar(1, 2, 3))));
+  for (const char* name : {"1x1.png", "1x1000.jpg", "1000x1.png"}) {
+    ExpectOneLineError(Sightmap("locate --model " + dir + "/none.db " + dir + "/" + name), 2,
+                       "photo too small");
+  }
+}
+
 // sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,
 // the same bytes for the same arguments.
 TEST(Cli, SimGenerateWritesATumFolderThatProbesBackIdentically) {

@@ -394,6 +394,10 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
       {"truncated png", "/locate", png.substr(0, png.size() / 3), 400},
       // libjpeg decodes a cut JPEG, grey where the bytes ran out: refused, not matched.
       {"truncated jpeg", "/locate", jpeg.substr(0, jpeg.size() / 3), 400},
+      // Too small to hold a feature (OpenCV's feature pyramid threw on a 1-px side: 500).
+      {"1x1 png", "/locate", Encode(".png", cv::Mat(1, 1, CV_8UC3, cv::Scalar(9, 9, 9))), 400},
+      {"1x1000 jpeg", "/locate", Encode(".jpg", cv::Mat(1000, 1, CV_8UC3, cv::Scalar(9))), 400},
+      {"1000x1 png", "/locate", Encode(".png", cv::Mat(1, 1000, CV_8UC1, cv::Scalar(9))), 400},
       {"100 MP png", "/locate", huge_png, 413},
       {"100 MP jpeg header", "/locate", huge_jpeg, 413},
       {"three of four intrinsics", "/locate?fx=1000&fy=1000&cx=640", jpeg, 400},
