@@ -254,6 +254,29 @@ TEST(DecodePhoto, RefusesAPhotoTooSmallForFeatures) {
             kMinPhotoSidePx);
 }
 
+// A JPEG cut short and closed with an end marker passes the end-marker check; libjpeg decodes it
+// with the missing rows grey and only warns. Refused with libjpeg's reason, for a baseline and a
+// progressive JPEG alike.
+TEST(DecodePhoto, RefusesAJpegCutShortAndClosedWithAnEndMarker) {
+  cv::Mat noise(480, 640, CV_8UC3);
+  cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+  for (const bool progressive : {false, true}) {
+    std::vector<uint8_t> jpeg;
+    ASSERT_TRUE(cv::imencode(".jpg", noise, jpeg, {cv::IMWRITE_JPEG_PROGRESSIVE, progressive}));
+    EXPECT_EQ(DecodePhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels).upright.size(),
+              noise.size());
+    std::vector<uint8_t> cut(jpeg.begin(), jpeg.begin() + static_cast<long>(jpeg.size() * 6 / 10));
+    cut.push_back(0xFF);
+    cut.push_back(0xD9);
+    EXPECT_EQ(ProblemOf(cut, kMaxPhotoMegapixels), PhotoProblem::kCorrupt) << progressive;
+    try {
+      DecodePhoto(cut.data(), cut.size(), kMaxPhotoMegapixels);
+    } catch (const PhotoRejected& e) {
+      EXPECT_NE(std::string(e.what()).find("Corrupt JPEG data"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(ExifOrientation, GarbageAndAbsentTagsGiveOne) {
   EXPECT_EQ(ExifOrientation(nullptr, 0), 1);
   const std::vector<uint8_t> soi = {0xFF, 0xD8, 0xFF, 0xE1, 0x00};

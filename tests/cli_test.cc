@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -322,8 +323,9 @@ TEST(Cli, LocateAndServeReadTheirConfigAndPrintIt) {
   ExpectOneLineError(Sightmap("serve --config " + dir + "/serve.json"), 2, "--model is required");
 }
 
-// A photo too small to hold a feature is a bad photo: exit 2 with one line. The photo is read
-// before the model, so no model is needed to see it refused.
+// A photo too small to hold a feature, or a JPEG cut short and closed with an end marker (libjpeg
+// warns and fills the rest with grey), is a bad photo: exit 2 with one line, nothing from libjpeg
+// on stderr. The photo is read before the model, so no model is needed to see it refused.
 TEST(Cli, LocateRefusesTinyAndCorruptPhotos) {
   const std::string dir = testing::MakeTempDir("cli_bad_photos");
   ASSERT_TRUE(cv::imwrite(dir + "/1x1.png", cv::Mat(1, 1, CV_8UC3, cv::Scalar(1, 2, 3))));
@@ -333,6 +335,17 @@ TEST(Cli, LocateRefusesTinyAndCorruptPhotos) {
     ExpectOneLineError(Sightmap("locate --model " + dir + "/none.db " + dir + "/" + name), 2,
                        "photo too small");
   }
+  cv::Mat noise(480, 640, CV_8UC3);
+  cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", noise, jpeg));
+  jpeg.resize(jpeg.size() * 6 / 10);
+  jpeg.push_back(0xFF);
+  jpeg.push_back(0xD9);
+  std::ofstream(dir + "/cut.jpg", std::ios::binary)
+      .write(reinterpret_cast<const char*>(jpeg.data()), static_cast<std::streamsize>(jpeg.size()));
+  ExpectOneLineError(Sightmap("locate --model " + dir + "/none.db " + dir + "/cut.jpg"), 2,
+                     "premature end of data segment");
 }
 
 // sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,
