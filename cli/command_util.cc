@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "core/check.h"
+#include "core/input_file.h"
 
 namespace sightmap::cli {
 
@@ -91,12 +92,8 @@ void MakeParentFolder(const std::string& path, const std::string& option) {
 
 std::string ReadConfigFile(const std::string& path) {
   constexpr std::streamsize kMaxBytes = 1 << 20;
-  std::error_code error;
-  if (std::filesystem::is_directory(path, error)) {
-    SIGHTMAP_THROW(InvalidArgument, "--config " << path << " is a folder, not a JSON file");
-  }
   // Read as a stream, not by its size: `--config /dev/stdin` takes a pipe.
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in = OpenInputFile(path, "--config", std::ios::binary);
   if (!in.is_open()) {
     SIGHTMAP_THROW(InvalidArgument, "--config " << path << ": " << std::strerror(errno));
   }

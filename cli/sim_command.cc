@@ -8,6 +8,7 @@
 #include "cli/command_util.h"
 #include "cli/commands.h"
 #include "core/check.h"
+#include "core/input_file.h"
 #include "sim/dataset_writer.h"
 
 namespace sightmap::cli {
@@ -54,6 +55,7 @@ int RunSim(int argc, char** argv) {
   const ImageSize photo_size = ParseImageSize(query_size, "--query-size", {64, 48}, 8000);
   options.query.width = photo_size.width;
   options.query.height = photo_size.height;
+  if (options.simulator.scene != "office") RefuseFolder(options.simulator.scene, "--scene");
   CheckOutputFolder(options.out_dir, "--out");
   const sim::GenerateSummary summary = sim::GenerateDataset(options, &std::cerr);
   std::cout << "wrote " << summary.frames << " frames and " << summary.queries << " photos to "

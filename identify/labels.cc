@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/input_file.h"
 #include "core/options_json.h"
 #include "store/label_files.h"
 
@@ -196,7 +197,7 @@ store::LabelRecord AddPointsToLabel(store::Model& model, const std::string& name
 }
 
 LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path, "scene file");
   SIGHTMAP_CHECK(in.is_open(), "cannot read scene file " << path << ": check that it exists");
   nlohmann::json scene;
   try {

@@ -16,6 +16,7 @@
 // After <cstdio>: jpeglib.h uses FILE and size_t without including their headers.
 #include <jpeglib.h>
 
+#include "core/input_file.h"
 #include "identify/exif.h"
 
 namespace sightmap::identify {
@@ -281,7 +282,7 @@ Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
 }
 
 Photo ReadPhotoFile(const std::string& path, double max_megapixels) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in = OpenInputFile(path, "photo", std::ios::binary);
   if (!in.is_open())
     SIGHTMAP_THROW(InvalidArgument,
                    "cannot read photo " << path << ": no such file or no permission");

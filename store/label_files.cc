@@ -12,6 +12,7 @@
 
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/input_file.h"
 
 namespace sightmap::store {
 namespace {
@@ -45,7 +46,7 @@ bool IsPointListFile(const std::filesystem::path& path) {
 }  // namespace
 
 std::vector<Eigen::Vector3d> ReadPointList(const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path, "point list");
   SIGHTMAP_CHECK(in.is_open(), "cannot read point list " << path << ": check that it exists");
   std::vector<Eigen::Vector3d> points;
   std::string line;

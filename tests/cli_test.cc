@@ -348,6 +348,29 @@ TEST(Cli, LocateRefusesTinyAndCorruptPhotos) {
                      "premature end of data segment");
 }
 
+// A folder where a file belongs gets one answer from every reader of a user-given path (it was
+// "unexpected failure ... basic_filebuf::underflow", "not valid JSON", "has no poses" or "holds
+// no point").
+TEST(Cli, AFolderGivenForAFileIsNamedAsSuch) {
+  const std::string model = MakeSmallModel("cli_folder_for_file");
+  const std::string dir = testing::MakeTempDir("cli_folder_for_file_dir");
+  const std::string est = dir + "/est.txt";
+  std::ofstream(est) << "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n";
+  const std::string fragment = dir + " is a folder: give a file";
+  ExpectOneLineError(Sightmap("locate --model " + model + " " + dir), 2, fragment);
+  const std::string photo = dir + "/photo.png";
+  ASSERT_TRUE(cv::imwrite(photo, cv::Mat(480, 640, CV_8UC3, cv::Scalar(1, 2, 3))));
+  ExpectOneLineError(Sightmap("locate --model " + model + " " + photo + " --calib " + dir), 2,
+                     fragment);
+  ExpectOneLineError(Sightmap("label import --model " + model + " --from-scene " + dir), 2,
+                     fragment);
+  ExpectOneLineError(Sightmap("label import --model " + model + " " + dir), 2, fragment);
+  ExpectOneLineError(Sightmap("sim generate --scene " + dir + " --out " + dir + "/g"), 2, fragment);
+  ExpectOneLineError(Sightmap("eval trajectory --gt " + dir + " --est " + est), 2, fragment);
+  ExpectOneLineError(Sightmap("eval trajectory --gt " + est + " --est " + dir), 2, fragment);
+  ExpectOneLineError(Sightmap("locate --config " + dir + " --print-config"), 2, fragment);
+}
+
 // sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,
 // the same bytes for the same arguments.
 TEST(Cli, SimGenerateWritesATumFolderThatProbesBackIdentically) {
