@@ -90,27 +90,64 @@ int ExportLabels(const Model& model, const std::string& dir) {
                    "labels '" << written[name] << "' and '" << label.name << "' would both be "
                               << name << ": rename one of them; nothing was written");
   }
+  namespace fs = std::filesystem;
   std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
+  fs::create_directories(dir, ec);
   SIGHTMAP_CHECK(!ec, "cannot create " << dir << ": " << ec.message());
-  // Each file goes to a hidden temporary first and all are renamed at the end: a failure (a full
-  // disk) leaves the folder as it was.
-  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> staged;
+  const fs::path folder(dir);
+  // A target that is not a file (a folder, a socket) cannot be replaced: refused before writing.
+  for (const std::string& name : file_names) {
+    const fs::path target = folder / name;
+    const fs::file_status status = fs::status(target, ec);
+    SIGHTMAP_CHECK(!fs::exists(status) || fs::is_regular_file(status),
+                   "cannot write label file " << target.string()
+                                              << ": it is a folder or not a file; move it away "
+                                                 "(nothing was written)");
+  }
+  // Each file goes to a hidden temporary first and all are renamed at the end, the files they
+  // replace kept aside until every rename is done: a failure at any step (a full disk, a target
+  // that turned into a folder meanwhile) puts the folder back as it was.
+  struct Staged {
+    fs::path temporary;
+    fs::path target;
+    fs::path previous;  // the file `target` replaces, kept aside; empty when there was none
+    bool renamed = false;
+  };
+  std::vector<Staged> staged;
+  std::string failed = dir;  // the file being written or renamed when something fails
   try {
     for (size_t i = 0; i < labels.size(); ++i) {
-      const std::filesystem::path folder(dir);
-      staged.emplace_back(folder / ("." + file_names[i] + ".partial"), folder / file_names[i]);
+      staged.push_back({folder / ("." + file_names[i] + ".partial"), folder / file_names[i], {}});
+      failed = staged.back().target.string();
       std::vector<Eigen::Vector3d> points;
       for (const LabelPoint& point : labels[i].points) points.push_back(point.world);
-      WritePointList(staged.back().first.string(), points);
+      WritePointList(staged.back().temporary.string(), points);
     }
-    for (const auto& [temporary, final_path] : staged) {
-      std::filesystem::rename(temporary, final_path);
+    for (Staged& file : staged) {
+      failed = file.target.string();
+      if (fs::exists(file.target)) {
+        file.previous = folder / ("." + file.target.filename().string() + ".previous");
+        fs::rename(file.target, file.previous);
+      }
+      fs::rename(file.temporary, file.target);
+      file.renamed = true;
     }
     SyncFolder(dir);  // the renames, durable together
   } catch (const std::exception& e) {
-    for (const auto& [temporary, final_path] : staged) std::filesystem::remove(temporary, ec);
-    SIGHTMAP_THROW(Error, e.what());
+    // Back as it was: the new files removed, the replaced ones renamed back, temporaries gone.
+    for (const Staged& file : staged) {
+      if (file.renamed) fs::remove(file.target, ec);
+      if (!file.previous.empty()) fs::rename(file.previous, file.target, ec);
+      fs::remove(file.temporary, ec);
+    }
+    const auto* filesystem_error = dynamic_cast<const fs::filesystem_error*>(&e);
+    SIGHTMAP_THROW(Error, "cannot write label file "
+                              << failed << ": "
+                              << (filesystem_error ? filesystem_error->code().message() : e.what())
+                              << " (nothing was written)");
+  }
+  for (const Staged& file : staged) {
+    if (!file.previous.empty()) fs::remove(file.previous, ec);
   }
   return static_cast<int>(labels.size());
 }
