@@ -313,10 +313,15 @@ TEST(Map, TheSameCommandAgainContinuesTheWalkAndStartFrameOverrides) {
     EXPECT_TRUE(continued);
   }
 
+  // A run that maps nothing leaves the model as it was: no empty finished session either.
+  const nlohmann::json before = Info(dir + "/m.db");
   const CommandResult third = Sightmap(command);
   EXPECT_EQ(third.exit_code, 1);
   EXPECT_NE(third.err.find("nothing left to map"), std::string::npos) << third.err;
-  EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), 12);
+  const nlohmann::json after = Info(dir + "/m.db");
+  EXPECT_EQ(after.at("keyframes"), 12);
+  EXPECT_EQ(after.at("sessions"), before.at("sessions"));
+  EXPECT_EQ(after.at("session_list"), before.at("session_list"));
 
   const CommandResult again = Sightmap(command + " --start-frame 10");
   ASSERT_EQ(again.exit_code, 0) << again.err;
