@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -77,6 +78,23 @@ CLI::Validator Within(double min, double max, const std::string& unit) {
         return std::string();
       },
       "NUMBER " + text);
+}
+
+CLI::Validator WholeNumberUpTo(uint64_t max) {
+  const std::string text = "a whole number from 0 to " + std::to_string(max);
+  return CLI::Validator(
+      [max, text](std::string& input) -> std::string {
+        uint64_t value = 0;
+        const char* end = input.data() + input.size();
+        const bool digits = !input.empty() && std::all_of(input.begin(), input.end(), [](char c) {
+          return c >= '0' && c <= '9';
+        });
+        if (!digits || std::from_chars(input.data(), end, value).ptr != end || value > max) {
+          return "'" + input + "' must be " + text;
+        }
+        return std::string();
+      },
+      "UINT");
 }
 
 void MakeParentFolder(const std::string& path, const std::string& option) {

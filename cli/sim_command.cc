@@ -1,8 +1,10 @@
 // sightmap sim generate --scene office --trajectory handheld --session 1 --seed 7 --out DIR
 // [--frames N] [--queries N] [--fps F] [--query-size WxH]: writes the synthetic building's walk as
 // a TUM RGB-D folder plus phone photos with ground truth (see sim/dataset_writer.h).
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <string>
 
 #include "cli/command_util.h"
@@ -34,6 +36,7 @@ int RunSim(int argc, char** argv) {
       ->check(Within(1, 1000))
       ->capture_default_str();
   generate->add_option("--seed", options.simulator.seed, "same arguments and seed, same bytes")
+      ->check(WholeNumberUpTo(std::numeric_limits<uint64_t>::max()))
       ->capture_default_str();
   generate->add_option("--out", options.out_dir, "output folder (created)")->required();
   generate

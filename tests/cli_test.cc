@@ -275,6 +275,29 @@ TEST(Cli, BadNumbersSizesAndOutputsAreRefusedBeforeTheWork) {
                      "does not apply to the simulator");
 }
 
+// The simulator's options in a sim: source and sim generate's --seed: each refused with its own
+// name and range (frames=-1 mapped the default 9,000 frames, frames=0 blamed a --start-frame never
+// given, frames=1.5 said "not a number", and a negative seed wrapped round), nothing mapped.
+TEST(Cli, SimOptionsOutOfRangeAreRefusedByName) {
+  const std::string dir = testing::MakeTempDir("cli_sim_options");
+  const std::string map = "map --headless --model " + dir + "/m.db --source ";
+  const std::string frames = "must be a whole number from 1 to 10000000";
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=-1'"), 2, "frames=-1 " + frames);
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=0'"), 2, "frames=0 " + frames);
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=1.5'"), 2, "frames=1.5 " + frames);
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=3&seed=-3'"), 2,
+                     "seed=-3 must be a whole number from 0 to 18446744073709551615");
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=3&session=0'"), 2,
+                     "session=0 must be a whole number from 1 to 1000");
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=3&fps=0'"), 2,
+                     "fps=0 must be a number above 0 and at most 120 Hz");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/m.db"));
+  ExpectOneLineError(Sightmap("sim generate --seed -1 --out " + dir + "/g"), 2,
+                     "must be a whole number from 0 to 18446744073709551615");
+  ExpectOneLineError(Sightmap("sim generate --seed 1.5 --out " + dir + "/g"), 2, "--seed");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/g"));
+}
+
 // info and export take the model as MODEL or --model, like every other command.
 TEST(Cli, ReadCommandsTakeTheModelEitherWay) {
   const std::string model = MakeSmallModel("cli_model_flag");
