@@ -503,6 +503,10 @@ TEST_F(ServeTest, ADeclaredLengthIsRefusedBeforeTheBody) {
   EXPECT_EQ(status_for("99999999999"), "HTTP/1.1 413 Payload Too Large");
   EXPECT_EQ(status_for("-5"), "HTTP/1.1 400 Bad Request");
   EXPECT_EQ(status_for("12abc"), "HTTP/1.1 400 Bad Request");
+  // Two lengths that disagree: refused at once (it waited for the 5 s read timeout).
+  const Clock::time_point sent = Clock::now();
+  EXPECT_EQ(status_for("5\r\nContent-Length: 7"), "HTTP/1.1 400 Bad Request");
+  EXPECT_LT(Clock::now() - sent, std::chrono::seconds(1));
   // Found by locate_request_fuzzer: a multipart upload with no length at all stalled until the
   // read timeout and got no answer. It is asked for its length at once.
   EXPECT_EQ(RawStatusLine(server_->port(),
