@@ -13,6 +13,7 @@
 #include "core/atomic_file.h"
 #include "core/check.h"
 #include "core/input_file.h"
+#include "core/tum_format.h"
 
 namespace sightmap::store {
 namespace {
@@ -49,10 +50,27 @@ std::vector<Eigen::Vector3d> ReadPointList(const std::string& path) {
   std::ifstream in = OpenInputFile(path, "point list");
   SIGHTMAP_CHECK(in.is_open(), "cannot read point list " << path << ": check that it exists");
   std::vector<Eigen::Vector3d> points;
+  // A header before the points and a footer after them are skipped; a line that cannot be read
+  // between two points is a damaged file, refused rather than imported without that point.
   std::string line;
-  while (std::getline(in, line)) {
+  std::string unread;  // the first unreadable line after a point, while no point has followed
+  int unread_number = 0;
+  for (int line_number = 1; std::getline(in, line); ++line_number) {
     Eigen::Vector3d point;
-    if (ParsePoint(line, &point)) points.push_back(point);
+    if (ParsePoint(line, &point)) {
+      if (unread_number > 0) {
+        ThrowMalformedLine(path, unread_number, unread, "'x y z' or 'x,y,z' (a point)");
+      }
+      points.push_back(point);
+      continue;
+    }
+    const size_t first = line.find_first_not_of(" \t\r");
+    const bool blank_or_comment =
+        first == std::string::npos || line[first] == '#' || line.compare(first, 2, "//") == 0;
+    if (!points.empty() && !blank_or_comment && unread_number == 0) {
+      unread = line;
+      unread_number = line_number;
+    }
   }
   SIGHTMAP_CHECK(!points.empty(), "point list " << path
                                                 << " holds no point: expected one 'x y z' or "
