@@ -180,6 +180,7 @@ TEST(LabelCommand, BadNamesAndPointsAreRefusedAndExportIsAllOrNothing) {
   const std::string dir = testing::MakeTempDir("label_cli_names");
   const std::string model = MakeModel(dir);
   const std::string add = "label add --model " + model + " --point 1,2,3 --name ";
+  ExpectOneLineError(Sightmap(add + "''"), 2, "a label needs a name");
   ExpectOneLineError(Sightmap(add + "'   '"), 2, "cannot be only spaces");
   ExpectOneLineError(Sightmap(add + "\"$(printf 'a\\nb')\""), 2, "control characters");
   ExpectOneLineError(Sightmap(add + "\"$(printf 'tab\\there')\""), 2, "'tab\\there'");
