@@ -11,6 +11,7 @@
 #include "cli/commands.h"
 #include "core/check.h"
 #include "core/input_file.h"
+#include "identify/photo.h"
 #include "sim/dataset_writer.h"
 
 namespace sightmap::cli {
@@ -55,7 +56,9 @@ int RunSim(int argc, char** argv) {
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
   options.simulator.trajectory = sim::ParseTrajectoryKind(trajectory);
-  const ImageSize photo_size = ParseImageSize(query_size, "--query-size", {64, 48}, 8000);
+  // No smaller than `locate` and `eval identify` take a photo.
+  const ImageSize photo_size = ParseImageSize(
+      query_size, "--query-size", {identify::kMinPhotoSidePx, identify::kMinPhotoSidePx}, 8000);
   options.query.width = photo_size.width;
   options.query.height = photo_size.height;
   if (options.simulator.scene != "office") RefuseFolder(options.simulator.scene, "--scene");

@@ -258,7 +258,7 @@ TEST(Cli, BadNumbersSizesAndOutputsAreRefusedBeforeTheWork) {
   ExpectOneLineError(Sightmap("serve --model " + model + " --port 99999"), 2,
                      "must be from 0 to 65535");
   ExpectOneLineError(Sightmap("sim generate --out " + dir + "/g --query-size 100000x100000"), 2,
-                     "from 64x48 to 8000x8000");
+                     "from 64x64 to 8000x8000");
   EXPECT_FALSE(std::filesystem::exists(dir + "/g"));
   // No message prints DBL_MAX's 309 digits.
   EXPECT_LT(Sightmap(map + "/a.db --max-keyframes -1").err.size(), 200u);
