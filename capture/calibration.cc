@@ -6,6 +6,7 @@
 
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/input_file.h"
 
 namespace sightmap::capture {
 namespace {
@@ -64,7 +65,7 @@ json IntrinsicsToJson(const Intrinsics& k) {
 }  // namespace
 
 RgbdCalibration ReadCalibrationFile(const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path, "calibration file");
   SIGHTMAP_CHECK(in, "cannot read calibration file " << path << ": check the path");
   json root;
   try {

@@ -29,6 +29,7 @@
 #include "core/atomic_file.h"
 #include "core/check.h"
 #include "core/image_header.h"
+#include "core/input_file.h"
 #include "core/tum_format.h"
 
 namespace sightmap::capture {
@@ -82,7 +83,7 @@ struct FolderFrame {
 // Commas separate fields too, as in TUM's own tools.
 template <typename ParseFn>
 void ForEachDataLine(const fs::path& path, ParseFn&& parse) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path.string(), "list");
   SIGHTMAP_CHECK(in, "cannot read " << path.string() << "; check that the file is readable");
   ForEachTumLine(in, parse);
 }
@@ -497,7 +498,7 @@ std::map<int64_t, ThreeDMatchFiles> ScanThreeDMatchFrames(const fs::path& dir) {
 }
 
 std::vector<double> ReadNumbers(const fs::path& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path.string(), "numbers file");
   SIGHTMAP_CHECK(in, "cannot read " << path.string() << "; check that the file is readable");
   std::vector<double> numbers;
   std::string token;

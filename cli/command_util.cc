@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -15,6 +16,7 @@
 #include <sstream>
 
 #include "core/check.h"
+#include "core/input_file.h"
 
 namespace sightmap::cli {
 
@@ -78,6 +80,23 @@ CLI::Validator Within(double min, double max, const std::string& unit) {
       "NUMBER " + text);
 }
 
+CLI::Validator WholeNumberUpTo(uint64_t max) {
+  const std::string text = "a whole number from 0 to " + std::to_string(max);
+  return CLI::Validator(
+      [max, text](std::string& input) -> std::string {
+        uint64_t value = 0;
+        const char* end = input.data() + input.size();
+        const bool digits = !input.empty() && std::all_of(input.begin(), input.end(), [](char c) {
+          return c >= '0' && c <= '9';
+        });
+        if (!digits || std::from_chars(input.data(), end, value).ptr != end || value > max) {
+          return "'" + input + "' must be " + text;
+        }
+        return std::string();
+      },
+      "UINT");
+}
+
 void MakeParentFolder(const std::string& path, const std::string& option) {
   const std::filesystem::path folder = std::filesystem::path(path).parent_path();
   if (folder.empty()) return;
@@ -91,12 +110,8 @@ void MakeParentFolder(const std::string& path, const std::string& option) {
 
 std::string ReadConfigFile(const std::string& path) {
   constexpr std::streamsize kMaxBytes = 1 << 20;
-  std::error_code error;
-  if (std::filesystem::is_directory(path, error)) {
-    SIGHTMAP_THROW(InvalidArgument, "--config " << path << " is a folder, not a JSON file");
-  }
   // Read as a stream, not by its size: `--config /dev/stdin` takes a pipe.
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in = OpenInputFile(path, "--config", std::ios::binary);
   if (!in.is_open()) {
     SIGHTMAP_THROW(InvalidArgument, "--config " << path << ": " << std::strerror(errno));
   }

@@ -1,6 +1,7 @@
 // What every `sightmap` subcommand shares: the exit-code contract and CLI11 parsing.
 #pragma once
 
+#include <cstdint>
 #include <initializer_list>
 #include <iostream>
 #include <string>
@@ -40,6 +41,10 @@ ImageSize ParseImageSize(const std::string& text, const std::string& option, Ima
 // given. The message names the range as a person would ("must be a number from 0 to 1000 Hz");
 // CLI11's own Range lets NaN through and NonNegativeNumber prints DBL_MAX in 300 digits.
 CLI::Validator Within(double min, double max, const std::string& unit = "");
+
+// A whole number from 0 to `max`, digits only: CLI11 reads "-1" into an unsigned option as the
+// largest value.
+CLI::Validator WholeNumberUpTo(uint64_t max);
 
 // Makes the folder `path` (given by `option`) goes in, when it is missing; throws Error naming
 // the option when it cannot.

@@ -123,6 +123,7 @@ int StatusFor(identify::PhotoProblem problem) {
       return 415;
     case identify::PhotoProblem::kTooLarge:
       return 413;
+    case identify::PhotoProblem::kTooSmall:
     case identify::PhotoProblem::kTruncated:
     case identify::PhotoProblem::kCorrupt:
       return 400;
@@ -392,6 +393,18 @@ httplib::Server::HandlerResponse LocateServer::Impl::PreRoute(const httplib::Req
     response.set_header("Connection", "close");
     RefuseCounted(response, 411,
                   "a " + request.method + " needs a Content-Length (or chunked transfer encoding)");
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  // Lengths that disagree (how requests are smuggled past a proxy) make the body's end unknown:
+  // refused at once, not read by one of them until the read timeout.
+  const size_t lengths = request.get_header_value_count("Content-Length");
+  for (size_t i = 1; i < lengths; ++i) {
+    if (request.get_header_value("Content-Length", i) ==
+        request.get_header_value("Content-Length")) {
+      continue;
+    }
+    response.set_header("Connection", "close");
+    RefuseCounted(response, 400, "the request has two different Content-Length headers");
     return httplib::Server::HandlerResponse::Handled;
   }
   const std::string declared = request.get_header_value("Content-Length");

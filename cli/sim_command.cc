@@ -1,13 +1,17 @@
 // sightmap sim generate --scene office --trajectory handheld --session 1 --seed 7 --out DIR
 // [--frames N] [--queries N] [--fps F] [--query-size WxH]: writes the synthetic building's walk as
 // a TUM RGB-D folder plus phone photos with ground truth (see sim/dataset_writer.h).
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <string>
 
 #include "cli/command_util.h"
 #include "cli/commands.h"
 #include "core/check.h"
+#include "core/input_file.h"
+#include "identify/photo.h"
 #include "sim/dataset_writer.h"
 
 namespace sightmap::cli {
@@ -33,6 +37,7 @@ int RunSim(int argc, char** argv) {
       ->check(Within(1, 1000))
       ->capture_default_str();
   generate->add_option("--seed", options.simulator.seed, "same arguments and seed, same bytes")
+      ->check(WholeNumberUpTo(std::numeric_limits<uint64_t>::max()))
       ->capture_default_str();
   generate->add_option("--out", options.out_dir, "output folder (created)")->required();
   generate
@@ -51,9 +56,12 @@ int RunSim(int argc, char** argv) {
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
 
   options.simulator.trajectory = sim::ParseTrajectoryKind(trajectory);
-  const ImageSize photo_size = ParseImageSize(query_size, "--query-size", {64, 48}, 8000);
+  // No smaller than `locate` and `eval identify` take a photo.
+  const ImageSize photo_size = ParseImageSize(
+      query_size, "--query-size", {identify::kMinPhotoSidePx, identify::kMinPhotoSidePx}, 8000);
   options.query.width = photo_size.width;
   options.query.height = photo_size.height;
+  if (options.simulator.scene != "office") RefuseFolder(options.simulator.scene, "--scene");
   CheckOutputFolder(options.out_dir, "--out");
   const sim::GenerateSummary summary = sim::GenerateDataset(options, &std::cerr);
   std::cout << "wrote " << summary.frames << " frames and " << summary.queries << " photos to "

@@ -15,6 +15,7 @@
 // left to the struct's Check().
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -57,6 +58,17 @@ void ReadNumber(const nlohmann::json& json, T& value) {
     if (!json.is_boolean()) throw OptionsJsonError("", "must be true or false");
     value = json.get<bool>();
   } else if constexpr (std::is_integral_v<T>) {
+    if (json.is_number_float()) {
+      // 1e300 is written as a whole number but fits no count: say so, not "not whole".
+      const double number = json.get<double>();
+      const bool whole = std::isfinite(number) && number == std::floor(number);
+      if (whole && (number < static_cast<double>(std::numeric_limits<T>::min()) ||
+                    number > static_cast<double>(std::numeric_limits<T>::max()))) {
+        throw OptionsJsonError("", "is out of range: must be from " +
+                                       std::to_string(std::numeric_limits<T>::min()) + " to " +
+                                       std::to_string(std::numeric_limits<T>::max()));
+      }
+    }
     if (!json.is_number_integer()) throw OptionsJsonError("", "must be a whole number");
     if (json.is_number_unsigned()) {
       const uint64_t number = json.get<uint64_t>();

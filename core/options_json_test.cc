@@ -122,6 +122,13 @@ TEST(OptionsJson, RefusesWhatNlohmannWouldQuietlyConvert) {
   EXPECT_EQ(ReadError(R"({"levels": [1, "two"]})"),
             "config.json: levels[1]: must be a whole number");
   EXPECT_EQ(ReadError(R"({"levels": [2.5]})"), "config.json: levels[0]: must be a whole number");
+  // Whole, but written as a float too large for any count: out of range, not "not whole".
+  EXPECT_EQ(ReadError(R"({"inner": {"count": 1e300}})"),
+            "config.json: inner.count: is out of range: must be from -2147483648 to 2147483647");
+  EXPECT_EQ(ReadError(R"({"seed": -1e30})"),
+            "config.json: seed: is out of range: must be from 0 to 18446744073709551615");
+  EXPECT_EQ(ReadError(R"({"levels": [1e10]})"),
+            "config.json: levels[0]: is out of range: must be from -2147483648 to 2147483647");
   EXPECT_EQ(ReadError(R"({"levels": 3})"), "config.json: levels: must be an array of numbers");
   EXPECT_EQ(ReadError(R"({"inner": 4})"), "config.json: inner: must be an object ({...})");
   EXPECT_EQ(ReadError("[1, 2]"), "config.json: must be an object ({...})");

@@ -12,6 +12,7 @@
 
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/input_file.h"
 
 namespace sightmap {
 namespace {
@@ -95,7 +96,7 @@ void ForEachTumLine(std::istream& in,
 }
 
 std::vector<StampedPose> ReadTumTrajectory(const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path, "trajectory");
   SIGHTMAP_CHECK(in.is_open(), "cannot read trajectory " << path << ": check that it exists");
   std::vector<StampedPose> poses;
   ForEachTumLine(

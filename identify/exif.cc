@@ -11,6 +11,7 @@
 
 #include "core/check.h"
 #include "core/image_header.h"
+#include "core/input_file.h"
 
 namespace sightmap::identify {
 namespace {
@@ -161,7 +162,7 @@ std::optional<double> ExifFocalLength35mm(const std::vector<uint8_t>& jpeg) {
 }
 
 std::optional<double> ExifFocalLength35mmOfFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in = OpenInputFile(path, "photo", std::ios::binary);
   if (!in.is_open()) return std::nullopt;
   const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
                                    std::istreambuf_iterator<char>());

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/input_file.h"
 #include "core/options_json.h"
 #include "store/label_files.h"
 
@@ -175,7 +176,8 @@ store::LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world) {
 store::LabelRecord AddPointsToLabel(store::Model& model, const std::string& name,
                                     const std::vector<store::LabelPoint>& points,
                                     const std::optional<std::string>& type) {
-  SIGHTMAP_CHECK(!name.empty(), "a label needs a name: pass --name NAME");
+  // A usage error like every other bad name (exit 2), not a failure of the model.
+  if (name.empty()) SIGHTMAP_THROW(InvalidArgument, "a label needs a name: pass --name NAME");
   SIGHTMAP_CHECK(!points.empty(), "label '" << name << "' needs at least one point");
   std::optional<store::LabelRecord> label = model.FindLabel(name);
   if (label) {
@@ -196,7 +198,7 @@ store::LabelRecord AddPointsToLabel(store::Model& model, const std::string& name
 }
 
 LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path, "scene file");
   SIGHTMAP_CHECK(in.is_open(), "cannot read scene file " << path << ": check that it exists");
   nlohmann::json scene;
   try {

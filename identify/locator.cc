@@ -451,8 +451,9 @@ struct Locator::Impl {
 
   void FindNeighbours();
   // Retrieval candidates for a photo's descriptors, best first: the inverted index's, and in a
-  // model of no more keyframes than retrieval_candidates every keyframe (a few keyframes are
-  // cheaper to verify than to rank, and a vocabulary trained on them ranks poorly).
+  // model of no more keyframes than retrieval_candidates, or without a vocabulary, every keyframe
+  // (a few keyframes are cheaper to verify than to rank, and a vocabulary trained on them ranks
+  // poorly).
   std::vector<slam::PlaceCandidate> Retrieve(const cv::Mat& descriptors) const;
 };
 
@@ -461,7 +462,8 @@ std::vector<slam::PlaceCandidate> Locator::Impl::Retrieve(const cv::Mat& descrip
   if (!vocabulary.empty()) {
     candidates = index.Query(vocabulary.Transform(descriptors), options.retrieval_candidates);
   }
-  if (keyframes.size() <= static_cast<size_t>(options.retrieval_candidates)) {
+  // Without a vocabulary (a model with one keyframe of features) there is nothing to rank by.
+  if (vocabulary.empty() || keyframes.size() <= static_cast<size_t>(options.retrieval_candidates)) {
     for (size_t slot = 0; slot < keyframes.size(); ++slot) {
       const bool listed = std::any_of(
           candidates.begin(), candidates.end(),
@@ -537,6 +539,7 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   impl_->vocabulary = LoadOrTrainVocabulary(model, infos);
 
   OcclusionCloudBuilder cloud(options.occlusion_voxel_m);
+  bool any_orb_features = false;
   impl_->keyframes.reserve(infos.size());
   for (const store::KeyframeInfo& info : infos) {
     Impl::ModelKeyframe keyframe;
@@ -547,6 +550,8 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     const size_t slot = impl_->keyframes.size();
     // Every descriptor votes in retrieval; only those with a 3D point can be matched for PnP.
     if (IsOrbDescriptors(features.descriptors)) {
+      // Not the index: a model with one keyframe of features has no vocabulary to index by.
+      any_orb_features = true;
       if (!impl_->vocabulary.empty()) {
         impl_->index.Add(static_cast<int64_t>(slot),
                          impl_->vocabulary.Transform(features.descriptors));
@@ -578,9 +583,9 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     }
     impl_->keyframes.push_back(std::move(keyframe));
   }
-  SIGHTMAP_CHECK(impl_->index.size() > 0, "the model " << model.path()
-                                                       << " has no keyframe with ORB features; "
-                                                          "map it again with ORB features");
+  SIGHTMAP_CHECK(any_orb_features, "the model " << model.path()
+                                                << " has no keyframe with ORB features; "
+                                                   "map it again with ORB features");
   impl_->FindNeighbours();
   impl_->cloud = cloud.Build();
   ReloadLabels(model);
@@ -656,6 +661,15 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
                cv::Size(std::max(1, static_cast<int>(std::lround(photo.cols * scale))),
                         std::max(1, static_cast<int>(std::lround(photo.rows * scale)))),
                0.0, 0.0, cv::INTER_AREA);
+  }
+  // The photo rule refuses a side under kMinPhotoSidePx, but a caller may hand pixels directly,
+  // and downscaling a long thin photo shrinks its short side: ORB's pyramid throws on a side it
+  // shrinks to nothing, and finds nothing on one this short.
+  if (std::min(grey.cols, grey.rows) < kMinPhotoSidePx) {
+    std::ostringstream why;
+    why << "the photo is too small or too narrow to hold features (" << grey.cols << "x"
+        << grey.rows << " px as matched, at least " << kMinPhotoSidePx << " px a side needed).";
+    return finish(UnmatchedReason::kFewFeatures, why.str());
   }
   const Features features = slam::ExtractFeatures(
       grey, cv::Mat(), full_candidates.front().Scaled(grey.cols, grey.rows), options.features);

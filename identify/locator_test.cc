@@ -171,6 +171,16 @@ TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
   const LocateResult empty = locator_->Locate(cv::Mat(), phone);
   EXPECT_FALSE(empty.matched);
   EXPECT_EQ(empty.reason_code, UnmatchedReason::kEmptyPhoto);
+
+  // Pixels too few for ORB's pyramid (which threw on a 1-px side), given directly or left so by
+  // downscaling a long thin photo: not matched, and said why.
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(1000, 1), cv::Size(64, 20000)}) {
+    const LocateResult thin =
+        locator_->Locate(cv::Mat(size, CV_8UC3, cv::Scalar(1, 2, 3)), std::nullopt);
+    EXPECT_FALSE(thin.matched) << size;
+    EXPECT_EQ(thin.reason_code, UnmatchedReason::kFewFeatures) << size;
+    EXPECT_NE(thin.reason.find("too small or too narrow"), std::string::npos) << thin.reason;
+  }
 }
 
 TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {

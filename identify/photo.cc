@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -10,7 +13,10 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+// After <cstdio>: jpeglib.h uses FILE and size_t without including their headers.
+#include <jpeglib.h>
 
+#include "core/input_file.h"
 #include "identify/exif.h"
 
 namespace sightmap::identify {
@@ -45,6 +51,95 @@ Intrinsics FitTo(const Intrinsics& intrinsics, int width, int height, const std:
                         << " image but the photo is " << SizeText(width, height)
                         << ": another aspect ratio is another camera or a crop, not a scaling");
   return intrinsics.Scaled(width, height);
+}
+
+// libjpeg's error manager, extended: a fatal error jumps back to the decoder with its message, and
+// a warning (corrupt or missing entropy data, which libjpeg decodes as grey and only reports on
+// stderr) is kept instead of printed, so the decoder can refuse the image with it.
+struct StrictJpegErrors {
+  jpeg_error_mgr manager;  // first: libjpeg hands back a pointer to it
+  std::jmp_buf fatal;
+  char message[JMSG_LENGTH_MAX] = "";
+  bool warned = false;
+};
+
+void JpegFatal(j_common_ptr cinfo) {
+  auto* errors = reinterpret_cast<StrictJpegErrors*>(cinfo->err);
+  (*cinfo->err->format_message)(cinfo, errors->message);
+  std::longjmp(errors->fatal, 1);
+}
+
+void JpegMessage(j_common_ptr cinfo, int level) {
+  if (level >= 0) return;  // trace messages
+  auto* errors = reinterpret_cast<StrictJpegErrors*>(cinfo->err);
+  if (!errors->warned) (*cinfo->err->format_message)(cinfo, errors->message);
+  errors->warned = true;
+  ++cinfo->err->num_warnings;
+}
+
+// Runs libjpeg on `data` into `*image` (BGR, or CMYK inks when the JPEG has them). Returns false
+// after a fatal error, with its message in `errors`. Kept free of C++ objects of its own: the
+// error exit jumps back here past libjpeg's frames, and only `cinfo` (in memory) is used after.
+bool RunLibjpeg(const uint8_t* data, size_t size, StrictJpegErrors* errors, cv::Mat* image,
+                bool* cmyk) {
+  jpeg_decompress_struct cinfo;
+  std::memset(&cinfo, 0, sizeof(cinfo));
+  cinfo.err = jpeg_std_error(&errors->manager);
+  errors->manager.error_exit = JpegFatal;
+  errors->manager.emit_message = JpegMessage;
+  if (setjmp(errors->fatal) != 0) {
+    jpeg_destroy_decompress(&cinfo);
+    return false;
+  }
+  jpeg_create_decompress(&cinfo);
+  jpeg_mem_src(&cinfo, data, static_cast<unsigned long>(size));
+  jpeg_read_header(&cinfo, TRUE);
+  // Adobe CMYK (and YCCK) has no RGB output in libjpeg: read its inks, converted by the caller.
+  *cmyk = cinfo.jpeg_color_space == JCS_CMYK || cinfo.jpeg_color_space == JCS_YCCK;
+  cinfo.out_color_space = *cmyk ? JCS_CMYK : JCS_EXT_BGR;
+  jpeg_start_decompress(&cinfo);
+  image->create(static_cast<int>(cinfo.output_height), static_cast<int>(cinfo.output_width),
+                *cmyk ? CV_8UC4 : CV_8UC3);
+  while (cinfo.output_scanline < cinfo.output_height) {
+    JSAMPROW row = image->ptr<uint8_t>(static_cast<int>(cinfo.output_scanline));
+    jpeg_read_scanlines(&cinfo, &row, 1);
+  }
+  jpeg_finish_decompress(&cinfo);
+  jpeg_destroy_decompress(&cinfo);
+  return true;
+}
+
+// Decodes a JPEG to BGR as cv::imdecode does (the same library with the same defaults: the same
+// pixels), but refuses what libjpeg only warns about on stderr: data cut short and closed with an
+// end marker, or damaged inside, decodes with invented grey or garbage, which must never be
+// matched. Nothing is printed.
+cv::Mat DecodeJpegStrictly(const uint8_t* data, size_t size) {
+  StrictJpegErrors errors;
+  cv::Mat image;
+  bool cmyk = false;
+  if (!RunLibjpeg(data, size, &errors, &image, &cmyk)) {
+    throw PhotoRejected(PhotoProblem::kCorrupt,
+                        std::string("the jpeg does not decode: ") + errors.message);
+  }
+  if (errors.warned) {
+    throw PhotoRejected(PhotoProblem::kCorrupt,
+                        std::string("the jpeg is corrupt: ") + errors.message +
+                            " (decoders fill what is missing with grey); send the whole file");
+  }
+  if (!cmyk) return image;
+  // As OpenCV converts Adobe's (inverted) inks.
+  cv::Mat bgr(image.rows, image.cols, CV_8UC3);
+  for (int v = 0; v < image.rows; ++v) {
+    const uint8_t* ink = image.ptr<uint8_t>(v);
+    uint8_t* out = bgr.ptr<uint8_t>(v);
+    for (int u = 0; u < image.cols; ++u, ink += 4, out += 3) {
+      const int k = ink[3];
+      out[2] = static_cast<uint8_t>(k - (((255 - ink[0]) * k) >> 8));
+      out[1] = static_cast<uint8_t>(k - (((255 - ink[1]) * k) >> 8));
+      out[0] = static_cast<uint8_t>(k - (((255 - ink[2]) * k) >> 8));
+    }
+  }
+  return bgr;
 }
 
 }  // namespace
@@ -136,6 +231,12 @@ Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
             << "; send it downscaled (a 1280x960 or 2560x1920 photo is plenty)";
     throw PhotoRejected(PhotoProblem::kTooLarge, message.str());
   }
+  if (std::min(header->width, header->height) < kMinPhotoSidePx) {
+    throw PhotoRejected(PhotoProblem::kTooSmall,
+                        "photo too small: " + SizeText(header->width, header->height) +
+                            ", each side must be at least " + std::to_string(kMinPhotoSidePx) +
+                            " px to hold features to match; send the full photo, not a thumbnail");
+  }
   if (!ImageIsComplete(data, size, header->format)) {
     throw PhotoRejected(PhotoProblem::kTruncated,
                         std::string("the ") + ToString(header->format) +
@@ -154,13 +255,17 @@ Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels) {
 
 void DecodePixels(const uint8_t* data, size_t size, Photo* photo) {
   // The orientation is applied here, explicitly, so the pixels and the intrinsics turn together.
-  const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT_MAX)), CV_8UC1,
-                        const_cast<uint8_t*>(data));
   cv::Mat stored;
-  try {
-    stored = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
-  } catch (const cv::Exception&) {
-    stored.release();
+  if (photo->stored.format == ImageFormat::kJpeg) {
+    stored = DecodeJpegStrictly(data, size);  // throws PhotoRejected with libjpeg's reason
+  } else {
+    const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT_MAX)), CV_8UC1,
+                          const_cast<uint8_t*>(data));
+    try {
+      stored = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+    } catch (const cv::Exception&) {
+      stored.release();
+    }
   }
   if (stored.empty() || stored.cols != photo->stored.width || stored.rows != photo->stored.height) {
     throw PhotoRejected(
@@ -177,7 +282,7 @@ Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels) {
 }
 
 Photo ReadPhotoFile(const std::string& path, double max_megapixels) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in = OpenInputFile(path, "photo", std::ios::binary);
   if (!in.is_open())
     SIGHTMAP_THROW(InvalidArgument,
                    "cannot read photo " << path << ": no such file or no permission");

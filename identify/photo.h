@@ -38,7 +38,7 @@ cv::Mat TurnClockwise(const cv::Mat& stored, int quarter_turns);
 Intrinsics TurnClockwise(const Intrinsics& stored, int quarter_turns);
 
 // Why a photo was refused, so a server can answer with the fitting status.
-enum class PhotoProblem { kNotAnImage, kTooLarge, kTruncated, kCorrupt };
+enum class PhotoProblem { kNotAnImage, kTooLarge, kTooSmall, kTruncated, kCorrupt };
 
 class PhotoRejected : public InvalidArgument {
  public:
@@ -71,9 +71,15 @@ struct Photo {
 // full-size shot, 600 MB decoded. `serve` takes its limit from --max-megapixels.
 constexpr double kMaxPhotoMegapixels = 200.0;
 
+// The shortest side a photo may have [px]. ORB describes a 31x31 patch and keeps no keypoint within
+// 31 px of the border, so a picture under 64 px on a side holds no feature to match (and OpenCV's
+// feature pyramid shrinks a 1-px side to nothing and throws). No phone takes such a photo: under
+// this it is a thumbnail or an icon, refused with that reason rather than "no features".
+constexpr int kMinPhotoSidePx = 64;
+
 // Everything DecodePhoto learns without decoding (`upright` stays empty): the cheap refusals
-// (not an image, too large, cut short) and the upright size, so a server can answer bad uploads
-// without waiting for a decoder. Throws PhotoRejected as DecodePhoto does.
+// (not an image, too large, too small, cut short) and the upright size, so a server can answer bad
+// uploads without waiting for a decoder. Throws PhotoRejected as DecodePhoto does.
 Photo InspectPhoto(const uint8_t* data, size_t size, double max_megapixels);
 
 // Decodes the pixels of a photo InspectPhoto took from the same bytes into photo->upright.
@@ -82,8 +88,9 @@ void DecodePixels(const uint8_t* data, size_t size, Photo* photo);
 
 // InspectPhoto and DecodePixels: decodes a JPEG or PNG from memory. Throws PhotoRejected with one
 // line: not a JPEG or PNG (by its bytes, whatever a file name or Content-Type says), more than
-// max_megapixels (checked on the header, before decoding allocates 3 bytes a pixel), cut short (no
-// end marker: decoders would fill the rest with grey), or undecodable.
+// max_megapixels (checked on the header, before decoding allocates 3 bytes a pixel), a side under
+// kMinPhotoSidePx, cut short (no end marker: decoders would fill the rest with grey), or
+// undecodable.
 Photo DecodePhoto(const uint8_t* data, size_t size, double max_megapixels);
 // The same for a file; also throws InvalidArgument when it cannot be read.
 Photo ReadPhotoFile(const std::string& path, double max_megapixels);

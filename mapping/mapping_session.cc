@@ -457,7 +457,13 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     summary.reason_detail = *capture.error();
   }
   EndSession(pipeline, &model, session, map_error, summary.reason);
-  CheckFramesCame(options_, capture, summary.reason, continue_after);
+  try {
+    CheckFramesCame(options_, capture, summary.reason, continue_after);
+  } catch (const Error&) {
+    // A run that mapped nothing leaves no empty session behind: `info` would count it.
+    model.DeleteEmptySession(session);
+    throw;
+  }
 
   if (progress_) {
     MappingProgress last = Progress(pipeline);

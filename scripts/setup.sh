@@ -18,6 +18,7 @@ packages=(
   libglfw3-dev                              # the live preview window (render/)
   libcpp-httplib-dev                        # the HTTP server phones talk to (sightmap serve)
   libexif-dev                               # a photo's focal length from its EXIF (sightmap locate)
+  libjpeg62-turbo-dev                       # phone photos decoded strictly (corrupt data refused)
   xvfb xauth                                # a virtual display for the preview's tests
   chromium chromium-driver python3-selenium # the web pages' tests in a real headless browser
   opencv-doc                                # real photographs the simulator textures its scene with

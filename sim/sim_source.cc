@@ -1,6 +1,10 @@
 #include "sim/sim_source.h"
 
+#include <algorithm>
+#include <charconv>
+#include <limits>
 #include <sstream>
+#include <string>
 
 #include "core/check.h"
 
@@ -61,14 +65,34 @@ class SimSource : public capture::RgbdSource {
 constexpr const char* kAccepted =
     " — accepted: sim:NAME?trajectory=handheld|robot&session=N&seed=N&fps=F&frames=N";
 
-template <typename T>
-T ParseNumber(const std::string& key, const std::string& value) {
+[[noreturn]] void ThrowBadOption(const std::string& key, const std::string& value,
+                                 const std::string& wanted) {
+  SIGHTMAP_THROW(InvalidArgument,
+                 "sim: option " << key << "=" << value << " must be " << wanted << kAccepted);
+}
+
+// A whole number from `min` to `max`, digits only: ">>" would read "1.5" as 1 and "-3" into an
+// unsigned seed as 2^64 - 3, and -1 (the default's marker for frames) is no count a user means.
+uint64_t ParseWhole(const std::string& key, const std::string& value, uint64_t min, uint64_t max) {
+  const std::string wanted =
+      "a whole number from " + std::to_string(min) + " to " + std::to_string(max);
+  uint64_t number = 0;
+  const char* end = value.data() + value.size();
+  const bool digits = !value.empty() && std::all_of(value.begin(), value.end(),
+                                                    [](char c) { return c >= '0' && c <= '9'; });
+  if (!digits || std::from_chars(value.data(), end, number).ptr != end || number < min ||
+      number > max) {
+    ThrowBadOption(key, value, wanted);
+  }
+  return number;
+}
+
+double ParseFps(const std::string& key, const std::string& value) {
   std::istringstream in(value);
-  T number{};
+  double number = 0.0;
   in >> number;
-  if (!in || !in.eof()) {
-    SIGHTMAP_THROW(InvalidArgument,
-                   "sim: option " << key << "=" << value << " is not a number" << kAccepted);
+  if (!in || !in.eof() || !(number > 0.0 && number <= 120.0)) {
+    ThrowBadOption(key, value, "a number above 0 and at most 120 Hz");
   }
   return number;
 }
@@ -94,13 +118,13 @@ SimulatorOptions ParseSimLocation(const std::string& location) {
     if (key == "trajectory") {
       options.trajectory = ParseTrajectoryKind(value);
     } else if (key == "session") {
-      options.session = ParseNumber<int>(key, value);
+      options.session = static_cast<int>(ParseWhole(key, value, 1, 1000));
     } else if (key == "seed") {
-      options.seed = ParseNumber<uint64_t>(key, value);
+      options.seed = ParseWhole(key, value, 0, std::numeric_limits<uint64_t>::max());
     } else if (key == "fps") {
-      options.fps = ParseNumber<double>(key, value);
+      options.fps = ParseFps(key, value);
     } else if (key == "frames") {
-      options.frames = ParseNumber<int64_t>(key, value);
+      options.frames = static_cast<int64_t>(ParseWhole(key, value, 1, 10'000'000));
     } else {
       SIGHTMAP_THROW(InvalidArgument, "unknown sim: option '" << key << "'" << kAccepted);
     }

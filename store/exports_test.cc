@@ -296,6 +296,17 @@ TEST(LabelFiles, ReadsCloudCompareVariants) {
   EXPECT_EQ(points[2], Eigen::Vector3d(7, 8, 9));
   EXPECT_EQ(points[3], Eigen::Vector3d(-0.1, 2, 3));
 
+  // A line that cannot be read between two points is refused with its number, not skipped.
+  std::ofstream(dir + "/gap.txt") << "# x y z\n1 2 3\n4 5 six\n// note\n7 8 9\n";
+  try {
+    ReadPointList(dir + "/gap.txt");
+    ADD_FAILURE() << "a point was skipped";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("gap.txt:3:"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("4 5 six"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(dir + "/gap.txt");
+
   // A file without points stops the import before any label is written.
   std::ofstream(dir + "/broken.txt") << "no numbers here\n";
   Model model = Model::Open(":memory:");

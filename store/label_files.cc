@@ -12,6 +12,8 @@
 
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/input_file.h"
+#include "core/tum_format.h"
 
 namespace sightmap::store {
 namespace {
@@ -45,13 +47,30 @@ bool IsPointListFile(const std::filesystem::path& path) {
 }  // namespace
 
 std::vector<Eigen::Vector3d> ReadPointList(const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in = OpenInputFile(path, "point list");
   SIGHTMAP_CHECK(in.is_open(), "cannot read point list " << path << ": check that it exists");
   std::vector<Eigen::Vector3d> points;
+  // A header before the points and a footer after them are skipped; a line that cannot be read
+  // between two points is a damaged file, refused rather than imported without that point.
   std::string line;
-  while (std::getline(in, line)) {
+  std::string unread;  // the first unreadable line after a point, while no point has followed
+  int unread_number = 0;
+  for (int line_number = 1; std::getline(in, line); ++line_number) {
     Eigen::Vector3d point;
-    if (ParsePoint(line, &point)) points.push_back(point);
+    if (ParsePoint(line, &point)) {
+      if (unread_number > 0) {
+        ThrowMalformedLine(path, unread_number, unread, "'x y z' or 'x,y,z' (a point)");
+      }
+      points.push_back(point);
+      continue;
+    }
+    const size_t first = line.find_first_not_of(" \t\r");
+    const bool blank_or_comment =
+        first == std::string::npos || line[first] == '#' || line.compare(first, 2, "//") == 0;
+    if (!points.empty() && !blank_or_comment && unread_number == 0) {
+      unread = line;
+      unread_number = line_number;
+    }
   }
   SIGHTMAP_CHECK(!points.empty(), "point list " << path
                                                 << " holds no point: expected one 'x y z' or "
@@ -89,27 +108,64 @@ int ExportLabels(const Model& model, const std::string& dir) {
                    "labels '" << written[name] << "' and '" << label.name << "' would both be "
                               << name << ": rename one of them; nothing was written");
   }
+  namespace fs = std::filesystem;
   std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
+  fs::create_directories(dir, ec);
   SIGHTMAP_CHECK(!ec, "cannot create " << dir << ": " << ec.message());
-  // Each file goes to a hidden temporary first and all are renamed at the end: a failure (a full
-  // disk) leaves the folder as it was.
-  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> staged;
+  const fs::path folder(dir);
+  // A target that is not a file (a folder, a socket) cannot be replaced: refused before writing.
+  for (const std::string& name : file_names) {
+    const fs::path target = folder / name;
+    const fs::file_status status = fs::status(target, ec);
+    SIGHTMAP_CHECK(!fs::exists(status) || fs::is_regular_file(status),
+                   "cannot write label file " << target.string()
+                                              << ": it is a folder or not a file; move it away "
+                                                 "(nothing was written)");
+  }
+  // Each file goes to a hidden temporary first and all are renamed at the end, the files they
+  // replace kept aside until every rename is done: a failure at any step (a full disk, a target
+  // that turned into a folder meanwhile) puts the folder back as it was.
+  struct Staged {
+    fs::path temporary;
+    fs::path target;
+    fs::path previous;  // the file `target` replaces, kept aside; empty when there was none
+    bool renamed = false;
+  };
+  std::vector<Staged> staged;
+  std::string failed = dir;  // the file being written or renamed when something fails
   try {
     for (size_t i = 0; i < labels.size(); ++i) {
-      const std::filesystem::path folder(dir);
-      staged.emplace_back(folder / ("." + file_names[i] + ".partial"), folder / file_names[i]);
+      staged.push_back({folder / ("." + file_names[i] + ".partial"), folder / file_names[i], {}});
+      failed = staged.back().target.string();
       std::vector<Eigen::Vector3d> points;
       for (const LabelPoint& point : labels[i].points) points.push_back(point.world);
-      WritePointList(staged.back().first.string(), points);
+      WritePointList(staged.back().temporary.string(), points);
     }
-    for (const auto& [temporary, final_path] : staged) {
-      std::filesystem::rename(temporary, final_path);
+    for (Staged& file : staged) {
+      failed = file.target.string();
+      if (fs::exists(file.target)) {
+        file.previous = folder / ("." + file.target.filename().string() + ".previous");
+        fs::rename(file.target, file.previous);
+      }
+      fs::rename(file.temporary, file.target);
+      file.renamed = true;
     }
     SyncFolder(dir);  // the renames, durable together
   } catch (const std::exception& e) {
-    for (const auto& [temporary, final_path] : staged) std::filesystem::remove(temporary, ec);
-    SIGHTMAP_THROW(Error, e.what());
+    // Back as it was: the new files removed, the replaced ones renamed back, temporaries gone.
+    for (const Staged& file : staged) {
+      if (file.renamed) fs::remove(file.target, ec);
+      if (!file.previous.empty()) fs::rename(file.previous, file.target, ec);
+      fs::remove(file.temporary, ec);
+    }
+    const auto* filesystem_error = dynamic_cast<const fs::filesystem_error*>(&e);
+    SIGHTMAP_THROW(Error, "cannot write label file "
+                              << failed << ": "
+                              << (filesystem_error ? filesystem_error->code().message() : e.what())
+                              << " (nothing was written)");
+  }
+  for (const Staged& file : staged) {
+    if (!file.previous.empty()) fs::remove(file.previous, ec);
   }
   return static_cast<int>(labels.size());
 }

@@ -11,8 +11,9 @@
 
 namespace sightmap::store {
 
-// Points of one file; lines that do not start with three numbers (headers, comments) are skipped.
-// Throws Error when the file cannot be read or holds no point.
+// Points of one file; lines that do not start with three numbers (headers, comments, a footer)
+// are skipped. Throws Error when the file cannot be read, holds no point, or has a line that
+// cannot be read between two points (naming it).
 std::vector<Eigen::Vector3d> ReadPointList(const std::string& path);
 // One `x y z` line per point, in metres with micrometre precision.
 void WritePointList(const std::string& path, const std::vector<Eigen::Vector3d>& points);

@@ -593,6 +593,16 @@ int Model::MarkRunningSessionsInterrupted(TimestampNs now_ns) {
   return sqlite3_changes(impl_->db);
 }
 
+bool Model::DeleteEmptySession(SessionId id) {
+  impl_->CheckWritable();
+  Statement remove(impl_->db,
+                   "DELETE FROM sessions WHERE id = ?1 AND NOT EXISTS (SELECT 1 FROM keyframes "
+                   "WHERE session_id = ?1) AND NOT EXISTS (SELECT 1 FROM sessions WHERE "
+                   "resumed_into = ?1)");
+  remove.Bind(1, id.value()).Run();
+  return sqlite3_changes(impl_->db) == 1;
+}
+
 std::vector<SessionRecord> Model::Sessions() const {
   Statement query(impl_->db,
                   "SELECT id, start_time_ns, end_time_ns, source, device_name, device_serial, "

@@ -189,6 +189,9 @@ class Model {
                   SessionId resumed_into = SessionId());
   // Sessions still marked running (left by a crash) become interrupted; returns how many.
   int MarkRunningSessionsInterrupted(TimestampNs now_ns);
+  // Removes a session that holds no keyframe and that no session was resumed into (a run that
+  // mapped nothing leaves the model as it found it); returns false, removing nothing, otherwise.
+  bool DeleteEmptySession(SessionId id);
   std::vector<SessionRecord> Sessions() const;
 
   // Keyframes. AddKeyframe writes the keyframe, its features and its links in one transaction.

@@ -262,6 +262,24 @@ TEST(Model, SessionsEndAndCrashedOnesBecomeInterrupted) {
   EXPECT_EQ(sessions[2].end_time_ns, 11);
 }
 
+// A run that mapped nothing removes its session; one with a keyframe, or resumed into, stays.
+TEST(Model, DeletesOnlyAnEmptySession) {
+  Model model = Model::Open(":memory:");
+  const SessionId mapped = model.BeginSession({});
+  model.AddKeyframe(MakeSyntheticKeyframe(mapped, 0, SmallKeyframes()));
+  const SessionId resumed = model.BeginSession({});
+  const SessionId empty = model.BeginSession({});
+  model.EndSession(resumed, SessionEnd::kResumedInto, 5, mapped);
+  model.EndSession(empty, SessionEnd::kFinished, 9);
+  const SessionId target = model.BeginSession({});
+  model.EndSession(model.BeginSession({}), SessionEnd::kResumedInto, 5, target);
+  EXPECT_FALSE(model.DeleteEmptySession(mapped));
+  EXPECT_FALSE(model.DeleteEmptySession(target));
+  EXPECT_TRUE(model.DeleteEmptySession(empty));
+  EXPECT_FALSE(model.DeleteEmptySession(empty));
+  EXPECT_EQ(model.Sessions().size(), 4u);
+}
+
 TEST(Model, SummaryCountsLinksSegmentsAndBoundingBox) {
   Model model = Model::Open(":memory:");
   const SessionId session = model.BeginSession({});

@@ -16,6 +16,7 @@
 
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/input_file.h"
 #include "core/options_json.h"
 #include "core/voxel_key.h"
 
@@ -289,7 +290,7 @@ struct PlyLayout {
 // x, y and z, and red, green and blue all three as uchar or none (what the fuzzer found broke the
 // reader this replaced is refused here: control characters in the header, partial colours).
 PlyLayout ReadPointCloudPlyHeader(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in = OpenInputFile(path, "point cloud", std::ios::binary);
   SIGHTMAP_CHECK(in.is_open(), "cannot read " << path);
   auto fail = [&](const std::string& why) {
     SIGHTMAP_THROW(Error, "cannot read " << path << " as a point cloud PLY: " << why);

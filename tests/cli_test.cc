@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -257,7 +258,7 @@ TEST(Cli, BadNumbersSizesAndOutputsAreRefusedBeforeTheWork) {
   ExpectOneLineError(Sightmap("serve --model " + model + " --port 99999"), 2,
                      "must be from 0 to 65535");
   ExpectOneLineError(Sightmap("sim generate --out " + dir + "/g --query-size 100000x100000"), 2,
-                     "from 64x48 to 8000x8000");
+                     "from 64x64 to 8000x8000");
   EXPECT_FALSE(std::filesystem::exists(dir + "/g"));
   // No message prints DBL_MAX's 309 digits.
   EXPECT_LT(Sightmap(map + "/a.db --max-keyframes -1").err.size(), 200u);
@@ -272,6 +273,29 @@ TEST(Cli, BadNumbersSizesAndOutputsAreRefusedBeforeTheWork) {
   ExpectOneLineError(Sightmap("export " + model + " --ply " + dir), 2, "is a folder");
   ExpectOneLineError(Sightmap(map + "/b.db --calib " + model), 2,
                      "does not apply to the simulator");
+}
+
+// The simulator's options in a sim: source and sim generate's --seed: each refused with its own
+// name and range (frames=-1 mapped the default 9,000 frames, frames=0 blamed a --start-frame never
+// given, frames=1.5 said "not a number", and a negative seed wrapped round), nothing mapped.
+TEST(Cli, SimOptionsOutOfRangeAreRefusedByName) {
+  const std::string dir = testing::MakeTempDir("cli_sim_options");
+  const std::string map = "map --headless --model " + dir + "/m.db --source ";
+  const std::string frames = "must be a whole number from 1 to 10000000";
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=-1'"), 2, "frames=-1 " + frames);
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=0'"), 2, "frames=0 " + frames);
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=1.5'"), 2, "frames=1.5 " + frames);
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=3&seed=-3'"), 2,
+                     "seed=-3 must be a whole number from 0 to 18446744073709551615");
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=3&session=0'"), 2,
+                     "session=0 must be a whole number from 1 to 1000");
+  ExpectOneLineError(Sightmap(map + "'sim:office?frames=3&fps=0'"), 2,
+                     "fps=0 must be a number above 0 and at most 120 Hz");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/m.db"));
+  ExpectOneLineError(Sightmap("sim generate --seed -1 --out " + dir + "/g"), 2,
+                     "must be a whole number from 0 to 18446744073709551615");
+  ExpectOneLineError(Sightmap("sim generate --seed 1.5 --out " + dir + "/g"), 2, "--seed");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/g"));
 }
 
 // info and export take the model as MODEL or --model, like every other command.
@@ -320,6 +344,54 @@ TEST(Cli, LocateAndServeReadTheirConfigAndPrintIt) {
                      "locate.json: features: unknown option");
   ExpectOneLineError(Sightmap("locate --config " + dir + "/locate.json"), 2, "--model is required");
   ExpectOneLineError(Sightmap("serve --config " + dir + "/serve.json"), 2, "--model is required");
+}
+
+// A photo too small to hold a feature, or a JPEG cut short and closed with an end marker (libjpeg
+// warns and fills the rest with grey), is a bad photo: exit 2 with one line, nothing from libjpeg
+// on stderr. The photo is read before the model, so no model is needed to see it refused.
+TEST(Cli, LocateRefusesTinyAndCorruptPhotos) {
+  const std::string dir = testing::MakeTempDir("cli_bad_photos");
+  ASSERT_TRUE(cv::imwrite(dir + "/1x1.png", cv::Mat(1, 1, CV_8UC3, cv::Scalar(1, 2, 3))));
+  ASSERT_TRUE(cv::imwrite(dir + "/1x1000.jpg", cv::Mat(1000, 1, CV_8UC3, cv::Scalar(1, 2, 3))));
+  ASSERT_TRUE(cv::imwrite(dir + "/1000x1.png", cv::Mat(1, 1000, CV_8UC3, cv::Scalar(1, 2, 3))));
+  for (const char* name : {"1x1.png", "1x1000.jpg", "1000x1.png"}) {
+    ExpectOneLineError(Sightmap("locate --model " + dir + "/none.db " + dir + "/" + name), 2,
+                       "photo too small");
+  }
+  cv::Mat noise(480, 640, CV_8UC3);
+  cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", noise, jpeg));
+  jpeg.resize(jpeg.size() * 6 / 10);
+  jpeg.push_back(0xFF);
+  jpeg.push_back(0xD9);
+  std::ofstream(dir + "/cut.jpg", std::ios::binary)
+      .write(reinterpret_cast<const char*>(jpeg.data()), static_cast<std::streamsize>(jpeg.size()));
+  ExpectOneLineError(Sightmap("locate --model " + dir + "/none.db " + dir + "/cut.jpg"), 2,
+                     "premature end of data segment");
+}
+
+// A folder where a file belongs gets one answer from every reader of a user-given path (it was
+// "unexpected failure ... basic_filebuf::underflow", "not valid JSON", "has no poses" or "holds
+// no point").
+TEST(Cli, AFolderGivenForAFileIsNamedAsSuch) {
+  const std::string model = MakeSmallModel("cli_folder_for_file");
+  const std::string dir = testing::MakeTempDir("cli_folder_for_file_dir");
+  const std::string est = dir + "/est.txt";
+  std::ofstream(est) << "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n";
+  const std::string fragment = dir + " is a folder: give a file";
+  ExpectOneLineError(Sightmap("locate --model " + model + " " + dir), 2, fragment);
+  const std::string photo = dir + "/photo.png";
+  ASSERT_TRUE(cv::imwrite(photo, cv::Mat(480, 640, CV_8UC3, cv::Scalar(1, 2, 3))));
+  ExpectOneLineError(Sightmap("locate --model " + model + " " + photo + " --calib " + dir), 2,
+                     fragment);
+  ExpectOneLineError(Sightmap("label import --model " + model + " --from-scene " + dir), 2,
+                     fragment);
+  ExpectOneLineError(Sightmap("label import --model " + model + " " + dir), 2, fragment);
+  ExpectOneLineError(Sightmap("sim generate --scene " + dir + " --out " + dir + "/g"), 2, fragment);
+  ExpectOneLineError(Sightmap("eval trajectory --gt " + dir + " --est " + est), 2, fragment);
+  ExpectOneLineError(Sightmap("eval trajectory --gt " + est + " --est " + dir), 2, fragment);
+  ExpectOneLineError(Sightmap("locate --config " + dir + " --print-config"), 2, fragment);
 }
 
 // sim generate: a TUM folder that probes back with ground truth, photos with per-appliance types,

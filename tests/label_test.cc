@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -179,6 +180,7 @@ TEST(LabelCommand, BadNamesAndPointsAreRefusedAndExportIsAllOrNothing) {
   const std::string dir = testing::MakeTempDir("label_cli_names");
   const std::string model = MakeModel(dir);
   const std::string add = "label add --model " + model + " --point 1,2,3 --name ";
+  ExpectOneLineError(Sightmap(add + "''"), 2, "a label needs a name");
   ExpectOneLineError(Sightmap(add + "'   '"), 2, "cannot be only spaces");
   ExpectOneLineError(Sightmap(add + "\"$(printf 'a\\nb')\""), 2, "control characters");
   ExpectOneLineError(Sightmap(add + "\"$(printf 'tab\\there')\""), 2, "'tab\\there'");
@@ -203,6 +205,41 @@ TEST(LabelCommand, BadNamesAndPointsAreRefusedAndExportIsAllOrNothing) {
   EXPECT_FALSE(std::filesystem::exists(out + "/zebra.txt"));
   ExpectOneLineError(Sightmap("label export --model " + model + " --dir /proc/labels"), 1,
                      "cannot create --dir /proc/labels");
+}
+
+// A target the export cannot replace (a folder named like a label's file) fails the whole export
+// with one line naming it: the files already there stay as they were, none is added, and no
+// temporary is left behind. Once it is moved away, the export replaces the old files.
+TEST(LabelCommand, AnExportBlockedByAFolderChangesNothing) {
+  const std::string dir = testing::MakeTempDir("label_cli_export_blocked");
+  const std::string model = MakeModel(dir);
+  for (const char* name : {"lamp", "tv", "zebra"}) {
+    ASSERT_EQ(Sightmap("label add --model " + model + " --point 1,2,3 --name " + name).exit_code,
+              0);
+  }
+  const std::string out = dir + "/labels";
+  std::filesystem::create_directories(out + "/tv.txt");
+  std::ofstream(out + "/lamp.txt") << "9 9 9\n";
+  ExpectOneLineError(Sightmap("label export --model " + model + " --dir " + out), 1,
+                     out + "/tv.txt");
+  EXPECT_EQ(testing::Slurp(out + "/lamp.txt"), "9 9 9\n");
+  std::vector<std::string> left;
+  for (const auto& entry : std::filesystem::directory_iterator(out)) {
+    left.push_back(entry.path().filename().string());
+  }
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"lamp.txt", "tv.txt"}));
+
+  std::filesystem::remove(out + "/tv.txt");
+  const CommandResult run = Sightmap("label export --model " + model + " --dir " + out);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(testing::Slurp(out + "/lamp.txt"), "1.000000 2.000000 3.000000\n");
+  left.clear();
+  for (const auto& entry : std::filesystem::directory_iterator(out)) {
+    left.push_back(entry.path().filename().string());
+  }
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"lamp.txt", "tv.txt", "zebra.txt"}));
 }
 
 }  // namespace

@@ -203,6 +203,33 @@ TEST(Map, AFiveFrameRealModelLocatesItsPhotos) {
   EXPECT_EQ(nlohmann::json::parse(strict.out).at("matched"), false) << strict.out;
 }
 
+// The 12-frame Kinect recording at the default rate is a model of one keyframe: no vocabulary can
+// be trained on it, and the locator must try that keyframe rather than refuse the model as
+// having "no keyframe with ORB features".
+TEST(Map, AOneKeyframeModelLocatesItsPhotos) {
+  SIGHTMAP_REQUIRE_SHARED_DATA(recording, "oni/kinect-12f.oni");
+  const std::string dir = testing::MakeTempDir("one-keyframe");
+  const CommandResult run =
+      Sightmap("map --source " + recording + " --model " + dir + "/m.db --headless --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  ASSERT_EQ(nlohmann::json::parse(run.out).at("keyframes"), 1);
+  ASSERT_EQ(Sightmap("probe " + recording + " --dump 12 --out " + dir + "/frames").exit_code, 0);
+  // The recording's colour intrinsics, as the dump writes them (3DMatch's 3x3 matrix).
+  std::ifstream matrix(dir + "/frames/camera-intrinsics.txt");
+  double k[9] = {};
+  for (double& entry : k) ASSERT_TRUE(matrix >> entry);
+  std::ostringstream intrinsics;
+  intrinsics.precision(17);
+  intrinsics << k[0] << "," << k[4] << "," << k[2] << "," << k[5];
+  for (const char* frame : {"frame-000000", "frame-000011"}) {
+    const CommandResult located =
+        Sightmap("locate --model " + dir + "/m.db " + dir + "/frames/" + frame +
+                 ".color.png --intrinsics " + intrinsics.str() + " --json");
+    ASSERT_EQ(located.exit_code, 0) << located.err;
+    EXPECT_EQ(nlohmann::json::parse(located.out).at("matched"), true) << frame << located.out;
+  }
+}
+
 TEST(Map, ASimWalkWritesProgressImageTrajectoryAndAte) {
   const std::string dir = testing::MakeTempDir("sim");
   const CommandResult run = Sightmap("map --source 'sim:office?frames=40&fps=1' --model " + dir +
@@ -286,10 +313,15 @@ TEST(Map, TheSameCommandAgainContinuesTheWalkAndStartFrameOverrides) {
     EXPECT_TRUE(continued);
   }
 
+  // A run that maps nothing leaves the model as it was: no empty finished session either.
+  const nlohmann::json before = Info(dir + "/m.db");
   const CommandResult third = Sightmap(command);
   EXPECT_EQ(third.exit_code, 1);
   EXPECT_NE(third.err.find("nothing left to map"), std::string::npos) << third.err;
-  EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), 12);
+  const nlohmann::json after = Info(dir + "/m.db");
+  EXPECT_EQ(after.at("keyframes"), 12);
+  EXPECT_EQ(after.at("sessions"), before.at("sessions"));
+  EXPECT_EQ(after.at("session_list"), before.at("session_list"));
 
   const CommandResult again = Sightmap(command + " --start-frame 10");
   ASSERT_EQ(again.exit_code, 0) << again.err;

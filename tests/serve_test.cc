@@ -382,6 +382,7 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
       break;
     }
   }
+  const std::string cut_jpeg = jpeg.substr(0, jpeg.size() * 6 / 10) + "\xFF\xD9";
   struct Case {
     const char* what;
     std::string path;
@@ -394,6 +395,13 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
       {"truncated png", "/locate", png.substr(0, png.size() / 3), 400},
       // libjpeg decodes a cut JPEG, grey where the bytes ran out: refused, not matched.
       {"truncated jpeg", "/locate", jpeg.substr(0, jpeg.size() / 3), 400},
+      // A cut JPEG given an end marker passes the end-marker check; libjpeg only warns (to
+      // stderr) and fills the missing rows with grey: refused with its reason, not matched.
+      {"cut jpeg with an end marker", "/locate", cut_jpeg, 400},
+      // Too small to hold a feature (OpenCV's feature pyramid threw on a 1-px side: 500).
+      {"1x1 png", "/locate", Encode(".png", cv::Mat(1, 1, CV_8UC3, cv::Scalar(9, 9, 9))), 400},
+      {"1x1000 jpeg", "/locate", Encode(".jpg", cv::Mat(1000, 1, CV_8UC3, cv::Scalar(9))), 400},
+      {"1000x1 png", "/locate", Encode(".png", cv::Mat(1, 1000, CV_8UC1, cv::Scalar(9))), 400},
       {"100 MP png", "/locate", huge_png, 413},
       {"100 MP jpeg header", "/locate", huge_jpeg, 413},
       {"three of four intrinsics", "/locate?fx=1000&fy=1000&cx=640", jpeg, 400},
@@ -411,6 +419,10 @@ TEST_F(ServeTest, BadUploadsGet4xxAndTheServerKeepsServing) {
     const nlohmann::json answer = Json(result);
     EXPECT_TRUE(answer.contains("error")) << c.what << ": " << result->body;
     EXPECT_EQ(answer["status"], c.status) << c.what;
+    if (c.body == cut_jpeg) {
+      EXPECT_NE(answer["error"].get<std::string>().find("premature end of data"), std::string::npos)
+          << answer;
+    }
     ExpectStillServing();
   }
   // A body over the limit is refused from its declared length, before it is read, and the
@@ -491,6 +503,10 @@ TEST_F(ServeTest, ADeclaredLengthIsRefusedBeforeTheBody) {
   EXPECT_EQ(status_for("99999999999"), "HTTP/1.1 413 Payload Too Large");
   EXPECT_EQ(status_for("-5"), "HTTP/1.1 400 Bad Request");
   EXPECT_EQ(status_for("12abc"), "HTTP/1.1 400 Bad Request");
+  // Two lengths that disagree: refused at once (it waited for the 5 s read timeout).
+  const Clock::time_point sent = Clock::now();
+  EXPECT_EQ(status_for("5\r\nContent-Length: 7"), "HTTP/1.1 400 Bad Request");
+  EXPECT_LT(Clock::now() - sent, std::chrono::seconds(1));
   // Found by locate_request_fuzzer: a multipart upload with no length at all stalled until the
   // read timeout and got no answer. It is asked for its length at once.
   EXPECT_EQ(RawStatusLine(server_->port(),
