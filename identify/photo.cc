@@ -15,6 +15,8 @@
 #include <opencv2/imgcodecs.hpp>
 // After <cstdio>: jpeglib.h uses FILE and size_t without including their headers.
 #include <jpeglib.h>
+// After jpeglib.h, which it extends: the warning codes.
+#include <jerror.h>
 
 #include "core/input_file.h"
 #include "identify/exif.h"
@@ -69,12 +71,30 @@ void JpegFatal(j_common_ptr cinfo) {
   std::longjmp(errors->fatal, 1);
 }
 
+// The warnings that mean pixels were invented: entropy data cut short or damaged. The others leave
+// the image whole and are not refused: extraneous bytes before a marker (which some cameras and
+// editors write), an unknown JFIF version, an odd Adobe transform.
+bool InventsPixels(int code) {
+  switch (code) {
+    case JWRN_JPEG_EOF:
+    case JWRN_HIT_MARKER:
+    case JWRN_MUST_RESYNC:
+    case JWRN_NOT_SEQUENTIAL:
+    case JWRN_HUFF_BAD_CODE:
+    case JWRN_BOGUS_PROGRESSION:
+      return true;
+    default:
+      return false;
+  }
+}
+
 void JpegMessage(j_common_ptr cinfo, int level) {
   if (level >= 0) return;  // trace messages
+  ++cinfo->err->num_warnings;
+  if (!InventsPixels(cinfo->err->msg_code)) return;
   auto* errors = reinterpret_cast<StrictJpegErrors*>(cinfo->err);
   if (!errors->warned) (*cinfo->err->format_message)(cinfo, errors->message);
   errors->warned = true;
-  ++cinfo->err->num_warnings;
 }
 
 // Runs libjpeg on `data` into `*image` (BGR, or CMYK inks when the JPEG has them). Returns false

@@ -1,6 +1,7 @@
 #include "identify/photo.h"
 
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -275,6 +276,25 @@ TEST(DecodePhoto, RefusesAJpegCutShortAndClosedWithAnEndMarker) {
       EXPECT_NE(std::string(e.what()).find("Corrupt JPEG data"), std::string::npos) << e.what();
     }
   }
+}
+
+// Not every libjpeg warning means invented pixels: an unknown JFIF revision (written by some
+// encoders) draws "unknown JFIF revision number" but leaves every pixel, and such a photo is
+// decoded as it is.
+TEST(DecodePhoto, AcceptsAJpegWhoseOnlyWarningLeavesThePixels) {
+  cv::Mat noise(480, 640, CV_8UC3);
+  cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", noise, jpeg));
+  // SOI, APP0 marker and length, "JFIF\0", then the major revision.
+  ASSERT_TRUE(jpeg.size() > 12 && jpeg[3] == 0xE0 && std::memcmp(&jpeg[6], "JFIF", 5) == 0);
+  ASSERT_EQ(jpeg[11], 1);
+  std::vector<uint8_t> revised = jpeg;
+  revised[11] = 3;
+  const cv::Mat whole = DecodePhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels).upright;
+  const cv::Mat decoded = DecodePhoto(revised.data(), revised.size(), kMaxPhotoMegapixels).upright;
+  ASSERT_EQ(decoded.size(), whole.size());
+  EXPECT_EQ(cv::norm(decoded, whole, cv::NORM_INF), 0.0);
 }
 
 TEST(ExifOrientation, GarbageAndAbsentTagsGiveOne) {
