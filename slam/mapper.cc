@@ -71,6 +71,11 @@ bool MapperOptions::Check(std::string* error) const {
   if (!(extra_link_max_disagreement_m > 0.0) || !(extra_link_max_disagreement_deg > 0.0)) {
     return fail("extra_link_max_disagreement_m and _deg must be positive");
   }
+  if (!(blind_link_max_deviation_mps >= 0.0) || !(blind_link_max_deviation_dps >= 0.0) ||
+      !(blind_link_slack_m >= 0.0) || !(blind_link_slack_deg >= 0.0)) {
+    return fail(
+        "blind_link_max_deviation_mps, _dps and blind_link_slack_m, _deg must not be negative");
+  }
   if (depth_downscale < 1) return fail("depth_downscale must be at least 1");
   if (vocabulary_training_keyframes < 1) {
     return fail("vocabulary_training_keyframes must be at least 1");
@@ -160,6 +165,15 @@ bool Mapper::AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
   const Eigen::Isometry3d disagreement = tracked.inverse() * registered;
   return disagreement.translation().norm() <= options_.extra_link_max_disagreement_m &&
          RotationAngleDeg(disagreement) <= options_.extra_link_max_disagreement_deg;
+}
+
+bool Mapper::WithinBlindMotion(const Eigen::Isometry3d& registered,
+                               const Eigen::Isometry3d& predicted, double blind_s) const {
+  const Eigen::Isometry3d deviation = predicted.inverse() * registered;
+  return deviation.translation().norm() <=
+             options_.blind_link_max_deviation_mps * blind_s + options_.blind_link_slack_m &&
+         RotationAngleDeg(deviation) <=
+             options_.blind_link_max_deviation_dps * blind_s + options_.blind_link_slack_deg;
 }
 
 int Mapper::NumPriorLinks() const {
@@ -453,6 +467,15 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
           !AgreesWithTrackedMotion(graph_.Pose(target.id) * result.target_from_source, predicted)) {
         // An extra link is odometry and never switched off: one 40 degrees off (a repeated texture
         // registered across a second) bent a whole walk once the next loop was optimised.
+        continue;
+      }
+      if (motion && motion->source == MotionSource::kPrior &&
+          !WithinBlindMotion(graph_.Pose(target.id) * result.target_from_source, predicted,
+                             motion->blind_s)) {
+        if (report->odometry_failure.empty()) {
+          report->odometry_failure = "to keyframe " + std::to_string(id) +
+                                     ": further from the motion model than a walker goes";
+        }
         continue;
       }
       MapperLink link;
@@ -830,10 +853,12 @@ void Mapper::TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* r
 
 SIGHTMAP_OPTIONS_JSON(MapperOptions, features, registration, odometry_window, extra_odometry_links,
                       extra_link_max_disagreement_m, extra_link_max_disagreement_deg,
-                      depth_downscale, vocabulary, vocabulary_training_keyframes,
-                      loop_exclude_recent, loop_candidates, loop_min_relative_score,
-                      loop_min_inliers, loop_min_spacing, proximity_candidates, proximity_radius_m,
-                      proximity_max_angle_deg, proximity_min_inliers, proximity_max_disagreement_m,
+                      blind_link_max_deviation_mps, blind_link_max_deviation_dps,
+                      blind_link_slack_m, blind_link_slack_deg, depth_downscale, vocabulary,
+                      vocabulary_training_keyframes, loop_exclude_recent, loop_candidates,
+                      loop_min_relative_score, loop_min_inliers, loop_min_spacing,
+                      proximity_candidates, proximity_radius_m, proximity_max_angle_deg,
+                      proximity_min_inliers, proximity_max_disagreement_m,
                       proximity_max_disagreement_deg, local_loop_hops,
                       local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m,
                       join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,

@@ -54,6 +54,16 @@ struct MapperOptions {
   // odometry links are never switched off [m], [deg].
   double extra_link_max_disagreement_m = 0.15;
   double extra_link_max_disagreement_deg = 5.0;
+  // A keyframe the tracker placed on its motion model (nothing registered for blind_s seconds)
+  // may still register to older keyframes, but such a link must land within these rates times
+  // the blind time (plus the slack) of the motion model's pose: a walker covers no more, and the
+  // links further off matched a repeated desk or door (1 Hz seed 11: two such links put their
+  // keyframes 2.2 and 3.2 m off while claiming 5 mm, and bent the whole walk) [m/s], [deg/s],
+  // [m], [deg].
+  double blind_link_max_deviation_mps = 1.0;
+  double blind_link_max_deviation_dps = 60.0;
+  double blind_link_slack_m = 0.05;
+  double blind_link_slack_deg = 3.0;
   // Depth kept per keyframe for the dense verification, as 1/N of the image size (nearest
   // sample, so depth edges stay sharp): 160x120 at N = 4 is 38 KB a keyframe.
   int depth_downscale = 4;
@@ -297,6 +307,8 @@ class Mapper {
   // recognition. The shared body of AddKeyframe and AddTrackedKeyframe.
   void Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report);
   // Whether a registration's pose for a new keyframe agrees with the one its tracked motion gives.
+  bool WithinBlindMotion(const Eigen::Isometry3d& registered, const Eigen::Isometry3d& predicted,
+                         double blind_s) const;
   bool AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
                                const Eigen::Isometry3d& tracked) const;
   Keyframe& Get(int64_t id);

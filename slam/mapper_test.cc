@@ -175,6 +175,52 @@ double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
   return Percentile(errors, 0.5);
 }
 
+// Keyframes 0-12 of the walk as the tracker emits them, keyframe 12 as if the tracker had placed
+// it on its motion model 0.2 s blind, with a prediction `prediction_error_m` off sideways. The
+// mapper still registers it to keyframe 10; returns whether that link was kept, and the error of
+// the keyframe's pose relative to keyframe 11 [m].
+bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
+  const Walk& walk = HandheldWalk();
+  TrackerOptions tracker_options;
+  tracker_options.keyframe_rate_hz = 0.0;  // every frame a keyframe
+  Tracker tracker(walk.camera, tracker_options);
+  MapperOptions options = SmallVocabulary();
+  options.vocabulary_training_keyframes = 1000;  // links only
+  Mapper mapper(walk.camera, options);
+  std::vector<TrackedKeyframe> keyframes;
+  for (size_t i = 0; i <= 12; ++i) {
+    for (TrackedKeyframe& keyframe : tracker.Track(walk.frames[i]).keyframes) {
+      keyframes.push_back(std::move(keyframe));
+    }
+  }
+  SIGHTMAP_CHECK(keyframes.size() == 13, "the tracker makes every frame a keyframe");
+  const Eigen::Isometry3d true_11_from_12 =
+      walk.frames[11].world_from_cam_gt->inverse() * *walk.frames[12].world_from_cam_gt;
+  KeyframeMotion& motion = *keyframes[12].motion;
+  motion.source = MotionSource::kPrior;
+  motion.blind_s = 0.2;
+  motion.previous_from_cam = Eigen::Translation3d(prediction_error_m, 0.0, 0.0) * true_11_from_12;
+  motion.information = Eigen::Matrix<double, 6, 6>::Identity();
+  for (TrackedKeyframe& keyframe : keyframes) mapper.AddTrackedKeyframe(std::move(keyframe));
+  const Eigen::Isometry3d mapped_11_from_12 =
+      mapper.WorldFromCam(11).inverse() * mapper.WorldFromCam(12);
+  *pose_error_m = (true_11_from_12.translation() - mapped_11_from_12.translation()).norm();
+  return std::any_of(mapper.Links().begin(), mapper.Links().end(), [](const MapperLink& link) {
+    return link.to == 12 && link.type == LinkType::kOdometry;
+  });
+}
+
+TEST(Mapper, ABlindKeyframeKeepsOnlyLinksAWalkerCouldMake) {
+  // Within reach of the motion model (1 m/s x 0.2 s + 5 cm), the registration places the
+  // keyframe; further off, the link is what a repeated desk gives, and the prior stands.
+  double near_error_m = 0.0;
+  EXPECT_TRUE(KeepsABlindKeyframesLink(0.15, &near_error_m));
+  EXPECT_LT(near_error_m, 0.03);
+  double far_error_m = 0.0;
+  EXPECT_FALSE(KeepsABlindKeyframesLink(0.6, &far_error_m));
+  EXPECT_NEAR(far_error_m, 0.6, 0.03);
+}
+
 TEST(Mapper, DenseRefinementMakesTheOdometryLinksMillimetreAccurate) {
   const Walk& walk = HandheldWalk();
   MapperOptions features_only = SmallVocabulary();
