@@ -101,6 +101,9 @@ bool TrackerOptions::Check(std::string* error) const {
       !(dense_slack_m >= 0.0) || !(dense_slack_deg >= 0.0)) {
     return fail("the dense deviation bounds must be positive and the slacks not negative");
   }
+  if (!(dense_max_speed_mps > 0.0) || !(dense_max_turn_rate_dps > 0.0)) {
+    return fail("dense_max_speed_mps and dense_max_turn_rate_dps must be positive");
+  }
   if (!(dense_step_sigma_m > 0.0) || !(dense_step_sigma_rad > 0.0) || !(prior_sigma_m > 0.0) ||
       !(prior_sigma_mps >= 0.0) || !(prior_sigma_rad > 0.0) || !(prior_sigma_radps >= 0.0)) {
     return fail("the dense step and prior sigmas must be positive");
@@ -234,7 +237,9 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   if (deviation.translation().norm() >
           options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m ||
       RotationAngleDeg(deviation) >
-          options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) {
+          options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg ||
+      step.translation().norm() > options_.dense_max_speed_mps * dt_s + options_.dense_slack_m ||
+      RotationAngleDeg(step) > options_.dense_max_turn_rate_dps * dt_s + options_.dense_slack_deg) {
     return false;
   }
   frame.reference_from_cam = Orthonormalised(last_->reference_from_cam * step);
@@ -383,8 +388,9 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       depth_downscale, max_deviation_mps, max_deviation_dps, deviation_slack_m,
                       deviation_slack_deg, dense_fallback, dense_max_interval_s, dense,
                       dense_max_deviation_mps, dense_max_deviation_dps, dense_slack_m,
-                      dense_slack_deg, dense_step_sigma_m, dense_step_sigma_rad, prior_sigma_m,
-                      prior_sigma_mps, prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
+                      dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
+                      dense_step_sigma_m, dense_step_sigma_rad, prior_sigma_m, prior_sigma_mps,
+                      prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
                       blind_keyframe_after_s, min_reference_points)
 
 }  // namespace sightmap::slam

@@ -3,6 +3,7 @@
 #include "slam/tracker.h"
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -152,30 +153,47 @@ TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
   EXPECT_GT(registered, 0);
 }
 
-// A frame without features (grey colour, its depth as measured) is placed by dense alignment when
-// it follows the last frame closely, and by the motion model when the frames are a second apart,
-// beyond what alignment converges from.
-TEST(Tracker, DenseAlignmentBridgesOnlyFramesCloseInTime) {
+// Tracks frames 20-29 of the walk with their timestamps multiplied by `stretch`, frame 29 without
+// features (grey colour, its depth as measured); returns how frame 29 was placed.
+FrameTracking TrackAGreyFrame(double stretch, const TrackerOptions& options) {
   const Walk& walk = HandheldWalk();
-  // The same images each time; only their timestamps (and the interval allowed) differ.
-  const auto last_tracking = [&walk](double stretch, double dense_max_interval_s) {
-    TrackerOptions options;
-    options.dense_max_interval_s = dense_max_interval_s;
-    Tracker tracker(walk.camera, options);
-    FrameTracking last = FrameTracking::kRegistered;
-    for (size_t i = 20; i < 30; ++i) {
-      RgbdFrame frame = walk.frames[i];
-      frame.timestamp_ns =
-          static_cast<TimestampNs>(stretch * static_cast<double>(frame.timestamp_ns));
-      if (i == 29) frame.color = cv::Mat(frame.color.size(), CV_8UC3, cv::Scalar(128, 128, 128));
-      last = tracker.Track(frame).tracking;
-    }
-    return last;
-  };
-  const double interval_s = TrackerOptions().dense_max_interval_s;
-  EXPECT_EQ(last_tracking(1.0, interval_s), FrameTracking::kDense);
-  EXPECT_EQ(last_tracking(10.0, interval_s), FrameTracking::kBlind);
-  EXPECT_EQ(last_tracking(10.0, 2.0), FrameTracking::kDense);
+  Tracker tracker(walk.camera, options);
+  FrameTracking last = FrameTracking::kRegistered;
+  for (size_t i = 20; i < 30; ++i) {
+    RgbdFrame frame = walk.frames[i];
+    frame.timestamp_ns =
+        static_cast<TimestampNs>(stretch * static_cast<double>(frame.timestamp_ns));
+    if (i == 29) frame.color = cv::Mat(frame.color.size(), CV_8UC3, cv::Scalar(128, 128, 128));
+    last = tracker.Track(frame).tracking;
+  }
+  return last;
+}
+
+// The grey frame is placed by dense alignment when it follows the last frame closely, and by the
+// motion model when the frames are a second apart, beyond what alignment converges from.
+TEST(Tracker, DenseAlignmentBridgesOnlyFramesCloseInTime) {
+  TrackerOptions options;
+  EXPECT_EQ(TrackAGreyFrame(1.0, options), FrameTracking::kDense);
+  EXPECT_EQ(TrackAGreyFrame(10.0, options), FrameTracking::kBlind);
+  options.dense_max_interval_s = 2.0;
+  EXPECT_EQ(TrackAGreyFrame(10.0, options), FrameTracking::kDense);
+}
+
+// A dense step faster than a walker or a robot moves is what a chain sliding along a bare wall
+// gives: the motion model places the frame instead. The walk goes at 0.5 m/s and turns at up to
+// 35 deg/s; bounds below that refuse its dense step.
+TEST(Tracker, DenseAlignmentRefusesAStepFasterThanTheWalkerGoes) {
+  TrackerOptions options;
+  ASSERT_EQ(TrackAGreyFrame(1.0, options), FrameTracking::kDense);
+  options.dense_max_speed_mps = 0.2;
+  EXPECT_EQ(TrackAGreyFrame(1.0, options), FrameTracking::kBlind);
+  options = TrackerOptions();
+  options.dense_max_turn_rate_dps = 1.0;
+  options.dense_slack_deg = 0.0;
+  EXPECT_EQ(TrackAGreyFrame(1.0, options), FrameTracking::kBlind);
+  options.dense_max_turn_rate_dps = 0.0;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
 }
 
 TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
