@@ -306,9 +306,11 @@ class Mapper {
   // last when `motion` already links it to the last) and inserts it with its links; then place
   // recognition. The shared body of AddKeyframe and AddTrackedKeyframe.
   void Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report);
-  // Whether a registration's pose for a new keyframe agrees with the one its tracked motion gives.
+  // Whether a registration's pose for a keyframe placed on the motion model lies within the
+  // blind_link_* bounds of the model's pose after blind_s seconds.
   bool WithinBlindMotion(const Eigen::Isometry3d& registered, const Eigen::Isometry3d& predicted,
                          double blind_s) const;
+  // Whether a registration's pose for a new keyframe agrees with the one its tracked motion gives.
   bool AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
                                const Eigen::Isometry3d& tracked) const;
   Keyframe& Get(int64_t id);
