@@ -16,6 +16,10 @@ double RotationAngleDeg(const Eigen::Isometry3d& motion) {
   return RotationAngleDeg(motion.linear());
 }
 
+bool MotionWithin(const Eigen::Isometry3d& motion, double max_m, double max_deg) {
+  return motion.translation().norm() <= max_m && RotationAngleDeg(motion) <= max_deg;
+}
+
 Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
   Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
   rigid.linear() = Eigen::Quaterniond(pose.linear()).normalized().toRotationMatrix();

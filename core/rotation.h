@@ -13,6 +13,11 @@ double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 // The angle of a rigid motion's rotation [deg, 0-180].
 double RotationAngleDeg(const Eigen::Isometry3d& motion);
 
+// Whether a rigid motion (a step, or the difference between two poses) moves at most max_m and
+// turns at most max_deg: the bound every motion and disagreement check applies, usually a rate
+// times a time plus a slack. False for a motion that is not finite.
+bool MotionWithin(const Eigen::Isometry3d& motion, double max_m, double max_deg);
+
 // The nearest rigid motion (rotation through the unit quaternion). Poses from files, float
 // renderers and long chains of products are orthonormal only to a few digits; the pose graph
 // wants 1e-6.

@@ -1,5 +1,7 @@
 #include "core/rotation.h"
 
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 namespace sightmap {
@@ -25,6 +27,19 @@ TEST(RotationAngleDeg, MeasuresTheTurnWhateverTheAxis) {
   motion.linear() = b;
   motion.translation() = Eigen::Vector3d(5.0, 0.0, 0.0);
   EXPECT_NEAR(RotationAngleDeg(motion), 70.0, 1e-9);
+}
+
+TEST(MotionWithin, BoundsTheMoveAndTheTurnBothInclusive) {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.linear() =
+      Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  motion.translation() = Eigen::Vector3d(0.3, 0.0, 0.4);  // 0.5 m
+  EXPECT_TRUE(MotionWithin(motion, 0.5, 10.0 + 1e-9));
+  EXPECT_TRUE(MotionWithin(motion, 1.0, 20.0));
+  EXPECT_FALSE(MotionWithin(motion, 0.49, 20.0));
+  EXPECT_FALSE(MotionWithin(motion, 1.0, 9.9));
+  motion.translation().x() = std::nan("");
+  EXPECT_FALSE(MotionWithin(motion, 1e9, 180.0));
 }
 
 }  // namespace

@@ -43,6 +43,19 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
   return 0.5 * (floored + floored.transpose());
 }
 
+// The link a registration of keyframe `to` (the source) against keyframe `from` (the target) makes.
+MapperLink RegisteredLink(int64_t from, int64_t to, const RegistrationResult& result,
+                          LinkType type) {
+  MapperLink link;
+  link.from = from;
+  link.to = to;
+  link.to_in_from = result.target_from_source;
+  link.information = result.information;
+  link.type = type;
+  link.inliers = result.inliers;
+  return link;
+}
+
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                const MapperOptions& options) {
   return FlooredInformation(information, options.link_min_sigma_m, options.link_min_sigma_rad);
@@ -162,18 +175,16 @@ int Mapper::NumLoopClosures() const {
 
 bool Mapper::AgreesWithTrackedMotion(const Eigen::Isometry3d& registered,
                                      const Eigen::Isometry3d& tracked) const {
-  const Eigen::Isometry3d disagreement = tracked.inverse() * registered;
-  return disagreement.translation().norm() <= options_.extra_link_max_disagreement_m &&
-         RotationAngleDeg(disagreement) <= options_.extra_link_max_disagreement_deg;
+  return MotionWithin(tracked.inverse() * registered, options_.extra_link_max_disagreement_m,
+                      options_.extra_link_max_disagreement_deg);
 }
 
 bool Mapper::WithinBlindMotion(const Eigen::Isometry3d& registered,
                                const Eigen::Isometry3d& predicted, double blind_s) const {
-  const Eigen::Isometry3d deviation = predicted.inverse() * registered;
-  return deviation.translation().norm() <=
-             options_.blind_link_max_deviation_mps * blind_s + options_.blind_link_slack_m &&
-         RotationAngleDeg(deviation) <=
-             options_.blind_link_max_deviation_dps * blind_s + options_.blind_link_slack_deg;
+  return MotionWithin(
+      predicted.inverse() * registered,
+      options_.blind_link_max_deviation_mps * blind_s + options_.blind_link_slack_m,
+      options_.blind_link_max_deviation_dps * blind_s + options_.blind_link_slack_deg);
 }
 
 int Mapper::NumPriorLinks() const {
@@ -266,8 +277,8 @@ bool Mapper::RefineDensely(const Keyframe& source, const Keyframe& target,
   times->dense_s += SecondsSince(start);
   if (!aligned.success) return false;
   const Eigen::Isometry3d correction = target_from_source->inverse() * aligned.target_from_source;
-  if (correction.translation().norm() > options_.dense_max_correction_m ||
-      RotationAngleDeg(correction) > options_.dense_max_correction_deg) {
+  if (!MotionWithin(correction, options_.dense_max_correction_m,
+                    options_.dense_max_correction_deg)) {
     return false;
   }
   *target_from_source = aligned.target_from_source;
@@ -478,13 +489,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
         }
         continue;
       }
-      MapperLink link;
-      link.from = target.id;
-      link.to = keyframe.id;
-      link.to_in_from = result.target_from_source;
-      link.information = result.information;
-      link.type = LinkType::kOdometry;
-      link.inliers = result.inliers;
+      const MapperLink link = RegisteredLink(target.id, keyframe.id, result, LinkType::kOdometry);
       if (odometry.empty() && (!motion || motion->source == MotionSource::kPrior)) {
         world_from_cam = graph_.Pose(target.id) * link.to_in_from;
       }
@@ -660,12 +665,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     const RegistrationResult result =
         Register(keyframe, target, &report->times, nullptr, /*require_dense=*/true);
     if (!result.success || result.inliers < options_.loop_min_inliers) continue;
-    MapperLink link;
-    link.from = target.id;
-    link.to = keyframe.id;
-    link.to_in_from = result.target_from_source;
-    link.information = result.information;
-    link.inliers = result.inliers;
+    MapperLink link = RegisteredLink(target.id, keyframe.id, result, LinkType::kLoopClosure);
     const int target_root = Root(target.segment);
     if (target_root != root) {
       link.type = LinkType::kRelocalisation;
@@ -677,12 +677,11 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
       // the segment, registered elsewhere in the map, agrees on where the segment lies.
       const Eigen::Isometry3d correction = JoinCorrection(newer, link);
       if (!JoinKeepsTheWalkPossible(older, newer, correction)) continue;
-      const bool confirmed =
-          pending_join_ && pending_join_->older == older && pending_join_->newer == newer &&
-          (pending_join_->correction.inverse() * correction).translation().norm() <
-              options_.join_max_disagreement_m &&
-          Eigen::AngleAxisd((pending_join_->correction.inverse() * correction).linear()).angle() <
-              options_.join_max_disagreement_rad;
+      const bool confirmed = pending_join_ && pending_join_->older == older &&
+                             pending_join_->newer == newer &&
+                             MotionWithin(pending_join_->correction.inverse() * correction,
+                                          options_.join_max_disagreement_m,
+                                          options_.join_max_disagreement_rad * 180.0 / M_PI);
       if (!confirmed) {
         pending_join_ = PendingJoin{older, newer, correction, link};
         break;
@@ -690,8 +689,6 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
       JoinSegments(older, newer, link);
       AddLink(pending_join_->link, report);
       pending_join_.reset();
-    } else {
-      link.type = LinkType::kLoopClosure;
     }
     AddLink(link, report);
     last_loop_keyframe_ = keyframe.id;
@@ -741,20 +738,13 @@ bool Mapper::SearchNearby(const Keyframe& keyframe, KeyframeReport* report) {
     const Eigen::Isometry3d prior = graph_.Pose(id).inverse() * graph_.Pose(keyframe.id);
     const RegistrationResult result =
         Register(keyframe, target, &report->times, &prior, /*require_dense=*/true);
-    const Eigen::Isometry3d disagreement = prior.inverse() * result.target_from_source;
-    if (!result.success || result.inliers < options_.proximity_min_inliers) continue;
-    if (disagreement.translation().norm() > options_.proximity_max_disagreement_m ||
-        RotationAngleDeg(disagreement) > options_.proximity_max_disagreement_deg) {
+    if (!result.success || result.inliers < options_.proximity_min_inliers ||
+        !MotionWithin(prior.inverse() * result.target_from_source,
+                      options_.proximity_max_disagreement_m,
+                      options_.proximity_max_disagreement_deg)) {
       continue;
     }
-    MapperLink link;
-    link.from = target.id;
-    link.to = keyframe.id;
-    link.to_in_from = result.target_from_source;
-    link.information = result.information;
-    link.inliers = result.inliers;
-    link.type = LinkType::kLoopClosure;
-    AddLink(link, report);
+    AddLink(RegisteredLink(target.id, keyframe.id, result, LinkType::kLoopClosure), report);
     last_loop_keyframe_ = keyframe.id;
     if (options_.local_loop_hops > 0) {
       OptimiseNear(links_.size() - 1, report);
@@ -795,10 +785,8 @@ bool Mapper::JoinKeepsTheWalkPossible(int older_root, int newer_root,
         };
         const Eigen::Isometry3d motion =
             placed(*previous, previous_root).inverse() * placed(keyframe, root);
-        const double turn_deg = RotationAngleDeg(motion);
-        if (motion.translation().norm() >
-                options_.walk_max_speed_mps * gap_s + options_.walk_slack_m ||
-            turn_deg > options_.walk_max_turn_rate_dps * gap_s + options_.walk_slack_deg) {
+        if (!MotionWithin(motion, options_.walk_max_speed_mps * gap_s + options_.walk_slack_m,
+                          options_.walk_max_turn_rate_dps * gap_s + options_.walk_slack_deg)) {
           return false;
         }
       }

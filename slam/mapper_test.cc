@@ -141,11 +141,14 @@ TEST(Mapper, LoopsThatFitTheMapMoveOnlyTheKeyframesNearThem) {
 }
 
 // Proximity alone (no bag of words): on the way back every keyframe is near where the graph put
-// the way there, and the loops it closes are the true ones.
+// the way there, and the loops it closes are the true ones. Dense refinement is off so that the
+// odometry drifts for the loops to correct: with it, this short walk's odometry alone is within
+// 1-2 mm.
 TEST(Mapper, ProximityClosesLoopsThePlaceIndexIsNotAskedFor) {
   const Walk& walk = HandheldWalk();
   MapperOptions options = SmallVocabulary();
   options.loop_candidates = 0;
+  options.dense_refinement = false;
   const MappedWalk nearby = ThereAndBack(walk, options);
   options.proximity_candidates = 0;
   const MappedWalk none = ThereAndBack(walk, options);
@@ -155,7 +158,8 @@ TEST(Mapper, ProximityClosesLoopsThePlaceIndexIsNotAskedFor) {
   const double none_m = EvaluateTrajectory(none.ground_truth, none.trajectory).ate_rmse_m;
   std::printf("there and back by proximity: %d loops, ATE %.4f m (without: %.4f m)\n", nearby.loops,
               nearby_m, none_m);
-  EXPECT_LT(nearby_m, 0.5 * none_m);
+  // Measured: 4.2 mm with the loops, 8.6 mm without.
+  EXPECT_LT(nearby_m, 0.6 * none_m);
 }
 
 // The median translation error of the mapper's odometry links against the ground truth [m].

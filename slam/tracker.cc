@@ -195,10 +195,9 @@ bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predic
   const Eigen::Isometry3d deviation = predicted.inverse() * registration.target_from_source;
   if (!registration.target_from_source.matrix().allFinite() ||
       !registration.information.allFinite() ||
-      deviation.translation().norm() >
-          options_.max_deviation_mps * since_placed_s + options_.deviation_slack_m ||
-      RotationAngleDeg(deviation) >
-          options_.max_deviation_dps * since_placed_s + options_.deviation_slack_deg) {
+      !MotionWithin(deviation,
+                    options_.max_deviation_mps * since_placed_s + options_.deviation_slack_m,
+                    options_.max_deviation_dps * since_placed_s + options_.deviation_slack_deg)) {
     return false;
   }
   reference_best_inliers_ = std::max(reference_best_inliers_, registration.inliers);
@@ -234,12 +233,10 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   if (!aligned.success) return false;
   const Eigen::Isometry3d& step = aligned.target_from_source;
   const Eigen::Isometry3d deviation = step_guess.inverse() * step;
-  if (deviation.translation().norm() >
-          options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m ||
-      RotationAngleDeg(deviation) >
-          options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg ||
-      step.translation().norm() > options_.dense_max_speed_mps * dt_s + options_.dense_slack_m ||
-      RotationAngleDeg(step) > options_.dense_max_turn_rate_dps * dt_s + options_.dense_slack_deg) {
+  if (!MotionWithin(deviation, options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m,
+                    options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) ||
+      !MotionWithin(step, options_.dense_max_speed_mps * dt_s + options_.dense_slack_m,
+                    options_.dense_max_turn_rate_dps * dt_s + options_.dense_slack_deg)) {
     return false;
   }
   frame.reference_from_cam = Orthonormalised(last_->reference_from_cam * step);
@@ -355,6 +352,16 @@ bool Tracker::WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) co
       return frame.blind_s >= options_.blind_keyframe_after_s && good_reference && may_add_early;
   }
   return false;
+}
+
+void Tracker::ContinueFrom(const RgbdFrame& keyframe) {
+  SIGHTMAP_CHECK(!reference_ && counters_.frames == 0,
+                 "a tracker continues a walk only before its first frame");
+  TrackResult ignored;
+  Placed frame = Prepare(keyframe, &ignored);
+  rate_.Accept(keyframe.timestamp_ns);  // the rate's clock runs from the stored keyframe
+  reference_ = std::make_unique<Placed>(frame);
+  last_ = std::make_unique<Placed>(std::move(frame));
 }
 
 TrackResult Tracker::Track(const RgbdFrame& input) {

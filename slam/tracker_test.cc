@@ -3,10 +3,13 @@
 #include "slam/tracker.h"
 
 #include <cmath>
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
 #include "core/rotation.h"
@@ -222,6 +225,36 @@ TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
     // A prior is looser than any registration the floor allows.
     EXPECT_LT(link.information(0, 0), 1.0 / (0.02 * 0.02) + 1e-6);
   }
+}
+
+// A resumed replay: a tracker that continues from the newest stored keyframe (colour as the model
+// stores it, JPEG) places the next frames relative to it and emits its next keyframe with the
+// motion from it, as the tracker that mapped the stored walk would have.
+TEST(Tracker, ContinuesAWalkFromItsNewestStoredKeyframe) {
+  const Walk& walk = HandheldWalk();
+  const size_t stored = 28;
+  RgbdFrame keyframe = walk.frames[stored];
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", keyframe.color, jpeg, {cv::IMWRITE_JPEG_QUALITY, 90}));
+  keyframe.color = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+  keyframe.index = -1;
+  Tracker tracker(walk.camera);
+  tracker.ContinueFrom(keyframe);
+  EXPECT_THROW(tracker.ContinueFrom(keyframe), Error);
+  std::optional<TrackedKeyframe> next;
+  for (size_t i = stored + 1; i < walk.frames.size() && !next; ++i) {
+    TrackResult result = tracker.Track(walk.frames[i]);
+    EXPECT_NE(result.tracking, FrameTracking::kBlind) << "frame " << i;
+    if (!result.keyframes.empty()) next = std::move(result.keyframes.front());
+  }
+  ASSERT_TRUE(next.has_value()) << "no keyframe within the walk's last second";
+  ASSERT_TRUE(next->motion.has_value()) << "the continued walk's first keyframe has no motion";
+  const Eigen::Isometry3d truth =
+      walk.frames[stored].world_from_cam_gt->inverse() * *next->frame.world_from_cam_gt;
+  const Eigen::Isometry3d error = truth.inverse() * next->motion->previous_from_cam;
+  EXPECT_LT(error.translation().norm(), 0.02);
+  EXPECT_LT(RotationAngleDeg(error), 1.0);
+  EXPECT_EQ(tracker.counters().keyframes, 1);
 }
 
 TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
