@@ -413,6 +413,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   }
   // A live sensor's clock restarts; a replay's frames keep their times.
   std::optional<TimestampNs> continue_after;
+  std::optional<RgbdFrame> continue_from;
   if (summary.resumed && options_.continue_replay && meta.kind != "openni") {
     continue_after = LastStoredTimestamp(model, options_.source);
   }
@@ -420,7 +421,10 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
     summary.continued_after_s = 1e-9 * static_cast<double>(*continue_after);
     NoteContinued(options_, *continue_after, notices);
     // The camera is where the last stored frame left it.
-    if (*continue_after == restored.last_timestamp_ns) mapper->ContinueWalk();
+    if (*continue_after == restored.last_timestamp_ns) {
+      mapper->ContinueWalk();
+      continue_from = NewestKeyframeFrame(model, restored);
+    }
   }
 
   summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;
@@ -434,7 +438,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   const Clock::time_point start = Clock::now();
   WriteStage writer(&model, view.get(), static_cast<int>(summary.session_number),
                     restored.store_ids, static_cast<size_t>(options_.write_queue_capacity));
-  TrackStage track(camera, tracking, &frames, &keyframes);
+  TrackStage track(camera, tracking, &frames, &keyframes, std::move(continue_from));
   CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track, continue_after),
                        &frames, view.get());
   MapStage map(mapper.get(), session, camera,

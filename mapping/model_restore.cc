@@ -69,4 +69,14 @@ RestoredModel RestoreModel(const store::Model& model, const Intrinsics& camera, 
   return restored;
 }
 
+RgbdFrame NewestKeyframeFrame(const store::Model& model, const RestoredModel& restored) {
+  SIGHTMAP_CHECK(!restored.store_ids.empty(), "no keyframe was restored");
+  RgbdFrame frame;
+  frame.index = -1;
+  frame.timestamp_ns = restored.last_timestamp_ns;
+  frame.color = model.LoadColor(restored.store_ids.back());
+  frame.depth = model.LoadDepth(restored.store_ids.back());
+  return frame;
+}
+
 }  // namespace sightmap::mapping

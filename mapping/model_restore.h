@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/rgbd_frame.h"
 #include "mapping/map_view_feed.h"
 #include "slam/mapper.h"
 #include "store/model.h"
@@ -31,5 +32,10 @@ struct RestoredModel {
 // `camera`'s or its vocabulary has another format, saying what to do.
 RestoredModel RestoreModel(const store::Model& model, const Intrinsics& camera, bool load_color,
                            slam::Mapper* mapper, MapViewFeed* view);
+
+// The newest restored keyframe as a frame (colour as the model stores it, JPEG; index -1, as the
+// model keeps no frame index), for a tracker that continues its walk. Throws sightmap::Error when
+// nothing was restored or its images do not decode.
+RgbdFrame NewestKeyframeFrame(const store::Model& model, const RestoredModel& restored);
 
 }  // namespace sightmap::mapping

@@ -69,6 +69,13 @@ TEST(RestoreModel, TheMapperGetsEveryKeyframeLinkPoseAndTheVocabulary) {
   ASSERT_NE(mapper.vocabulary(), nullptr);
   EXPECT_EQ(static_cast<int64_t>(restored.segment_members.size()), model.Summary().segments);
   EXPECT_EQ(static_cast<int>(restored.segment_members.size()), mapper.NumSegments());
+  // The newest keyframe as a frame, for a tracker that continues its walk.
+  const RgbdFrame newest = NewestKeyframeFrame(model, restored);
+  EXPECT_EQ(newest.timestamp_ns, stored.back().timestamp_ns);
+  EXPECT_EQ(newest.color.type(), CV_8UC3);
+  EXPECT_EQ(newest.color.size(), cv::Size(camera.width, camera.height));
+  EXPECT_EQ(cv::norm(newest.depth, model.LoadDepth(stored.back().id), cv::NORM_INF), 0.0);
+  EXPECT_THROW(NewestKeyframeFrame(model, RestoredModel()), Error);
 }
 
 TEST(RestoreModel, AnotherCameraSizeIsRefusedWithWhatToDo) {

@@ -10,8 +10,13 @@ namespace sightmap::mapping {
 bool TrackStageOptions::Check(std::string* error) const { return tracker.Check(error); }
 
 TrackStage::TrackStage(const Intrinsics& camera, const TrackStageOptions& options,
-                       BoundedQueue<RgbdFrame>* frames, BoundedQueue<KeyframeItem>* keyframes)
-    : camera_(camera), options_(options), frames_(frames), keyframes_(keyframes) {
+                       BoundedQueue<RgbdFrame>* frames, BoundedQueue<KeyframeItem>* keyframes,
+                       std::optional<RgbdFrame> continue_from)
+    : camera_(camera),
+      options_(options),
+      continue_from_(std::move(continue_from)),
+      frames_(frames),
+      keyframes_(keyframes) {
   SIGHTMAP_CHECK_OPTIONS(options_);
   SIGHTMAP_CHECK(frames_ != nullptr && keyframes_ != nullptr, "the track stage needs its queues");
   thread_ = std::thread([this] { Run(); });
@@ -36,6 +41,7 @@ void TrackStage::Run() {
   try {
     if (options_.track) {
       slam::Tracker tracker(camera_, options_.tracker);
+      if (continue_from_) tracker.ContinueFrom(*continue_from_);
       bool taken = true;
       while (taken) {
         std::optional<RgbdFrame> frame = frames_->Pop();

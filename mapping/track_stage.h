@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <exception>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -51,9 +52,11 @@ struct TrackStageReport {
 class TrackStage {
  public:
   // Starts the thread. `frames` is read until it ends; `keyframes` is closed when the stage ends
-  // (the input ended, or an error: see error()).
+  // (the input ended, or an error: see error()). With `continue_from` (the newest stored keyframe
+  // of a resumed replay) the tracker carries on from it (slam::Tracker::ContinueFrom).
   TrackStage(const Intrinsics& camera, const TrackStageOptions& options,
-             BoundedQueue<RgbdFrame>* frames, BoundedQueue<KeyframeItem>* keyframes);
+             BoundedQueue<RgbdFrame>* frames, BoundedQueue<KeyframeItem>* keyframes,
+             std::optional<RgbdFrame> continue_from = std::nullopt);
   ~TrackStage();
   TrackStage(const TrackStage&) = delete;
   TrackStage& operator=(const TrackStage&) = delete;
@@ -72,6 +75,7 @@ class TrackStage {
 
   Intrinsics camera_;
   TrackStageOptions options_;
+  std::optional<RgbdFrame> continue_from_;
   BoundedQueue<RgbdFrame>* frames_;
   BoundedQueue<KeyframeItem>* keyframes_;
   std::atomic<int64_t> tracked_frames_{0};
