@@ -7,6 +7,7 @@
 #include "core/atomic_file.h"
 #include "core/check.h"
 #include "core/input_file.h"
+#include "core/options_json.h"
 
 namespace sightmap::capture {
 namespace {
@@ -15,18 +16,26 @@ using nlohmann::json;
 
 Intrinsics ReadIntrinsics(const json& block, const std::string& path, const char* name) {
   Intrinsics k;
-  try {
-    k.width = block.at("width").get<int>();
-    k.height = block.at("height").get<int>();
-    k.fx = block.at("fx").get<double>();
-    k.fy = block.at("fy").get<double>();
-    k.cx = block.at("cx").get<double>();
-    k.cy = block.at("cy").get<double>();
-  } catch (const json::exception& e) {
-    SIGHTMAP_THROW(Error, path << ": \"" << name
-                               << "\" needs numbers width, height, fx, fy, cx, cy (" << e.what()
-                               << ")");
-  }
+  // ReadNumber, not get<int>(): nlohmann casts 1e20 to int unchecked, which is undefined.
+  const auto read = [&](const char* key, auto& value) {
+    try {
+      options_json::ReadNumber(block.at(key), value);
+    } catch (const json::exception& e) {
+      SIGHTMAP_THROW(Error, path << ": \"" << name
+                                 << "\" needs numbers width, height, fx, fy, cx, cy ("
+                                 << options_json::PlainMessage(e) << ")");
+    } catch (const OptionsJsonError& e) {
+      SIGHTMAP_THROW(Error, path << ": \"" << name << "\": " << key << " " << e.reason());
+    }
+  };
+  SIGHTMAP_CHECK(block.is_object(),
+                 path << ": \"" << name << "\" needs numbers width, height, fx, fy, cx, cy");
+  read("width", k.width);
+  read("height", k.height);
+  read("fx", k.fx);
+  read("fy", k.fy);
+  read("cx", k.cx);
+  read("cy", k.cy);
   std::string error;
   SIGHTMAP_CHECK(k.Check(&error), path << ": \"" << name << "\": " << error);
   return k;

@@ -56,6 +56,16 @@ TEST(Calibration, RejectsBadFilesWithTheirName) {
   expect_error("not json", "not valid JSON");
   expect_error("{}", "has none of");
   expect_error(R"({"color": {"width": 640}})", "needs numbers");
+  expect_error(R"({"color": 5})", "needs numbers");
+  // Counts that no int holds, or that are not whole, are refused before any cast.
+  expect_error(R"({"depth": {"width": 1e20, "height": 480, "fx": 1, "fy": 1, "cx": 0, "cy": 0}})",
+               "width is out of range");
+  expect_error(R"({"depth": {"width": 640, "height": -1e300, "fx": 1, "fy": 1, "cx": 0, "cy": 0}})",
+               "height is out of range");
+  expect_error(R"({"depth": {"width": 640.5, "height": 480, "fx": 1, "fy": 1, "cx": 0, "cy": 0}})",
+               "width must be a whole number");
+  expect_error(R"({"depth": {"width": 640, "height": 480, "fx": "1", "fy": 1, "cx": 0, "cy": 0}})",
+               "fx must be a number");
   expect_error(R"({"color": {"width": 640, "height": 480, "fx": -1, "fy": 1, "cx": 0, "cy": 0}})",
                "focal");
   expect_error(

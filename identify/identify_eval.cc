@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/options_json.h"
 
 namespace sightmap::identify {
 namespace {
@@ -46,8 +47,9 @@ StageTiming Summarise(const std::vector<double>& values) {
 
 Intrinsics ReadIntrinsics(const nlohmann::json& k) {
   Intrinsics intrinsics;
-  intrinsics.width = k.at("width").get<int>();
-  intrinsics.height = k.at("height").get<int>();
+  // Not get<int>(): nlohmann casts an out-of-range number unchecked.
+  options_json::ReadNumber(k.at("width"), intrinsics.width);
+  options_json::ReadNumber(k.at("height"), intrinsics.height);
   intrinsics.fx = k.at("fx").get<double>();
   intrinsics.fy = k.at("fy").get<double>();
   intrinsics.cx = k.at("cx").get<double>();
@@ -115,6 +117,8 @@ std::vector<QueryTruth> ReadQueryTruths(const std::string& path) {
   } catch (const nlohmann::json::exception& e) {
     SIGHTMAP_THROW(Error, file.string()
                               << " does not look like a simulator query set: " << e.what());
+  } catch (const OptionsJsonError& e) {
+    SIGHTMAP_THROW(Error, file.string() << ": a query's intrinsics width or height " << e.reason());
   }
   return truths;
 }
