@@ -43,9 +43,17 @@ std::string Fixed(double value, int digits) {
   return text.str();
 }
 
+// Where the error comes from: the worst stretches of the walk and the worst 2% of its poses.
+struct ErrorSources {
+  std::vector<slam::ErrorStretch> stretches;
+  slam::ErrorConcentration concentration;
+};
+constexpr int kWorstStretches = 3;
+constexpr double kWorstPoseFraction = 0.02;
+
 void PrintTable(const std::string& gt_path, const std::string& est_path, size_t gt_poses,
                 size_t est_poses, const slam::TrajectoryEvalOptions& options,
-                const slam::TrajectoryError& error) {
+                const slam::TrajectoryError& error, const ErrorSources& sources) {
   const auto row = [](const std::string& metric, const std::string& value, const std::string& unit,
                       const std::string& note = "") {
     std::ostringstream line;
@@ -64,6 +72,20 @@ void PrintTable(const std::string& gt_path, const std::string& est_path, size_t 
   row("ATE mean", Fixed(error.ate_mean_m, 4), "m");
   row("ATE median", Fixed(error.ate_median_m, 4), "m");
   row("ATE max", Fixed(error.ate_max_m, 4), "m");
+  const double percent_small = 100.0 * (error.sim3_scale - 1.0);
+  row("scale", Fixed(error.sim3_scale, 5), "",
+      "Sim(3): the estimate is " + Fixed(std::abs(percent_small), 2) + "% " +
+          (percent_small >= 0.0 ? "small" : "large"));
+  row("ATE rmse, Sim(3)", Fixed(error.sim3_ate_rmse_m, 4), "m", "after a similarity alignment");
+  row("worst poses' share", Fixed(100.0 * sources.concentration.worst_share, 1), "%",
+      "of the squared error, the worst " + std::to_string(sources.concentration.worst_poses) +
+          (sources.concentration.worst_poses == 1 ? " pose" : " poses") + "; rmse " +
+          Fixed(sources.concentration.rest_rmse_m, 4) + " m without them");
+  for (const slam::ErrorStretch& stretch : sources.stretches) {
+    row("worst stretch", Fixed(stretch.mean_m, 4), "m",
+        "mean over t = " + Fixed(stretch.start_s, 1) + "-" + Fixed(stretch.end_s, 1) + " s (" +
+            std::to_string(stretch.poses) + " poses, max " + Fixed(stretch.max_m, 4) + " m)");
+  }
   const std::string over_distance = "over " + Fixed(options.rpe_distance_m, 2) + " m, " +
                                     std::to_string(error.rpe_pairs_distance) + " pairs";
   const std::string over_time = "over " + Fixed(options.rpe_interval_s, 2) + " s, " +
@@ -127,6 +149,12 @@ int RunEval(int argc, char** argv) {
                    "RPE per metre compares motions over this ground-truth distance [m]")
       ->capture_default_str()
       ->check(Within(1e-6, 1e6, "m"));
+  double stretch_s = 10.0;
+  trajectory
+      ->add_option("--stretch", stretch_s,
+                   "report the worst stretches of this length, from the first matched pose [s]")
+      ->capture_default_str()
+      ->check(Within(1e-3, 1e6, "s"));
   trajectory
       ->add_option("--rpe-interval", options.rpe_interval_s,
                    "RPE per second compares motions over this time [s]")
@@ -158,6 +186,8 @@ int RunEval(int argc, char** argv) {
   const slam::TrajectoryError error = slam::EvaluateTrajectory(ground_truth, estimate, options);
   if (!plot_path.empty())
     render::WriteImageAtomically(plot_path, slam::DrawTrajectoryPlot(error, plot));
+  const ErrorSources sources{slam::WorstStretches(error, stretch_s, kWorstStretches),
+                             slam::ConcentrationOfError(error, kWorstPoseFraction)};
 
   if (json) {
     const Eigen::Quaterniond rotation(error.gt_from_est.rotation());
@@ -174,6 +204,20 @@ int RunEval(int argc, char** argv) {
     out["rpe_rot_deg_per_m"] = error.rpe_rot_deg_per_m;
     out["rpe_trans_per_s"] = error.rpe_trans_per_s;
     out["rpe_rot_deg_per_s"] = error.rpe_rot_deg_per_s;
+    out["sim3_scale"] = error.sim3_scale;
+    out["sim3_ate_rmse_m"] = error.sim3_ate_rmse_m;
+    out["worst_poses"] = sources.concentration.worst_poses;
+    out["worst_poses_share"] = sources.concentration.worst_share;
+    out["rmse_without_worst_poses_m"] = sources.concentration.rest_rmse_m;
+    out["stretch_s"] = stretch_s;
+    out["worst_stretches"] = nlohmann::json::array();
+    for (const slam::ErrorStretch& stretch : sources.stretches) {
+      out["worst_stretches"].push_back({{"start_s", stretch.start_s},
+                                        {"end_s", stretch.end_s},
+                                        {"poses", stretch.poses},
+                                        {"mean_m", stretch.mean_m},
+                                        {"max_m", stretch.max_m}});
+    }
     out["rpe_pairs_distance"] = error.rpe_pairs_distance;
     out["rpe_pairs_time"] = error.rpe_pairs_time;
     out["max_time_diff_s"] = options.max_time_difference_ns * 1e-9;
@@ -186,7 +230,7 @@ int RunEval(int argc, char** argv) {
     std::cout << out.dump(2) << "\n";
     return kExitSuccess;
   }
-  PrintTable(gt_path, est_path, ground_truth.size(), estimate.size(), options, error);
+  PrintTable(gt_path, est_path, ground_truth.size(), estimate.size(), options, error, sources);
   if (!plot_path.empty()) {
     std::cout << "\nplot           " << plot_path << " (" << plot.width_px << "x" << plot.height_px
               << ", top view: up is " << (up[0] == '-' ? "-" : "+") << up.back() << ", dropped)\n";

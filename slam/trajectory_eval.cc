@@ -3,8 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
 #include <limits>
 #include <tuple>
+#include <utility>
+
+#include <Eigen/Geometry>
 
 #include "core/check.h"
 #include "core/rotation.h"
@@ -95,7 +99,82 @@ std::pair<double, double> MeanDrift(const std::vector<MatchedPose>& poses, NextF
   return {translation / *pairs, rotation / *pairs};
 }
 
+// Umeyama's similarity alignment of `est` onto `gt`: its scale and the RMSE left after it.
+std::pair<double, double> SimilarityFit(const std::vector<Eigen::Vector3d>& est,
+                                        const std::vector<Eigen::Vector3d>& gt) {
+  Eigen::Matrix3Xd from(3, est.size());
+  Eigen::Matrix3Xd to(3, gt.size());
+  for (size_t i = 0; i < est.size(); ++i) {
+    from.col(static_cast<Eigen::Index>(i)) = est[i];
+    to.col(static_cast<Eigen::Index>(i)) = gt[i];
+  }
+  const Eigen::Matrix4d gt_from_est = Eigen::umeyama(from, to, true);
+  const double scale = gt_from_est.topLeftCorner<3, 3>().determinant();
+  const Eigen::Matrix3Xd moved =
+      (gt_from_est.topLeftCorner<3, 3>() * from).colwise() + gt_from_est.topRightCorner<3, 1>();
+  const double rmse = std::sqrt((moved - to).colwise().squaredNorm().mean());
+  return {std::cbrt(scale), rmse};
+}
+
+std::vector<double> PoseErrors(const TrajectoryError& error) {
+  std::vector<double> errors;
+  for (size_t i = 0; i < error.gt_positions.size(); ++i) {
+    errors.push_back((error.aligned_positions[i] - error.gt_positions[i]).norm());
+  }
+  return errors;
+}
+
 }  // namespace
+
+std::vector<ErrorStretch> WorstStretches(const TrajectoryError& error, double window_s, int count) {
+  SIGHTMAP_CHECK(window_s > 0.0 && count >= 0, "WorstStretches needs a positive window");
+  const std::vector<double> errors = PoseErrors(error);
+  std::vector<ErrorStretch> stretches;
+  if (errors.empty()) return stretches;
+  const TimestampNs first = error.timestamps_ns.front();
+  for (size_t i = 0; i < errors.size(); ++i) {
+    const double t = (error.timestamps_ns[i] - first) * 1e-9;
+    const auto index = static_cast<size_t>(std::floor(t / window_s));
+    if (index >= stretches.size()) stretches.resize(index + 1);
+    ErrorStretch& stretch = stretches[index];
+    stretch.start_s = index * window_s;
+    stretch.end_s = (index + 1) * window_s;
+    ++stretch.poses;
+    stretch.mean_m += errors[i];
+    stretch.max_m = std::max(stretch.max_m, errors[i]);
+  }
+  stretches.erase(std::remove_if(stretches.begin(), stretches.end(),
+                                 [](const ErrorStretch& s) { return s.poses == 0; }),
+                  stretches.end());
+  for (ErrorStretch& stretch : stretches) stretch.mean_m /= stretch.poses;
+  std::sort(stretches.begin(), stretches.end(), [](const ErrorStretch& a, const ErrorStretch& b) {
+    return a.mean_m > b.mean_m || (a.mean_m == b.mean_m && a.start_s < b.start_s);
+  });
+  if (static_cast<int>(stretches.size()) > count) stretches.resize(static_cast<size_t>(count));
+  return stretches;
+}
+
+ErrorConcentration ConcentrationOfError(const TrajectoryError& error, double fraction) {
+  SIGHTMAP_CHECK(fraction >= 0.0 && fraction <= 1.0, "the fraction of poses must be in [0, 1]");
+  std::vector<double> squared = PoseErrors(error);
+  for (double& e : squared) e *= e;
+  std::sort(squared.begin(), squared.end(), std::greater<>());
+  ErrorConcentration result;
+  if (squared.empty()) return result;
+  // At least one pose when a fraction is asked for, so short walks say something too.
+  result.worst_poses = static_cast<int>(std::lround(fraction * squared.size()));
+  if (fraction > 0.0) result.worst_poses = std::max(result.worst_poses, 1);
+  double worst = 0.0;
+  double total = 0.0;
+  for (size_t i = 0; i < squared.size(); ++i) {
+    total += squared[i];
+    if (static_cast<int>(i) < result.worst_poses) worst += squared[i];
+  }
+  const size_t rest = squared.size() - static_cast<size_t>(result.worst_poses);
+  result.worst_share = total > 0.0 ? worst / total : 0.0;
+  result.rest_rmse_m = rest > 0 ? std::sqrt((total - worst) / rest) : 0.0;
+  return result;
+}
 
 bool TrajectoryEvalOptions::Check(std::string* error) const {
   if (max_time_difference_ns < 0 || !(rpe_distance_m > 0.0) || !(rpe_interval_s > 0.0)) {
@@ -120,6 +199,7 @@ TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
 
   std::vector<Eigen::Vector3d> est_positions;
   for (const MatchedPose& pose : poses) {
+    result.timestamps_ns.push_back(pose.timestamp_ns);
     est_positions.push_back(pose.est.translation());
     result.gt_positions.push_back(pose.gt.translation());
   }
@@ -137,6 +217,8 @@ TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
     result.ate_max_m = std::max(result.ate_max_m, error);
   }
   result.ate_rmse_m = std::sqrt(squared / errors.size());
+  std::tie(result.sim3_scale, result.sim3_ate_rmse_m) =
+      SimilarityFit(est_positions, result.gt_positions);
   result.ate_mean_m /= errors.size();
   // The median of an even count is the mean of the two middle errors.
   const size_t middle = errors.size() / 2;

@@ -40,7 +40,15 @@ struct TrajectoryError {
   int rpe_pairs_time = 0;
   // The alignment applied to the estimate: gt_world_from_est_world.
   Eigen::Isometry3d gt_from_est = Eigen::Isometry3d::Identity();
-  // Matched pairs, for plots: ground-truth and aligned estimated positions.
+  // The alignment with a scale as well (Umeyama's Sim(3)): the scale that maps the estimate onto
+  // the ground truth (1.01: the map came out 1% small) and the RMSE left after it. A map that is
+  // uniformly too small is consistent with every loop, so loops cannot correct it; this tells it
+  // apart from a bent one.
+  double sim3_scale = 1.0;
+  double sim3_ate_rmse_m = 0.0;
+  // Matched pairs, oldest first, for plots: their timestamps, ground-truth and aligned estimated
+  // positions.
+  std::vector<TimestampNs> timestamps_ns;
   std::vector<Eigen::Vector3d> gt_positions;
   std::vector<Eigen::Vector3d> aligned_positions;
 };
@@ -49,5 +57,28 @@ struct TrajectoryError {
 TrajectoryError EvaluateTrajectory(const std::vector<StampedPose>& ground_truth,
                                    const std::vector<StampedPose>& estimate,
                                    const TrajectoryEvalOptions& options = TrajectoryEvalOptions());
+
+// A stretch of the walk and the ATE of the poses in it.
+struct ErrorStretch {
+  double start_s = 0.0;  // since the first matched pose [s]
+  double end_s = 0.0;
+  int poses = 0;
+  double mean_m = 0.0;
+  double max_m = 0.0;
+};
+
+// The walk cut into consecutive stretches of window_s seconds from its first matched pose, the
+// `count` with the largest mean error first: where a map's error comes from.
+std::vector<ErrorStretch> WorstStretches(const TrajectoryError& error, double window_s, int count);
+
+// How concentrated the error is: the share of the summed squared error that the worst `fraction`
+// of poses (at least one) hold, and the RMSE of the others (a few isolated keyframes far off, or a
+// map off everywhere).
+struct ErrorConcentration {
+  int worst_poses = 0;
+  double worst_share = 0.0;
+  double rest_rmse_m = 0.0;
+};
+ErrorConcentration ConcentrationOfError(const TrajectoryError& error, double fraction);
 
 }  // namespace sightmap::slam

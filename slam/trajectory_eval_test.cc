@@ -47,6 +47,51 @@ TEST(TrajectoryEval, RigidlyMovedCopyHasNoError) {
   EXPECT_TRUE((error.gt_from_est * offset).matrix().isIdentity(1e-9));
 }
 
+TEST(TrajectoryEval, AUniformlySmallMapShowsItsScale) {
+  const std::vector<StampedPose> gt = Rectangle();
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()).matrix();
+  offset.translation() = Eigen::Vector3d(2, 1, 0);
+  std::vector<StampedPose> est = gt;
+  for (StampedPose& pose : est) {
+    pose.world_from_cam.translation() *= 0.99;  // the map 1% small
+    pose.world_from_cam = offset * pose.world_from_cam;
+  }
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+  EXPECT_GT(error.ate_rmse_m, 0.005);
+  EXPECT_NEAR(error.sim3_scale, 1.0 / 0.99, 1e-9);
+  EXPECT_LT(error.sim3_ate_rmse_m, 1e-9);
+  EXPECT_EQ(error.timestamps_ns.size(), gt.size());
+
+  const TrajectoryError exact = EvaluateTrajectory(gt, gt);
+  EXPECT_NEAR(exact.sim3_scale, 1.0, 1e-12);
+}
+
+TEST(TrajectoryEval, WorstStretchesAndConcentrationFindWhereTheErrorIs) {
+  const std::vector<StampedPose> gt = Rectangle();  // 28 poses, t = 0-27 s
+  std::vector<StampedPose> est = gt;
+  est[6].world_from_cam.translation().z() += 0.3;
+  est[7].world_from_cam.translation().z() += 0.3;
+  const TrajectoryError error = EvaluateTrajectory(gt, est);
+
+  const std::vector<ErrorStretch> worst = WorstStretches(error, 5.0, 2);
+  ASSERT_EQ(worst.size(), 2u);
+  EXPECT_DOUBLE_EQ(worst[0].start_s, 5.0);
+  EXPECT_DOUBLE_EQ(worst[0].end_s, 10.0);
+  EXPECT_EQ(worst[0].poses, 5);
+  EXPECT_GT(worst[0].max_m, 0.2);
+  EXPECT_GT(worst[0].mean_m, 2.0 * worst[1].mean_m);
+  EXPECT_EQ(WorstStretches(error, 5.0, 10).size(), 6u);  // 0-5, ..., 25-30 s
+
+  const ErrorConcentration concentration = ConcentrationOfError(error, 2.0 / 28.0);
+  EXPECT_EQ(concentration.worst_poses, 2);
+  EXPECT_GT(concentration.worst_share, 0.7);  // 2 of 28 poses; the alignment tilts a little
+  EXPECT_LT(concentration.rest_rmse_m, 0.06);
+  EXPECT_LT(concentration.rest_rmse_m, error.ate_rmse_m / 2.0);
+  EXPECT_THROW(ConcentrationOfError(error, 1.5), Error);
+  EXPECT_THROW(WorstStretches(error, 0.0, 1), Error);
+}
+
 TEST(TrajectoryEval, KnownOffsetsGiveKnownAte) {
   const std::vector<StampedPose> gt = Rectangle();
   // Alternate +-5 cm along z: the alignment cannot remove it, every error is 5 cm.

@@ -491,6 +491,8 @@ TEST(Cli, EvalTrajectoryOfARigidlyMovedCopyIsZero) {
   EXPECT_LT(eval.at("ate_max_m").get<double>(), 1e-6);
   EXPECT_LT(eval.at("rpe_trans_per_m").get<double>(), 1e-6);
   EXPECT_LT(eval.at("rpe_rot_deg_per_m").get<double>(), 1e-4);
+  EXPECT_NEAR(eval.at("sim3_scale").get<double>(), 1.0, 1e-6);
+  EXPECT_LT(eval.at("sim3_ate_rmse_m").get<double>(), 1e-6);
   EXPECT_GT(eval.at("rpe_pairs_distance").get<int>(), 0);
   for (const char* key :
        {"ate_mean_m", "ate_median_m", "rpe_trans_per_s", "rpe_rot_deg_per_s", "rpe_pairs_time",
@@ -530,6 +532,14 @@ TEST(Cli, EvalTrajectoryWithTwoOppositePosesRaisedGivesKnownAte) {
   EXPECT_NEAR(eval.at("ate_max_m").get<double>(), 0.45, 1e-6);
   EXPECT_GT(eval.at("rpe_trans_per_m").get<double>(), 0.0);
   EXPECT_EQ(eval.at("plot"), dir + "/plot.png");
+  // Where the error is: the worst 2% of 20 poses is one raised pose, 0.45^2 of the summed 0.45
+  // m^2; the other 19 hold (0.45^2 + 18 x 0.05^2) / 19. The 10 s walk is one default stretch.
+  EXPECT_EQ(eval.at("worst_poses"), 1);
+  EXPECT_NEAR(eval.at("worst_poses_share").get<double>(), 0.45, 1e-6);
+  EXPECT_NEAR(eval.at("rmse_without_worst_poses_m").get<double>(), std::sqrt(0.2475 / 19), 1e-6);
+  ASSERT_EQ(eval.at("worst_stretches").size(), 1u);
+  EXPECT_EQ(eval.at("worst_stretches")[0].at("poses"), 20);
+  EXPECT_NEAR(eval.at("worst_stretches")[0].at("mean_m").get<double>(), 0.09, 1e-6);
 
   // The plot decodes at the default size, and no temporary file is left beside it.
   const cv::Mat plot = cv::imread(dir + "/plot.png", cv::IMREAD_COLOR);
@@ -544,8 +554,9 @@ TEST(Cli, EvalTrajectoryWithTwoOppositePosesRaisedGivesKnownAte) {
   EXPECT_EQ(files_in_dir, 3);  // gt.txt, est.txt, plot.png
 
   // Text output: the table with units; --plot-size and options change what they say.
-  const CommandResult text = Sightmap("eval trajectory" + files + " --plot " + dir +
-                                      "/small.png --plot-size 400x300 --rpe-distance 2");
+  const CommandResult text =
+      Sightmap("eval trajectory" + files + " --plot " + dir +
+               "/small.png --plot-size 400x300 --rpe-distance 2 --stretch 1");
   ASSERT_EQ(text.exit_code, 0) << text.err;
   EXPECT_NE(text.out.find("ATE rmse"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("0.1500"), std::string::npos) << text.out;
@@ -554,6 +565,12 @@ TEST(Cli, EvalTrajectoryWithTwoOppositePosesRaisedGivesKnownAte) {
   EXPECT_NE(text.out.find("deg/m"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("deg/s"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("over 2.00 m"), std::string::npos) << text.out;
+  // One-second stretches: t = 0-1 s and 5-6 s each hold a raised pose and a level one.
+  EXPECT_NE(text.out.find("worst stretch             0.2500  m       mean over t = 0.0-1.0 s "
+                          "(2 poses, max 0.4500 m)"),
+            std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("the worst 1 pose;"), std::string::npos) << text.out;
   const cv::Mat small = cv::imread(dir + "/small.png", cv::IMREAD_COLOR);
   EXPECT_EQ(small.cols, 400);
   EXPECT_EQ(small.rows, 300);
