@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <functional>
 #include <limits>
+#include <map>
 #include <tuple>
 #include <utility>
 
@@ -127,26 +128,27 @@ std::vector<double> PoseErrors(const TrajectoryError& error) {
 }  // namespace
 
 std::vector<ErrorStretch> WorstStretches(const TrajectoryError& error, double window_s, int count) {
-  SIGHTMAP_CHECK(window_s > 0.0 && count >= 0, "WorstStretches needs a positive window");
+  SIGHTMAP_CHECK(window_s > 0.0 && count >= 0,
+                 "WorstStretches needs a positive window and a count >= 0");
   const std::vector<double> errors = PoseErrors(error);
-  std::vector<ErrorStretch> stretches;
-  if (errors.empty()) return stretches;
-  const TimestampNs first = error.timestamps_ns.front();
+  // Keyed by the stretch's index: a short window over a long recording has few stretches with
+  // poses in them, however many lie between.
+  std::map<int64_t, ErrorStretch> by_index;
   for (size_t i = 0; i < errors.size(); ++i) {
-    const double t = (error.timestamps_ns[i] - first) * 1e-9;
-    const auto index = static_cast<size_t>(std::floor(t / window_s));
-    if (index >= stretches.size()) stretches.resize(index + 1);
-    ErrorStretch& stretch = stretches[index];
+    const double t = (error.timestamps_ns[i] - error.timestamps_ns.front()) * 1e-9;
+    const auto index = static_cast<int64_t>(std::floor(t / window_s));
+    ErrorStretch& stretch = by_index[index];
     stretch.start_s = index * window_s;
     stretch.end_s = (index + 1) * window_s;
     ++stretch.poses;
     stretch.mean_m += errors[i];
     stretch.max_m = std::max(stretch.max_m, errors[i]);
   }
-  stretches.erase(std::remove_if(stretches.begin(), stretches.end(),
-                                 [](const ErrorStretch& s) { return s.poses == 0; }),
-                  stretches.end());
-  for (ErrorStretch& stretch : stretches) stretch.mean_m /= stretch.poses;
+  std::vector<ErrorStretch> stretches;
+  for (auto& [index, stretch] : by_index) {
+    stretch.mean_m /= stretch.poses;
+    stretches.push_back(stretch);
+  }
   std::sort(stretches.begin(), stretches.end(), [](const ErrorStretch& a, const ErrorStretch& b) {
     return a.mean_m > b.mean_m || (a.mean_m == b.mean_m && a.start_s < b.start_s);
   });

@@ -1,5 +1,6 @@
 #include "slam/trajectory_eval.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -90,6 +91,12 @@ TEST(TrajectoryEval, WorstStretchesAndConcentrationFindWhereTheErrorIs) {
   EXPECT_LT(concentration.rest_rmse_m, error.ate_rmse_m / 2.0);
   EXPECT_THROW(ConcentrationOfError(error, 1.5), Error);
   EXPECT_THROW(WorstStretches(error, 0.0, 1), Error);
+  // A window far shorter than the walk: one stretch per pose, the raised ones first.
+  const std::vector<ErrorStretch> fine = WorstStretches(error, 1e-6, 100);
+  ASSERT_EQ(fine.size(), 28u);
+  EXPECT_EQ(fine[0].poses, 1);
+  EXPECT_NEAR(std::min(fine[0].start_s, fine[1].start_s), 6.0, 1e-6);
+  EXPECT_NEAR(std::max(fine[0].start_s, fine[1].start_s), 7.0, 1e-6);
 }
 
 TEST(TrajectoryEval, KnownOffsetsGiveKnownAte) {
