@@ -43,17 +43,9 @@ std::string Fixed(double value, int digits) {
   return text.str();
 }
 
-// Where the error comes from: the worst stretches of the walk and the worst 2% of its poses.
-struct ErrorSources {
-  std::vector<slam::ErrorStretch> stretches;
-  slam::ErrorConcentration concentration;
-};
-constexpr int kWorstStretches = 3;
-constexpr double kWorstPoseFraction = 0.02;
-
 void PrintTable(const std::string& gt_path, const std::string& est_path, size_t gt_poses,
                 size_t est_poses, const slam::TrajectoryEvalOptions& options,
-                const slam::TrajectoryError& error, const ErrorSources& sources) {
+                const slam::TrajectoryError& error, const slam::ErrorSources& sources) {
   const auto row = [](const std::string& metric, const std::string& value, const std::string& unit,
                       const std::string& note = "") {
     std::ostringstream line;
@@ -186,8 +178,7 @@ int RunEval(int argc, char** argv) {
   const slam::TrajectoryError error = slam::EvaluateTrajectory(ground_truth, estimate, options);
   if (!plot_path.empty())
     render::WriteImageAtomically(plot_path, slam::DrawTrajectoryPlot(error, plot));
-  const ErrorSources sources{slam::WorstStretches(error, stretch_s, kWorstStretches),
-                             slam::ConcentrationOfError(error, kWorstPoseFraction)};
+  const slam::ErrorSources sources = slam::FindErrorSources(error, stretch_s);
 
   if (json) {
     const Eigen::Quaterniond rotation(error.gt_from_est.rotation());

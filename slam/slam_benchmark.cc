@@ -323,13 +323,14 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
     std::printf("ATE                 rmse %.4f m, mean %.4f, median %.4f, max %.4f (%d poses)\n",
                 run.error.ate_rmse_m, run.error.ate_mean_m, run.error.ate_median_m,
                 run.error.ate_max_m, run.error.matched_poses);
-    const ErrorConcentration concentration = ConcentrationOfError(run.error, 0.02);
+    const ErrorSources sources = FindErrorSources(run.error);
+    const ErrorConcentration& concentration = sources.concentration;
     std::printf(
         "ATE sources         Sim(3) scale %.5f (rmse %.4f m after it); the worst %d poses hold "
         "%.0f%% of the squared error (rmse %.4f m without them); worst 10 s:",
         run.error.sim3_scale, run.error.sim3_ate_rmse_m, concentration.worst_poses,
         100.0 * concentration.worst_share, concentration.rest_rmse_m);
-    for (const ErrorStretch& stretch : WorstStretches(run.error, 10.0, 3)) {
+    for (const ErrorStretch& stretch : sources.stretches) {
       std::printf(" t %.0f-%.0f s %.3f m (max %.3f)", stretch.start_s, stretch.end_s,
                   stretch.mean_m, stretch.max_m);
     }

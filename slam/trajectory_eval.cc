@@ -178,6 +178,13 @@ ErrorConcentration ConcentrationOfError(const TrajectoryError& error, double fra
   return result;
 }
 
+ErrorSources FindErrorSources(const TrajectoryError& error, double stretch_s) {
+  constexpr int kWorstStretches = 3;
+  constexpr double kWorstPoseFraction = 0.02;
+  return {WorstStretches(error, stretch_s, kWorstStretches),
+          ConcentrationOfError(error, kWorstPoseFraction)};
+}
+
 bool TrajectoryEvalOptions::Check(std::string* error) const {
   if (max_time_difference_ns < 0 || !(rpe_distance_m > 0.0) || !(rpe_interval_s > 0.0)) {
     if (error) *error = "time difference must be >= 0 and RPE distance and interval positive";

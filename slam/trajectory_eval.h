@@ -81,4 +81,12 @@ struct ErrorConcentration {
 };
 ErrorConcentration ConcentrationOfError(const TrajectoryError& error, double fraction);
 
+// Where a trajectory's error comes from, as `eval trajectory` and slam_benchmark report it: the
+// three worst stretches of `stretch_s` seconds and the concentration in the worst 2% of poses.
+struct ErrorSources {
+  std::vector<ErrorStretch> stretches;
+  ErrorConcentration concentration;
+};
+ErrorSources FindErrorSources(const TrajectoryError& error, double stretch_s = 10.0);
+
 }  // namespace sightmap::slam
