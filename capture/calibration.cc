@@ -16,20 +16,18 @@ using nlohmann::json;
 
 Intrinsics ReadIntrinsics(const json& block, const std::string& path, const char* name) {
   Intrinsics k;
+  const std::string needs = path + ": \"" + name + "\" needs numbers width, height, fx, fy, cx, cy";
+  SIGHTMAP_CHECK(block.is_object(), needs);
   // ReadNumber, not get<int>(): nlohmann casts 1e20 to int unchecked, which is undefined.
   const auto read = [&](const char* key, auto& value) {
     try {
       options_json::ReadNumber(block.at(key), value);
     } catch (const json::exception& e) {
-      SIGHTMAP_THROW(Error, path << ": \"" << name
-                                 << "\" needs numbers width, height, fx, fy, cx, cy ("
-                                 << options_json::PlainMessage(e) << ")");
+      SIGHTMAP_THROW(Error, needs << " (" << options_json::PlainMessage(e) << ")");
     } catch (const OptionsJsonError& e) {
       SIGHTMAP_THROW(Error, path << ": \"" << name << "\": " << key << " " << e.reason());
     }
   };
-  SIGHTMAP_CHECK(block.is_object(),
-                 path << ": \"" << name << "\" needs numbers width, height, fx, fy, cx, cy");
   read("width", k.width);
   read("height", k.height);
   read("fx", k.fx);
