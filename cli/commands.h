@@ -7,6 +7,7 @@ namespace sightmap::cli {
 int RunDevices(int argc, char** argv);
 int RunProbe(int argc, char** argv);
 int RunInfo(int argc, char** argv);
+int RunCoverage(int argc, char** argv);
 int RunExport(int argc, char** argv);
 int RunSim(int argc, char** argv);
 int RunEval(int argc, char** argv);

@@ -1,11 +1,13 @@
 // sightmap info MODEL [--json]: what a model holds. Scripts read the --json keys; they are stable.
 #include <iomanip>
 #include <iostream>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
 #include "cli/command_util.h"
 #include "cli/commands.h"
+#include "identify/coverage.h"
 #include "store/model.h"
 
 namespace sightmap::cli {
@@ -48,6 +50,10 @@ int RunInfo(int argc, char** argv) {
   const store::Model model = store::Model::Open(path, options);
   const store::ModelSummary summary = model.Summary();
   const std::vector<store::LabelRecord> labels = model.Labels();
+  // How much of what people could photograph the walk saw (identify/coverage.h); it reads every
+  // keyframe's depth, so only when there are labels to judge.
+  std::optional<identify::ModelCoverage> coverage;
+  if (!labels.empty()) coverage = identify::ComputeCoverage(model);
 
   if (json) {
     nlohmann::json out;
@@ -80,6 +86,7 @@ int RunInfo(int argc, char** argv) {
     nlohmann::json names = nlohmann::json::array();
     for (const store::LabelRecord& label : labels) names.push_back(label.name);
     out["label_names"] = names;
+    out["coverage_share"] = coverage ? nlohmann::json(coverage->share()) : nlohmann::json();
     out["session_list"] = SessionsJson(model.Sessions());
     std::cout << out.dump(2) << "\n";
     return kExitSuccess;
@@ -110,6 +117,11 @@ int RunInfo(int argc, char** argv) {
   std::cout << "labels         " << summary.labels;
   for (size_t i = 0; i < labels.size(); ++i) std::cout << (i ? ", " : "  ") << labels[i].name;
   std::cout << "\n";
+  if (coverage) {
+    std::cout << "coverage       " << coverage->seen << " of " << coverage->open
+              << " open directions around the labels seen (" << std::setprecision(0)
+              << 100.0 * coverage->share() << "%; 'sightmap coverage' for each)\n";
+  }
   if (summary.has_bounding_box) {
     std::cout << std::setprecision(2) << "bounding box   [" << summary.bbox_min.x() << ", "
               << summary.bbox_min.y() << ", " << summary.bbox_min.z() << "] .. ["

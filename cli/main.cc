@@ -27,6 +27,8 @@ constexpr Command kCommands[] = {
      "read a SOURCE to its end and report its streams, intrinsics and frame counts"},
     {"info", sightmap::cli::RunInfo,
      "report what a MODEL holds: sessions, keyframes, links, labels, size"},
+    {"coverage", sightmap::cli::RunCoverage,
+     "from which directions a MODEL's keyframes saw each labelled appliance, and what they missed"},
     {"export", sightmap::cli::RunExport,
      "write a MODEL's point cloud (PLY), trajectory (TUM) and labels (point lists)"},
     {"label", sightmap::cli::RunLabel,

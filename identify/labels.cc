@@ -320,19 +320,40 @@ std::vector<LabelInKeyframe> LabelsInKeyframe(const store::Model& model, Keyfram
                                               const LabelViewOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   const store::KeyframeInfo info = model.Keyframe(keyframe);
+  // The depth image is read only when a point falls in the image.
+  for (const store::LabelRecord& label : labels) {
+    for (const store::LabelPoint& point : label.points) {
+      if (ProjectIntoKeyframe(info, point.world, options.max_distance_m)) {
+        return LabelsInKeyframe(info, model.LoadDepth(keyframe), labels, options);
+      }
+    }
+  }
+  return {};
+}
+
+std::vector<LabelInKeyframe> LabelsInKeyframe(const store::KeyframeInfo& keyframe,
+                                              const cv::Mat& depth_mm,
+                                              const std::vector<store::LabelRecord>& labels,
+                                              const LabelViewOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && !depth_mm.empty(),
+                 "a keyframe's depth must be 16-bit [mm]");
+  // The depth image may be smaller than the keyframe's camera (a whole factor).
+  const double scale_x = static_cast<double>(depth_mm.cols) / keyframe.intrinsics.width;
+  const double scale_y = static_cast<double>(depth_mm.rows) / keyframe.intrinsics.height;
   std::vector<LabelInKeyframe> seen;
-  cv::Mat depth;  // read when the first point falls in the image
   for (const store::LabelRecord& label : labels) {
     LabelInKeyframe in_view{&label, {}};
     for (size_t p = 0; p < label.points.size(); ++p) {
       const auto projected =
-          ProjectIntoKeyframe(info, label.points[p].world, options.max_distance_m);
+          ProjectIntoKeyframe(keyframe, label.points[p].world, options.max_distance_m);
       if (!projected) continue;
-      if (depth.empty()) depth = model.LoadDepth(keyframe);
       LabelPointInKeyframe point{p, projected->first, projected->second, false};
-      const int u = std::clamp(static_cast<int>(std::lround(point.pixel.x())), 0, depth.cols - 1);
-      const int v = std::clamp(static_cast<int>(std::lround(point.pixel.y())), 0, depth.rows - 1);
-      const double surface_m = 1e-3 * depth.at<uint16_t>(v, u);
+      const int u = std::clamp(static_cast<int>(std::lround(point.pixel.x() * scale_x)), 0,
+                               depth_mm.cols - 1);
+      const int v = std::clamp(static_cast<int>(std::lround(point.pixel.y() * scale_y)), 0,
+                               depth_mm.rows - 1);
+      const double surface_m = 1e-3 * depth_mm.at<uint16_t>(v, u);
       point.hidden = surface_m > 0.0 && surface_m < point.depth_m - options.depth_margin_m -
                                                         options.depth_margin_ratio * point.depth_m;
       in_view.points.push_back(point);

@@ -78,6 +78,12 @@ void from_json(const nlohmann::json& json, LabelViewOptions& options);
 std::vector<LabelInKeyframe> LabelsInKeyframe(const store::Model& model, KeyframeId keyframe,
                                               const std::vector<store::LabelRecord>& labels,
                                               const LabelViewOptions& options = {});
+// The same for a keyframe whose depth image [mm] the caller has read (it may be the keyframe's
+// size divided by a whole factor).
+std::vector<LabelInKeyframe> LabelsInKeyframe(const store::KeyframeInfo& keyframe,
+                                              const cv::Mat& depth_mm,
+                                              const std::vector<store::LabelRecord>& labels,
+                                              const LabelViewOptions& options = {});
 
 // Keyframes with one of `label`'s points in their image (in front, within max_distance_m; no
 // occlusion test, no image read), nearest first, at most `max_count`.

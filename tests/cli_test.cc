@@ -204,6 +204,53 @@ TEST(Cli, InfoJsonKeysOfASmallModel) {
   EXPECT_NE(text.out.find("lamp, projector"), std::string::npos) << text.out;
 }
 
+// The small model's four cameras stand at x = 0-0.3 m on the floor plane (up is their -y), 2 m
+// before the wall the two labels hang on at (1, 0.5, 2): all four see both labels, from one
+// direction, 2.18-2.29 m away.
+TEST(Cli, CoverageSaysFromWhereEachLabelWasSeen) {
+  const std::string path = MakeSmallModel("cli_coverage");
+  const std::string png = testing::MakeTempDir("cli_coverage_out") + "/plan.png";
+  const CommandResult run = Sightmap("coverage " + path + " --json --png " + png);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json coverage = nlohmann::json::parse(run.out);
+  EXPECT_NEAR(coverage.at("up")[1].get<double>(), -1.0, 1e-9);
+  ASSERT_EQ(coverage.at("labels").size(), 2u);
+  for (const nlohmann::json& label : coverage.at("labels")) {
+    EXPECT_EQ(label.at("keyframes"), 4);
+    EXPECT_EQ(label.at("seen_sectors"), 1);
+    ASSERT_EQ(label.at("sectors").size(), 12u);
+    // From the label to the cameras: floor x -0.7 to -1, floor y (= world z) -2: 250-261 deg.
+    const nlohmann::json& sector = label.at("sectors")[8];
+    EXPECT_EQ(sector.at("from_deg"), 240.0);
+    EXPECT_EQ(sector.at("keyframes"), 4);
+    EXPECT_NEAR(sector.at("nearest_m").get<double>(), std::sqrt(0.7 * 0.7 + 0.25 + 4.0), 1e-6);
+    EXPECT_NEAR(sector.at("farthest_m").get<double>(), std::sqrt(1.0 + 0.25 + 4.0), 1e-6);
+    EXPECT_DOUBLE_EQ(label.at("share").get<double>(), 1.0 / label.at("open_sectors").get<double>());
+  }
+  EXPECT_EQ(coverage.at("seen_sectors"), 2);
+  const cv::Mat plan = cv::imread(png);
+  EXPECT_EQ(std::max(plan.cols, plan.rows), 1200);
+  EXPECT_NE(run.err.find("coverage: 4/4 keyframes"), std::string::npos) << run.err;
+
+  const CommandResult text = Sightmap("coverage " + path);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("coverage       2 of "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("lamp"), std::string::npos) << text.out;
+
+  // info says the same share.
+  const CommandResult info = Sightmap("info " + path + " --json");
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(info.out).at("coverage_share").get<double>(),
+                   coverage.at("share").get<double>());
+
+  ExpectOneLineError(Sightmap("coverage " + path + " --min-distance 3 --max-distance 2"), 2,
+                     "--max-distance must be greater than --min-distance");
+  ExpectOneLineError(Sightmap("coverage " + path + " --png /proc/no/plan.png"), 1,
+                     "cannot write --png");
+  ExpectOneLineError(Sightmap("coverage " + path + " --sectors 2"), 2, "--sectors");
+  ExpectOneLineError(Sightmap("coverage"), 2, "MODEL");
+}
+
 TEST(Cli, ExportWritesPlyTrajectoryAndLabels) {
   const std::string path = MakeSmallModel("cli_export");
   const std::string out = testing::MakeTempDir("cli_export_out");
