@@ -59,6 +59,8 @@ bool LocatorOptions::Check(std::string* error) const {
            "positive, guided_rounds not negative";
   else if (min_inlier_cells < 0 || min_inlier_cells > 16)
     why << "min_inlier_cells must be in [0, 16]";
+  else if (bare_view_max_detail_cells < 0 || bare_view_max_detail_cells > 16)
+    why << "bare_view_max_detail_cells must be in [0, 16]";
   else if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0))
     why << "min_inlier_share must be in [0, 1]";
   else if (!(same_pose_m >= 0.0) || !(same_pose_deg >= 0.0) ||
@@ -499,6 +501,20 @@ void Locator::Impl::FindNeighbours() {
 
 namespace {
 
+// A cell of the 4x4 grid holds detail with this many features (of up to 3,000 over 16 cells).
+constexpr int kDetailCellFeatures = 20;
+
+int DetailCells(const Features& features, const cv::Size& size) {
+  int counts[16] = {};
+  for (const cv::KeyPoint& keypoint : features.keypoints) {
+    const int col = std::clamp(static_cast<int>(4.0f * keypoint.pt.x / size.width), 0, 3);
+    const int row = std::clamp(static_cast<int>(4.0f * keypoint.pt.y / size.height), 0, 3);
+    ++counts[row * 4 + col];
+  }
+  return static_cast<int>(std::count_if(std::begin(counts), std::end(counts),
+                                        [](int count) { return count >= kDetailCellFeatures; }));
+}
+
 // Descriptors the vocabulary and the matcher take: 32-byte binary (ORB) rows, at least one.
 bool IsOrbDescriptors(const cv::Mat& descriptors) {
   return descriptors.rows > 0 && descriptors.type() == CV_8U && descriptors.cols == 32;
@@ -614,6 +630,17 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   LocateResult result;
   result.intrinsics_source = intrinsics ? source : IntrinsicsSource::kEstimated;
   auto finish = [&](UnmatchedReason code, std::string reason) {
+    // Matching failed on a photo whose detail is in one corner: what to do about it is to include
+    // more of the room, whatever the matcher's own reason was. An ambiguous photo keeps its
+    // answer (two places fit).
+    const bool matching_failed =
+        code == UnmatchedReason::kUnknownPlace || code == UnmatchedReason::kUnseenView ||
+        code == UnmatchedReason::kFewMatches || code == UnmatchedReason::kMatchesInOneCorner;
+    if (matching_failed && result.photo_detail_cells <= options.bare_view_max_detail_cells) {
+      reason = "the photo shows little detail (its features fill " +
+               std::to_string(result.photo_detail_cells) + " of 16 parts of it); " + reason;
+      code = UnmatchedReason::kBareView;
+    }
     result.matched = false;
     result.reason_code = code;
     result.reason = std::move(reason);
@@ -674,6 +701,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   const Features features = slam::ExtractFeatures(
       grey, cv::Mat(), full_candidates.front().Scaled(grey.cols, grey.rows), options.features);
   result.photo_features = static_cast<int>(features.size());
+  result.photo_detail_cells = DetailCells(features, grey.size());
   result.timings.features_ms = MsSince(stage);
   if (static_cast<int>(features.size()) < options.min_inliers) {
     std::ostringstream why;
@@ -977,6 +1005,8 @@ const char* ToString(UnmatchedReason reason) {
       return "few_matches";
     case UnmatchedReason::kMatchesInOneCorner:
       return "matches_in_one_corner";
+    case UnmatchedReason::kBareView:
+      return "bare_view";
   }
   return "unknown";
 }
@@ -1004,6 +1034,8 @@ const char* Advice(UnmatchedReason reason) {
     case UnmatchedReason::kMatchesInOneCorner:
       return "Only a small part of the photo matched: step back so that more of the room is in "
              "the picture.";
+    case UnmatchedReason::kBareView:
+      return "Too little detail: include a wall or furniture in the photo.";
   }
   return "";
 }
@@ -1048,6 +1080,7 @@ nlohmann::json ToJson(const LocateResult& result) {
   out["appliances"] = appliances;
   out["candidates_tried"] = result.candidates_tried;
   out["photo_features"] = result.photo_features;
+  out["photo_detail_cells"] = result.photo_detail_cells;
   out["timings_ms"] = {
       {"features", result.timings.features_ms},     {"retrieval", result.timings.retrieval_ms},
       {"matching", result.timings.matching_ms},     {"pnp", result.timings.pnp_ms},
@@ -1069,11 +1102,11 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, max_image_side_px, retrieval_can
                       neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
                       same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
                       min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
-                      guided_rounds, min_inlier_cells, min_inlier_share, same_pose_m, same_pose_deg,
-                      min_inlier_ratio_over_runner_up, confident_inliers,
-                      max_rotation_from_keyframe_deg, focal_candidates_35mm, refine_estimated_focal,
-                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
-                      min_in_view_share, min_unoccluded_share)
+                      guided_rounds, min_inlier_cells, bare_view_max_detail_cells, min_inlier_share,
+                      same_pose_m, same_pose_deg, min_inlier_ratio_over_runner_up,
+                      confident_inliers, max_rotation_from_keyframe_deg, focal_candidates_35mm,
+                      refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
+                      occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
+                      occlusion_margin_ratio, min_in_view_share, min_unoccluded_share)
 
 }  // namespace sightmap::identify

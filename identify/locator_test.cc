@@ -183,6 +183,34 @@ TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
   }
 }
 
+// A photo of the walk's place with all but its top-left quarter painted over (a bare ceiling
+// round a light): not matched, answered as a bare view with the advice to include more. The
+// whole photo it came from keeps its own answer.
+TEST_F(LocatorTest, ABareViewIsAnsweredInWords) {
+  ASSERT_FALSE(seen_photos_->empty());
+  int bare_answers = 0;
+  for (size_t i = 0; i < seen_photos_->size() && i < 4; ++i) {
+    const sim::QueryPhoto& photo = (*seen_photos_)[i];
+    cv::Mat bare(photo.image.size(), photo.image.type(), cv::Scalar(200, 202, 205));
+    const cv::Rect corner(0, 0, photo.image.cols / 4, photo.image.rows / 4);
+    photo.image(corner).copyTo(bare(corner));
+    const LocateResult answer = locator_->Locate(bare, photo.intrinsics);
+    const LocateResult whole = locator_->Locate(photo.image, photo.intrinsics);
+    EXPECT_GT(whole.photo_detail_cells, 3) << "photo " << photo.index;
+    EXPECT_NE(whole.reason_code, UnmatchedReason::kBareView) << "photo " << photo.index;
+    EXPECT_LE(answer.photo_detail_cells, 1) << "photo " << photo.index;
+    EXPECT_FALSE(answer.matched) << "photo " << photo.index;
+    if (answer.reason_code == UnmatchedReason::kFewFeatures) continue;  // nothing in the corner
+    ++bare_answers;
+    EXPECT_EQ(answer.reason_code, UnmatchedReason::kBareView) << answer.reason;
+    EXPECT_NE(answer.reason.find("little detail"), std::string::npos) << answer.reason;
+    EXPECT_STREQ(Advice(answer.reason_code),
+                 "Too little detail: include a wall or furniture in the photo.");
+    EXPECT_EQ(ToJson(answer)["reason_code"], "bare_view");
+  }
+  EXPECT_GE(bare_answers, 1);
+}
+
 TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
   int tried = 0;
   std::vector<double> focal_errors;
