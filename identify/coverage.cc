@@ -159,15 +159,15 @@ bool CanSeeFrom(const Eigen::Vector3d& label_centre, double bearing_deg, double 
   return true;
 }
 
-void FindOpenSectors(const SpaceGrid& grid, const CoverageOptions& options, ModelCoverage* coverage,
-                     LabelCoverage* label) {
+void FindOpenSectors(const SpaceGrid& grid, const CoverageOptions& options,
+                     const ModelCoverage& coverage, LabelCoverage* label) {
   for (SectorCoverage& sector : label->sectors) {
     const double bearing = 0.5 * (sector.from_deg + sector.to_deg);
     for (int probe = 0; probe < options.probes_per_sector && !sector.open; ++probe) {
       const double distance =
           options.min_distance_m + (options.max_distance_m - options.min_distance_m) *
                                        (probe + 0.5) / options.probes_per_sector;
-      sector.open = CanSeeFrom(label->centre, bearing, distance, *coverage, grid, options);
+      sector.open = CanSeeFrom(label->centre, bearing, distance, coverage, grid, options);
     }
     // Someone stood there and saw it.
     sector.open = sector.open || sector.seen();
@@ -309,7 +309,7 @@ ModelCoverage ComputeCoverage(const store::Model& model, const CoverageOptions& 
     if (progress) progress(static_cast<int>(k + 1), static_cast<int>(keyframes.size()));
   }
   for (LabelCoverage& label : coverage.labels) {
-    FindOpenSectors(grid, options, &coverage, &label);
+    FindOpenSectors(grid, options, coverage, &label);
     coverage.open += label.open;
     coverage.seen += label.seen;
   }
