@@ -397,19 +397,39 @@ bool RefineOn(const std::vector<cv::Point3f>& object, const std::vector<cv::Poin
   return hypothesis->valid;
 }
 
-// Cells of a 4x4 grid over the photo holding at least one inlier: inliers bunched in one corner
-// (a poster, a repeated pattern) do not pin a pose down.
-int CoveredCells(const std::vector<cv::Point2f>& image, const std::vector<int>& inliers, int width,
-                 int height) {
+// Cells of a 4x4 grid over a width x height photo holding at least `min_points` of the points
+// point_at(0 .. count-1).
+template <typename PointAt>
+int GridCellsHolding(size_t count, PointAt point_at, int width, int height, int min_points) {
   constexpr int kCells = 4;
-  bool covered[kCells * kCells] = {};
-  for (int i : inliers) {
-    const cv::Point2f& p = image[static_cast<size_t>(i)];
+  int counts[kCells * kCells] = {};
+  for (size_t i = 0; i < count; ++i) {
+    const cv::Point2f p = point_at(i);
     const int c = std::clamp(static_cast<int>(p.x * kCells / width), 0, kCells - 1);
     const int r = std::clamp(static_cast<int>(p.y * kCells / height), 0, kCells - 1);
-    covered[r * kCells + c] = true;
+    ++counts[r * kCells + c];
   }
-  return static_cast<int>(std::count(std::begin(covered), std::end(covered), true));
+  return static_cast<int>(std::count_if(std::begin(counts), std::end(counts),
+                                        [min_points](int n) { return n >= min_points; }));
+}
+
+// Cells holding at least one inlier: inliers bunched in one corner (a poster, a repeated pattern)
+// do not pin a pose down.
+int CoveredCells(const std::vector<cv::Point2f>& image, const std::vector<int>& inliers, int width,
+                 int height) {
+  return GridCellsHolding(
+      inliers.size(), [&](size_t i) { return image[static_cast<size_t>(inliers[i])]; }, width,
+      height, 1);
+}
+
+// A cell holds detail with this many features (of up to 3,000 over 16 cells).
+constexpr int kDetailCellFeatures = 20;
+
+// Cells holding detail: a photo of a bare ceiling or wall has its few features in one or two.
+int DetailCells(const Features& features, const cv::Size& size) {
+  return GridCellsHolding(
+      features.keypoints.size(), [&](size_t i) { return features.keypoints[i].pt; }, size.width,
+      size.height, kDetailCellFeatures);
 }
 
 }  // namespace
@@ -500,20 +520,6 @@ void Locator::Impl::FindNeighbours() {
 }
 
 namespace {
-
-// A cell of the 4x4 grid holds detail with this many features (of up to 3,000 over 16 cells).
-constexpr int kDetailCellFeatures = 20;
-
-int DetailCells(const Features& features, const cv::Size& size) {
-  int counts[16] = {};
-  for (const cv::KeyPoint& keypoint : features.keypoints) {
-    const int col = std::clamp(static_cast<int>(4.0f * keypoint.pt.x / size.width), 0, 3);
-    const int row = std::clamp(static_cast<int>(4.0f * keypoint.pt.y / size.height), 0, 3);
-    ++counts[row * 4 + col];
-  }
-  return static_cast<int>(std::count_if(std::begin(counts), std::end(counts),
-                                        [](int count) { return count >= kDetailCellFeatures; }));
-}
 
 // Descriptors the vocabulary and the matcher take: 32-byte binary (ORB) rows, at least one.
 bool IsOrbDescriptors(const cv::Mat& descriptors) {
