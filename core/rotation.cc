@@ -27,4 +27,11 @@ Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
   return rigid;
 }
 
+void FloorAxes(const Eigen::Vector3d& up, Eigen::Vector3d* e1, Eigen::Vector3d* e2) {
+  Eigen::Vector3d x = Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX().dot(up) * up;
+  if (x.norm() < 1e-3) x = Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(up) * up;
+  *e1 = x.normalized();
+  *e2 = up.cross(*e1);
+}
+
 }  // namespace sightmap

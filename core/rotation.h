@@ -1,5 +1,6 @@
 // How far a rotation turns, in degrees, whatever its axis: the one measure that pose errors, motion
-// limits and the paper's "rotation from the retrieved keyframe" check all use.
+// limits and the paper's "rotation from the retrieved keyframe" check all use; and the floor
+// plane's axes for a world's up direction.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -22,5 +23,9 @@ bool MotionWithin(const Eigen::Isometry3d& motion, double max_m, double max_deg)
 // renderers and long chains of products are orthonormal only to a few digits; the pose graph
 // wants 1e-6.
 Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose);
+
+// Axes of the floor plane for a unit `up`: e1 = world x projected on the floor (world y when x is
+// up), e2 = up x e1. What floor plans (the preview's top-down view, `sightmap coverage`) draw on.
+void FloorAxes(const Eigen::Vector3d& up, Eigen::Vector3d* e1, Eigen::Vector3d* e2);
 
 }  // namespace sightmap

@@ -42,5 +42,28 @@ TEST(MotionWithin, BoundsTheMoveAndTheTurnBothInclusive) {
   EXPECT_FALSE(MotionWithin(motion, 1e9, 180.0));
 }
 
+TEST(FloorAxes, WorldXOnTheFloorOrWorldYWhenXIsUp) {
+  Eigen::Vector3d e1, e2;
+  FloorAxes(Eigen::Vector3d::UnitZ(), &e1, &e2);
+  EXPECT_TRUE(e1.isApprox(Eigen::Vector3d::UnitX()));
+  EXPECT_TRUE(e2.isApprox(Eigen::Vector3d::UnitY()));
+  // A map anchored at a camera frame: up is -y.
+  FloorAxes(-Eigen::Vector3d::UnitY(), &e1, &e2);
+  EXPECT_TRUE(e1.isApprox(Eigen::Vector3d::UnitX()));
+  EXPECT_TRUE(e2.isApprox(Eigen::Vector3d::UnitZ()));
+  FloorAxes(Eigen::Vector3d::UnitX(), &e1, &e2);
+  EXPECT_TRUE(e1.isApprox(Eigen::Vector3d::UnitY()));
+  EXPECT_TRUE(e2.isApprox(Eigen::Vector3d::UnitZ()));
+  // A tilted up: both axes unit, on the floor and at right angles.
+  const Eigen::Vector3d up = Eigen::Vector3d(0.3, -0.2, 0.9).normalized();
+  FloorAxes(up, &e1, &e2);
+  EXPECT_NEAR(e1.norm(), 1.0, 1e-12);
+  EXPECT_NEAR(e2.norm(), 1.0, 1e-12);
+  EXPECT_NEAR(e1.dot(up), 0.0, 1e-12);
+  EXPECT_NEAR(e2.dot(up), 0.0, 1e-12);
+  EXPECT_NEAR(e1.dot(e2), 0.0, 1e-12);
+  EXPECT_GT(e1.x(), 0.0);
+}
+
 }  // namespace
 }  // namespace sightmap

@@ -9,6 +9,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/rotation.h"
 
 namespace sightmap::identify {
 namespace {
@@ -253,14 +254,7 @@ ModelCoverage ComputeCoverage(const store::Model& model, const CoverageOptions& 
   const std::vector<store::LabelRecord> records = model.Labels();
   ModelCoverage coverage;
   coverage.up = EstimateWorldUp(keyframes);
-  // The floor's first axis: world x on the floor (world y when x is vertical).
-  Eigen::Vector3d x =
-      Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX().dot(coverage.up) * coverage.up;
-  if (x.norm() < 0.1) {
-    x = Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(coverage.up) * coverage.up;
-  }
-  coverage.floor_x = x.normalized();
-  coverage.floor_y = coverage.up.cross(coverage.floor_x);
+  FloorAxes(coverage.up, &coverage.floor_x, &coverage.floor_y);
   for (const store::KeyframeInfo& keyframe : keyframes) {
     coverage.eye_height_m += keyframe.world_from_cam.translation().dot(coverage.up);
   }

@@ -94,7 +94,7 @@ struct FloorPlan {
 
 struct ModelCoverage {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // the world's up, estimated from the keyframes
-  Eigen::Vector3d floor_x = Eigen::Vector3d::UnitX();  // the floor plane's axes
+  Eigen::Vector3d floor_x = Eigen::Vector3d::UnitX();  // the floor plane's axes (FloorAxes)
   Eigen::Vector3d floor_y = Eigen::Vector3d::UnitY();
   double eye_height_m = 0.0;          // the keyframes' mean height along up [m]
   std::vector<LabelCoverage> labels;  // by name

@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "render/bitmap_font.h"
 #include "render/gl_api.h"
 
@@ -74,14 +75,6 @@ Eigen::Matrix4d GlProjection(const ViewCamera& view) {
     p(3, 2) = -1.0;
   }
   return p;
-}
-
-// Floor axes for a world_up: e1 = world x on the floor (or world y if x is up), e2 = up x e1.
-void FloorAxes(const Eigen::Vector3d& up, Eigen::Vector3d* e1, Eigen::Vector3d* e2) {
-  Eigen::Vector3d x = Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX().dot(up) * up;
-  if (x.norm() < 1e-3) x = Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(up) * up;
-  *e1 = x.normalized();
-  *e2 = up.cross(*e1);
 }
 
 // world_from_cam of a camera at `eye` looking at `target` with image-up along `up`.
