@@ -28,8 +28,8 @@ int RunSim(int argc, char** argv) {
   generate
       ->add_option("--scene", options.simulator.scene, "'office' (embedded) or a scene JSON file")
       ->capture_default_str();
-  generate->add_option("--trajectory", trajectory, "handheld | robot")
-      ->check(CLI::IsMember({"handheld", "robot"}))
+  generate->add_option("--trajectory", trajectory, "handheld | robot | survey (one lap by default)")
+      ->check(CLI::IsMember({"handheld", "robot", "survey"}))
       ->capture_default_str();
   generate
       ->add_option("--session", options.simulator.session,
@@ -42,7 +42,7 @@ int RunSim(int argc, char** argv) {
   generate->add_option("--out", options.out_dir, "output folder (created)")->required();
   generate
       ->add_option("--frames", options.simulator.frames,
-                   "frames to write (default: 300 s of walk at --fps)")
+                   "frames to write (default: 300 s of walk at --fps; a survey: one lap)")
       ->check(Within(0, 1e7));
   generate->add_option("--queries", options.queries, "phone photos to write")
       ->check(Within(0, 1e6))

@@ -63,7 +63,7 @@ class SimSource : public capture::RgbdSource {
 };
 
 constexpr const char* kAccepted =
-    " — accepted: sim:NAME?trajectory=handheld|robot&session=N&seed=N&fps=F&frames=N";
+    " — accepted: sim:NAME?trajectory=handheld|robot|survey&session=N&seed=N&fps=F&frames=N";
 
 [[noreturn]] void ThrowBadOption(const std::string& key, const std::string& value,
                                  const std::string& wanted) {

@@ -2,11 +2,11 @@
 // straight into any consumer, without files.
 //
 //   NAME        office (the embedded scene) or a scene JSON file
-//   trajectory  handheld (default) | robot
+//   trajectory  handheld (default) | robot | survey (sim/survey.h)
 //   session     >= 1 (default 1)
 //   seed        unsigned integer (default 1)
 //   fps         frame rate [Hz] (default 30; 1 renders only the frames a 1 Hz capture keeps)
-//   frames      frames to deliver (default: 300 s of walk at `fps`)
+//   frames      frames to deliver (default: 300 s of walk at `fps`; a survey: one lap)
 // e.g. sim:office?trajectory=robot&session=2&seed=3&frames=100&fps=1
 // Frames carry world_from_cam_gt; metadata().has_ground_truth is true.
 #pragma once

@@ -131,9 +131,13 @@ Simulator::Simulator(const SimulatorOptions& options) : options_(options) {
   renderer_ =
       std::make_unique<render::MeshRenderer>(SessionLighting(options.session, options.seed));
   AddSceneToRenderer(scene_, renderer_.get());
+  // A survey is one lap by default: the capture ends where it began.
+  const double default_duration_s = options.trajectory == TrajectoryKind::kSurvey
+                                        ? trajectory_->lap_duration_s()
+                                        : options.default_duration_s;
   num_frames_ = options.frames >= 0
                     ? options.frames
-                    : static_cast<int64_t>(std::llround(options.default_duration_s * options.fps));
+                    : static_cast<int64_t>(std::llround(default_duration_s * options.fps));
   std::mt19937_64 rng(MixSeed(SessionSeed(options.seed, options.session), 12));
   exposure_phase_ = UniformReal(rng, 0.0, 2 * kPi);
 }

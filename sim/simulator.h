@@ -28,7 +28,7 @@ struct SimulatorOptions {
   int session = 1;    // >= 1: lighting, chair positions and the start differ per session
   uint64_t seed = 1;  // same options and seed => identical frames and photos, byte for byte
   double fps = 30.0;  // frame rate of the produced stream [Hz]; 1 renders only 1 Hz frames
-  // Frames to produce; -1 = default_duration_s of walk at `fps`.
+  // Frames to produce; -1 = default_duration_s of walk at `fps` (a survey: one lap).
   int64_t frames = -1;
   double default_duration_s = 300.0;  // [s], a few laps of the office (~300 1 Hz keyframes)
   Intrinsics camera = KinectIntrinsics();

@@ -47,11 +47,21 @@ Eigen::Vector2d CatmullRom(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1,
 TrajectoryKind ParseTrajectoryKind(const std::string& name) {
   if (name == "handheld") return TrajectoryKind::kHandheld;
   if (name == "robot") return TrajectoryKind::kRobot;
-  SIGHTMAP_THROW(InvalidArgument, "unknown trajectory '" << name << "': use handheld or robot");
+  if (name == "survey") return TrajectoryKind::kSurvey;
+  SIGHTMAP_THROW(InvalidArgument,
+                 "unknown trajectory '" << name << "': use handheld, robot or survey");
 }
 
 const char* ToString(TrajectoryKind kind) {
-  return kind == TrajectoryKind::kRobot ? "robot" : "handheld";
+  switch (kind) {
+    case TrajectoryKind::kRobot:
+      return "robot";
+    case TrajectoryKind::kSurvey:
+      return "survey";
+    case TrajectoryKind::kHandheld:
+      break;
+  }
+  return "handheld";
 }
 
 bool TrajectoryOptions::Check(std::string* error) const {
@@ -67,7 +77,11 @@ bool TrajectoryOptions::Check(std::string* error) const {
     *error = "session must be >= 1";
     return false;
   }
-  return true;
+  if (dwell_s < 0.0 || dwell_s > 60.0) {
+    *error = "dwell_s must be in [0, 60]";
+    return false;
+  }
+  return survey.Check(error);
 }
 
 Eigen::Matrix3d WorldFromCamRotation(double yaw, double pitch, double roll) {
@@ -90,17 +104,22 @@ Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
   const std::vector<Eigen::Vector2d>& tour = scene.tour;
   const size_t n = tour.size();
   SIGHTMAP_CHECK(n >= 3, "the scene's tour needs at least 3 points");
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d& p0 = tour[(i + n - 1) % n];
-    const Eigen::Vector2d& p1 = tour[i];
-    const Eigen::Vector2d& p2 = tour[(i + 1) % n];
-    const Eigen::Vector2d& p3 = tour[(i + 2) % n];
-    const int steps = std::max(2, static_cast<int>((p2 - p1).norm() / 0.02));
-    for (int j = 0; j < steps; ++j) {
-      polyline_.push_back(CatmullRom(p0, p1, p2, p3, static_cast<double>(j) / steps));
+  if (options.kind == TrajectoryKind::kSurvey) {
+    survey_plan_ = PlanSurvey(scene, options.survey);
+    polyline_ = survey_plan_->path;
+  } else {
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector2d& p0 = tour[(i + n - 1) % n];
+      const Eigen::Vector2d& p1 = tour[i];
+      const Eigen::Vector2d& p2 = tour[(i + 1) % n];
+      const Eigen::Vector2d& p3 = tour[(i + 2) % n];
+      const int steps = std::max(2, static_cast<int>((p2 - p1).norm() / 0.02));
+      for (int j = 0; j < steps; ++j) {
+        polyline_.push_back(CatmullRom(p0, p1, p2, p3, static_cast<double>(j) / steps));
+      }
     }
+    polyline_.push_back(polyline_.front());
   }
-  polyline_.push_back(polyline_.front());
   arc_.assign(polyline_.size(), 0.0);
   for (size_t i = 1; i < polyline_.size(); ++i) {
     arc_[i] = arc_[i - 1] + (polyline_[i] - polyline_[i - 1]).norm();
@@ -110,8 +129,10 @@ Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
                                    ? options.max_turn_rate_dps
                                    : (options.kind == TrajectoryKind::kRobot ? 30.0 : 35.0);
   turn_rate_rad_s_ = turn_rate_dps * kPi / 180.0;
-  speed_mps_ = options.speed_mps > 0.0 ? options.speed_mps
-                                       : (options.kind == TrajectoryKind::kRobot ? 0.4 : 0.5);
+  speed_mps_ = options.speed_mps > 0.0                     ? options.speed_mps
+               : options.kind == TrajectoryKind::kHandheld ? 0.5
+               : options.kind == TrajectoryKind::kRobot    ? 0.4
+                                                           : 0.3;
   // Session N starts at tour point 7 * (N - 1): another door, another room.
   const size_t start_point = (7 * static_cast<size_t>(options.session - 1)) % n;
   double start = 0.0;
@@ -123,6 +144,12 @@ Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
   }();
   std::mt19937_64 rng(MixSeed(options.seed, 0x7a11'0000ULL + options.session));
   for (double& phase : phases_) phase = UniformReal(rng, 0.0, 2 * kPi);
+  if (survey_plan_) {
+    BuildSurveyLegs();
+    // Session N starts a golden-ratio share of the lap further on: another room each time.
+    const double share = std::fmod(0.6180339887 * (options.session - 1), 1.0);
+    survey_start_s_ = share * survey_lap_s_;
+  }
   for (const Appliance& appliance : scene.appliances) {
     // Ceiling fixtures are mapped in passing, not stared at.
     for (const Eigen::Vector3d& p : appliance.points) {
@@ -141,7 +168,71 @@ Eigen::Vector2d Trajectory::PositionAt(double s_m) const {
   return (1 - a) * polyline_[i - 1] + a * polyline_[i];
 }
 
+double Trajectory::lap_duration_s() const {
+  return survey_plan_ ? survey_lap_s_ : lap_length_m_ / speed_mps_;
+}
+
+namespace {
+constexpr double kSurveyAccel = 0.5;  // walking speeds up and slows down at this [m/s^2]
+
+// Distance covered t seconds into a leg of `length` walked from standstill to standstill at up to
+// `speed` (a trapezoidal speed profile; triangular when the leg is short).
+double LegDistance(double length, double speed, double t) {
+  const double a = kSurveyAccel;
+  const double cruise_speed = std::min(speed, std::sqrt(a * length));
+  const double ramp_s = cruise_speed / a;
+  const double ramp_m = 0.5 * a * ramp_s * ramp_s;
+  const double cruise_s = (length - 2 * ramp_m) / cruise_speed;
+  if (t <= 0.0) return 0.0;
+  if (t < ramp_s) return 0.5 * a * t * t;
+  if (t < ramp_s + cruise_s) return ramp_m + cruise_speed * (t - ramp_s);
+  const double u = std::min(t - ramp_s - cruise_s, ramp_s);
+  return ramp_m + cruise_speed * cruise_s + cruise_speed * u - 0.5 * a * u * u;
+}
+
+double LegDuration(double length, double speed) {
+  if (length <= 0.0) return 0.0;
+  const double cruise_speed = std::min(speed, std::sqrt(kSurveyAccel * length));
+  return length / cruise_speed + cruise_speed / kSurveyAccel;
+}
+}  // namespace
+
+void Trajectory::BuildSurveyLegs() {
+  const std::vector<SurveyStop>& stops = survey_plan_->stops;
+  double t = 0.0;
+  for (size_t i = 0; i < stops.size(); ++i) {
+    if (stops[i].target && options_.dwell_s > 0.0) {
+      survey_legs_.push_back({t, options_.dwell_s, stops[i].arc_m, 0.0, stops[i].target, {}});
+      t += options_.dwell_s;
+    }
+    const double end = i + 1 < stops.size() ? stops[i + 1].arc_m : lap_length_m_;
+    const double length = end - stops[i].arc_m;
+    if (length <= 0.0) continue;
+    const double duration = LegDuration(length, speed_mps_);
+    survey_legs_.push_back({t, duration, stops[i].arc_m, length, stops[i].target,
+                            stops[(i + 1) % stops.size()].target});
+    t += duration;
+  }
+  SIGHTMAP_CHECK(!survey_legs_.empty() && t > 0.0, "the survey plan has no legs");
+  survey_lap_s_ = t;
+}
+
+const Trajectory::SurveyLeg& Trajectory::SurveyLegAt(double t_s, double* t_in_leg_s) const {
+  double t = std::fmod(survey_start_s_ + std::max(t_s, 0.0), survey_lap_s_);
+  const auto it =
+      std::upper_bound(survey_legs_.begin(), survey_legs_.end(), t,
+                       [](double value, const SurveyLeg& leg) { return value < leg.t0_s; });
+  const SurveyLeg& leg = it == survey_legs_.begin() ? survey_legs_.front() : *std::prev(it);
+  *t_in_leg_s = std::clamp(t - leg.t0_s, 0.0, leg.duration_s);
+  return leg;
+}
+
 double Trajectory::DistanceAt(double t_s) const {
+  if (survey_plan_) {
+    double t_in_leg = 0.0;
+    const SurveyLeg& leg = SurveyLegAt(t_s, &t_in_leg);
+    return leg.s0_m + (leg.length_m > 0.0 ? LegDistance(leg.length_m, speed_mps_, t_in_leg) : 0.0);
+  }
   double s = start_s_m_ + speed_mps_ * t_s;
   if (options_.kind == TrajectoryKind::kHandheld) {
     // +-10% pace change over ~25 s (integral of the speed modulation).
@@ -277,6 +368,7 @@ double Trajectory::LimitedYaw(double t_s) const {
 }
 
 Trajectory::Attitude Trajectory::DesiredAt(double t_s) const {
+  if (survey_plan_) return SurveyDesiredAt(t_s);
   const double s = DistanceAt(t_s);
   const Eigen::Vector2d position = PositionAt(s);
   // Heading along the path, looking ahead and behind to smooth the spline's corners.
@@ -320,6 +412,59 @@ Trajectory::Attitude Trajectory::DesiredAt(double t_s) const {
     pitch += w * (target_pitch - 0.1 - pitch);  // aim a little low: people look down at things
   }
   pitch = std::clamp(pitch, -0.26, 0.26);  // +-15 deg
+  height = std::clamp(height, 1.4, 1.7);
+  return {Eigen::Vector3d(swayed.x(), swayed.y(), height), yaw, pitch, roll};
+}
+
+Trajectory::Attitude Trajectory::SurveyDesiredAt(double t_s) const {
+  double t_in_leg = 0.0;
+  const SurveyLeg& leg = SurveyLegAt(t_s, &t_in_leg);
+  const double s = DistanceAt(t_s);
+  const Eigen::Vector2d position = PositionAt(s);
+  const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
+  const double path_yaw = std::atan2(ahead.y(), ahead.x());
+  const bool walking = leg.length_m > 0.0;
+  const double* ph = phases_;
+  const double step_hz = 1.8;
+  // Steps only while walking: standing, the sensor drifts with the operator's breathing and hands.
+  const double stepping =
+      walking ? std::min(1.0, std::min(t_in_leg, leg.duration_s - t_in_leg) / 1.0) : 0.0;
+  double height = 1.55 + 0.08 * std::sin(2 * kPi * t_s / 40.0 + ph[1]) +
+                  0.025 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  const Eigen::Vector2d left(-std::sin(path_yaw), std::cos(path_yaw));
+  const Eigen::Vector2d swayed =
+      position + 0.02 * stepping * std::sin(kPi * step_hz * t_s + ph[3]) * left;
+  // Looking ahead with a small sweep over the walls while walking, at the appliance standing.
+  double yaw = path_yaw + 0.2 * std::sin(2 * kPi * t_s / 13.0 + ph[4]) +
+               0.1 * std::sin(2 * kPi * t_s / 5.3 + ph[5]);
+  double pitch = -0.12 + 0.08 * std::sin(2 * kPi * t_s / 9.0 + ph[6]);
+  const double roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
+                      0.02 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  // The appliance in view: the one stood at, or while walking the previous one over the leg's
+  // first 1.5 s and the next one over its last 2 s (the heading itself turns no faster than
+  // max_turn_rate).
+  std::optional<Eigen::Vector3d> target;
+  double w = 0.0;
+  if (!walking) {
+    target = leg.target;
+    w = 1.0;
+  } else {
+    const double w_previous = leg.target ? 1.0 - SmoothStep(t_in_leg / 1.5) : 0.0;
+    const double w_next =
+        leg.next_target ? SmoothStep((2.0 - (leg.duration_s - t_in_leg)) / 2.0) : 0.0;
+    target = w_next >= w_previous ? leg.next_target : leg.target;
+    w = std::max(w_next, w_previous);
+  }
+  if (target && w > 0.0) {
+    const Eigen::Vector2d to = target->head<2>() - swayed;
+    const double target_yaw = std::atan2(to.y(), to.x());
+    const double target_pitch = std::atan2(target->z() - height, std::max(to.norm(), 0.3));
+    // A small hand tremor on top, so standing frames are not identical.
+    const double tremor = 0.01 * std::sin(2 * kPi * t_s / 3.1 + ph[4]);
+    yaw += w * (WrapAngle(target_yaw - yaw) + tremor);
+    pitch += w * (target_pitch - pitch + tremor);
+  }
+  pitch = std::clamp(pitch, -0.61, 0.61);  // +-35 deg: up at ceiling lights, down at a printer
   height = std::clamp(height, 1.4, 1.7);
   return {Eigen::Vector3d(swayed.x(), swayed.y(), height), yaw, pitch, roll};
 }

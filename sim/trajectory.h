@@ -13,6 +13,11 @@
 //    while its pan-tilt head keeps the camera on the same wall and appliance targets, one per
 //    window, panning smoothly to the next over the window's last quarter (facing down a corridor
 //    or a 10 m room at 0.75 m, a Kinect sees mostly beyond its 4.5 m range).
+//  - survey: the hand-held sensor carried along a survey plan (sim/survey.h) instead of the tour:
+//    the walker stops at each appliance's standpoints (dwell_s, looking at it; the camera tilts up
+//    to 35 deg at ceiling lights) and walks between them at 0.3 m/s, speeding up and slowing down
+//    at 0.5 m/s^2, looking ahead and turning to the next appliance over the last 2 s of each leg;
+//    height, bob, sway and roll as hand-held. One lap covers every appliance; laps repeat.
 #pragma once
 
 #include <cstdint>
@@ -26,16 +31,19 @@
 #include <Eigen/Geometry>
 
 #include "sim/scene.h"
+#include "sim/survey.h"
 
 namespace sightmap::sim {
 
-enum class TrajectoryKind { kHandheld, kRobot };
+enum class TrajectoryKind { kHandheld, kRobot, kSurvey };
 TrajectoryKind ParseTrajectoryKind(const std::string& name);  // throws InvalidArgument
 const char* ToString(TrajectoryKind kind);
 
 struct TrajectoryOptions {
   TrajectoryKind kind = TrajectoryKind::kHandheld;
-  double speed_mps = 0.0;  // walking speed [m/s]; 0 = 0.5 hand-held, 0.4 robot
+  // Walking speed [m/s]; 0 = 0.5 hand-held, 0.4 robot, 0.3 survey (a careful capture: the paper's
+  // operator took 18 minutes for an 80 m^2 lab).
+  double speed_mps = 0.0;
   // Fastest turn of the heading [deg/s]; 0 = 35 hand-held, 30 robot. A person mapping while
   // walking turns about that fast (frames a second apart are up to ~0.5 m and 30-35 deg apart);
   // the camera follows what the walker wants to look at no faster than this. Before this limit
@@ -43,6 +51,9 @@ struct TrajectoryOptions {
   double max_turn_rate_dps = 0.0;
   int session = 1;  // >= 1; moves the start along the tour
   uint64_t seed = 1;
+  // Survey only: seconds standing at each standpoint, and the plan's options.
+  double dwell_s = 5.0;
+  SurveyOptions survey;
 
   bool Check(std::string* error) const;
 };
@@ -56,6 +67,9 @@ class Trajectory {
   // Length of one lap of the smoothed tour [m].
   double lap_length_m() const { return lap_length_m_; }
   double speed_mps() const { return speed_mps_; }
+  // Survey: seconds for one lap, and the plan walked (nullopt for the other kinds).
+  double lap_duration_s() const;
+  const std::optional<SurveyPlan>& survey_plan() const { return survey_plan_; }
 
  private:
   Eigen::Vector2d PositionAt(double s_m) const;  // arc length along the loop, wraps
@@ -68,6 +82,20 @@ class Trajectory {
   double speed_mps_ = 0.5;
   double start_s_m_ = 0.0;
   double phases_[8] = {};
+
+  // The survey's lap as legs in time: standing at a stop (s constant) or walking to the next.
+  struct SurveyLeg {
+    double t0_s = 0.0, duration_s = 0.0;
+    double s0_m = 0.0, length_m = 0.0;           // walking when length_m > 0
+    std::optional<Eigen::Vector3d> target;       // standing: looked at; walking: the previous one
+    std::optional<Eigen::Vector3d> next_target;  // walking: the one at the leg's end
+  };
+  std::optional<SurveyPlan> survey_plan_;
+  std::vector<SurveyLeg> survey_legs_;
+  double survey_lap_s_ = 0.0;
+  double survey_start_s_ = 0.0;
+  void BuildSurveyLegs();
+  const SurveyLeg& SurveyLegAt(double t_s, double* t_in_leg_s) const;
   // What the operator turns to look at during the window containing t (nullopt: nothing);
   // chosen once per window and eye height, then cached.
   std::optional<Eigen::Vector3d> LookTarget(double t_s, double eye_height_m) const;
@@ -91,14 +119,14 @@ class Trajectory {
     double roll = 0.0;
   };
   Attitude DesiredAt(double t_s) const;
+  Attitude SurveyDesiredAt(double t_s) const;
   double LimitedYaw(double t_s) const;
   double turn_rate_rad_s_ = 0.0;
   struct YawCache {
     std::mutex mutex;
     std::vector<double> samples;  // unwrapped heading at a fixed step from t = 0 [rad]
   };
-  std::shared_ptr<YawCache> yaw_cache_;  // shared by copies: the headings are deterministic  //
-                                         // shared by copies: the targets are deterministic
+  std::shared_ptr<YawCache> yaw_cache_;  // shared by copies: the headings are deterministic
 };
 
 // Camera orientation from heading (yaw about world z from +x), pitch (up positive) and roll

@@ -494,8 +494,8 @@ int Main(int argc, char** argv) {
   int laps = 1;
   bool track = false;
   std::string trajectory_out;
-  app.add_option("--trajectory", trajectory, "handheld or robot")
-      ->check(CLI::IsMember({"handheld", "robot"}));
+  app.add_option("--trajectory", trajectory, "handheld, robot or survey")
+      ->check(CLI::IsMember({"handheld", "robot", "survey"}));
   app.add_option("--session", session, "simulator session (>= 1)");
   app.add_option("--seed", seed, "simulator seed");
   app.add_option("--frames", frames_wanted, "keyframes (frames of the walk at --fps)");
