@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -17,6 +19,7 @@
 
 #include "cli/command_util.h"
 #include "core/check.h"
+#include "identify/coverage.h"
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
 #include "render/image_file.h"
@@ -84,6 +87,12 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
   std::cout << "precision >= " << good << " (matched)    "
             << Share(e.precision_good_photos, e.precision_defined_photos) << "   "
             << precision_undefined << " with nothing identified left out\n";
+  std::cout << "wrong poses (> " << Fixed(e.options.wrong_position_m, 1) << " m or > "
+            << Fixed(e.options.wrong_rotation_deg, 0) << " deg)  "
+            << Share(e.wrong_poses, e.matched_photos) << "   median error "
+            << Fixed(100.0 * e.median_position_error_m, 1) << " cm, "
+            << Fixed(e.median_rotation_error_deg, 2) << " deg (" << e.posed_photos
+            << " with a true pose)\n";
   std::cout << "occluded reported as visible   "
             << Share(e.occluded_identified, e.occluded_instances) << "\n";
   const int not_visible = e.categories[0][0] + e.categories[0][1];
@@ -120,6 +129,51 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
     }
   }
   if (!args.plot_path.empty()) std::cout << "\nplot       " << args.plot_path << "\n";
+}
+
+// Marks each photo whose view the model saw (identify::ViewWasSeen of the photo's target label),
+// where the photo has a true pose and the model a label of its target's name.
+void MarkCoveredPhotos(const store::Model& model, std::vector<identify::QueryTruth>* truths) {
+  const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
+  std::map<std::string, Eigen::Vector3d> label_points;
+  for (const store::LabelRecord& label : model.Labels()) {
+    label_points[label.name] = label.points.front().world;
+  }
+  for (identify::QueryTruth& truth : *truths) {
+    const auto label = label_points.find(truth.target);
+    if (!truth.world_from_cam || label == label_points.end()) continue;
+    truth.covered = identify::ViewWasSeen(*truth.world_from_cam, label->second, keyframes);
+  }
+}
+
+// The headline figures of the photos whose `covered` is `covered`, or nullopt when none is.
+std::optional<identify::IdentifyEvaluation> EvaluateStratum(
+    const std::vector<identify::QueryTruth>& truths,
+    const std::vector<identify::PhotoAnswer>& answers, bool covered) {
+  std::vector<identify::QueryTruth> selected_truths;
+  std::vector<identify::PhotoAnswer> selected_answers;
+  identify::SelectCovered(truths, answers, covered, &selected_truths, &selected_answers);
+  if (selected_truths.empty()) return std::nullopt;
+  return identify::EvaluateIdentification(selected_truths, selected_answers);
+}
+
+void PrintStrata(const std::optional<identify::IdentifyEvaluation>& covered,
+                 const std::optional<identify::IdentifyEvaluation>& not_covered) {
+  if (!covered && !not_covered) return;
+  std::cout << "\nby coverage (a keyframe saw the photo's target within 40 deg and a factor 2 in "
+               "distance)\n";
+  std::cout << std::left << std::setw(14) << "" << std::right << std::setw(8) << "photos"
+            << std::setw(10) << "matched" << std::setw(8) << "wrong" << std::setw(12)
+            << "recall>=.8" << std::setw(14) << "precision>=.8"
+            << "\n";
+  for (const auto& [name, e] :
+       {std::make_pair("covered", covered), std::make_pair("not covered", not_covered)}) {
+    if (!e) continue;
+    std::cout << std::left << std::setw(14) << name << std::right << std::setw(8) << e->photos
+              << std::setw(9) << Fixed(100.0 * e->matched_ratio, 1) << "%" << std::setw(8)
+              << e->wrong_poses << std::setw(11) << Fixed(100.0 * e->recall_ge_0_8_ratio, 1) << "%"
+              << std::setw(13) << Fixed(100.0 * e->precision_ge_0_8_ratio, 1) << "%\n";
+  }
 }
 
 }  // namespace
@@ -169,6 +223,7 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   {
     const store::Model model = store::Model::Open(args.model_path, model_options);
     locator = std::make_unique<identify::Locator>(model);
+    MarkCoveredPhotos(model, &truths);
   }
   const double load_s = SecondsSince(load_start);
 
@@ -198,6 +253,10 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   }
 
   const identify::IdentifyEvaluation evaluation = identify::EvaluateIdentification(truths, answers);
+  const std::optional<identify::IdentifyEvaluation> covered =
+      EvaluateStratum(truths, answers, true);
+  const std::optional<identify::IdentifyEvaluation> not_covered =
+      EvaluateStratum(truths, answers, false);
   if (!args.plot_path.empty()) {
     render::WriteImageAtomically(args.plot_path,
                                  identify::DrawIdentifyPlot(evaluation, plot_width, plot_height));
@@ -209,10 +268,13 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     out["keyframes"] = locator->NumKeyframes();
     out["model_load_s"] = load_s;
     out["plot"] = args.plot_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.plot_path);
+    out["covered"] = covered ? identify::ToJson(*covered) : nlohmann::json(nullptr);
+    out["not_covered"] = not_covered ? identify::ToJson(*not_covered) : nlohmann::json(nullptr);
     std::cout << out.dump(2) << "\n";
     return kExitSuccess;
   }
   PrintTable(args, locator->NumKeyframes(), evaluation);
+  PrintStrata(covered, not_covered);
   return kExitSuccess;
 }
 

@@ -404,4 +404,42 @@ SIGHTMAP_OPTIONS_JSON(CoverageOptions, sectors, min_distance_m, max_distance_m, 
                       cell_m, free_space_pixel_step, free_space_margin_m, max_depth_m,
                       label_clearance_m, view)
 
+bool ViewSeenOptions::Check(std::string* error) const {
+  if (!(max_angle_deg > 0.0 && max_angle_deg <= 180.0)) {
+    *error = "max_angle_deg must be in (0, 180]";
+    return false;
+  }
+  if (!(max_distance_ratio >= 1.0)) {
+    *error = "max_distance_ratio must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,
+                 const std::vector<store::KeyframeInfo>& keyframes,
+                 const ViewSeenOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const Eigen::Vector3d photo_ray = point_world - world_from_photo.translation();
+  const double photo_distance = photo_ray.norm();
+  if (photo_distance < 1e-6) return false;
+  const double min_cos = std::cos(options.max_angle_deg / kDegPerRad);
+  for (const store::KeyframeInfo& keyframe : keyframes) {
+    const Eigen::Vector3d ray = point_world - keyframe.world_from_cam.translation();
+    const double distance = ray.norm();
+    if (distance < photo_distance / options.max_distance_ratio ||
+        distance > photo_distance * options.max_distance_ratio) {
+      continue;
+    }
+    if (ray.dot(photo_ray) < min_cos * distance * photo_distance) continue;
+    const Eigen::Vector3d in_cam = keyframe.world_from_cam.inverse() * point_world;
+    if (in_cam.z() <= 0.0) continue;
+    const Intrinsics& k = keyframe.intrinsics;
+    const double u = k.fx * in_cam.x() / in_cam.z() + k.cx;
+    const double v = k.fy * in_cam.y() / in_cam.z() + k.cy;
+    if (u >= 0.0 && v >= 0.0 && u < k.width && v < k.height) return true;
+  }
+  return false;
+}
+
 }  // namespace sightmap::identify

@@ -115,6 +115,20 @@ ModelCoverage ComputeCoverage(const store::Model& model,
                               const CoverageOptions& options = CoverageOptions(),
                               const std::function<void(int, int)>& progress = nullptr);
 
+// The "covered" photo: some keyframe saw the point the photo is taken of from a similar
+// view: the point inside the keyframe's image and in front of it, the keyframe's line of sight to
+// it within max_angle_deg of the photo's, and its distance to it within a factor
+// max_distance_ratio of the photo's. (Occlusion is not checked: a keyframe behind a wall from
+// the point could count; in practice its image shows the wall, so retrieval never picks it.)
+struct ViewSeenOptions {
+  double max_angle_deg = 40.0;
+  double max_distance_ratio = 2.0;
+  bool Check(std::string* error) const;
+};
+bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,
+                 const std::vector<store::KeyframeInfo>& keyframes,
+                 const ViewSeenOptions& options = ViewSeenOptions());
+
 // {"share", "open_sectors", "seen_sectors", "up", "eye_height_m", "labels": [{"id", "name",
 // "type", "centre", "share", "open_sectors", "seen_sectors", "keyframes", "sectors": [{"from_deg",
 // "to_deg", "open", "seen", "keyframes", "nearest_m", "farthest_m"}]}]}: `sightmap coverage

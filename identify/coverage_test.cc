@@ -233,6 +233,44 @@ TEST(Coverage, JsonAndPlanSayTheSame) {
   EXPECT_GT(red, green);  // the open sectors not seen
 }
 
+TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
+  const Intrinsics camera = Intrinsics::FromFieldOfView(640, 480, 62.0 * M_PI / 180.0, 0.0);
+  // The photo 2 m in front of the thermostat (which faces -x).
+  const Eigen::Isometry3d photo = LookAt({3.95, 2.0, 1.5}, kThermostat);
+  auto keyframe_at = [&](const Eigen::Vector3d& eye, const Eigen::Vector3d& look_at) {
+    store::KeyframeInfo keyframe;
+    keyframe.world_from_cam = LookAt(eye, look_at);
+    keyframe.intrinsics = camera;
+    return std::vector<store::KeyframeInfo>{keyframe};
+  };
+  auto at_bearing = [&](double deg, double distance) {
+    const double a = (180.0 + deg) * M_PI / 180.0;
+    return Eigen::Vector3d(kThermostat.x() + distance * std::cos(a),
+                           kThermostat.y() + distance * std::sin(a), 1.5);
+  };
+  // 35 deg off the photo's line of sight: covered; 45 deg: not.
+  EXPECT_TRUE(ViewWasSeen(photo, kThermostat, keyframe_at(at_bearing(35, 2.0), kThermostat)));
+  EXPECT_FALSE(ViewWasSeen(photo, kThermostat, keyframe_at(at_bearing(45, 2.0), kThermostat)));
+  // Within a factor 2 of the photo's 2 m: 3.9 m covered, 4.1 m and 0.9 m not.
+  EXPECT_TRUE(ViewWasSeen(photo, kThermostat, keyframe_at(at_bearing(0, 3.9), kThermostat)));
+  EXPECT_FALSE(ViewWasSeen(photo, kThermostat, keyframe_at(at_bearing(0, 4.1), kThermostat)));
+  EXPECT_FALSE(ViewWasSeen(photo, kThermostat, keyframe_at(at_bearing(0, 0.9), kThermostat)));
+  // Standing in the right place but looking away (the target outside its image): not covered.
+  EXPECT_FALSE(ViewWasSeen(
+      photo, kThermostat,
+      keyframe_at(at_bearing(0, 2.0), at_bearing(0, 2.0) + Eigen::Vector3d(0.0, 3.0, 0.0))));
+  // The target near its image's edge still counts: 25 deg off its axis (the half field is 31).
+  const Eigen::Vector3d eye = at_bearing(0, 2.0);
+  const Eigen::Vector3d aside =
+      eye + Eigen::AngleAxisd(25.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) * (kThermostat - eye);
+  EXPECT_TRUE(ViewWasSeen(photo, kThermostat, keyframe_at(eye, aside)));
+  EXPECT_FALSE(ViewWasSeen(photo, kThermostat, {}));
+  ViewSeenOptions bad;
+  bad.max_distance_ratio = 0.5;
+  EXPECT_THROW(ViewWasSeen(photo, kThermostat, keyframe_at(eye, kThermostat), bad),
+               InvalidArgument);
+}
+
 TEST(Coverage, RefusesBadOptions) {
   RoomModel room;
   CoverageOptions options;

@@ -112,6 +112,19 @@ std::vector<QueryTruth> ReadQueryTruths(const std::string& path) {
       for (const auto& [name, type] : query.at("types").items()) {
         truth.appliances[name] = ParseTruthType(type.get<std::string>());
       }
+      truth.target = query.value("target", "");
+      if (query.contains("world_from_cam")) {
+        const nlohmann::json& pose = query["world_from_cam"];
+        const std::vector<double> p = pose.at("position").get<std::vector<double>>();
+        const std::vector<double> q = pose.at("quaternion_xyzw").get<std::vector<double>>();
+        SIGHTMAP_CHECK(p.size() == 3 && q.size() == 4,
+                       file.string() << ": a query's world_from_cam needs 3 position and 4 "
+                                        "quaternion values");
+        Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+        world_from_cam.linear() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().matrix();
+        world_from_cam.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+        truth.world_from_cam = world_from_cam;
+      }
       truths.push_back(std::move(truth));
     }
   } catch (const nlohmann::json::exception& e) {
@@ -129,6 +142,7 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.reason = result.reason;
   answer.timings = result.timings;
   if (!result.matched) return answer;
+  answer.world_from_cam = result.world_from_cam;
   for (const ApplianceInView& appliance : result.appliances) {
     (appliance.occluded ? answer.reported_occluded : answer.identified).push_back(appliance.name);
   }
@@ -144,7 +158,32 @@ bool IdentifyEvalOptions::Check(std::string* error) const {
     if (error != nullptr) *error = "histogram_bins must be in [1, 100]";
     return false;
   }
+  if (!(wrong_position_m > 0.0 && wrong_rotation_deg > 0.0)) {
+    if (error != nullptr) *error = "wrong_position_m and wrong_rotation_deg must be positive";
+    return false;
+  }
   return true;
+}
+
+PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& estimate) {
+  PoseError error;
+  error.position_m = (truth.translation() - estimate.translation()).norm();
+  error.rotation_deg = Eigen::AngleAxisd(truth.linear().transpose() * estimate.linear()).angle() *
+                       180.0 / 3.14159265358979323846;
+  return error;
+}
+
+void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<PhotoAnswer>& answers,
+                   bool covered, std::vector<QueryTruth>* selected_truths,
+                   std::vector<PhotoAnswer>* selected_answers) {
+  SIGHTMAP_CHECK(truths.size() == answers.size(), "SelectCovered: truths and answers differ");
+  selected_truths->clear();
+  selected_answers->clear();
+  for (size_t i = 0; i < truths.size(); ++i) {
+    if (truths[i].covered != covered) continue;
+    selected_truths->push_back(truths[i]);
+    selected_answers->push_back(answers[i]);
+  }
 }
 
 IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
@@ -160,6 +199,8 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
   out.recall_histogram.assign(static_cast<size_t>(options.histogram_bins + 1), 0);
   out.precision_histogram.assign(static_cast<size_t>(options.histogram_bins + 1), 0);
   std::map<std::string, std::vector<double>> stage_values;
+  std::vector<double> position_errors;
+  std::vector<double> rotation_errors;
   for (size_t i = 0; i < truths.size(); ++i) {
     const QueryTruth& truth = truths[i];
     const PhotoAnswer& answer = answers[i];
@@ -175,6 +216,14 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
       continue;
     }
     ++out.matched_photos;
+    if (truth.world_from_cam && answer.world_from_cam) {
+      const PoseError error = ComparePoses(*truth.world_from_cam, *answer.world_from_cam);
+      ++out.posed_photos;
+      out.wrong_poses += error.position_m > options.wrong_position_m ||
+                         error.rotation_deg > options.wrong_rotation_deg;
+      position_errors.push_back(error.position_m);
+      rotation_errors.push_back(error.rotation_deg);
+    }
     // A name reported twice is one identification.
     const std::set<std::string> identified(answer.identified.begin(), answer.identified.end());
     int visible = 0;
@@ -220,6 +269,11 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
   out.recall_ge_0_8_ratio = Ratio(out.recall_good_photos, out.recall_defined_photos);
   out.precision_ge_0_8_ratio = Ratio(out.precision_good_photos, out.precision_defined_photos);
   out.occluded_false_positive_ratio = Ratio(out.occluded_identified, out.occluded_instances);
+  out.wrong_pose_ratio = Ratio(out.wrong_poses, out.matched_photos);
+  if (!position_errors.empty()) {
+    out.median_position_error_m = Percentile(position_errors, 0.5);
+    out.median_rotation_error_deg = Percentile(rotation_errors, 0.5);
+  }
   for (const auto& [stage, values] : stage_values) out.stages[stage] = Summarise(values);
   return out;
 }
@@ -240,6 +294,11 @@ nlohmann::json ToJson(const IdentifyEvaluation& e) {
   out["occluded_identified"] = e.occluded_identified;
   out["occluded_false_positive_ratio"] = e.occluded_false_positive_ratio;
   out["not_visible_identified"] = e.not_visible_identified;
+  out["posed_photos"] = e.posed_photos;
+  out["wrong_poses"] = e.wrong_poses;
+  out["wrong_pose_ratio"] = e.wrong_pose_ratio;
+  out["median_position_error_m"] = e.median_position_error_m;
+  out["median_rotation_error_deg"] = e.median_rotation_error_deg;
   out["unknown_identified"] = e.unknown_identified;
   nlohmann::json categories = nlohmann::json::object();
   for (int type = 0; type < kNumTruthTypes; ++type) {

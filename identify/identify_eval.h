@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
@@ -46,9 +47,13 @@ TruthType ParseTruthType(const std::string& text);
 
 // One phone photo and its ground truth, as queries.json holds them.
 struct QueryTruth {
-  std::string image_path;                       // resolved, readable path of the photo
-  std::optional<Intrinsics> intrinsics;         // as given by the dataset
-  std::map<std::string, TruthType> appliances;  // appliance name -> type
+  std::string image_path;                           // resolved, readable path of the photo
+  std::optional<Intrinsics> intrinsics;             // as given by the dataset
+  std::map<std::string, TruthType> appliances;      // appliance name -> type
+  std::string target;                               // the appliance the photo was taken of
+  std::optional<Eigen::Isometry3d> world_from_cam;  // the phone's true pose
+  // Whether the model saw this view (ViewWasSeen), set by the caller; nullopt = not known.
+  std::optional<bool> covered;
 };
 
 // Reads a simulator query set. `path` may be the dataset folder (holding queries/queries.json),
@@ -58,9 +63,10 @@ std::vector<QueryTruth> ReadQueryTruths(const std::string& path);
 // What the system answered for one photo.
 struct PhotoAnswer {
   bool matched = false;
-  std::string reason;                          // why not, when not matched
-  std::vector<std::string> identified;         // names reported in view and not occluded
-  std::vector<std::string> reported_occluded;  // names reported in the view cone but occluded
+  std::string reason;                               // why not, when not matched
+  std::vector<std::string> identified;              // names reported in view and not occluded
+  std::vector<std::string> reported_occluded;       // names reported in the view cone but occluded
+  std::optional<Eigen::Isometry3d> world_from_cam;  // the pose found, when matched
   LocateTimings timings;
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
@@ -68,6 +74,9 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result);
 struct IdentifyEvalOptions {
   double good_share = 0.8;  // the paper's threshold for "recall / precision >= 0.8"
   int histogram_bins = 10;  // equal bins over [0, 1) plus one bin for exactly 1.0
+  // A matched photo's pose is wrong beyond either (the "> 0.5 m or > 10 deg").
+  double wrong_position_m = 0.5;
+  double wrong_rotation_deg = 10.0;
 
   bool Check(std::string* error) const;
 };
@@ -102,6 +111,13 @@ struct IdentifyEvaluation {
   int occluded_identified = 0;
   double occluded_false_positive_ratio = 0.0;
   int not_visible_identified = 0;  // the other kind of false positive
+  // Matched photos with a true pose, those posed wrongly (wrong_position_m / wrong_rotation_deg),
+  // wrong / matched, and the median errors of the posed ones.
+  int posed_photos = 0;
+  int wrong_poses = 0;
+  double wrong_pose_ratio = 0.0;
+  double median_position_error_m = 0.0;
+  double median_rotation_error_deg = 0.0;
   // Per stage over every located photo (matched or not).
   std::map<std::string, StageTiming>
       stages;  // features, retrieval, matching, pnp, visibility, total
@@ -109,12 +125,25 @@ struct IdentifyEvaluation {
   IdentifyEvalOptions options;
 };
 
+// Distance between the camera centres [m] and angle of the relative rotation [deg].
+struct PoseError {
+  double position_m = 0.0;
+  double rotation_deg = 0.0;
+};
+PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& estimate);
+
 // `truths` and `answers` are parallel (photo i).
 IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
                                           const std::vector<PhotoAnswer>& answers,
                                           const IdentifyEvalOptions& options = {});
 
+// The photos (truths and answers, parallel) whose `covered` is `covered`.
+void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<PhotoAnswer>& answers,
+                   bool covered, std::vector<QueryTruth>* selected_truths,
+                   std::vector<PhotoAnswer>* selected_answers);
+
 // Stable keys: photos, matched_photos, matched_ratio, recall_ge_0_8_ratio, precision_ge_0_8_ratio,
+// posed_photos, wrong_poses, wrong_pose_ratio, median_position_error_m, median_rotation_error_deg,
 // occluded_false_positive_ratio, locate_median_ms, locate_p95_ms, categories
 // ({"visible": {"identified", "not_identified"}, ...}), recall/precision histograms and counts,
 // stages_ms ({"features": {"median", "p95", "mean", "max"}, ...}) and <stage>_median_ms /

@@ -188,7 +188,9 @@ TEST(IdentifyEval, ReadsQueriesFromTheDatasetOrQueriesFolder) {
       "image": "queries/0000.jpg",
       "intrinsics": {"width": 1280, "height": 960, "fx": 1000, "fy": 1001, "cx": 640, "cy": 480},
       "types": {"lamp": "visible", "tv": "partially_visible", "fan": "occluded",
-                "door": "not_visible"}}]})";
+                "door": "not_visible"},
+      "target": "lamp",
+      "world_from_cam": {"position": [1, 2, 3], "quaternion_xyzw": [0, 0, 0.7071068, 0.7071068]}}]})";
   for (const fs::path& path : {dir, dir / "queries", dir / "queries" / "queries.json"}) {
     const std::vector<QueryTruth> truths = ReadQueryTruths(path.string());
     ASSERT_EQ(truths.size(), 1u) << path;
@@ -200,6 +202,12 @@ TEST(IdentifyEval, ReadsQueriesFromTheDatasetOrQueriesFolder) {
     EXPECT_EQ(truths[0].appliances.at("tv"), T::kPartiallyVisible);
     EXPECT_EQ(truths[0].appliances.at("fan"), T::kOccluded);
     EXPECT_EQ(truths[0].appliances.at("door"), T::kNotVisible);
+    EXPECT_EQ(truths[0].target, "lamp");
+    ASSERT_TRUE(truths[0].world_from_cam.has_value());
+    EXPECT_TRUE(truths[0].world_from_cam->translation().isApprox(Eigen::Vector3d(1, 2, 3)));
+    // 90 deg about z: the camera's x axis along world y.
+    EXPECT_TRUE(truths[0].world_from_cam->linear().col(0).isApprox(Eigen::Vector3d(0, 1, 0), 1e-6));
+    EXPECT_FALSE(truths[0].covered.has_value());
   }
   try {
     ReadQueryTruths((dir / "nowhere").string());
@@ -211,6 +219,65 @@ TEST(IdentifyEval, ReadsQueriesFromTheDatasetOrQueriesFolder) {
       "types": {"lamp": "sort_of"}}]})";
   EXPECT_THROW(ReadQueryTruths(dir.string()), Error);
   fs::remove_all(dir);
+}
+
+TEST(IdentifyEval, WrongPosesAreCountedAndPhotosSplitByCoverage) {
+  // Three matched photos: 0.1 m / 1 deg off, 0.6 m off, 12 deg off; one unmatched; one matched
+  // without a true pose.
+  std::vector<QueryTruth> truths(5, Truth({{"lamp", T::kVisible}}));
+  std::vector<PhotoAnswer> answers;
+  const Eigen::Isometry3d truth_pose(Eigen::Translation3d(1, 2, 1.5));
+  auto moved = [&](const Eigen::Vector3d& shift, double turn_deg) {
+    Eigen::Isometry3d pose = truth_pose;
+    pose.translation() += shift;
+    pose.linear() =
+        Eigen::AngleAxisd(turn_deg * M_PI / 180.0, Eigen::Vector3d(0, 0.6, 0.8)).matrix();
+    return pose;
+  };
+  for (size_t i = 0; i < 4; ++i) truths[i].world_from_cam = truth_pose;
+  for (const auto& [shift, turn] : {std::make_pair(Eigen::Vector3d(0.1, 0, 0), 1.0),
+                                    std::make_pair(Eigen::Vector3d(0, 0.6, 0), 0.0),
+                                    std::make_pair(Eigen::Vector3d(0, 0, 0), 12.0)}) {
+    answers.push_back(Answer(true, {"lamp"}, 10));
+    answers.back().world_from_cam = moved(shift, turn);
+  }
+  answers.push_back(Answer(false, {}, 10));
+  answers.push_back(Answer(true, {"lamp"}, 10));
+  answers.back().world_from_cam = truth_pose;
+
+  const PoseError error = ComparePoses(truth_pose, moved({0.1, 0, 0}, 1.0));
+  EXPECT_NEAR(error.position_m, 0.1, 1e-12);
+  EXPECT_NEAR(error.rotation_deg, 1.0, 1e-9);
+
+  const IdentifyEvaluation e = EvaluateIdentification(truths, answers);
+  EXPECT_EQ(e.matched_photos, 4);
+  EXPECT_EQ(e.posed_photos, 3);
+  EXPECT_EQ(e.wrong_poses, 2);
+  EXPECT_DOUBLE_EQ(e.wrong_pose_ratio, 2.0 / 4.0);
+  EXPECT_NEAR(e.median_position_error_m, 0.1, 1e-12);   // of 0.1, 0.6, 0
+  EXPECT_NEAR(e.median_rotation_error_deg, 1.0, 1e-9);  // of 1, 0, 12
+  const nlohmann::json json = ToJson(e);
+  for (const char* key : {"posed_photos", "wrong_poses", "wrong_pose_ratio",
+                          "median_position_error_m", "median_rotation_error_deg"}) {
+    EXPECT_TRUE(json.contains(key)) << key;
+  }
+
+  // Photos 0 and 3 covered, 1 not, the rest unknown.
+  truths[0].covered = true;
+  truths[3].covered = true;
+  truths[1].covered = false;
+  std::vector<QueryTruth> selected_truths;
+  std::vector<PhotoAnswer> selected_answers;
+  SelectCovered(truths, answers, true, &selected_truths, &selected_answers);
+  ASSERT_EQ(selected_truths.size(), 2u);
+  EXPECT_TRUE(selected_answers[0].matched);
+  EXPECT_FALSE(selected_answers[1].matched);
+  const IdentifyEvaluation covered = EvaluateIdentification(selected_truths, selected_answers);
+  EXPECT_EQ(covered.matched_photos, 1);
+  EXPECT_EQ(covered.wrong_poses, 0);
+  SelectCovered(truths, answers, false, &selected_truths, &selected_answers);
+  ASSERT_EQ(selected_truths.size(), 1u);
+  EXPECT_EQ(EvaluateIdentification(selected_truths, selected_answers).wrong_poses, 1);
 }
 
 TEST(IdentifyEval, PlotShowsRightAndWrongColours) {
