@@ -1,5 +1,6 @@
 #include "sim/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -325,6 +326,30 @@ void AddSceneToRenderer(const Scene& scene, render::MeshRenderer* renderer) {
     for (const SceneBox& box : appliance.boxes) add_box(box, appliance.id);
   }
   for (auto& [key, mesh] : merged) renderer->AddMesh(std::move(mesh));
+}
+
+double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw) {
+  // Rows 11 deg up, level and 14 deg down: the image's upper, middle and lower part.
+  double score = 0.0;
+  std::vector<std::string> things;
+  for (const double down : {-0.2, 0.0, 0.25}) {
+    for (int k = -4; k <= 4; ++k) {
+      const double a = yaw + k * 0.12;
+      const Eigen::Vector3d dir(std::cos(a) * std::cos(down), std::sin(a) * std::cos(down),
+                                -std::sin(down));
+      const auto hit = scene.Raycast(eye, dir, 4.3);
+      if (!hit || hit->first < 0.8) continue;
+      const std::string& name = hit->second;
+      const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
+                        name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0;
+      score += bare ? 0.25 : 0.5;
+      if (!bare && std::find(things.begin(), things.end(), name) == things.end()) {
+        things.push_back(name);
+        score += 1.0;
+      }
+    }
+  }
+  return score;
 }
 
 }  // namespace sightmap::sim

@@ -266,6 +266,7 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
       std::max(options.min_distance_m, (target.z() - options.eye_height_m) /
                                            std::tan(options.max_elevation_deg * kDegToRad));
   // A standpoint: free floor in the appliance's room with a clear line of sight at eye height.
+  bool open_view_required = true;
   auto valid = [&](double bearing_deg, double distance) -> std::optional<Eigen::Vector2d> {
     if (distance < min_distance) return std::nullopt;
     const double a = bearing_deg * kDegToRad;
@@ -275,6 +276,15 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
     const Eigen::Vector3d eye(p.x(), p.y(), options.eye_height_m);
     const Eigen::Vector3d ray = target - eye;
     if (scene.Raycast(eye, ray.normalized(), ray.norm() - 0.05, appliance.id)) return std::nullopt;
+    // Nor a view grazing a wall or half filled by a cupboard beside the walker: 12 deg to either
+    // side of the line of sight, nothing within 0.8 m (unless no standpoint has such a view).
+    for (const double side : {-12.0 * kDegToRad, 12.0 * kDegToRad}) {
+      if (!open_view_required) break;
+      const Eigen::Vector3d aside = Eigen::AngleAxisd(side, Eigen::Vector3d::UnitZ()) * ray;
+      if (scene.Raycast(eye, aside.normalized(), std::min(0.8, ray.norm() - 0.3), appliance.id)) {
+        return std::nullopt;
+      }
+    }
     return p;
   };
   // The nearest valid distance to the preferred one along a bearing.
@@ -290,12 +300,37 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
     }
     return best;
   };
+  // Along a chosen bearing, the standpoint with the richest view of the appliance's surroundings
+  // (ViewScore) less 2 per metre from the preferred distance: a thermostat on a bare wall is
+  // better surveyed from a step further back, with a door frame or a desk in view, than from where
+  // only the wall shows (a view the tracker loses).
+  auto richest_along = [&](double bearing_deg) -> std::optional<Eigen::Vector2d> {
+    std::optional<Eigen::Vector2d> best;
+    double best_score = -std::numeric_limits<double>::infinity();
+    for (double d = options.min_distance_m; d <= options.max_distance_m + 1e-9; d += 0.25) {
+      const std::optional<Eigen::Vector2d> p = valid(bearing_deg, d);
+      if (!p) continue;
+      const Eigen::Vector3d eye(p->x(), p->y(), options.eye_height_m);
+      const Eigen::Vector2d to = target.head<2>() - *p;
+      const double score =
+          ViewScore(scene, eye, std::atan2(to.y(), to.x())) - 2.0 * std::abs(d - preferred);
+      if (score > best_score) {
+        best_score = score;
+        best = p;
+      }
+    }
+    return best;
+  };
   constexpr int kBearings = 72;  // 5 deg steps
   std::vector<bool> open(kBearings);
   int open_count = 0;
-  for (int i = 0; i < kBearings; ++i) {
-    open[i] = best_along(i * 5.0).has_value();
-    open_count += open[i];
+  for (const bool required : {true, false}) {
+    open_view_required = required;
+    for (int i = 0; i < kBearings; ++i) {
+      open[i] = best_along(i * 5.0).has_value();
+      open_count += open[i];
+    }
+    if (open_count > 0) break;
   }
   SIGHTMAP_CHECK(open_count > 0, "appliance " << appliance.name
                                               << " cannot be seen from any free floor 1-4 m away");
@@ -321,21 +356,27 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
     if (to_middle.norm() > 0.1) front_deg = std::atan2(to_middle.y(), to_middle.x()) / kDegToRad;
   }
   const int n = options.standpoints_per_appliance;
+  // Standpoints keep 25 deg from the open arc's ends: a view grazing the wall an appliance hangs
+  // on shows mostly wall, and the tracker loses it.
+  const double margin_deg = open_count < kBearings && arc_deg > 60.0 ? 25.0 : 0.0;
+  const double usable_deg = open_count < kBearings ? arc_deg - 2.0 * margin_deg : 360.0;
   const double spread =
-      n > 1 ? std::min(options.spread_deg, arc_deg / static_cast<double>(n - 1)) : 0.0;
+      n > 1 ? std::min(options.spread_deg, usable_deg / static_cast<double>(n - 1)) : 0.0;
   Standpoints result;
   result.front_deg = WrapDeg(front_deg);
   result.open_arc_deg = open_count == kBearings ? 360.0 : arc_deg;
   for (int k = 0; k < n; ++k) {
     const double wanted = front_deg + (k - 0.5 * (n - 1)) * spread;
-    // The nearest open bearing to the wanted one, searching outwards in 5 deg steps.
+    // The nearest open bearing to the wanted one within the usable arc, searching outwards in
+    // 5 deg steps.
     double bearing = wanted;
     Eigen::Vector2d position = Eigen::Vector2d::Zero();
     bool found = false;
     for (int step = 0; step <= 18 && !found; ++step) {
       for (const int sign : {1, -1}) {
         bearing = wanted + sign * 5.0 * step;
-        if (const std::optional<Eigen::Vector2d> p = best_along(bearing)) {
+        if (std::abs(WrapDeg(bearing - front_deg)) > 0.5 * usable_deg + 1e-9) continue;
+        if (const std::optional<Eigen::Vector2d> p = richest_along(bearing)) {
           position = *p;
           found = true;
           break;

@@ -95,10 +95,13 @@ struct Standpoints {
 };
 
 // The standpoints for one appliance: `standpoints_per_appliance` bearings centred on its front
-// and spread_deg apart (closer together when the open arc is narrower; fewer when it is too
-// narrow for distinct standpoints 0.3 m apart), each at the free distance nearest the preferred
-// one. A standpoint is free floor in the appliance's room with a clear line of sight from eye
-// height. Throws sightmap::Error naming the appliance when no standpoint exists.
+// and spread_deg apart, 25 deg clear of the open arc's ends (closer together when the open arc is
+// narrower; fewer when it is too
+// narrow for distinct standpoints 0.3 m apart), each at the distance along its bearing with the
+// richest view (ViewScore, less 2 per metre from the preferred distance). A standpoint is free
+// floor in the appliance's room with a clear line of sight from eye height and nothing within
+// 0.8 m 12 deg to either side of it (no view grazing a wall; dropped when no standpoint has such a
+// view). Throws sightmap::Error naming the appliance when no standpoint exists.
 Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const Appliance& appliance,
                               const SurveyOptions& options);
 

@@ -161,7 +161,6 @@ TEST(Survey, ACeilingLightIsLookedAtFromFurtherAwaySoTheCameraTiltsModerately) {
        ChooseStandpoints(scene, grid, scene.appliances[1], options).stops) {
     const double distance = (stop.position - stop.target->head<2>()).norm();
     EXPECT_GE(distance, (2.77 - options.eye_height_m) / std::tan(30.0 * kPi / 180.0));
-    EXPECT_LE(distance, 2.4);
   }
 }
 
@@ -225,6 +224,7 @@ TEST(Survey, TheOfficeSurveyCoversEveryApplianceInOneClosedWalk) {
   // has one appliance that does not: switch_c, on the hinge side of an open door whose leaf hides
   // it from everywhere but along its wall (a scene quirk kept: photos are drawn in this scene).
   int narrow = 0;
+  int wide = 0;  // appliances whose standpoints spread over 60 deg or more
   for (const Appliance& appliance : scene.appliances) {
     const std::vector<SurveyStop>& stops = by_appliance[appliance.id];
     const Standpoints chosen = ChooseStandpoints(scene, grid, appliance, options);
@@ -247,10 +247,15 @@ TEST(Survey, TheOfficeSurveyCoversEveryApplianceInOneClosedWalk) {
       min_bearing = std::min(min_bearing, relative);
       max_bearing = std::max(max_bearing, relative);
     }
-    EXPECT_GE(max_bearing - min_bearing, std::min(60.0, chosen.open_arc_deg - 10.0))
-        << appliance.name;
+    // As wide as the arc less its 25 deg margins allows, up to 2 x 60 deg.
+    const double usable = chosen.open_arc_deg < 360.0 ? chosen.open_arc_deg - 50.0 : 360.0;
+    EXPECT_GE(max_bearing - min_bearing, std::min(120.0, usable) - 5.0) << appliance.name;
+    wide += max_bearing - min_bearing >= 60.0;
   }
   EXPECT_LE(narrow, 1);
+  // Measured: 17 of 21; the desk lamp, thermostat_a and monitor_3 stand in cramped corners
+  // (open arcs of 65-85 deg), switch_c behind its door.
+  EXPECT_GE(wide, 17);
   // Each room is surveyed in one visit, around it: its standpoints in the order of their bearing
   // from the room's centre (one way round, starting anywhere), then its middle.
   std::map<std::string, std::vector<Eigen::Vector2d>> runs;
@@ -308,61 +313,63 @@ TEST(Survey, TheSurveyWalkLooksAtEachApplianceFromEachStandpoint) {
   const SurveyPlan& plan = *trajectory.survey_plan();
   const Intrinsics camera = KinectIntrinsics();
   const double lap = trajectory.lap_duration_s();
-  int standing = 0, centred = 0;
   const double dt = 1.0 / 30.0;
-  Eigen::Isometry3d previous = trajectory.WorldFromCam(0.0);
-  double max_speed = 0.0, max_turn_dps = 0.0;
-  for (double t = dt; t < lap; t += dt) {
-    // Speed over 1 s, which averages out the sideways sway of the steps (period 1.1 s).
-    const double speed =
-        (trajectory.WorldFromCam(t + 1.0).translation() - trajectory.WorldFromCam(t).translation())
-            .head<2>()
-            .norm();
-    max_speed = std::max(max_speed, speed);
-    const Eigen::Isometry3d pose = trajectory.WorldFromCam(t);
+  std::vector<Eigen::Isometry3d> poses;
+  for (double t = 0.0; t < lap + 1.0; t += dt) poses.push_back(trajectory.WorldFromCam(t));
+  double max_speed = 0.0, max_turn_dps = 0.0, max_tilt_dps = 0.0;
+  int facing_a_surface = 0;  // frames whose optical axis meets a surface within 0.6 m
+  for (size_t i = 1; i + 30 < poses.size(); ++i) {
+    const Eigen::Isometry3d& pose = poses[i];
     const Eigen::Vector3d p = pose.translation();
-    ASSERT_TRUE(scene.IsFree(p, 0.05)) << "t=" << t << ": " << p.transpose();
+    // Speed over 1 s, which averages out the sideways sway of the steps (period 1.1 s).
+    max_speed = std::max(max_speed, (poses[i + 30].translation() - p).head<2>().norm());
+    ASSERT_TRUE(scene.IsFree(p, 0.05)) << "t=" << i * dt << ": " << p.transpose();
     const double pitch = std::asin(pose.linear().col(2).z());
-    ASSERT_LE(std::abs(pitch), 35.0 * kPi / 180.0 + 1e-9) << t;
-    const Eigen::Vector3d f0 = previous.linear().col(2), f1 = pose.linear().col(2);
+    ASSERT_LE(std::abs(pitch), 35.0 * kPi / 180.0 + 1e-9) << i * dt;
+    const Eigen::Vector3d f0 = poses[i - 1].linear().col(2), f1 = pose.linear().col(2);
     const double turn =
         std::atan2(f0.x() * f1.y() - f0.y() * f1.x(), f0.head<2>().dot(f1.head<2>()));
     max_turn_dps = std::max(max_turn_dps, std::abs(turn) / dt * 180 / kPi);
-    previous = pose;
+    const double pitch_before = std::asin(f0.z());
+    max_tilt_dps = std::max(max_tilt_dps, std::abs(pitch - pitch_before) / dt * 180 / kPi);
+    facing_a_surface += scene.Raycast(p, f1, 0.6).has_value();
   }
+  // The walker keeps the view open (the sensor measures nothing within 0.5 m).
+  EXPECT_LT(facing_a_surface, static_cast<int>(0.002 * poses.size())) << facing_a_surface;
+  int standing = 0;
   for (const SurveyStop& stop : plan.stops) {
     if (!stop.target) continue;
     ++standing;
-    // Find the time the walker stands here: its position at the stop's arc and not moving.
-    for (double t = 0.0; t < lap; t += 0.5) {
-      const Eigen::Isometry3d pose = trajectory.WorldFromCam(t);
-      const Eigen::Isometry3d later = trajectory.WorldFromCam(t + 0.5);
+    // Some time the walker stands here (not moving over 0.5 s) with the appliance near the
+    // image centre.
+    bool centred = false;
+    for (size_t i = 0; i + 15 < poses.size() && !centred; i += 15) {
+      const Eigen::Isometry3d& pose = poses[i];
       if ((pose.translation().head<2>() - stop.position).norm() > 0.05 ||
-          (later.translation() - pose.translation()).head<2>().norm() > 0.03) {
+          (poses[i + 15].translation() - pose.translation()).head<2>().norm() > 0.03) {
         continue;
       }
       const Eigen::Vector3d in_cam = pose.inverse() * *stop.target;
       if (in_cam.z() <= 0) continue;
       const double u = camera.fx * in_cam.x() / in_cam.z() + camera.cx;
       const double v = camera.fy * in_cam.y() / in_cam.z() + camera.cy;
-      if (std::abs(u - camera.cx) < 0.3 * camera.width &&
-          std::abs(v - camera.cy) < 0.3 * camera.height) {
-        ++centred;
-        break;
-      }
+      centred = std::abs(u - camera.cx) < 0.3 * camera.width &&
+                std::abs(v - camera.cy) < 0.3 * camera.height;
     }
-    EXPECT_EQ(centred, standing) << "standpoint (" << stop.position.transpose() << ") of appliance "
-                                 << stop.appliance_id;
-    centred = standing;
+    EXPECT_TRUE(centred) << "standpoint (" << stop.position.transpose() << ") of appliance "
+                         << stop.appliance_id;
   }
   // Three per appliance but switch_c (see above).
   EXPECT_EQ(standing, 3 * static_cast<int>(scene.appliances.size()) - 2);
   EXPECT_LE(max_speed, 0.3 * 1.05);
   EXPECT_LE(max_turn_dps, 35.0 * 1.1);
+  // The camera tilts smoothly too: from a ceiling light to the next appliance over seconds, not
+  // between two frames.
+  EXPECT_LE(max_tilt_dps, 45.0);
   // One lap: standing 5 s at each standpoint, walking at 0.3 m/s, 0.6 s more per leg for
-  // speeding up and slowing down (less on short legs).
+  // speeding up and slowing down, legs between close standpoints stretched to 2 s.
   EXPECT_GT(lap, standing * 5.0 + plan.length_m / 0.3);
-  EXPECT_LE(lap, standing * 5.0 + plan.length_m / 0.3 + 0.6 * plan.stops.size() + 1e-6);
+  EXPECT_LE(lap, standing * 5.0 + plan.length_m / 0.3 + 2.0 * plan.stops.size());
 }
 
 }  // namespace

@@ -178,6 +178,7 @@ constexpr double kSurveyAccel = 0.5;  // walking speeds up and slows down at thi
 // Distance covered t seconds into a leg of `length` walked from standstill to standstill at up to
 // `speed` (a trapezoidal speed profile; triangular when the leg is short).
 double LegDistance(double length, double speed, double t) {
+  if (length <= 0.0) return 0.0;
   const double a = kSurveyAccel;
   const double cruise_speed = std::min(speed, std::sqrt(a * length));
   const double ramp_s = cruise_speed / a;
@@ -202,14 +203,16 @@ void Trajectory::BuildSurveyLegs() {
   double t = 0.0;
   for (size_t i = 0; i < stops.size(); ++i) {
     if (stops[i].target && options_.dwell_s > 0.0) {
-      survey_legs_.push_back({t, options_.dwell_s, stops[i].arc_m, 0.0, stops[i].target, {}});
+      survey_legs_.push_back({t, options_.dwell_s, 0.0, stops[i].arc_m, 0.0, stops[i].target, {}});
       t += options_.dwell_s;
     }
     const double end = i + 1 < stops.size() ? stops[i + 1].arc_m : lap_length_m_;
-    const double length = end - stops[i].arc_m;
-    if (length <= 0.0) continue;
-    const double duration = LegDuration(length, speed_mps_);
-    survey_legs_.push_back({t, duration, stops[i].arc_m, length, stops[i].target,
+    const double length = std::max(end - stops[i].arc_m, 0.0);
+    // At least 2 s between two standpoints, however close: the operator turns from one
+    // appliance to the next.
+    const double walk_s = LegDuration(length, speed_mps_);
+    const double duration = std::max(walk_s, 2.0);
+    survey_legs_.push_back({t, duration, walk_s / duration, stops[i].arc_m, length, stops[i].target,
                             stops[(i + 1) % stops.size()].target});
     t += duration;
   }
@@ -231,7 +234,7 @@ double Trajectory::DistanceAt(double t_s) const {
   if (survey_plan_) {
     double t_in_leg = 0.0;
     const SurveyLeg& leg = SurveyLegAt(t_s, &t_in_leg);
-    return leg.s0_m + (leg.length_m > 0.0 ? LegDistance(leg.length_m, speed_mps_, t_in_leg) : 0.0);
+    return leg.s0_m + LegDistance(leg.length_m, speed_mps_, t_in_leg * leg.pace);
   }
   double s = start_s_m_ + speed_mps_ * t_s;
   if (options_.kind == TrajectoryKind::kHandheld) {
@@ -264,33 +267,6 @@ std::optional<Eigen::Vector3d> Trajectory::LookTarget(double t_s, double eye_hei
   const std::lock_guard<std::mutex> lock(look_cache_->mutex);
   look_cache_->targets[key] = target;
   return target;
-}
-
-double Trajectory::ViewScore(const Eigen::Vector3d& eye, double yaw) const {
-  // Nine rays across the colour camera's 62 deg, 11 deg up, level and 14 deg down (the image's
-  // upper, middle and lower part): each ending on a surface the sensor measures (0.8-4.3 m)
-  // counts 0.5 on furniture, posters and appliances and 0.25 on bare walls, floor and windows,
-  // and each distinct thing they meet counts 1 more: people (and a mapping robot) look at things.
-  double score = 0.0;
-  std::vector<std::string> things;
-  for (const double down : {-0.2, 0.0, 0.25}) {
-    for (int k = -4; k <= 4; ++k) {
-      const double a = yaw + k * 0.12;
-      const Eigen::Vector3d dir(std::cos(a) * std::cos(down), std::sin(a) * std::cos(down),
-                                -std::sin(down));
-      const auto hit = scene_.Raycast(eye, dir, 4.3);
-      if (!hit || hit->first < 0.8) continue;
-      const std::string& name = hit->second;
-      const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
-                        name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0;
-      score += bare ? 0.25 : 0.5;
-      if (!bare && std::find(things.begin(), things.end(), name) == things.end()) {
-        things.push_back(name);
-        score += 1.0;
-      }
-    }
-  }
-  return score;
 }
 
 std::optional<Eigen::Vector3d> Trajectory::ChooseLookTarget(int64_t window_index,
@@ -326,7 +302,7 @@ std::optional<Eigen::Vector3d> Trajectory::ChooseLookTarget(int64_t window_index
     const auto hit = scene_.Raycast(eye, dir, 3.8);
     if (!hit || hit->first < 1.6) continue;
     const double score =
-        ViewScore(eye, yaw) - std::abs(hit->first - 3.0) - 0.2 * std::abs(i) / 11.0;
+        ViewScore(scene_, eye, yaw) - std::abs(hit->first - 3.0) - 0.2 * std::abs(i) / 11.0;
     if (score > best_score) {
       best_score = score;
       target = eye + hit->first * dir;
@@ -423,7 +399,7 @@ Trajectory::Attitude Trajectory::SurveyDesiredAt(double t_s) const {
   const Eigen::Vector2d position = PositionAt(s);
   const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
   const double path_yaw = std::atan2(ahead.y(), ahead.x());
-  const bool walking = leg.length_m > 0.0;
+  const bool walking = leg.pace > 0.0;
   const double* ph = phases_;
   const double step_hz = 1.8;
   // Steps only while walking: standing, the sensor drifts with the operator's breathing and hands.
@@ -440,33 +416,52 @@ Trajectory::Attitude Trajectory::SurveyDesiredAt(double t_s) const {
   double pitch = -0.12 + 0.08 * std::sin(2 * kPi * t_s / 9.0 + ph[6]);
   const double roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
                       0.02 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
-  // The appliance in view: the one stood at, or while walking the previous one over the leg's
-  // first 1.5 s and the next one over its last 2 s (the heading itself turns no faster than
-  // max_turn_rate).
-  std::optional<Eigen::Vector3d> target;
-  double w = 0.0;
-  if (!walking) {
-    target = leg.target;
-    w = 1.0;
-  } else {
-    const double w_previous = leg.target ? 1.0 - SmoothStep(t_in_leg / 1.5) : 0.0;
-    const double w_next =
-        leg.next_target ? SmoothStep((2.0 - (leg.duration_s - t_in_leg)) / 2.0) : 0.0;
-    target = w_next >= w_previous ? leg.next_target : leg.target;
-    w = std::max(w_next, w_previous);
-  }
-  if (target && w > 0.0) {
+  height = std::clamp(height, 1.4, 1.7);
+  const Eigen::Vector3d eye(swayed.x(), swayed.y(), height);
+  if (walking) yaw = OpenYaw(eye, yaw);
+  // Turned (by weight w) to the appliance stood at, or while walking from the previous one over
+  // the leg's first 1.5 s and to the next one over its last 2 s; one after the other, so the
+  // attitude stays continuous however short the leg (the heading itself then turns no faster
+  // than max_turn_rate).
+  const double tremor = 0.01 * std::sin(2 * kPi * t_s / 3.1 + ph[4]);  // standing frames differ
+  auto turn_to = [&](const std::optional<Eigen::Vector3d>& target, double w) {
+    if (!target || w <= 0.0) return;
     const Eigen::Vector2d to = target->head<2>() - swayed;
     const double target_yaw = std::atan2(to.y(), to.x());
     const double target_pitch = std::atan2(target->z() - height, std::max(to.norm(), 0.3));
-    // A small hand tremor on top, so standing frames are not identical.
-    const double tremor = 0.01 * std::sin(2 * kPi * t_s / 3.1 + ph[4]);
     yaw += w * (WrapAngle(target_yaw - yaw) + tremor);
     pitch += w * (target_pitch - pitch + tremor);
+  };
+  if (!walking) {
+    turn_to(leg.target, 1.0);
+  } else {
+    // Over the whole leg when it is shorter than that.
+    const double away_s = std::min(1.5, leg.duration_s);
+    const double towards_s = std::min(2.0, leg.duration_s);
+    turn_to(leg.target, 1.0 - SmoothStep(t_in_leg / away_s));
+    turn_to(leg.next_target, SmoothStep((t_in_leg - (leg.duration_s - towards_s)) / towards_s));
   }
   pitch = std::clamp(pitch, -0.61, 0.61);  // +-35 deg: up at ceiling lights, down at a printer
-  height = std::clamp(height, 1.4, 1.7);
-  return {Eigen::Vector3d(swayed.x(), swayed.y(), height), yaw, pitch, roll};
+  return {eye, yaw, pitch, roll};
+}
+
+double Trajectory::OpenYaw(const Eigen::Vector3d& eye, double yaw) const {
+  // Open: nothing within 1.2 m straight ahead nor within 0.8 m 20 deg to either side.
+  auto open = [&](double a) {
+    for (const auto& [offset, reach] : {std::pair{0.0, 1.2}, {-0.35, 0.8}, {0.35, 0.8}}) {
+      const Eigen::Vector3d dir(std::cos(a + offset), std::sin(a + offset), 0.0);
+      if (scene_.Raycast(eye, dir, reach)) return false;
+    }
+    return true;
+  };
+  if (open(yaw)) return yaw;
+  for (int step = 1; step <= 12; ++step) {
+    for (const double sign : {1.0, -1.0}) {
+      const double turned = yaw + sign * step * 10.0 * kPi / 180.0;
+      if (open(turned)) return turned;
+    }
+  }
+  return yaw;
 }
 
 }  // namespace sightmap::sim

@@ -86,7 +86,10 @@ class Trajectory {
   // The survey's lap as legs in time: standing at a stop (s constant) or walking to the next.
   struct SurveyLeg {
     double t0_s = 0.0, duration_s = 0.0;
-    double s0_m = 0.0, length_m = 0.0;           // walking when length_m > 0
+    // Walking legs: walking time / duration_s (< 1 when stretched to the 2 s a turn between two
+    // close standpoints takes); 0 standing.
+    double pace = 0.0;
+    double s0_m = 0.0, length_m = 0.0;
     std::optional<Eigen::Vector3d> target;       // standing: looked at; walking: the previous one
     std::optional<Eigen::Vector3d> next_target;  // walking: the one at the leg's end
   };
@@ -100,8 +103,6 @@ class Trajectory {
   // chosen once per window and eye height, then cached.
   std::optional<Eigen::Vector3d> LookTarget(double t_s, double eye_height_m) const;
   std::optional<Eigen::Vector3d> ChooseLookTarget(int64_t window_index, double eye_height_m) const;
-  // How much of a view towards `yaw` (from `eye`) the sensor measures and how many things it shows.
-  double ViewScore(const Eigen::Vector3d& eye, double yaw) const;
 
   Scene scene_;                                // for the lines of sight to walls
   std::vector<Eigen::Vector3d> look_targets_;  // appliance points
@@ -120,6 +121,10 @@ class Trajectory {
   };
   Attitude DesiredAt(double t_s) const;
   Attitude SurveyDesiredAt(double t_s) const;
+  // Walking, the operator keeps the sensor's view open: `yaw`, or the nearest heading (in 10 deg
+  // steps, up to 120 deg away) not aimed at a surface within 1.2 m, where the sensor measures
+  // nothing below 0.5 m and the image is a blur of one poster.
+  double OpenYaw(const Eigen::Vector3d& eye, double yaw) const;
   double LimitedYaw(double t_s) const;
   double turn_rate_rad_s_ = 0.0;
   struct YawCache {

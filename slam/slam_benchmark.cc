@@ -440,8 +440,8 @@ int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOp
   tracker.depth_downscale = options.depth_downscale;
   sim::Simulator simulator(sim_options);
   std::printf("simulator office, %s, session %d, seed %llu, %lld frames at %g Hz, tracked\n",
-              sim_options.trajectory == sim::TrajectoryKind::kRobot ? "robot" : "handheld",
-              sim_options.session, static_cast<unsigned long long>(sim_options.seed),
+              sim::ToString(sim_options.trajectory), sim_options.session,
+              static_cast<unsigned long long>(sim_options.seed),
               static_cast<long long>(simulator.num_frames()), sim_options.fps);
   TrackingFigures figures;
   const auto start = std::chrono::steady_clock::now();
@@ -525,8 +525,7 @@ int Main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
-  sim_options.trajectory =
-      trajectory == "robot" ? sim::TrajectoryKind::kRobot : sim::TrajectoryKind::kHandheld;
+  sim_options.trajectory = sim::ParseTrajectoryKind(trajectory);
   sim_options.session = session;
   sim_options.seed = seed;
   sim_options.fps = fps;
