@@ -328,7 +328,8 @@ void AddSceneToRenderer(const Scene& scene, render::MeshRenderer* renderer) {
   for (auto& [key, mesh] : merged) renderer->AddMesh(std::move(mesh));
 }
 
-double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw) {
+double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw,
+                 const std::set<std::string>* also_bare) {
   // Rows 11 deg up, level and 14 deg down: the image's upper, middle and lower part.
   double score = 0.0;
   std::vector<std::string> things;
@@ -341,7 +342,8 @@ double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw) {
       if (!hit || hit->first < 0.8) continue;
       const std::string& name = hit->second;
       const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
-                        name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0;
+                        name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0 ||
+                        (also_bare != nullptr && also_bare->count(name) > 0);
       score += bare ? 0.25 : 0.5;
       if (!bare && std::find(things.begin(), things.end(), name) == things.end()) {
         things.push_back(name);
@@ -350,6 +352,21 @@ double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw) {
     }
   }
   return score;
+}
+
+std::set<std::string> PlainBoxNames(const Scene& scene) {
+  std::set<std::string> names;
+  auto add = [&](const SceneBox& box) {
+    const auto material = scene.materials.find(box.material);
+    if (material == scene.materials.end() || material->second.texture.empty()) {
+      names.insert(box.name);
+    }
+  };
+  for (const SceneBox& box : scene.boxes) add(box);
+  for (const Appliance& appliance : scene.appliances) {
+    for (const SceneBox& box : appliance.boxes) add(box);
+  }
+  return names;
 }
 
 }  // namespace sightmap::sim

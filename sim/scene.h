@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -102,8 +103,14 @@ struct Scene {
 // how many things it shows: nine rays across the colour camera's 62 deg at three heights of the
 // image, each ending on a surface 0.8-4.3 m away counting 0.5 on furniture, posters and
 // appliances and 0.25 on bare walls, floor and windows, each distinct thing met 1 more. People
-// (and a mapping robot) look at things; a view of bare wall is one a tracker loses.
-double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw);
+// (and a mapping robot) look at things; a view of bare wall is one a tracker loses. `also_bare`
+// names further boxes that count as bare (PlainBoxNames: a blank projection screen holds no
+// more features than a wall).
+double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw,
+                 const std::set<std::string>* also_bare = nullptr);
+
+// Names of the boxes (scene and appliance) whose material has no texture.
+std::set<std::string> PlainBoxNames(const Scene& scene);
 
 // The JSON text of the embedded default scene "office".
 const char* OfficeSceneJson();

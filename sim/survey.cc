@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 #include <queue>
+#include <set>
 #include <utility>
 
 #include "core/check.h"
@@ -301,9 +302,10 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
     return best;
   };
   // Along a chosen bearing, the standpoint with the richest view of the appliance's surroundings
-  // (ViewScore) less 2 per metre from the preferred distance: a thermostat on a bare wall is
-  // better surveyed from a step further back, with a door frame or a desk in view, than from where
-  // only the wall shows (a view the tracker loses).
+  // (ViewScore, plain surfaces as bare as walls) less 2 per metre from the preferred distance: a
+  // thermostat on a bare wall is better surveyed from a step further back, with a door frame or a
+  // desk in view, than from where only the wall shows (a view the tracker loses).
+  const std::set<std::string> plain = PlainBoxNames(scene);
   auto richest_along = [&](double bearing_deg) -> std::optional<Eigen::Vector2d> {
     std::optional<Eigen::Vector2d> best;
     double best_score = -std::numeric_limits<double>::infinity();
@@ -313,7 +315,7 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
       const Eigen::Vector3d eye(p->x(), p->y(), options.eye_height_m);
       const Eigen::Vector2d to = target.head<2>() - *p;
       const double score =
-          ViewScore(scene, eye, std::atan2(to.y(), to.x())) - 2.0 * std::abs(d - preferred);
+          ViewScore(scene, eye, std::atan2(to.y(), to.x()), &plain) - 2.0 * std::abs(d - preferred);
       if (score > best_score) {
         best_score = score;
         best = p;
