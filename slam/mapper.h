@@ -281,6 +281,8 @@ class Mapper {
   const Features& FeaturesOf(int64_t id) const;
 
  private:
+  // Adds a keyframe's pose to the pose graph; the map's first is fixed there.
+  void AddGraphPose(int64_t id, const Eigen::Isometry3d& world_from_cam);
   struct Keyframe {
     int64_t id = 0;
     TimestampNs timestamp_ns = 0;

@@ -475,6 +475,28 @@ TEST(PoseGraph, OptimizeNearLeavesAFalseLoopToTheWholePartWhichSwitchesItOff) {
   }
 }
 
+// The map's first keyframe is fixed (it defines the map's frame): a window that reaches it must
+// leave it where it is. Unfixed, the same window moves it with the correction.
+TEST(PoseGraph, OptimizeNearHoldsAFixedPoseInsideItsWindow) {
+  for (const bool fixed : {false, true}) {
+    synthetic::Scene scene = SettledTwoLaps();
+    PoseGraph& graph = scene.graph;
+    graph.SetFixed(0, fixed);
+    // A loop near the start, 3 cm and 0.3 degrees from where the map has it.
+    const size_t loop = graph.AddEdge(LoopAsTheMapHasIt(
+        graph, 1, 41, ExpSe3((Vector6d() << 0.03, 0.0, 0.0, 0.0, 0.0, 0.005).finished())));
+    const Eigen::Isometry3d first = graph.Pose(0);
+    const PoseGraphSummary summary = graph.OptimizeNear(loop, 3, 1.0);
+    ASSERT_TRUE(summary.converged);
+    const double moved = (graph.Pose(0).translation() - first.translation()).norm();
+    if (fixed) {
+      EXPECT_TRUE(graph.Pose(0).isApprox(first, 0.0));
+    } else {
+      EXPECT_GT(moved, 1e-4) << "the window did not reach pose 0: the test proves nothing";
+    }
+  }
+}
+
 TEST(PoseGraph, OptimizeNearRefusesBadArguments) {
   synthetic::Scene scene = SettledTwoLaps();
   const size_t edges = scene.graph.Edges().size();
