@@ -255,90 +255,129 @@ std::vector<Eigen::Vector2d> FloorGrid::ShortestPath(const Eigen::Vector2d& a,
   return path;
 }
 
-Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const Appliance& appliance,
-                              const SurveyOptions& options) {
-  SIGHTMAP_CHECK_OPTIONS(options);
-  SIGHTMAP_CHECK(!appliance.points.empty(), "appliance " << appliance.name << " has no point");
-  const Eigen::Vector3d target = appliance.points.front();
-  const Room* room = scene.RoomAt(target.head<2>());
-  const bool overhead = target.z() > options.overhead_min_height_m;
-  const double preferred = overhead ? options.overhead_distance_m : options.distance_m;
-  const double min_distance =
-      std::max(options.min_distance_m, (target.z() - options.eye_height_m) /
-                                           std::tan(options.max_elevation_deg * kDegToRad));
-  // A standpoint: free floor in the appliance's room with a clear line of sight at eye height.
-  bool open_view_required = true;
-  auto valid = [&](double bearing_deg, double distance) -> std::optional<Eigen::Vector2d> {
-    if (distance < min_distance) return std::nullopt;
+namespace {
+
+// Where one appliance can be stood at and looked at from: ChooseStandpoints' probe.
+class StandpointProbe {
+ public:
+  StandpointProbe(const Scene& scene, const FloorGrid& grid, const Appliance& appliance,
+                  const SurveyOptions& options)
+      : scene_(scene),
+        grid_(grid),
+        appliance_(appliance),
+        options_(options),
+        target_(appliance.points.front()),
+        room_(scene.RoomAt(target_.head<2>())),
+        preferred_m_(target_.z() > options.overhead_min_height_m ? options.overhead_distance_m
+                                                                 : options.distance_m),
+        min_distance_m_(
+            std::max(options.min_distance_m, (target_.z() - options.eye_height_m) /
+                                                 std::tan(options.max_elevation_deg * kDegToRad))),
+        plain_(PlainBoxNames(scene)) {}
+
+  const Eigen::Vector3d& target() const { return target_; }
+  const Room* room() const { return room_; }
+  // Whether a standpoint needs its view clear beside the line of sight (see At).
+  void RequireOpenView(bool required) { open_view_required_ = required; }
+
+  // The standpoint `distance` along `bearing_deg` from the appliance, when it is one: free floor
+  // in the appliance's room, no closer than the elevation limit allows, with a clear line of
+  // sight at eye height and (when required) nothing within 0.8 m 12 deg to either side of it: a
+  // view grazing a wall or half filled by a cupboard beside the walker is one the tracker loses.
+  std::optional<Eigen::Vector2d> At(double bearing_deg, double distance) const {
+    if (distance < min_distance_m_) return std::nullopt;
     const double a = bearing_deg * kDegToRad;
     const Eigen::Vector2d p =
-        target.head<2>() + distance * Eigen::Vector2d(std::cos(a), std::sin(a));
-    if (!grid.IsFree(p) || (room != nullptr && scene.RoomAt(p) != room)) return std::nullopt;
-    const Eigen::Vector3d eye(p.x(), p.y(), options.eye_height_m);
-    const Eigen::Vector3d ray = target - eye;
-    if (scene.Raycast(eye, ray.normalized(), ray.norm() - 0.05, appliance.id)) return std::nullopt;
-    // Nor a view grazing a wall or half filled by a cupboard beside the walker: 12 deg to either
-    // side of the line of sight, nothing within 0.8 m (unless no standpoint has such a view).
+        target_.head<2>() + distance * Eigen::Vector2d(std::cos(a), std::sin(a));
+    if (!grid_.IsFree(p) || (room_ != nullptr && scene_.RoomAt(p) != room_)) return std::nullopt;
+    const Eigen::Vector3d eye(p.x(), p.y(), options_.eye_height_m);
+    const Eigen::Vector3d ray = target_ - eye;
+    if (scene_.Raycast(eye, ray.normalized(), ray.norm() - 0.05, appliance_.id)) {
+      return std::nullopt;
+    }
     for (const double side : {-12.0 * kDegToRad, 12.0 * kDegToRad}) {
-      if (!open_view_required) break;
+      if (!open_view_required_) break;
       const Eigen::Vector3d aside = Eigen::AngleAxisd(side, Eigen::Vector3d::UnitZ()) * ray;
-      if (scene.Raycast(eye, aside.normalized(), std::min(0.8, ray.norm() - 0.3), appliance.id)) {
+      if (scene_.Raycast(eye, aside.normalized(), std::min(0.8, ray.norm() - 0.3), appliance_.id)) {
         return std::nullopt;
       }
     }
     return p;
-  };
-  // The nearest valid distance to the preferred one along a bearing.
-  auto best_along = [&](double bearing_deg) -> std::optional<Eigen::Vector2d> {
+  }
+
+  // Along a bearing, the standpoint nearest to the preferred distance (cheap: for the open arc).
+  std::optional<Eigen::Vector2d> Nearest(double bearing_deg) const {
     std::optional<Eigen::Vector2d> best;
     double best_offset = std::numeric_limits<double>::infinity();
-    for (double d = options.min_distance_m; d <= options.max_distance_m + 1e-9; d += 0.25) {
-      if (std::abs(d - preferred) >= best_offset) continue;
-      if (const auto p = valid(bearing_deg, d)) {
+    for (double d = options_.min_distance_m; d <= options_.max_distance_m + 1e-9; d += 0.25) {
+      if (std::abs(d - preferred_m_) >= best_offset) continue;
+      if (const auto p = At(bearing_deg, d)) {
         best = p;
-        best_offset = std::abs(d - preferred);
+        best_offset = std::abs(d - preferred_m_);
       }
     }
     return best;
-  };
-  // Along a chosen bearing, the standpoint with the richest view of the appliance's surroundings
+  }
+
+  // Along a bearing, the standpoint with the richest view of the appliance's surroundings
   // (ViewScore, plain surfaces as bare as walls) less 2 per metre from the preferred distance: a
   // thermostat on a bare wall is better surveyed from a step further back, with a door frame or a
-  // desk in view, than from where only the wall shows (a view the tracker loses).
-  const std::set<std::string> plain = PlainBoxNames(scene);
-  auto richest_along = [&](double bearing_deg) -> std::optional<Eigen::Vector2d> {
+  // desk in view, than from where only the wall shows.
+  std::optional<Eigen::Vector2d> Richest(double bearing_deg) const {
     std::optional<Eigen::Vector2d> best;
     double best_score = -std::numeric_limits<double>::infinity();
-    for (double d = options.min_distance_m; d <= options.max_distance_m + 1e-9; d += 0.25) {
-      const std::optional<Eigen::Vector2d> p = valid(bearing_deg, d);
+    for (double d = options_.min_distance_m; d <= options_.max_distance_m + 1e-9; d += 0.25) {
+      const std::optional<Eigen::Vector2d> p = At(bearing_deg, d);
       if (!p) continue;
-      const Eigen::Vector3d eye(p->x(), p->y(), options.eye_height_m);
-      const Eigen::Vector2d to = target.head<2>() - *p;
-      const double score =
-          ViewScore(scene, eye, std::atan2(to.y(), to.x()), &plain) - 2.0 * std::abs(d - preferred);
+      const Eigen::Vector3d eye(p->x(), p->y(), options_.eye_height_m);
+      const Eigen::Vector2d to = target_.head<2>() - *p;
+      const double score = ViewScore(scene_, eye, std::atan2(to.y(), to.x()), &plain_) -
+                           2.0 * std::abs(d - preferred_m_);
       if (score > best_score) {
         best_score = score;
         best = p;
       }
     }
     return best;
-  };
-  constexpr int kBearings = 72;  // 5 deg steps
+  }
+
+ private:
+  const Scene& scene_;
+  const FloorGrid& grid_;
+  const Appliance& appliance_;
+  const SurveyOptions& options_;
+  Eigen::Vector3d target_;
+  const Room* room_;
+  double preferred_m_;
+  double min_distance_m_;
+  std::set<std::string> plain_;
+  bool open_view_required_ = true;
+};
+
+struct OpenArc {
+  double front_deg = 0.0;
+  double arc_deg = 360.0;
+  bool all_around = true;
+};
+
+// The widest run of bearings (5 deg steps) that have a standpoint, and its middle: the
+// appliance's front. Open all around (a ceiling light, a floor lamp in the open), the front faces
+// the room's middle. Standpoints with an open view are asked for first, any when none has one.
+OpenArc FindOpenArc(StandpointProbe* probe, const std::string& name) {
+  constexpr int kBearings = 72;
   std::vector<bool> open(kBearings);
   int open_count = 0;
   for (const bool required : {true, false}) {
-    open_view_required = required;
+    probe->RequireOpenView(required);
     for (int i = 0; i < kBearings; ++i) {
-      open[i] = best_along(i * 5.0).has_value();
+      open[i] = probe->Nearest(i * 5.0).has_value();
       open_count += open[i];
     }
     if (open_count > 0) break;
   }
-  SIGHTMAP_CHECK(open_count > 0, "appliance " << appliance.name
-                                              << " cannot be seen from any free floor 1-4 m away");
-  // The widest run of open bearings (circular) and its middle: the appliance's front.
-  double front_deg = 0.0;
-  double arc_deg = 360.0;
+  SIGHTMAP_CHECK(open_count > 0,
+                 "appliance " << name << " cannot be seen from any free floor 1-4 m away");
+  OpenArc arc;
   if (open_count < kBearings) {
     int best_start = 0, best_length = 0;
     for (int start = 0; start < kBearings; ++start) {
@@ -350,52 +389,68 @@ Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const A
         best_start = start;
       }
     }
-    arc_deg = 5.0 * (best_length - 1);
-    front_deg = 5.0 * best_start + 0.5 * arc_deg;
-  } else if (room != nullptr) {
-    // Open all around (a ceiling light, a floor lamp in the open): face the room's middle.
-    const Eigen::Vector2d to_middle = 0.5 * (room->min + room->max) - target.head<2>();
-    if (to_middle.norm() > 0.1) front_deg = std::atan2(to_middle.y(), to_middle.x()) / kDegToRad;
+    arc.all_around = false;
+    arc.arc_deg = 5.0 * (best_length - 1);
+    arc.front_deg = 5.0 * best_start + 0.5 * arc.arc_deg;
+  } else if (const Room* room = probe->room()) {
+    const Eigen::Vector2d to_middle = 0.5 * (room->min + room->max) - probe->target().head<2>();
+    if (to_middle.norm() > 0.1) {
+      arc.front_deg = std::atan2(to_middle.y(), to_middle.x()) / kDegToRad;
+    }
   }
-  const int n = options.standpoints_per_appliance;
+  return arc;
+}
+
+// The bearing nearest to `wanted_deg` (within `half_width_deg` of the front, searching outwards
+// in 5 deg steps) that has a standpoint, with its richest standpoint.
+std::optional<std::pair<double, Eigen::Vector2d>> NearestOpenBearing(const StandpointProbe& probe,
+                                                                     double wanted_deg,
+                                                                     double front_deg,
+                                                                     double half_width_deg) {
+  for (int step = 0; step <= 18; ++step) {
+    for (const int sign : {1, -1}) {
+      const double bearing = wanted_deg + sign * 5.0 * step;
+      if (std::abs(WrapDeg(bearing - front_deg)) > half_width_deg + 1e-9) continue;
+      if (const std::optional<Eigen::Vector2d> p = probe.Richest(bearing)) {
+        return std::make_pair(bearing, *p);
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+Standpoints ChooseStandpoints(const Scene& scene, const FloorGrid& grid, const Appliance& appliance,
+                              const SurveyOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(!appliance.points.empty(), "appliance " << appliance.name << " has no point");
+  StandpointProbe probe(scene, grid, appliance, options);
+  const OpenArc arc = FindOpenArc(&probe, appliance.name);
   // Standpoints keep 25 deg from the open arc's ends: a view grazing the wall an appliance hangs
-  // on shows mostly wall, and the tracker loses it.
-  const double margin_deg = open_count < kBearings && arc_deg > 60.0 ? 25.0 : 0.0;
-  const double usable_deg = open_count < kBearings ? arc_deg - 2.0 * margin_deg : 360.0;
+  // on shows mostly wall.
+  const double margin_deg = !arc.all_around && arc.arc_deg > 60.0 ? 25.0 : 0.0;
+  const double usable_deg = arc.all_around ? 360.0 : arc.arc_deg - 2.0 * margin_deg;
+  const int n = options.standpoints_per_appliance;
   const double spread =
       n > 1 ? std::min(options.spread_deg, usable_deg / static_cast<double>(n - 1)) : 0.0;
   Standpoints result;
-  result.front_deg = WrapDeg(front_deg);
-  result.open_arc_deg = open_count == kBearings ? 360.0 : arc_deg;
+  result.front_deg = WrapDeg(arc.front_deg);
+  result.open_arc_deg = arc.all_around ? 360.0 : arc.arc_deg;
   for (int k = 0; k < n; ++k) {
-    const double wanted = front_deg + (k - 0.5 * (n - 1)) * spread;
-    // The nearest open bearing to the wanted one within the usable arc, searching outwards in
-    // 5 deg steps.
-    double bearing = wanted;
-    Eigen::Vector2d position = Eigen::Vector2d::Zero();
-    bool found = false;
-    for (int step = 0; step <= 18 && !found; ++step) {
-      for (const int sign : {1, -1}) {
-        bearing = wanted + sign * 5.0 * step;
-        if (std::abs(WrapDeg(bearing - front_deg)) > 0.5 * usable_deg + 1e-9) continue;
-        if (const std::optional<Eigen::Vector2d> p = richest_along(bearing)) {
-          position = *p;
-          found = true;
-          break;
-        }
-      }
-    }
+    const double wanted = arc.front_deg + (k - 0.5 * (n - 1)) * spread;
+    const auto found = NearestOpenBearing(probe, wanted, arc.front_deg, 0.5 * usable_deg);
     if (!found) continue;
     const bool repeated =
         std::any_of(result.stops.begin(), result.stops.end(),
-                    [&](const SurveyStop& s) { return (s.position - position).norm() < 0.3; });
+                    [&](const SurveyStop& s) { return (s.position - found->second).norm() < 0.3; });
     if (repeated) continue;
     SurveyStop stop;
-    stop.position = position;
-    stop.target = target;
+    stop.position = found->second;
+    stop.target = probe.target();
     stop.appliance_id = appliance.id;
-    stop.room = room != nullptr ? room->name : "";
-    stop.bearing_deg = WrapDeg(bearing);
+    stop.room = probe.room() != nullptr ? probe.room()->name : "";
+    stop.bearing_deg = WrapDeg(found->first);
     result.stops.push_back(stop);
   }
   return result;
@@ -418,7 +473,8 @@ std::vector<SurveyStop> OrderStops(const Scene& scene, const FloorGrid& grid,
 
   std::vector<SurveyStop> ordered;
   Eigen::Vector2d from = scene.tour.front();
-  for (const auto& [arc, name] : rooms) {
+  for (const auto& room_entry : rooms) {
+    const std::string& name = room_entry.second;  // a plain reference: lambdas capture it
     const auto room = std::find_if(scene.rooms.begin(), scene.rooms.end(),
                                    [&](const Room& r) { return r.name == name; });
     const Eigen::Vector2d centre = room != scene.rooms.end() ? 0.5 * (room->min + room->max) : from;

@@ -268,7 +268,9 @@ TEST(Survey, TheOfficeSurveyCoversEveryApplianceInOneClosedWalk) {
     if (stop.target) runs[stop.room].push_back(stop.position);
   }
   EXPECT_EQ(runs.size(), scene.rooms.size());
-  for (const auto& [name, positions] : runs) {
+  for (const auto& run : runs) {
+    const std::string& name = run.first;  // a plain reference: the lambda below captures it
+    const std::vector<Eigen::Vector2d>& positions = run.second;
     const auto room = std::find_if(scene.rooms.begin(), scene.rooms.end(),
                                    [&](const Room& r) { return r.name == name; });
     ASSERT_NE(room, scene.rooms.end());
