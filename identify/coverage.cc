@@ -434,10 +434,11 @@ bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3
     if (ray.dot(photo_ray) < min_cos * distance * photo_distance) continue;
     const Eigen::Vector3d in_cam = keyframe.world_from_cam.inverse() * point_world;
     if (in_cam.z() <= 0.0) continue;
-    const Intrinsics& k = keyframe.intrinsics;
-    const double u = k.fx * in_cam.x() / in_cam.z() + k.cx;
-    const double v = k.fy * in_cam.y() / in_cam.z() + k.cy;
-    if (u >= 0.0 && v >= 0.0 && u < k.width && v < k.height) return true;
+    const Eigen::Vector2d pixel = keyframe.intrinsics.Project(in_cam);
+    if (pixel.x() >= 0.0 && pixel.y() >= 0.0 && pixel.x() < keyframe.intrinsics.width &&
+        pixel.y() < keyframe.intrinsics.height) {
+      return true;
+    }
   }
   return false;
 }

@@ -13,6 +13,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/rotation.h"
 
 namespace sightmap::identify {
 namespace {
@@ -168,8 +169,7 @@ bool IdentifyEvalOptions::Check(std::string* error) const {
 PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& estimate) {
   PoseError error;
   error.position_m = (truth.translation() - estimate.translation()).norm();
-  error.rotation_deg = Eigen::AngleAxisd(truth.linear().transpose() * estimate.linear()).angle() *
-                       180.0 / 3.14159265358979323846;
+  error.rotation_deg = RotationAngleDeg(truth.linear(), estimate.linear());
   return error;
 }
 

@@ -353,10 +353,9 @@ TEST(Survey, TheSurveyWalkLooksAtEachApplianceFromEachStandpoint) {
       }
       const Eigen::Vector3d in_cam = pose.inverse() * *stop.target;
       if (in_cam.z() <= 0) continue;
-      const double u = camera.fx * in_cam.x() / in_cam.z() + camera.cx;
-      const double v = camera.fy * in_cam.y() / in_cam.z() + camera.cy;
-      centred = std::abs(u - camera.cx) < 0.3 * camera.width &&
-                std::abs(v - camera.cy) < 0.3 * camera.height;
+      const Eigen::Vector2d pixel = camera.Project(in_cam);
+      centred = std::abs(pixel.x() - camera.cx) < 0.3 * camera.width &&
+                std::abs(pixel.y() - camera.cy) < 0.3 * camera.height;
     }
     EXPECT_TRUE(centred) << "standpoint (" << stop.position.transpose() << ") of appliance "
                          << stop.appliance_id;
