@@ -230,11 +230,29 @@ const Trajectory::SurveyLeg& Trajectory::SurveyLegAt(double t_s, double* t_in_le
   return leg;
 }
 
+double Trajectory::SurveyDistance(const SurveyLeg& leg, double t_in_leg_s) const {
+  return leg.s0_m + LegDistance(leg.length_m, speed_mps_, t_in_leg_s * leg.pace);
+}
+
+Trajectory::Gait Trajectory::GaitAt(double t_s, const Eigen::Vector2d& position, double path_yaw,
+                                    double stepping) const {
+  const double* ph = phases_;
+  const double step_hz = 1.8;
+  Gait gait;
+  gait.height = 1.55 + 0.08 * std::sin(2 * kPi * t_s / 40.0 + ph[1]) +
+                0.025 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  const Eigen::Vector2d left(-std::sin(path_yaw), std::cos(path_yaw));
+  gait.swayed = position + 0.02 * stepping * std::sin(kPi * step_hz * t_s + ph[3]) * left;
+  gait.roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
+              0.02 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  return gait;
+}
+
 double Trajectory::DistanceAt(double t_s) const {
   if (survey_plan_) {
     double t_in_leg = 0.0;
     const SurveyLeg& leg = SurveyLegAt(t_s, &t_in_leg);
-    return leg.s0_m + LegDistance(leg.length_m, speed_mps_, t_in_leg * leg.pace);
+    return SurveyDistance(leg, t_in_leg);
   }
   double s = start_s_m_ + speed_mps_ * t_s;
   if (options_.kind == TrajectoryKind::kHandheld) {
@@ -368,17 +386,14 @@ Trajectory::Attitude Trajectory::DesiredAt(double t_s) const {
     return {Eigen::Vector3d(position.x(), position.y(), 0.75), yaw, 0.0, 0.0};
   }
   const double* ph = phases_;
-  const double step_hz = 1.8;
-  double height = 1.55 + 0.08 * std::sin(2 * kPi * t_s / 40.0 + ph[1]) +
-                  0.025 * std::sin(2 * kPi * step_hz * t_s + ph[2]);
-  const Eigen::Vector2d left(-std::sin(path_yaw), std::cos(path_yaw));
-  const Eigen::Vector2d swayed = position + 0.02 * std::sin(kPi * step_hz * t_s + ph[3]) * left;
+  const Gait gait = GaitAt(t_s, position, path_yaw, 1.0);
+  double height = gait.height;
+  const Eigen::Vector2d& swayed = gait.swayed;
   // A small sweep over the walls: two incommensurate periods so the pattern does not repeat.
   double yaw = path_yaw + 0.25 * std::sin(2 * kPi * t_s / 13.0 + ph[4]) +
                0.12 * std::sin(2 * kPi * t_s / 5.3 + ph[5]);
   double pitch = -0.12 + 0.1 * std::sin(2 * kPi * t_s / 9.0 + ph[6]);
-  const double roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
-                      0.02 * std::sin(2 * kPi * step_hz * t_s + ph[2]);
+  const double roll = gait.roll;
   // Targets are chosen once per window at the walk's mean eye height.
   if (const auto target = LookTarget(t_s, 1.55)) {
     const Eigen::Vector2d to = target->head<2>() - swayed;
@@ -395,28 +410,23 @@ Trajectory::Attitude Trajectory::DesiredAt(double t_s) const {
 Trajectory::Attitude Trajectory::SurveyDesiredAt(double t_s) const {
   double t_in_leg = 0.0;
   const SurveyLeg& leg = SurveyLegAt(t_s, &t_in_leg);
-  const double s = DistanceAt(t_s);
+  const double s = SurveyDistance(leg, t_in_leg);
   const Eigen::Vector2d position = PositionAt(s);
   const Eigen::Vector2d ahead = PositionAt(s + 0.8) - PositionAt(s - 0.8);
   const double path_yaw = std::atan2(ahead.y(), ahead.x());
   const bool walking = leg.pace > 0.0;
   const double* ph = phases_;
-  const double step_hz = 1.8;
   // Steps only while walking: standing, the sensor drifts with the operator's breathing and hands.
   const double stepping =
       walking ? std::min(1.0, std::min(t_in_leg, leg.duration_s - t_in_leg) / 1.0) : 0.0;
-  double height = 1.55 + 0.08 * std::sin(2 * kPi * t_s / 40.0 + ph[1]) +
-                  0.025 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
-  const Eigen::Vector2d left(-std::sin(path_yaw), std::cos(path_yaw));
-  const Eigen::Vector2d swayed =
-      position + 0.02 * stepping * std::sin(kPi * step_hz * t_s + ph[3]) * left;
+  const Gait gait = GaitAt(t_s, position, path_yaw, stepping);
+  const Eigen::Vector2d& swayed = gait.swayed;
   // Looking ahead with a small sweep over the walls while walking, at the appliance standing.
   double yaw = path_yaw + 0.2 * std::sin(2 * kPi * t_s / 13.0 + ph[4]) +
                0.1 * std::sin(2 * kPi * t_s / 5.3 + ph[5]);
   double pitch = -0.12 + 0.08 * std::sin(2 * kPi * t_s / 9.0 + ph[6]);
-  const double roll = 0.06 * std::sin(2 * kPi * t_s / 7.0 + ph[7]) +
-                      0.02 * stepping * std::sin(2 * kPi * step_hz * t_s + ph[2]);
-  height = std::clamp(height, 1.4, 1.7);
+  const double roll = gait.roll;
+  const double height = std::clamp(gait.height, 1.4, 1.7);
   const Eigen::Vector3d eye(swayed.x(), swayed.y(), height);
   if (walking) yaw = OpenYaw(eye, yaw);
   // Turned (by weight w) to the appliance stood at, or while walking from the previous one over

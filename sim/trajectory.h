@@ -99,6 +99,7 @@ class Trajectory {
   double survey_start_s_ = 0.0;
   void BuildSurveyLegs();
   const SurveyLeg& SurveyLegAt(double t_s, double* t_in_leg_s) const;
+  double SurveyDistance(const SurveyLeg& leg, double t_in_leg_s) const;  // arc length [m]
   // What the operator turns to look at during the window containing t (nullopt: nothing);
   // chosen once per window and eye height, then cached.
   std::optional<Eigen::Vector3d> LookTarget(double t_s, double eye_height_m) const;
@@ -120,6 +121,15 @@ class Trajectory {
     double roll = 0.0;
   };
   Attitude DesiredAt(double t_s) const;
+  // A person's body at t (hand-held and survey): eye height drifting in [1.47, 1.63] m plus the
+  // step's 2.5 cm bob, the 2 cm sideways sway of the steps off `position` and the roll; `stepping`
+  // in [0, 1] scales what the steps add (0 standing, 1 walking).
+  struct Gait {
+    double height = 0.0;
+    Eigen::Vector2d swayed = Eigen::Vector2d::Zero();
+    double roll = 0.0;
+  };
+  Gait GaitAt(double t_s, const Eigen::Vector2d& position, double path_yaw, double stepping) const;
   Attitude SurveyDesiredAt(double t_s) const;
   // Walking, the operator keeps the sensor's view open: `yaw`, or the nearest heading (in 10 deg
   // steps, up to 120 deg away) not aimed at a surface within 1.2 m, where the sensor measures
