@@ -1,0 +1,173 @@
+// The stages of Locator::Locate, each a function of its inputs so it can be tested alone:
+//   PreparePhoto -> RetrieveCandidates -> GroupPlaces -> (per place) MatchPlace -> VerifyPlace
+//   -> Decide.
+// The Locator loads the model's keyframes once and strings these together per photo; tests build
+// keyframes, places and matches by hand.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "core/features.h"
+#include "identify/locator.h"
+#include "slam/place_index.h"
+#include "slam/vocabulary.h"
+
+namespace sightmap::identify {
+
+// Why a stage ended the search for a pose, in the reason classes a client explains.
+struct Refusal {
+  UnmatchedReason code = UnmatchedReason::kNone;
+  std::string reason;  // one sentence, with the figures
+};
+
+// One keyframe as the locator matches against it.
+struct LocatorKeyframe {
+  KeyframeId id;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d view_direction = Eigen::Vector3d::UnitZ();  // camera z in the world
+  // The features that have a 3D point: their descriptors (one 32-byte ORB row each) and world
+  // points [m].
+  cv::Mat descriptors;
+  std::vector<cv::Point3f> world_points;
+  std::vector<int> nodes;  // per descriptor: its vocabulary node at match_node_level (> 0 only)
+  std::vector<size_t> neighbours;  // slots, nearest first
+};
+
+// For each keyframe, up to max_neighbours others within neighbour_radius_m looking within
+// neighbour_max_angle_deg of it (and holding 3D points), nearest first.
+void FindNeighbours(const LocatorOptions& options, std::vector<LocatorKeyframe>* keyframes);
+
+// The photo's keypoints bucketed into square cells, for window searches around projected points.
+class PhotoGrid {
+ public:
+  PhotoGrid() = default;
+  PhotoGrid(const std::vector<cv::Point2f>& points, int width, int height, double cell_px);
+
+  // Calls visit(index) for every keypoint in the cells a window of `radius` around p touches.
+  template <typename Visit>
+  void ForEachNear(const cv::Point2f& p, double radius, Visit visit) const {
+    if (cells_.empty()) return;
+    const int c0 = std::max(0, static_cast<int>((p.x - radius) / cell_));
+    const int c1 = std::min(cols_ - 1, static_cast<int>((p.x + radius) / cell_));
+    const int r0 = std::max(0, static_cast<int>((p.y - radius) / cell_));
+    const int r1 = std::min(rows_ - 1, static_cast<int>((p.y + radius) / cell_));
+    for (int r = r0; r <= r1; ++r) {
+      for (int c = c0; c <= c1; ++c) {
+        for (int i : cells_[static_cast<size_t>(r * cols_ + c)]) visit(i);
+      }
+    }
+  }
+
+ private:
+  double cell_ = 1.0;
+  int cols_ = 0;
+  int rows_ = 0;
+  std::vector<std::vector<int>> cells_;
+};
+
+// Stage 1: the photo as matched: grey, downscaled to max_image_side_px, its features, and the
+// intrinsics to try.
+struct PreparedPhoto {
+  cv::Size size;  // of the feature image [px]
+  // Intrinsics to try, at the photo's full resolution and at the feature image's: the given
+  // ones, or one per focal_candidates_35mm when none are given.
+  std::vector<Intrinsics> full_candidates;
+  std::vector<Intrinsics> feature_candidates;
+  bool intrinsics_given = false;
+  Features features;
+  std::vector<cv::Point2f> points;  // keypoint positions, at the feature image's scale
+  std::vector<int> nodes;           // per descriptor, for matching bounded by vocabulary nodes
+  PhotoGrid grid;                   // cells of guided_radius_px
+  // Cells of a 4x4 grid holding at least 20 features: a bare ceiling or wall fills one or two.
+  int detail_cells = 0;
+  std::optional<Refusal> refusal;  // kFewFeatures: too small, or too few features to match
+};
+// `photo` is 8-bit grey, BGR or BGRA and not empty; given intrinsics are checked (throws Error
+// when unusable) and scaled to the photo when made for another size.
+PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
+                           const LocatorOptions& options);
+
+// Stage 2: retrieval. The inverted index's best candidates for the photo's descriptors, best
+// first; in a model of no more keyframes than retrieval_candidates, or without a vocabulary,
+// every keyframe holding 3D points is a candidate too (a few keyframes are cheaper to verify than
+// to rank, and a vocabulary trained on them ranks poorly).
+std::vector<slam::PlaceCandidate> RetrieveCandidates(const cv::Mat& descriptors,
+                                                     const slam::Vocabulary& vocabulary,
+                                                     const slam::PlaceIndex& index,
+                                                     const std::vector<LocatorKeyframe>& keyframes,
+                                                     const LocatorOptions& options);
+
+// Stage 3: candidates grouped into places. A candidate within place_radius_m of an earlier
+// place's head and looking within place_max_angle_deg of it joins that place (same part of the
+// building, similar view), so each place is matched once against its keyframes' and their
+// neighbours' 3D features rather than keyframe by keyframe. At most max_places, in the order of
+// their best candidate.
+struct Place {
+  size_t head = 0;            // the best-scoring candidate's slot
+  std::vector<size_t> slots;  // candidates and their neighbours, each once
+};
+std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,
+                               const std::vector<LocatorKeyframe>& keyframes,
+                               const LocatorOptions& options);
+
+// Stage 4: 2D-3D matches of the photo against the union of a place's keyframes.
+struct PlaceMatches {
+  cv::Mat model_descriptors;              // every 3D feature of the place, one row each
+  std::vector<cv::Point3f> model_points;  // their world points
+  std::vector<size_t> model_slots;        // the keyframe each comes from
+  std::vector<cv::Point3f> object;        // per correspondence: the model point
+  std::vector<cv::Point2f> image;         // and the photo keypoint
+  std::vector<int> object_model;          // and its row in model_points
+};
+// A photo descriptor's nearest model descriptor within max_descriptor_distance passes when it
+// beats match_ratio x the nearest descriptor of another 3D point (more than same_point_m away:
+// the same point seen by a neighbour keyframe confirms rather than competes).
+PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
+                        const std::vector<LocatorKeyframe>& keyframes,
+                        const LocatorOptions& options);
+
+// What PnP found for one place and one set of intrinsics.
+struct PoseHypothesis {
+  bool valid = false;
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  Intrinsics intrinsics;  // at the feature image's scale
+  std::vector<int> inliers;
+};
+
+// Stage 5: a place's pose, and whether it passes the checks.
+struct PlaceVerdict {
+  PoseHypothesis pose;  // invalid when PnP found nothing
+  int matches = 0;      // correspondences the pose was last refined on
+  int projected = 0;    // place points the guided pose projects into the photo
+  int inliers = 0;
+  size_t verified_slot = 0;   // the place's keyframe holding most inliers
+  double rotation_deg = 0.0;  // from the verified keyframe's view
+  int cells = 0;              // of a 4x4 grid holding an inlier
+  bool accepted = false;      // valid and every check passed
+};
+// PnP RANSAC for each intrinsics candidate (with the focal refined when estimated), the best
+// grown by guided matching, then the checks: min_inliers, the paper's 90 deg from the keyframe
+// the inliers came from, min_inlier_cells, min_inlier_share of the projected points.
+PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
+                         const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
+                         const LocatorOptions& options);
+
+// Stage 6: the answer from the verdicts, in the order the places were tried. The accepted
+// verdict with most inliers wins unless a disagreeing pose (more than same_pose_m or
+// same_pose_deg away, accepted or refused with min_inliers) has more than
+// 1 / min_inlier_ratio_over_runner_up of its inliers: then the photo is ambiguous.
+struct Decision {
+  int winner = -1;  // index into the verdicts, -1 when not matched
+  int runner_up_inliers = 0;
+  Eigen::Isometry3d runner_up_pose = Eigen::Isometry3d::Identity();
+  std::optional<Refusal> refusal;  // when not matched: ambiguous, unseen view, few matches, ...
+};
+Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options);
+
+}  // namespace sightmap::identify

@@ -1,0 +1,409 @@
+// Each stage of Locator::Locate alone, on hand-built keyframes, matches and verdicts.
+#include "identify/locate_stages.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "core/check.h"
+#include "core/rotation.h"
+
+namespace sightmap::identify {
+namespace {
+
+Eigen::Isometry3d PoseAt(const Eigen::Vector3d& position, double yaw_deg) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  pose.translation() = position;
+  return pose;
+}
+
+LocatorKeyframe KeyframeAt(const Eigen::Vector3d& position, double yaw_deg, int points = 1) {
+  LocatorKeyframe keyframe;
+  keyframe.world_from_cam = PoseAt(position, yaw_deg);
+  keyframe.view_direction = keyframe.world_from_cam.linear().col(2);
+  for (int i = 0; i < points; ++i) keyframe.world_points.emplace_back(0.0f, 0.0f, 1.0f);
+  keyframe.descriptors = cv::Mat::zeros(points, 32, CV_8U);
+  return keyframe;
+}
+
+cv::Mat RandomDescriptors(int rows, std::mt19937* rng) {
+  cv::Mat descriptors(rows, 32, CV_8U);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < 32; ++c) descriptors.at<uint8_t>(r, c) = static_cast<uint8_t>(byte(*rng));
+  }
+  return descriptors;
+}
+
+// `bits` of the descriptor flipped, at distinct positions.
+cv::Mat Flipped(const cv::Mat& row, int bits) {
+  cv::Mat flipped = row.clone();
+  for (int b = 0; b < bits; ++b)
+    flipped.at<uint8_t>(0, (b * 7) % 32) ^= static_cast<uint8_t>(1u << (b % 8));
+  return flipped;
+}
+
+TEST(FindNeighboursTest, NearestFirstWithinRadiusAndAngleOnlyKeyframesWithPoints) {
+  LocatorOptions options;
+  options.neighbour_radius_m = 1.0;
+  options.neighbour_max_angle_deg = 45.0;
+  options.max_neighbours = 2;
+  std::vector<LocatorKeyframe> keyframes = {
+      KeyframeAt({0, 0, 0}, 0),       // 0
+      KeyframeAt({0.6, 0, 0}, 10),    // 1: near, similar view
+      KeyframeAt({0.3, 0, 0}, 30),    // 2: nearer, similar view
+      KeyframeAt({0.2, 0, 0}, 90),    // 3: near, looking elsewhere
+      KeyframeAt({1.5, 0, 0}, 0),     // 4: too far
+      KeyframeAt({0.1, 0, 0}, 0, 0),  // 5: nearest, but no 3D points to match
+      KeyframeAt({0.9, 0, 0}, 0),     // 6: near, but beyond max_neighbours
+  };
+  FindNeighbours(options, &keyframes);
+  EXPECT_EQ(keyframes[0].neighbours, (std::vector<size_t>{2, 1}));
+  EXPECT_TRUE(keyframes[3].neighbours.empty());
+  // A keyframe without points still has neighbours to match with.
+  EXPECT_EQ(keyframes[5].neighbours, (std::vector<size_t>{0, 2}));
+}
+
+TEST(RetrieveCandidatesTest, WithoutAVocabularyEveryKeyframeWithPointsIsACandidate) {
+  LocatorOptions options;
+  const std::vector<LocatorKeyframe> keyframes = {
+      KeyframeAt({0, 0, 0}, 0), KeyframeAt({1, 0, 0}, 0, 0), KeyframeAt({2, 0, 0}, 0)};
+  std::mt19937 rng(1);
+  const std::vector<slam::PlaceCandidate> candidates = RetrieveCandidates(
+      RandomDescriptors(50, &rng), slam::Vocabulary(), slam::PlaceIndex(), keyframes, options);
+  ASSERT_EQ(candidates.size(), 2u);
+  EXPECT_EQ(candidates[0].id, 0);
+  EXPECT_EQ(candidates[1].id, 2);
+}
+
+TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxPlaces) {
+  LocatorOptions options;
+  options.place_radius_m = 2.0;
+  options.place_max_angle_deg = 60.0;
+  options.max_places = 2;
+  std::vector<LocatorKeyframe> keyframes = {
+      KeyframeAt({0, 0, 0}, 0),    // 0: best candidate
+      KeyframeAt({5, 0, 0}, 0),    // 1: another part of the building
+      KeyframeAt({1, 0, 0}, 40),   // 2: joins 0's place
+      KeyframeAt({0, 0, 0}, 180),  // 3: same spot, opposite view: a third place, over the cap
+      KeyframeAt({0.5, 0, 0}, 0),  // 4: 0's neighbour, never retrieved
+  };
+  keyframes[0].neighbours = {4};
+  const std::vector<slam::PlaceCandidate> candidates = {{0, 0.9}, {1, 0.8}, {2, 0.7}, {3, 0.6}};
+  const std::vector<Place> places = GroupPlaces(candidates, keyframes, options);
+  ASSERT_EQ(places.size(), 2u);
+  EXPECT_EQ(places[0].head, 0u);
+  EXPECT_EQ(places[0].slots, (std::vector<size_t>{0, 4, 2}));
+  EXPECT_EQ(places[1].head, 1u);
+  EXPECT_EQ(places[1].slots, (std::vector<size_t>{1}));
+
+  options.max_places = 3;
+  EXPECT_EQ(GroupPlaces(candidates, keyframes, options).size(), 3u);
+  // A candidate that is not a keyframe slot is a programming error, not a photo's fault.
+  EXPECT_THROW(GroupPlaces({{7, 0.5}}, keyframes, options), Error);
+}
+
+// A place of two keyframes over random descriptors, and a photo holding some of them.
+class MatchPlaceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::mt19937 rng(7);
+    for (int k = 0; k < 2; ++k) {
+      LocatorKeyframe keyframe = KeyframeAt({0.3 * k, 0, 0}, 0, 0);
+      keyframe.descriptors = RandomDescriptors(40, &rng);
+      for (int i = 0; i < 40; ++i) {
+        keyframe.world_points.emplace_back(static_cast<float>(i), static_cast<float>(k), 3.0f);
+      }
+      keyframes_.push_back(std::move(keyframe));
+    }
+    place_.head = 0;
+    place_.slots = {0, 1};
+  }
+
+  // A photo whose descriptor i is model row rows[i] with 5 bits flipped.
+  PreparedPhoto PhotoOf(const std::vector<std::pair<size_t, int>>& keyframe_rows) const {
+    PreparedPhoto photo;
+    photo.size = cv::Size(640, 480);
+    for (const auto& [slot, row] : keyframe_rows) {
+      photo.features.descriptors.push_back(Flipped(keyframes_[slot].descriptors.row(row), 5));
+      photo.points.emplace_back(static_cast<float>(10 * row), static_cast<float>(100 * slot));
+    }
+    return photo;
+  }
+
+  std::vector<LocatorKeyframe> keyframes_;
+  Place place_;
+};
+
+TEST_F(MatchPlaceTest, DistinctDescriptorsMatchTheirPoints) {
+  LocatorOptions options;
+  const PreparedPhoto photo = PhotoOf({{0, 3}, {0, 17}, {1, 8}});
+  const PlaceMatches matches = MatchPlace(photo, place_, keyframes_, options);
+  EXPECT_EQ(matches.model_points.size(), 80u);
+  EXPECT_EQ(matches.model_descriptors.rows, 80);
+  ASSERT_EQ(matches.object.size(), 3u);
+  EXPECT_EQ(matches.object_model, (std::vector<int>{3, 17, 48}));
+  EXPECT_EQ(matches.model_slots[48], 1u);
+  EXPECT_EQ(matches.object[2], cv::Point3f(8.0f, 1.0f, 3.0f));
+  EXPECT_EQ(matches.image[1], photo.points[1]);
+}
+
+TEST_F(MatchPlaceTest, ARepeatedTextureFailsTheRatioTestUnlessItIsTheSamePoint) {
+  LocatorOptions options;
+  // Keyframe 1's row 5 shows keyframe 0's row 5 texture at another point (a poster printed
+  // twice): the photo's descriptor cannot tell which.
+  keyframes_[0].descriptors.row(5).copyTo(keyframes_[1].descriptors.row(5));
+  PreparedPhoto photo = PhotoOf({{0, 5}});
+  EXPECT_TRUE(MatchPlace(photo, place_, keyframes_, options).object.empty());
+  // The same 3D point seen by both keyframes confirms the match.
+  keyframes_[1].world_points[5] = keyframes_[0].world_points[5] + cv::Point3f(0.01f, 0.0f, 0.0f);
+  const PlaceMatches matches = MatchPlace(photo, place_, keyframes_, options);
+  ASSERT_EQ(matches.object.size(), 1u);
+  EXPECT_LT(cv::norm(matches.object[0] - keyframes_[0].world_points[5]), 0.02);
+}
+
+TEST_F(MatchPlaceTest, DescriptorsTooFarFromAnyModelRowAreNotMatched) {
+  LocatorOptions options;
+  options.max_descriptor_distance = 3;
+  EXPECT_TRUE(MatchPlace(PhotoOf({{0, 3}}), place_, keyframes_, options).object.empty());
+  options.max_descriptor_distance = 5;
+  EXPECT_EQ(MatchPlace(PhotoOf({{0, 3}}), place_, keyframes_, options).object.size(), 1u);
+}
+
+// 300 world points on three walls seen by a camera, a photo of them from a known pose, and a
+// place whose keyframe stands near that pose.
+class VerifyPlaceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::mt19937 rng(11);
+    intrinsics_ = Intrinsics::FromPinhole(640, 480, 500.0, 500.0, 319.5, 239.5);
+    photo_from_world_ = PoseAt({0.2, 0.0, -0.1}, 12).inverse();
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    LocatorKeyframe keyframe = KeyframeAt({0, 0, 0}, 0, 0);
+    keyframe.descriptors = RandomDescriptors(300, &rng);
+    photo_.size = cv::Size(640, 480);
+    photo_.feature_candidates = {intrinsics_};
+    photo_.intrinsics_given = true;
+    for (int i = 0; i < 300; ++i) {
+      // Points 2-5 m ahead over the whole view.
+      const Eigen::Vector3d cam(1.4 * u(rng), 1.0 * u(rng), 3.5 + 1.5 * u(rng));
+      const Eigen::Vector3d world = photo_from_world_.inverse() * cam;
+      keyframe.world_points.emplace_back(static_cast<float>(world.x()),
+                                         static_cast<float>(world.y()),
+                                         static_cast<float>(world.z()));
+      const Eigen::Vector2d uv = intrinsics_.Project(cam);
+      if (uv.x() < 0 || uv.y() < 0 || uv.x() >= 640 || uv.y() >= 480) continue;
+      photo_.points.emplace_back(static_cast<float>(uv.x()), static_cast<float>(uv.y()));
+      photo_.features.descriptors.push_back(keyframe.descriptors.row(i).clone());
+      photo_.features.keypoints.emplace_back(photo_.points.back(), 31.0f);
+    }
+    photo_.grid = PhotoGrid(photo_.points, 640, 480, LocatorOptions().guided_radius_px);
+    keyframes_.push_back(std::move(keyframe));
+    place_.head = 0;
+    place_.slots = {0};
+  }
+
+  Intrinsics intrinsics_;
+  Eigen::Isometry3d photo_from_world_;
+  PreparedPhoto photo_;
+  std::vector<LocatorKeyframe> keyframes_;
+  Place place_;
+};
+
+TEST_F(VerifyPlaceTest, TrueMatchesGiveThePhotosPoseAndPassEveryCheck) {
+  LocatorOptions options;
+  const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  ASSERT_GT(matches.object.size(), 200u);
+  const PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  ASSERT_TRUE(verdict.pose.valid);
+  EXPECT_TRUE(verdict.accepted);
+  const Eigen::Isometry3d world_from_photo = photo_from_world_.inverse();
+  EXPECT_LT((verdict.pose.world_from_cam.translation() - world_from_photo.translation()).norm(),
+            1e-3);
+  EXPECT_LT(RotationAngleDeg(verdict.pose.world_from_cam.linear(), world_from_photo.linear()),
+            0.05);
+  EXPECT_EQ(verdict.inliers, static_cast<int>(matches.object.size()));
+  EXPECT_EQ(verdict.cells, 16);
+  EXPECT_NEAR(verdict.rotation_deg, 12.0, 0.05);
+  EXPECT_EQ(verdict.verified_slot, 0u);
+  // Guided matching saw every place point that lands in the photo.
+  EXPECT_EQ(verdict.projected, static_cast<int>(matches.object.size()));
+}
+
+TEST_F(VerifyPlaceTest, APoseTurnedFarFromItsKeyframeIsRefusedAsThePaperSays) {
+  LocatorOptions options;
+  // The same points, but the keyframe that saw them looked the other way (120 deg).
+  keyframes_[0].world_from_cam = PoseAt({0, 0, 0}, 132);
+  const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  const PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  ASSERT_TRUE(verdict.pose.valid);
+  EXPECT_FALSE(verdict.accepted);
+  EXPECT_NEAR(verdict.rotation_deg, 120.0, 0.1);
+}
+
+TEST_F(VerifyPlaceTest, InliersInOneCornerAreRefused) {
+  LocatorOptions options;
+  PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  // Only the matches in the photo's top-left quarter, and no guided growth beyond them.
+  PlaceMatches corner = matches;
+  corner.object.clear();
+  corner.image.clear();
+  corner.object_model.clear();
+  for (size_t i = 0; i < matches.image.size(); ++i) {
+    if (matches.image[i].x < 320 && matches.image[i].y < 240) {
+      corner.object.push_back(matches.object[i]);
+      corner.image.push_back(matches.image[i]);
+      corner.object_model.push_back(matches.object_model[i]);
+    }
+  }
+  ASSERT_GE(static_cast<int>(corner.object.size()), options.min_inliers);
+  options.guided_rounds = 0;
+  const PlaceVerdict verdict = VerifyPlace(photo_, place_, corner, keyframes_, options);
+  ASSERT_TRUE(verdict.pose.valid);
+  EXPECT_LE(verdict.cells, 4);
+  options.min_inlier_cells = verdict.cells + 1;
+  EXPECT_FALSE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
+  options.min_inlier_cells = verdict.cells;
+  EXPECT_TRUE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
+}
+
+TEST_F(VerifyPlaceTest, RandomMatchesGiveNoAcceptedPose) {
+  LocatorOptions options;
+  PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  std::mt19937 rng(3);
+  std::shuffle(matches.image.begin(), matches.image.end(), rng);
+  const PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_FALSE(verdict.accepted);
+  EXPECT_LT(verdict.inliers, options.min_inliers);
+}
+
+PlaceVerdict Verdict(int inliers, const Eigen::Vector3d& position, bool accepted,
+                     double rotation_deg = 10.0, int cells = 12) {
+  PlaceVerdict verdict;
+  verdict.pose.valid = true;
+  verdict.pose.world_from_cam = PoseAt(position, 0);
+  verdict.inliers = inliers;
+  verdict.accepted = accepted;
+  verdict.rotation_deg = rotation_deg;
+  verdict.cells = cells;
+  return verdict;
+}
+
+TEST(DecideTest, MostInliersWinsAndAnAgreeingPoseIsNoRival) {
+  const LocatorOptions options;
+  const Decision decision = Decide(
+      {Verdict(40, {0, 0, 0}, true), Verdict(100, {0.2, 0, 0}, true), PlaceVerdict()}, options);
+  EXPECT_EQ(decision.winner, 1);
+  EXPECT_EQ(decision.runner_up_inliers, 0);
+  EXPECT_FALSE(decision.refusal.has_value());
+}
+
+TEST(DecideTest, TwoPlacesThatFitAboutAsWellAreAmbiguous) {
+  const LocatorOptions options;  // the winner needs 1.5x the runner-up
+  // The first winner, dethroned by a pose 4 m away, becomes its runner-up.
+  Decision decision =
+      Decide({Verdict(80, {0, 0, 0}, true), Verdict(100, {4, 0, 0}, true)}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  EXPECT_EQ(decision.runner_up_inliers, 80);
+  EXPECT_NE(decision.refusal->reason.find("4.0 m apart"), std::string::npos);
+  // Far enough ahead, the winner stands, and the runner-up is reported.
+  decision = Decide({Verdict(60, {0, 0, 0}, true), Verdict(100, {4, 0, 0}, true)}, options);
+  EXPECT_EQ(decision.winner, 1);
+  EXPECT_EQ(decision.runner_up_inliers, 60);
+}
+
+TEST(DecideTest, ARefusedPoseWithEnoughInliersStillMakesThePhotoAmbiguous) {
+  const LocatorOptions options;
+  // Refused for its inliers' spread, but 90 inliers elsewhere is a rival all the same; one with
+  // fewer than min_inliers is not.
+  Decision decision =
+      Decide({Verdict(100, {0, 0, 0}, true), Verdict(90, {3, 0, 0}, false, 10.0, 2)}, options);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  decision =
+      Decide({Verdict(30, {0, 0, 0}, true), Verdict(24, {3, 0, 0}, false, 10.0, 2)}, options);
+  EXPECT_EQ(decision.winner, 0);
+}
+
+TEST(DecideTest, NothingAcceptedSaysWhyFromTheBestRefusedPose) {
+  const LocatorOptions options;
+  Decision decision =
+      Decide({Verdict(50, {0, 0, 0}, false, 120.0), Verdict(20, {1, 0, 0}, false)}, options);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kUnseenView);
+  EXPECT_NE(decision.refusal->reason.find("turns 120 deg"), std::string::npos);
+
+  decision = Decide({Verdict(50, {0, 0, 0}, false, 10.0, 2)}, options);
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kMatchesInOneCorner);
+  EXPECT_NE(decision.refusal->reason.find("in 2 cells"), std::string::npos);
+
+  decision = Decide({Verdict(12, {0, 0, 0}, false), PlaceVerdict()}, options);
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kFewMatches);
+  EXPECT_NE(decision.refusal->reason.find("none of 2 retrieved places"), std::string::npos);
+  EXPECT_NE(decision.refusal->reason.find("12 PnP inliers"), std::string::npos);
+
+  EXPECT_EQ(Decide({}, options).refusal->code, UnmatchedReason::kFewMatches);
+}
+
+// A photo with corners everywhere: random rectangles of random greys.
+cv::Mat TexturedPhoto(int width, int height) {
+  cv::Mat photo(height, width, CV_8UC3, cv::Scalar::all(128));
+  cv::RNG rng(5);
+  const int side = std::max(8, std::min(width, height) / 12);
+  for (int i = 0; i < width * height / (side * side) * 4; ++i) {
+    const cv::Point corner(rng.uniform(0, width), rng.uniform(0, height));
+    const cv::Point size(rng.uniform(side / 2, side), rng.uniform(side / 2, side));
+    cv::rectangle(photo, corner, corner + size, cv::Scalar::all(rng.uniform(0, 256)), cv::FILLED);
+  }
+  return photo;
+}
+
+TEST(PreparePhotoTest, ALargePhotoIsDownscaledAndEveryFocalCandidateScaledWithIt) {
+  LocatorOptions options;
+  const PreparedPhoto prepared = PreparePhoto(TexturedPhoto(2560, 1920), std::nullopt, options);
+  ASSERT_FALSE(prepared.refusal.has_value());
+  EXPECT_EQ(prepared.size, cv::Size(960, 720));
+  ASSERT_EQ(prepared.full_candidates.size(), options.focal_candidates_35mm.size());
+  ASSERT_EQ(prepared.feature_candidates.size(), options.focal_candidates_35mm.size());
+  EXPECT_EQ(prepared.full_candidates[0].width, 2560);
+  EXPECT_NEAR(prepared.feature_candidates[0].fx, prepared.full_candidates[0].fx * 960 / 2560, 1e-6);
+  EXPECT_FALSE(prepared.intrinsics_given);
+  EXPECT_GT(prepared.features.size(), 1000u);
+  EXPECT_EQ(prepared.points.size(), prepared.features.size());
+  EXPECT_EQ(prepared.detail_cells, 16);
+}
+
+TEST(PreparePhotoTest, GivenIntrinsicsForAnotherSizeAreScaledToThePhoto) {
+  LocatorOptions options;
+  const Intrinsics half = Intrinsics::FromPinhole(320, 240, 250.0, 250.0, 159.5, 119.5);
+  const PreparedPhoto prepared = PreparePhoto(TexturedPhoto(640, 480), half, options);
+  ASSERT_EQ(prepared.full_candidates.size(), 1u);
+  EXPECT_TRUE(prepared.intrinsics_given);
+  EXPECT_EQ(prepared.full_candidates[0].width, 640);
+  EXPECT_NEAR(prepared.full_candidates[0].fx, 500.0, 1e-9);
+  EXPECT_EQ(prepared.size, cv::Size(640, 480));
+  Intrinsics broken = half;
+  broken.fx = -1.0;
+  EXPECT_THROW(PreparePhoto(TexturedPhoto(640, 480), broken, options), Error);
+}
+
+TEST(PreparePhotoTest, ABlankOrNarrowPhotoIsRefusedForTooFewFeatures) {
+  LocatorOptions options;
+  PreparedPhoto prepared =
+      PreparePhoto(cv::Mat(480, 640, CV_8UC3, cv::Scalar::all(128)), std::nullopt, options);
+  ASSERT_TRUE(prepared.refusal.has_value());
+  EXPECT_EQ(prepared.refusal->code, UnmatchedReason::kFewFeatures);
+  EXPECT_EQ(prepared.detail_cells, 0);
+  // 4000x100 downscales to 960x24: too short a side to hold features.
+  prepared = PreparePhoto(TexturedPhoto(4000, 100), std::nullopt, options);
+  ASSERT_TRUE(prepared.refusal.has_value());
+  EXPECT_NE(prepared.refusal->reason.find("960x24"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace sightmap::identify
