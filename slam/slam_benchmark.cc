@@ -368,8 +368,10 @@ int RepeatableKeypoints(const Features& a, const Features& b, const Eigen::Isome
   return repeatable;
 }
 
-// Consecutive frames by ground truth: how far apart, how much they share, and whether registration
-// (the mapper's options, no prior) bridges them.
+// Consecutive frames by ground truth: how far apart, how much they share, whether registration
+// (the mapper's options, no prior) bridges them, and how far off the registered pairs are. The
+// pairs' errors measure a change to registration without the chaos of a whole map, where a few
+// fragile stretches flip by tens of centimetres on any small change.
 void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
                    const MapperOptions& options) {
   std::vector<Features> features;
@@ -378,6 +380,8 @@ void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
   }
   std::vector<double> angles_deg, distances_m, points;
   int unbridgeable = 0, unbridgeable_registered = 0, bridgeable_refused = 0;
+  std::vector<double> error_mm, error_deg;
+  int wrong = 0;  // registered more than 10 cm or 3 degrees off
   for (size_t i = 0; i < features.size(); ++i) {
     points.push_back(static_cast<double>(features[i].NumPoints()));
   }
@@ -394,6 +398,12 @@ void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
     if (!bridgeable) ++unbridgeable;
     if (!bridgeable && result.success) ++unbridgeable_registered;
     if (bridgeable && !result.success) ++bridgeable_refused;
+    if (result.success) {
+      const Eigen::Isometry3d error = b_from_a.inverse() * result.target_from_source;
+      error_mm.push_back(1e3 * error.translation().norm());
+      error_deg.push_back(RotationAngleDeg(error));
+      if (error_mm.back() > 100.0 || error_deg.back() > 3.0) ++wrong;
+    }
   }
   const auto count_below = [](const std::vector<double>& values, double limit) {
     return std::count_if(values.begin(), values.end(), [&](double v) { return v < limit; });
@@ -415,6 +425,12 @@ void ReportOverlap(const std::vector<Frame>& frames, const Intrinsics& camera,
       unbridgeable, pairs, options.registration.min_inliers, unbridgeable_registered);
   std::printf("  refused           %d of %zu bridgeable pairs not registered\n", bridgeable_refused,
               pairs - static_cast<size_t>(unbridgeable));
+  if (error_mm.empty()) return;
+  std::printf(
+      "  registered error  %zu pairs: p50 %.2f mm %.3f deg, p75 %.2f mm, p95 %.1f mm %.2f deg; "
+      "%d more than 10 cm or 3 deg off\n",
+      error_mm.size(), Median(error_mm), Median(error_deg), Percentile(error_mm, 0.75),
+      Percentile(error_mm, 0.95), Percentile(error_deg, 0.95), wrong);
 }
 
 void PrintFalseLoop(const RunResult& clean, const RunResult& injected, int at) {
