@@ -54,6 +54,10 @@ void TrackStage::Run() {
           taken = taken && keyframes_->Push(KeyframeItem{std::move(keyframe), true});
         }
       }
+      // A stream that ended before a frame could anchor the map still gives its richest frame.
+      for (slam::TrackedKeyframe& keyframe : tracker.Finish().keyframes) {
+        if (taken) taken = keyframes_->Push(KeyframeItem{std::move(keyframe), true});
+      }
       report_.counters = tracker.counters();
     } else {
       while (std::optional<RgbdFrame> frame = frames_->Pop()) {

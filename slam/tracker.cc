@@ -113,6 +113,7 @@ bool TrackerOptions::Check(std::string* error) const {
     return fail("blind_velocity_decay must be in [0, 1]");
   }
   if (min_reference_points < 0) return fail("min_reference_points must not be negative");
+  if (!(start_max_wait_s >= 0.0)) return fail("start_max_wait_s must be >= 0");
   return true;
 }
 
@@ -354,6 +355,40 @@ bool Tracker::WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) co
   return false;
 }
 
+bool Tracker::Start(Placed& frame, TrackResult* result) {
+  if (counters_.frames == 1) first_timestamp_ns_ = frame.frame.timestamp_ns;
+  const double waited_s =
+      1e-9 * static_cast<double>(frame.frame.timestamp_ns - first_timestamp_ns_);
+  if (frame.points < options_.min_reference_points && waited_s < options_.start_max_wait_s) {
+    if (!start_candidate_ || frame.points > start_candidate_->points) {
+      start_candidate_ = std::make_unique<Placed>(frame);
+    }
+    ++counters_.before_start;
+    return false;
+  }
+  // Past the wait without a frame that has enough points: the richest one seen, this one included.
+  Placed& first =
+      start_candidate_ && start_candidate_->points > frame.points ? *start_candidate_ : frame;
+  // Either way one frame of those seen stays unplaced: the count of frames before it holds.
+  Emit(first, false, result);
+  last_ = std::make_unique<Placed>(first);
+  ++counters_.registered;
+  start_candidate_.reset();
+  return true;
+}
+
+TrackResult Tracker::Finish() {
+  TrackResult result;
+  if (!reference_ && start_candidate_) {
+    --counters_.before_start;
+    Emit(*start_candidate_, false, &result);
+    last_ = std::make_unique<Placed>(std::move(*start_candidate_));
+    ++counters_.registered;
+    start_candidate_.reset();
+  }
+  return result;
+}
+
 void Tracker::ContinueFrom(const RgbdFrame& keyframe) {
   SIGHTMAP_CHECK(!reference_ && counters_.frames == 0,
                  "a tracker continues a walk only before its first frame");
@@ -371,9 +406,7 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   ++counters_.frames;
   const bool tick = rate_.Accept(input.timestamp_ns);
   if (!reference_) {
-    Emit(frame, false, &result);
-    last_ = std::make_unique<Placed>(frame);
-    ++counters_.registered;
+    Start(frame, &result);
     result.total_s = SecondsSince(start);
     return result;
   }
@@ -398,6 +431,6 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
                       dense_step_sigma_m, dense_step_sigma_rad, prior_sigma_m, prior_sigma_mps,
                       prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
-                      blind_keyframe_after_s, min_reference_points)
+                      blind_keyframe_after_s, min_reference_points, start_max_wait_s)
 
 }  // namespace sightmap::slam

@@ -115,6 +115,12 @@ struct TrackerOptions {
   double blind_keyframe_after_s = 0.3;
   // Frames with fewer 3D keypoints make poor references: a blind stretch waits for a better one.
   int min_reference_points = 30;
+  // The map's first keyframe is a frame with min_reference_points, or the richest frame of the
+  // first start_max_wait_s when none has them: a walk that starts facing a bare wall would
+  // otherwise anchor the map on a keyframe nothing registers to, joined to the rest only by the
+  // motion model (the simulator's seed 1 walk: 16 3D keypoints, a 0.3 s blind link claiming no
+  // motion while the walker turned 10 degrees, and the whole map 10.4 degrees off its anchor) [s].
+  double start_max_wait_s = 1.0;
 
   bool Check(std::string* error) const;
 };
@@ -173,6 +179,7 @@ struct TrackerCounters {
   int64_t keyframes = 0;
   int64_t early_keyframes = 0;  // off the rate's clock: overlap lost or weak
   int64_t prior_keyframes = 0;  // emitted on the motion model
+  int64_t before_start = 0;     // frames seen before the first keyframe (a poorer one kept)
 };
 
 class Tracker {
@@ -192,6 +199,10 @@ class Tracker {
   // walk of its own by features alone. The velocity starts at rest. Only before the first frame;
   // throws InvalidArgument for images that do not fit the camera.
   void ContinueFrom(const RgbdFrame& keyframe);
+
+  // The end of the stream: when it ended before the first keyframe (every frame was a poor
+  // reference, within start_max_wait_s), the richest of them becomes the first keyframe.
+  TrackResult Finish();
 
   const TrackerCounters& counters() const { return counters_; }
 
@@ -213,6 +224,9 @@ class Tracker {
   bool WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) const;
   // Emits `frame` as a keyframe and makes it the reference.
   void Emit(Placed& frame, bool early, TrackResult* result);
+  // Before the first keyframe: emits `frame` as it when it can anchor the map (or the wait is
+  // over, then the richest frame seen), else keeps the richest frame; true once the map started.
+  bool Start(Placed& frame, TrackResult* result);
 
   Intrinsics camera_;
   TrackerOptions options_;
@@ -224,7 +238,9 @@ class Tracker {
   capture::KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
   TrackerCounters counters_;
   DenseAligner aligner_;
-  std::unique_ptr<DenseFrame> last_dense_;  // last_ prepared for alignment, when first needed
+  std::unique_ptr<DenseFrame> last_dense_;   // last_ prepared for alignment, when first needed
+  std::unique_ptr<Placed> start_candidate_;  // before the first keyframe: the richest frame yet
+  TimestampNs first_timestamp_ns_ = 0;       // of the first frame seen
 };
 
 }  // namespace sightmap::slam

@@ -257,6 +257,58 @@ TEST(Tracker, ContinuesAWalkFromItsNewestStoredKeyframe) {
   EXPECT_EQ(tracker.counters().keyframes, 1);
 }
 
+// The seed 1 walk starts facing a bare wall: frames 0 and 1 hold 16-17 3D keypoints, frame 2 holds
+// 30. Anchored on frame 0, the map hung on a 0.3 s blind link claiming no motion while the walker
+// turned 10 degrees, and the whole map sat 10.4 degrees off its anchor.
+TEST(Tracker, TheMapStartsOnAFrameThatCanAnchorIt) {
+  sim::SimulatorOptions sim_options;
+  sim_options.fps = 10.0;
+  sim_options.frames = 12;
+  sim_options.seed = 1;
+  const Walk walk = testing::RenderSimWalk(sim_options);
+  Tracker tracker(walk.camera);
+  Chain chain;
+  for (const RgbdFrame& frame : walk.frames) Append(tracker.Track(frame), walk.frames, &chain);
+  ASSERT_FALSE(chain.frames.empty());
+  EXPECT_EQ(chain.frames.front()->index, 2);
+  EXPECT_EQ(tracker.counters().before_start, 2);
+  EXPECT_EQ(tracker.counters().blind, 0) << "the frames after a rich first keyframe register";
+  for (MotionSource source : chain.sources) EXPECT_EQ(source, MotionSource::kRegistered);
+  EXPECT_TRUE(tracker.Finish().keyframes.empty()) << "the map had started";
+}
+
+TEST(Tracker, WithoutARichFrameTheMapStartsOnTheRichestOfTheWait) {
+  const Walk& walk = HandheldWalk();
+  TrackerOptions options;
+  options.min_reference_points = 100000;  // no frame is rich enough
+  options.start_max_wait_s = 0.5;
+  Tracker tracker(walk.camera, options);
+  // Covered for 0.2 s, then frames of the walk: the richest frame of the first 0.5 s (frames 0-4)
+  // starts the map when frame 5 ends the wait.
+  std::vector<TrackResult> results;
+  for (size_t i = 0; i < 6; ++i) {
+    const RgbdFrame frame = i < 2 ? CoveredLens(walk.frames[i]) : walk.frames[i];
+    results.push_back(tracker.Track(frame));
+  }
+  for (size_t i = 0; i < 5; ++i) EXPECT_TRUE(results[i].keyframes.empty()) << "frame " << i;
+  ASSERT_EQ(results[5].keyframes.size(), 1u);
+  const int64_t first = results[5].keyframes[0].frame.index;
+  EXPECT_GE(first, 2) << "a covered frame has no 3D keypoint";
+  EXPECT_FALSE(results[5].keyframes[0].motion);
+  EXPECT_EQ(tracker.counters().before_start, 5);
+
+  // A stream that ends within the wait gives its richest frame at Finish.
+  Tracker short_stream(walk.camera, options);
+  EXPECT_TRUE(short_stream.Track(CoveredLens(walk.frames[0])).keyframes.empty());
+  EXPECT_TRUE(short_stream.Track(walk.frames[3]).keyframes.empty());
+  const TrackResult finished = short_stream.Finish();
+  ASSERT_EQ(finished.keyframes.size(), 1u);
+  EXPECT_EQ(finished.keyframes[0].frame.index, 3);
+  EXPECT_EQ(short_stream.counters().keyframes, 1);
+  EXPECT_EQ(short_stream.counters().before_start, 1);
+  EXPECT_TRUE(short_stream.Finish().keyframes.empty());
+}
+
 TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
   const Walk& walk = HandheldWalk();
   Tracker tracker(walk.camera);
