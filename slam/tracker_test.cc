@@ -266,7 +266,9 @@ TEST(Tracker, TheMapStartsOnAFrameThatCanAnchorIt) {
   sim_options.frames = 12;
   sim_options.seed = 1;
   const Walk walk = testing::RenderSimWalk(sim_options);
-  Tracker tracker(walk.camera);
+  TrackerOptions options;
+  options.start_max_wait_s = 1.0;
+  Tracker tracker(walk.camera, options);
   Chain chain;
   for (const RgbdFrame& frame : walk.frames) Append(tracker.Track(frame), walk.frames, &chain);
   ASSERT_FALSE(chain.frames.empty());
