@@ -355,7 +355,7 @@ bool Tracker::WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) co
   return false;
 }
 
-bool Tracker::Start(Placed& frame, TrackResult* result) {
+void Tracker::Start(Placed& frame, TrackResult* result) {
   if (counters_.frames == 1) first_timestamp_ns_ = frame.frame.timestamp_ns;
   const double waited_s =
       1e-9 * static_cast<double>(frame.frame.timestamp_ns - first_timestamp_ns_);
@@ -364,27 +364,27 @@ bool Tracker::Start(Placed& frame, TrackResult* result) {
       start_candidate_ = std::make_unique<Placed>(frame);
     }
     ++counters_.before_start;
-    return false;
+    return;
   }
   // Past the wait without a frame that has enough points: the richest one seen, this one included.
-  Placed& first =
-      start_candidate_ && start_candidate_->points > frame.points ? *start_candidate_ : frame;
   // Either way one frame of those seen stays unplaced: the count of frames before it holds.
+  StartMapOn(
+      start_candidate_ && start_candidate_->points > frame.points ? *start_candidate_ : frame,
+      result);
+}
+
+void Tracker::StartMapOn(Placed& first, TrackResult* result) {
   Emit(first, false, result);
   last_ = std::make_unique<Placed>(first);
   ++counters_.registered;
   start_candidate_.reset();
-  return true;
 }
 
 TrackResult Tracker::Finish() {
   TrackResult result;
   if (!reference_ && start_candidate_) {
     --counters_.before_start;
-    Emit(*start_candidate_, false, &result);
-    last_ = std::make_unique<Placed>(std::move(*start_candidate_));
-    ++counters_.registered;
-    start_candidate_.reset();
+    StartMapOn(*start_candidate_, &result);
   }
   return result;
 }

@@ -228,8 +228,10 @@ class Tracker {
   // Emits `frame` as a keyframe and makes it the reference.
   void Emit(Placed& frame, bool early, TrackResult* result);
   // Before the first keyframe: emits `frame` as it when it can anchor the map (or the wait is
-  // over, then the richest frame seen), else keeps the richest frame; true once the map started.
-  bool Start(Placed& frame, TrackResult* result);
+  // over, then the richest frame seen), else keeps the richest frame.
+  void Start(Placed& frame, TrackResult* result);
+  // Emits `first` as the map's first keyframe and makes it the last frame placed.
+  void StartMapOn(Placed& first, TrackResult* result);
 
   Intrinsics camera_;
   TrackerOptions options_;
