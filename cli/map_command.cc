@@ -100,6 +100,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["dense_frames"] = summary.dense_frames;
   json["blind_frames"] = summary.blind_frames;
   json["early_keyframes"] = summary.early_keyframes;
+  json["frames_before_start"] = summary.frames_before_start;
   json["track_median_ms"] = summary.track_median_ms;
   json["track_p95_ms"] = summary.track_p95_ms;
   json["keyframe_median_ms"] = summary.keyframe_median_ms;
@@ -166,6 +167,11 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
         << summary.prior_links << " prior links, " << summary.early_keyframes
         << " early keyframes); " << std::setprecision(1) << summary.track_median_ms
         << " ms median, " << summary.track_p95_ms << " ms p95 per frame\n";
+    if (summary.frames_before_start > 0) {
+      out << "  started     after " << summary.frames_before_start
+          << (summary.frames_before_start == 1 ? " frame" : " frames")
+          << " too bare to anchor the map (aim at furniture or a corner when you start)\n";
+    }
   }
   out << std::setprecision(1) << "  keyframe    " << summary.keyframe_median_ms << " ms median, "
       << summary.keyframe_p95_ms << " ms p95 to map\n";

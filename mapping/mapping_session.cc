@@ -253,6 +253,7 @@ void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage
   summary->dense_frames = tracking.counters.dense;
   summary->blind_frames = tracking.counters.blind;
   summary->early_keyframes = tracking.counters.early_keyframes;
+  summary->frames_before_start = tracking.counters.before_start;
   summary->track_median_ms = 1e3 * Percentile(tracking.frame_s, 0.5);
   summary->track_p95_ms = 1e3 * Percentile(tracking.frame_s, 0.95);
   summary->keyframe_median_ms = 1e3 * Percentile(map.keyframe_seconds(), 0.5);

@@ -144,7 +144,9 @@ struct MappingSummary {
   int64_t dense_frames = 0;               // of them, placed by the dense fallback
   int64_t blind_frames = 0;               // of them, placed by the motion model alone
   int64_t early_keyframes = 0;            // keyframes taken off the rate's clock (overlap lost)
-  double track_median_ms = 0.0;           // tracking time per frame
+  // Frames read before one could anchor the map (TrackerOptions::start_max_wait_s), never placed.
+  int64_t frames_before_start = 0;
+  double track_median_ms = 0.0;  // tracking time per frame
   double track_p95_ms = 0.0;
   double keyframe_median_ms = 0.0;  // mapping time per keyframe
   double keyframe_p95_ms = 0.0;

@@ -20,6 +20,10 @@
 namespace sightmap::mapping {
 namespace {
 
+// Frame 0 of the default (seed 1) walk faces a bare wall: the map starts on frame 1
+// (slam::TrackerOptions::start_max_wait_s), so a walk of n frames at 1 Hz maps n - 1 keyframes.
+constexpr int kBareStartFrames = 1;
+
 MappingOptions SimOptions(const std::string& dir, int frames) {
   MappingOptions options;
   options.source = "sim:office?fps=1&frames=" + std::to_string(frames);
@@ -50,20 +54,22 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
   });
   const MappingSummary summary = session.Run();
   EXPECT_EQ(summary.reason, StopReason::kSourceEnded);
-  EXPECT_EQ(summary.keyframes, 12);
+  EXPECT_EQ(summary.frames_before_start, kBareStartFrames);
+  const int keyframes = 12 - kBareStartFrames;
+  EXPECT_EQ(summary.keyframes, keyframes);
   EXPECT_EQ(summary.frames_read, 12);
   EXPECT_EQ(summary.dropped_frames, 0) << "a replay waits, it never drops";
   EXPECT_GE(summary.segments, 1);
   EXPECT_FALSE(summary.resumed);
-  EXPECT_GE(callbacks, 12);
+  EXPECT_GE(callbacks, keyframes);
   // How well the mapper tracks a 1 Hz walk is slam_benchmark's business; here the ATE must exist
   // and be computed over every keyframe.
   ASSERT_TRUE(summary.ate_rmse_m.has_value());
-  EXPECT_EQ(summary.ate_poses, 12);
+  EXPECT_EQ(summary.ate_poses, keyframes);
   EXPECT_TRUE(std::isfinite(*summary.ate_rmse_m));
 
   const store::Model model = store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
-  EXPECT_EQ(model.NumKeyframes(), 12);
+  EXPECT_EQ(model.NumKeyframes(), keyframes);
   const std::vector<store::SessionRecord> sessions = model.Sessions();
   ASSERT_EQ(sessions.size(), 1u);
   EXPECT_EQ(sessions[0].end_state, store::SessionEnd::kFinished);
@@ -78,9 +84,9 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
   // The trajectory file holds the model's (final) poses.
   const std::vector<StampedPose> written = ReadTumTrajectory(dir + "/trajectory.txt");
   const std::vector<StampedPose> stored = store::ModelTrajectory(model);
-  ASSERT_EQ(written.size(), 12u);
-  ASSERT_EQ(stored.size(), 12u);
-  for (size_t i = 0; i < 12; ++i) {
+  ASSERT_EQ(written.size(), static_cast<size_t>(keyframes));
+  ASSERT_EQ(stored.size(), static_cast<size_t>(keyframes));
+  for (size_t i = 0; i < stored.size(); ++i) {
     EXPECT_EQ(written[i].timestamp_ns, stored[i].timestamp_ns);
     EXPECT_LT(
         (written[i].world_from_cam.translation() - stored[i].world_from_cam.translation()).norm(),
@@ -123,11 +129,13 @@ TEST(MappingSession, AnUnpluggedSensorEndsGracefullyWithTheReason) {
   sim::RegisterSimSource();
   EXPECT_EQ(summary.reason, StopReason::kSourceFailed);
   EXPECT_NE(summary.reason_detail.find("unplugged"), std::string::npos) << summary.reason_detail;
-  EXPECT_EQ(summary.keyframes, 5);
+  // The five frames delivered before the failure, each a keyframe at 1 Hz once the map started.
+  const int keyframes = 5 - kBareStartFrames;
+  EXPECT_EQ(summary.keyframes, keyframes);
   const store::Model model = store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
-  EXPECT_EQ(model.NumKeyframes(), 5);
+  EXPECT_EQ(model.NumKeyframes(), keyframes);
   EXPECT_EQ(model.Sessions().at(0).end_state, store::SessionEnd::kInterrupted);
-  EXPECT_EQ(CountPoses(dir + "/trajectory.txt"), 5);
+  EXPECT_EQ(CountPoses(dir + "/trajectory.txt"), keyframes);
 }
 
 // Killed halfway and run again with the same command, a replay continues after its last stored
@@ -138,22 +146,25 @@ TEST(MappingSession, AResumedReplayContinuesAfterItsLastStoredFrame) {
   MappingOptions first = SimOptions(dir, 20);
   first.max_keyframes = 8;
   ASSERT_EQ(MappingSession(first).Run().keyframes, 8);
+  const int last_stored = 8 + kBareStartFrames - 1;  // frames 1-8 at 1 Hz
 
   const MappingSummary second = MappingSession(SimOptions(dir, 20)).Run();
   EXPECT_TRUE(second.resumed);
   ASSERT_TRUE(second.continued_after_s.has_value());
-  EXPECT_NEAR(*second.continued_after_s, 7.0, 1e-6);  // frame 7 at 1 Hz
-  EXPECT_EQ(second.frames_skipped, 8);
+  EXPECT_NEAR(*second.continued_after_s, last_stored, 1e-6);
+  EXPECT_EQ(second.frames_skipped, last_stored + 1);
   EXPECT_EQ(second.frames_read, 20);
-  EXPECT_EQ(second.keyframes, 12);
+  EXPECT_EQ(second.frames_before_start, 0) << "a continued walk starts on its stored keyframe";
+  EXPECT_EQ(second.keyframes, 20 - (last_stored + 1));
   {
     const store::Model model =
         store::Model::Open(dir + "/model.db", store::ModelOptions::ReadOnly());
     std::set<TimestampNs> stamps;
     for (const store::KeyframeInfo& keyframe : model.Keyframes())
       stamps.insert(keyframe.timestamp_ns);
-    EXPECT_EQ(model.NumKeyframes(), 20);
-    EXPECT_EQ(stamps.size(), 20u) << "a frame was mapped twice";
+    EXPECT_EQ(model.NumKeyframes(), 20 - kBareStartFrames);
+    EXPECT_EQ(stamps.size(), static_cast<size_t>(model.NumKeyframes()))
+        << "a frame was mapped twice";
   }
 
   try {
@@ -167,7 +178,7 @@ TEST(MappingSession, AResumedReplayContinuesAfterItsLastStoredFrame) {
   const MappingSummary other = MappingSession(SimOptions(dir, 3)).Run();
   EXPECT_FALSE(other.continued_after_s.has_value());
   EXPECT_EQ(other.frames_skipped, 0);
-  EXPECT_EQ(other.keyframes, 3);
+  EXPECT_EQ(other.keyframes, 3 - kBareStartFrames);
 }
 
 TEST(MappingSession, AStartFramePastTheEndIsRefusedBeforeTheModelIsTouched) {

@@ -355,22 +355,27 @@ bool Tracker::WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) co
   return false;
 }
 
-void Tracker::Start(Placed& frame, TrackResult* result) {
+bool Tracker::StartOnEarlierFrame(Placed& frame, TrackResult* result) {
   if (counters_.frames == 1) first_timestamp_ns_ = frame.frame.timestamp_ns;
   const double waited_s =
       1e-9 * static_cast<double>(frame.frame.timestamp_ns - first_timestamp_ns_);
-  if (frame.points < options_.min_reference_points && waited_s < options_.start_max_wait_s) {
+  const bool rich = frame.points >= options_.min_reference_points;
+  if (!rich && waited_s < options_.start_max_wait_s) {
     if (!start_candidate_ || frame.points > start_candidate_->points) {
       start_candidate_ = std::make_unique<Placed>(frame);
     }
     ++counters_.before_start;
-    return;
+    return false;
   }
   // Past the wait without a frame that has enough points: the richest one seen, this one included.
-  // Either way one frame of those seen stays unplaced: the count of frames before it holds.
-  StartMapOn(
-      start_candidate_ && start_candidate_->points > frame.points ? *start_candidate_ : frame,
-      result);
+  // An earlier frame that wins is placed now, and this frame is tracked against it like any other.
+  if (!rich && start_candidate_ && start_candidate_->points > frame.points) {
+    --counters_.before_start;
+    StartMapOn(*start_candidate_, result);
+    return true;
+  }
+  StartMapOn(frame, result);
+  return false;
 }
 
 void Tracker::StartMapOn(Placed& first, TrackResult* result) {
@@ -405,8 +410,7 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   Placed frame = Prepare(input, &result);
   ++counters_.frames;
   const bool tick = rate_.Accept(input.timestamp_ns);
-  if (!reference_) {
-    Start(frame, &result);
+  if (!reference_ && !StartOnEarlierFrame(frame, &result)) {
     result.total_s = SecondsSince(start);
     return result;
   }

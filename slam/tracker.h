@@ -120,10 +120,8 @@ struct TrackerOptions {
   // otherwise anchors the map on a keyframe nothing registers to, joined to the rest only by the
   // motion model (the simulator's seed 1 walk: 16 3D keypoints, a 0.3 s blind link claiming no
   // motion while the walker turned 10 degrees, and the whole map 10.4 degrees off its anchor).
-  // 0 (the default for now) starts on the first frame whatever it holds: with 1 s, seven
-  // mapping_test and map_test cases that count keyframes of the seed 1 walk need new counts, and
-  // a resumed replay mapped one frame twice, not yet traced [s].
-  double start_max_wait_s = 0.0;
+  // 0 starts on the first frame whatever it holds [s].
+  double start_max_wait_s = 1.0;
 
   bool Check(std::string* error) const;
 };
@@ -227,9 +225,10 @@ class Tracker {
   bool WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) const;
   // Emits `frame` as a keyframe and makes it the reference.
   void Emit(Placed& frame, bool early, TrackResult* result);
-  // Before the first keyframe: emits `frame` as it when it can anchor the map (or the wait is
-  // over, then the richest frame seen), else keeps the richest frame.
-  void Start(Placed& frame, TrackResult* result);
+  // Before the first keyframe: emits `frame` as it when it can anchor the map, else keeps the
+  // richest frame seen; once the wait is over, emits the richest. True when that was an earlier
+  // frame, so that `frame` is still to be placed against it.
+  bool StartOnEarlierFrame(Placed& frame, TrackResult* result);
   // Emits `first` as the map's first keyframe and makes it the last frame placed.
   void StartMapOn(Placed& first, TrackResult* result);
 

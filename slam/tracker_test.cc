@@ -285,19 +285,22 @@ TEST(Tracker, WithoutARichFrameTheMapStartsOnTheRichestOfTheWait) {
   options.min_reference_points = 100000;  // no frame is rich enough
   options.start_max_wait_s = 0.5;
   Tracker tracker(walk.camera, options);
-  // Covered for 0.2 s, then frames of the walk: the richest frame of the first 0.5 s (frames 0-4)
-  // starts the map when frame 5 ends the wait.
+  // Covered for 0.2 s, then frames of the walk, then covered again: the richest frame of the first
+  // 0.5 s (frames 2-4) starts the map when frame 5 ends the wait, and frame 5 is placed against it.
   std::vector<TrackResult> results;
   for (size_t i = 0; i < 6; ++i) {
-    const RgbdFrame frame = i < 2 ? CoveredLens(walk.frames[i]) : walk.frames[i];
-    results.push_back(tracker.Track(frame));
+    const bool covered = i < 2 || i == 5;
+    results.push_back(tracker.Track(covered ? CoveredLens(walk.frames[i]) : walk.frames[i]));
   }
   for (size_t i = 0; i < 5; ++i) EXPECT_TRUE(results[i].keyframes.empty()) << "frame " << i;
   ASSERT_EQ(results[5].keyframes.size(), 1u);
   const int64_t first = results[5].keyframes[0].frame.index;
   EXPECT_GE(first, 2) << "a covered frame has no 3D keypoint";
+  EXPECT_LE(first, 4);
   EXPECT_FALSE(results[5].keyframes[0].motion);
-  EXPECT_EQ(tracker.counters().before_start, 5);
+  EXPECT_EQ(results[5].reference_index, first) << "the frame that ended the wait was not placed";
+  EXPECT_EQ(tracker.counters().before_start, 4);
+  EXPECT_EQ(tracker.counters().blind, 1) << "the covered frame 5 is placed on the motion model";
 
   // A stream that ends within the wait gives its richest frame at Finish.
   Tracker short_stream(walk.camera, options);
