@@ -50,9 +50,11 @@ void TrackStage::Run() {
         report_.frame_s.push_back(result.total_s);
         ++tracked_frames_;
         for (slam::TrackedKeyframe& keyframe : result.keyframes) {
-          // A closed keyframe queue: the mapping stage stopped taking keyframes.
           taken = taken && keyframes_->Push(KeyframeItem{std::move(keyframe), true});
         }
+        // A closed keyframe queue: the mapping stage stopped taking keyframes, also while this
+        // frame made none (the tracker may be waiting for a frame to start the map on).
+        taken = taken && !keyframes_->closed();
       }
       // A stream that ended before a frame could anchor the map still gives its richest frame.
       for (slam::TrackedKeyframe& keyframe : tracker.Finish().keyframes) {

@@ -101,7 +101,7 @@ TEST(TrackStage, StopsWhenTheMappingStageTakesNoMoreKeyframes) {
   BoundedQueue<KeyframeItem> keyframes(1);
   keyframes.Close();  // mapping stopped
   TrackStage stage(simulator.options().camera, TrackStageOptions(), &frames, &keyframes);
-  frames.Push(simulator.RenderFrame(0));  // its first keyframe finds the queue closed
+  frames.Push(simulator.RenderFrame(0));  // after it the stage finds the queue closed
   stage.Join();                           // returns although the input was never closed
   EXPECT_EQ(stage.tracked_frames(), 1);
   EXPECT_EQ(stage.error(), nullptr);

@@ -359,23 +359,47 @@ bool Tracker::StartOnEarlierFrame(Placed& frame, TrackResult* result) {
   if (counters_.frames == 1) first_timestamp_ns_ = frame.frame.timestamp_ns;
   const double waited_s =
       1e-9 * static_cast<double>(frame.frame.timestamp_ns - first_timestamp_ns_);
-  const bool rich = frame.points >= options_.min_reference_points;
-  if (!rich && waited_s < options_.start_max_wait_s) {
-    if (!start_candidate_ || frame.points > start_candidate_->points) {
-      start_candidate_ = std::make_unique<Placed>(frame);
-    }
-    ++counters_.before_start;
-    return false;
-  }
-  // Past the wait without a frame that has enough points: the richest one seen, this one included.
-  // An earlier frame that wins is placed now, and this frame is tracked against it like any other.
-  if (!rich && start_candidate_ && start_candidate_->points > frame.points) {
+  const auto rich = [&](const Placed& placed) {
+    return placed.points >= options_.min_reference_points;
+  };
+  // A rich frame anchors the map once the next frame registers to it: a rich first frame that
+  // nothing after it registers to would hang the map on the motion model all the same.
+  if (start_candidate_ && rich(*start_candidate_) && RegistersTo(frame, *start_candidate_)) {
     --counters_.before_start;
     StartMapOn(*start_candidate_, result);
     return true;
   }
-  StartMapOn(frame, result);
+  if (waited_s >= options_.start_max_wait_s) {
+    // Past the wait: the candidate when it is rich or richer than this frame (at 1 Hz the next
+    // frame often does not register, and dropping a rich frame loses a second of the walk), else
+    // this frame. An earlier frame is placed now, and this frame is tracked against it.
+    if (start_candidate_ && (rich(*start_candidate_) || start_candidate_->points > frame.points)) {
+      --counters_.before_start;
+      StartMapOn(*start_candidate_, result);
+      return true;
+    }
+    StartMapOn(frame, result);
+    return false;
+  }
+  // Waiting: the newest rich frame, else the richest, is the candidate.
+  if (!start_candidate_ || rich(frame) ||
+      (!rich(*start_candidate_) && frame.points > start_candidate_->points)) {
+    start_candidate_ = std::make_unique<Placed>(frame);
+  }
+  ++counters_.before_start;
   return false;
+}
+
+bool Tracker::RegistersTo(const Placed& frame, const Placed& reference) const {
+  const RegistrationResult registration =
+      RegisterRgbd(frame.features, reference.features, frame.depth_small, reference.depth_small,
+                   camera_, options_.registration);
+  const double dt_s =
+      1e-9 * static_cast<double>(frame.frame.timestamp_ns - reference.frame.timestamp_ns);
+  return registration.success && registration.target_from_source.matrix().allFinite() &&
+         MotionWithin(registration.target_from_source,
+                      options_.max_deviation_mps * dt_s + options_.deviation_slack_m,
+                      options_.max_deviation_dps * dt_s + options_.deviation_slack_deg);
 }
 
 void Tracker::StartMapOn(Placed& first, TrackResult* result) {

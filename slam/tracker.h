@@ -115,12 +115,13 @@ struct TrackerOptions {
   double blind_keyframe_after_s = 0.3;
   // Frames with fewer 3D keypoints make poor references: a blind stretch waits for a better one.
   int min_reference_points = 30;
-  // When positive, the map's first keyframe is a frame with min_reference_points, or the richest
-  // frame of the first start_max_wait_s when none has them: a walk that starts facing a bare wall
+  // When positive, the map's first keyframe is a frame with min_reference_points that the next
+  // frame registers to; when start_max_wait_s passes without one, the last rich frame (or the
+  // richest frame when none was rich). A walk that starts facing a bare wall, or turning fast,
   // otherwise anchors the map on a keyframe nothing registers to, joined to the rest only by the
-  // motion model (the simulator's seed 1 walk: 16 3D keypoints, a 0.3 s blind link claiming no
-  // motion while the walker turned 10 degrees, and the whole map 10.4 degrees off its anchor).
-  // 0 starts on the first frame whatever it holds [s].
+  // motion model: the simulator's seed 1 walk (16 3D keypoints, a 0.3 s blind link claiming no
+  // motion while the walker turned 10 degrees) and seed 23 walk (30 keypoints, frames 1-3 blind)
+  // gave maps 10.4 and 10.6 degrees off their anchor. 0 starts on the first frame [s].
   double start_max_wait_s = 1.0;
 
   bool Check(std::string* error) const;
@@ -225,10 +226,13 @@ class Tracker {
   bool WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) const;
   // Emits `frame` as a keyframe and makes it the reference.
   void Emit(Placed& frame, bool early, TrackResult* result);
-  // Before the first keyframe: emits `frame` as it when it can anchor the map, else keeps the
-  // richest frame seen; once the wait is over, emits the richest. True when that was an earlier
-  // frame, so that `frame` is still to be placed against it.
+  // Before the first keyframe: emits the candidate (a frame with min_reference_points) as it once
+  // `frame` registers to it, else keeps `frame` as the candidate when it is rich (or the richest);
+  // once the wait is over, emits the candidate (or `frame` when it is richer than a poor
+  // candidate). True when an earlier frame was emitted, so `frame` is still to be placed.
   bool StartOnEarlierFrame(Placed& frame, TrackResult* result);
+  // Whether `frame` registers to `reference` by features, without a prediction.
+  bool RegistersTo(const Placed& frame, const Placed& reference) const;
   // Emits `first` as the map's first keyframe and makes it the last frame placed.
   void StartMapOn(Placed& first, TrackResult* result);
 
