@@ -257,18 +257,29 @@ TEST(Tracker, ContinuesAWalkFromItsNewestStoredKeyframe) {
   EXPECT_EQ(tracker.counters().keyframes, 1);
 }
 
+// The first `frames` frames of the hand-held walk of `seed` at 10 Hz.
+Walk WalkStart(uint64_t seed, int frames) {
+  sim::SimulatorOptions options;
+  options.fps = 10.0;
+  options.frames = frames;
+  options.seed = seed;
+  return testing::RenderSimWalk(options);
+}
+
+// Every frame of `walk` through `tracker`, the keyframes chained.
+Chain TrackAll(const Walk& walk, Tracker* tracker) {
+  Chain chain;
+  for (const RgbdFrame& frame : walk.frames) Append(tracker->Track(frame), walk.frames, &chain);
+  return chain;
+}
+
 // The seed 1 walk starts facing a bare wall: frames 0 and 1 hold 16-17 3D keypoints, frame 2 holds
 // 30. Anchored on frame 0, the map hung on a 0.3 s blind link claiming no motion while the walker
 // turned 10 degrees, and the whole map sat 10.4 degrees off its anchor.
 TEST(Tracker, TheMapStartsOnAFrameThatCanAnchorIt) {
-  sim::SimulatorOptions sim_options;
-  sim_options.fps = 10.0;
-  sim_options.frames = 12;
-  sim_options.seed = 1;
-  const Walk walk = testing::RenderSimWalk(sim_options);
+  const Walk walk = WalkStart(1, 12);
   Tracker tracker(walk.camera);  // waits up to 1 s by default
-  Chain chain;
-  for (const RgbdFrame& frame : walk.frames) Append(tracker.Track(frame), walk.frames, &chain);
+  const Chain chain = TrackAll(walk, &tracker);
   ASSERT_FALSE(chain.frames.empty());
   EXPECT_EQ(chain.frames.front()->index, 2);
   EXPECT_EQ(tracker.counters().before_start, 2);
@@ -282,14 +293,9 @@ TEST(Tracker, TheMapStartsOnAFrameThatCanAnchorIt) {
 // motion model (that walk's model sat 10.6 degrees off its anchor). The map starts on frame 3,
 // the first rich frame that the next one registers to.
 TEST(Tracker, ARichFirstFrameNothingRegistersToDoesNotStartTheMap) {
-  sim::SimulatorOptions sim_options;
-  sim_options.fps = 10.0;
-  sim_options.frames = 8;
-  sim_options.seed = 23;
-  const Walk walk = testing::RenderSimWalk(sim_options);
+  const Walk walk = WalkStart(23, 8);
   Tracker tracker(walk.camera);
-  Chain chain;
-  for (const RgbdFrame& frame : walk.frames) Append(tracker.Track(frame), walk.frames, &chain);
+  const Chain chain = TrackAll(walk, &tracker);
   ASSERT_FALSE(chain.frames.empty());
   EXPECT_EQ(chain.frames.front()->index, 3);
   EXPECT_EQ(tracker.counters().before_start, 3);
@@ -300,9 +306,7 @@ TEST(Tracker, ARichFirstFrameNothingRegistersToDoesNotStartTheMap) {
   TrackerOptions at_once;
   at_once.start_max_wait_s = 0.0;
   Tracker first_frame(walk.camera, at_once);
-  Chain unconfirmed;
-  for (const RgbdFrame& frame : walk.frames)
-    Append(first_frame.Track(frame), walk.frames, &unconfirmed);
+  const Chain unconfirmed = TrackAll(walk, &first_frame);
   ASSERT_FALSE(unconfirmed.frames.empty());
   EXPECT_EQ(unconfirmed.frames.front()->index, 0);
   EXPECT_GE(first_frame.counters().blind, 2);
