@@ -190,17 +190,8 @@ bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predic
       RegisterRgbd(frame.features, reference_->features, frame.depth_small, reference_->depth_small,
                    camera_, options_.registration, &predicted);
   result->registration_s += SecondsSince(start);
-  if (!registration.success) return false;
   // The prediction is good to the time since the last frame registration or ICP placed.
-  const double since_placed_s = dt_s + last_->blind_s;
-  const Eigen::Isometry3d deviation = predicted.inverse() * registration.target_from_source;
-  if (!registration.target_from_source.matrix().allFinite() ||
-      !registration.information.allFinite() ||
-      !MotionWithin(deviation,
-                    options_.max_deviation_mps * since_placed_s + options_.deviation_slack_m,
-                    options_.max_deviation_dps * since_placed_s + options_.deviation_slack_deg)) {
-    return false;
-  }
+  if (!Believable(registration, predicted, dt_s + last_->blind_s)) return false;
   reference_best_inliers_ = std::max(reference_best_inliers_, registration.inliers);
   frame.reference_from_cam = registration.target_from_source;
   frame.covariance = Inverse(registration.information);
@@ -209,6 +200,15 @@ bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predic
   frame.blind_s = 0.0;
   result->inliers = registration.inliers;
   return true;
+}
+
+bool Tracker::Believable(const RegistrationResult& registration, const Eigen::Isometry3d& predicted,
+                         double since_placed_s) const {
+  return registration.success && registration.target_from_source.matrix().allFinite() &&
+         registration.information.allFinite() &&
+         MotionWithin(predicted.inverse() * registration.target_from_source,
+                      options_.max_deviation_mps * since_placed_s + options_.deviation_slack_m,
+                      options_.max_deviation_dps * since_placed_s + options_.deviation_slack_deg);
 }
 
 bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
@@ -362,22 +362,20 @@ bool Tracker::StartOnEarlierFrame(Placed& frame, TrackResult* result) {
   const auto rich = [&](const Placed& placed) {
     return placed.points >= options_.min_reference_points;
   };
+  const bool waited = waited_s >= options_.start_max_wait_s;
   // A rich frame anchors the map once the next frame registers to it: a rich first frame that
-  // nothing after it registers to would hang the map on the motion model all the same.
-  if (start_candidate_ && rich(*start_candidate_) && RegistersTo(frame, *start_candidate_)) {
+  // nothing after it registers to would hang the map on the motion model all the same. Past the
+  // wait, the candidate still starts it when it is rich or richer than this frame (at 1 Hz the next
+  // frame often does not register, and dropping a rich frame loses a second of the walk). An
+  // earlier frame is placed now, and this frame is tracked against it.
+  if (start_candidate_ &&
+      (rich(*start_candidate_) ? waited || RegistersTo(frame, *start_candidate_)
+                               : waited && start_candidate_->points > frame.points)) {
     --counters_.before_start;
     StartMapOn(*start_candidate_, result);
     return true;
   }
-  if (waited_s >= options_.start_max_wait_s) {
-    // Past the wait: the candidate when it is rich or richer than this frame (at 1 Hz the next
-    // frame often does not register, and dropping a rich frame loses a second of the walk), else
-    // this frame. An earlier frame is placed now, and this frame is tracked against it.
-    if (start_candidate_ && (rich(*start_candidate_) || start_candidate_->points > frame.points)) {
-      --counters_.before_start;
-      StartMapOn(*start_candidate_, result);
-      return true;
-    }
+  if (waited) {
     StartMapOn(frame, result);
     return false;
   }
@@ -396,10 +394,7 @@ bool Tracker::RegistersTo(const Placed& frame, const Placed& reference) const {
                    camera_, options_.registration);
   const double dt_s =
       1e-9 * static_cast<double>(frame.frame.timestamp_ns - reference.frame.timestamp_ns);
-  return registration.success && registration.target_from_source.matrix().allFinite() &&
-         MotionWithin(registration.target_from_source,
-                      options_.max_deviation_mps * dt_s + options_.deviation_slack_m,
-                      options_.max_deviation_dps * dt_s + options_.deviation_slack_deg);
+  return Believable(registration, Eigen::Isometry3d::Identity(), dt_s);
 }
 
 void Tracker::StartMapOn(Placed& first, TrackResult* result) {

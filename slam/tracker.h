@@ -213,6 +213,10 @@ class Tracker {
   struct DenseFrame;
 
   Placed Prepare(const RgbdFrame& frame, TrackResult* result) const;
+  // Whether a registration succeeded with a finite pose and information, within the walker's
+  // reach (max_deviation_*) of `predicted` after `since_placed_s`.
+  bool Believable(const RegistrationResult& registration, const Eigen::Isometry3d& predicted,
+                  double since_placed_s) const;
   // Registers `frame` to the reference by features; true when it succeeded.
   bool RegisterToReference(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                            TrackResult* result);
