@@ -264,8 +264,9 @@ TEST_F(LocatorTest, APortraitPhotoStoredSidewaysLandsWhereTheUprightOneDoes) {
   int compared = 0;
   for (const sim::QueryPhoto& query : *seen_photos_) {
     // The upright photo as a phone stores it too (JPEG), so that what is compared is the
-    // orientation alone: JPEG at quality 95 alone took one simulated photo from 421 inliers to
-    // none. One matched without margin could fall under the bar either way up.
+    // orientation alone: with anisotropic texture filtering in the simulator, JPEG at quality 95
+    // alone took one photo from 421 inliers to none. One matched without margin could fall under
+    // the bar either way up.
     const std::vector<uint8_t> upright_jpeg =
         testing::JpegWithExif(query.image, testing::ExifFields());
     const Photo upright_photo =
