@@ -261,33 +261,31 @@ TEST_F(LocatorTest, LargePhotosAreDownscaledAndAnswerInTheirOwnPixels) {
 // quarter clockwise to show). Located through the one photo path, with the sensor's (landscape)
 // calibration or the upright intrinsics, it must land where the upright photo does.
 TEST_F(LocatorTest, APortraitPhotoStoredSidewaysLandsWhereTheUprightOneDoes) {
+  // A photo as a phone stores it: JPEG, with an EXIF orientation.
+  const auto as_stored = [](const cv::Mat& pixels, const testing::ExifFields& fields) {
+    const std::vector<uint8_t> jpeg = testing::JpegWithExif(pixels, fields);
+    return DecodePhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels);
+  };
   int compared = 0;
   for (const sim::QueryPhoto& query : *seen_photos_) {
-    // The upright photo as a phone stores it too (JPEG), so that what is compared is the
-    // orientation alone: with anisotropic texture filtering in the simulator, JPEG at quality 95
-    // alone took one photo from 421 inliers to none. One matched without margin could fall under
-    // the bar either way up.
-    const std::vector<uint8_t> upright_jpeg =
-        testing::JpegWithExif(query.image, testing::ExifFields());
-    const Photo upright_photo =
-        DecodePhoto(upright_jpeg.data(), upright_jpeg.size(), kMaxPhotoMegapixels);
-    IntrinsicsHint upright_hint;
-    upright_hint.upright = query.intrinsics;
-    const LocateResult upright = locator_->Locate(upright_photo, upright_hint);
+    IntrinsicsHint given;
+    given.upright = query.intrinsics;
+    // The upright photo is stored as a JPEG too, so that what is compared is the orientation
+    // alone: with anisotropic texture filtering in the simulator, JPEG at quality 95 alone took
+    // one photo from 421 inliers to none. One matched without margin could fall under the bar
+    // either way up.
+    const LocateResult upright = locator_->Locate(as_stored(query.image, {}), given);
     if (!upright.matched || upright.inliers < 2 * LocatorOptions().min_inliers) continue;
     cv::Mat sideways;
     cv::rotate(query.image, sideways, cv::ROTATE_90_COUNTERCLOCKWISE);
     testing::ExifFields fields;
     fields.orientation = 6;
-    const std::vector<uint8_t> jpeg = testing::JpegWithExif(sideways, fields);
-    const Photo photo = DecodePhoto(jpeg.data(), jpeg.size(), kMaxPhotoMegapixels);
+    const Photo photo = as_stored(sideways, fields);
     ASSERT_EQ(photo.width(), query.image.cols);
     ASSERT_EQ(photo.height(), query.image.rows);
 
     IntrinsicsHint from_calibration;
     from_calibration.sensor = TurnClockwise(query.intrinsics, 3);  // the sideways sensor's
-    IntrinsicsHint given;
-    given.upright = query.intrinsics;
     for (const IntrinsicsHint& hint : {from_calibration, given}) {
       const LocateResult result = locator_->Locate(photo, hint);
       ASSERT_TRUE(result.matched) << "photo " << query.index << ": " << result.reason;

@@ -2,6 +2,7 @@
 // anchor to ground truth, the accuracy figure, and a keyframe without the ground truth it needs.
 #include "mapping/map_stage.h"
 
+#include <algorithm>
 #include <vector>
 
 #include <gtest/gtest.h>
