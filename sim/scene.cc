@@ -339,7 +339,13 @@ double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw,
       const Eigen::Vector3d dir(std::cos(a) * std::cos(down), std::sin(a) * std::cos(down),
                                 -std::sin(down));
       const auto hit = scene.Raycast(eye, dir, 4.3);
-      if (!hit || hit->first < 0.8) continue;
+      if (!hit) {
+        // Through a window: the street outside is as bare as the wall around it.
+        const auto far = scene.Raycast(eye, dir, 60.0);
+        if (far && far->second.rfind("outside", 0) == 0) score += 0.25;
+        continue;
+      }
+      if (hit->first < 0.8) continue;
       const std::string& name = hit->second;
       const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
                         name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0 ||

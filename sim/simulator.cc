@@ -23,7 +23,9 @@ render::RenderOptions SessionLighting(int session, uint64_t seed) {
   std::mt19937_64 rng(MixSeed(SessionSeed(seed, session), 11));
   render::RenderOptions options;
   options.near_m = 0.1;
-  options.far_m = 40.0;
+  options.far_m = 250.0;  // the facade across the street is 25 m away, 150 m along a slant view
+  // The only background a closed building shows is the sky through its windows: overcast.
+  options.background_rgb = Eigen::Vector3f(0.82f, 0.85f, 0.9f);
   options.ambient = static_cast<float>(session == 1 ? 0.55 : UniformReal(rng, 0.42, 0.62));
   options.lights.clear();
   for (int i = 0; i < 2; ++i) {

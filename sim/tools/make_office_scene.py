@@ -256,15 +256,54 @@ add("floor_rooms", [15, (YC + Y1) / 2, -0.05], [30.2, Y1 - YC, 0.1], "carpet")
 add("ceiling", [15, Y1 / 2, H + 0.05], [30.2, Y1 + 0.2, 0.1], "ceiling")
 wall_x("wall_south", X0, X1, 0.0, "wall_corridor", faces=(1,))
 wall_x("wall_rooms_south", X0, X1, YC, "wall_corridor", doors=[(4.0, 5.2), (14.0, 15.2), (24.0, 25.2)])
-wall_x("wall_north", X0, X1, Y1, "wall_white", faces=(-1,))
+WINDOWS_X = [2.5, 7.5, 12.5, 17.5, 22.5, 27.5]
+WIN_W, WIN_Z0, WIN_Z1 = 1.8, 0.95, 2.25  # opening width, sill and head heights
+# The north wall with an opening per window: full height between them, a breast below and a
+# lintel above each.
+north_cuts = [X0] + [v for x in WINDOWS_X for v in (x - WIN_W / 2, x + WIN_W / 2)] + [X1]
+for i in range(0, len(north_cuts), 2):
+    a, b = north_cuts[i], north_cuts[i + 1]
+    add(f"wall_north_{i//2}", [(a + b) / 2, Y1, H / 2], [b - a, T, H], "wall_white")
+add("skirting_wall_north_s", [(X0 + X1) / 2, Y1 - (T + SK_D) / 2, SK_H / 2], [X1 - X0, SK_D, SK_H],
+    "skirting")
 wall_y("wall_west", 0.0, Y1, X0, "wall_white", faces=(1,))
 wall_y("wall_east", 0.0, Y1, X1, "wall_white", faces=(-1,))
 wall_y("wall_ab", YC, Y1, 10.0, "wall_white", doors=[(8.2, 9.4)])
 wall_y("wall_bc", YC, Y1, 20.0, "wall_white", doors=[(8.2, 9.4)])
-# Windows (glass: no depth) on the north wall, the view outside is a photograph.
-for i, x in enumerate([2.5, 7.5, 12.5, 17.5, 22.5, 27.5]):
-    add(f"window_{i}", [x, Y1 - T / 2 - 0.01, 1.6], [1.8, 0.01, 1.3], "window")
+# Windows on the north wall: a frame in each opening, and through the glass the street outside,
+# far away. The glass itself is not drawn (it is clear); what is seen through it returns no depth
+# (the IR pattern does not come back through glass, and the street is beyond the sensor's range),
+# and it moves across the image as far things do, not with the wall.
+for i, x in enumerate(WINDOWS_X):
+    add(f"window_{i}_breast", [x, Y1, WIN_Z0 / 2], [WIN_W, T, WIN_Z0], "wall_white")
+    add(f"window_{i}_lintel", [x, Y1, (WIN_Z1 + H) / 2], [WIN_W, T, H - WIN_Z1], "wall_white")
+    fw = 0.06  # frame width; it stands in the opening, 6 cm deep
+    for k, side in enumerate((-1, 1)):
+        add(f"window_{i}_jamb{k}", [x + side * (WIN_W / 2 - fw / 2), Y1, (WIN_Z0 + WIN_Z1) / 2],
+            [fw, 0.06, WIN_Z1 - WIN_Z0], "window_frame")
+    add(f"window_{i}_head", [x, Y1, WIN_Z1 - fw / 2], [WIN_W, 0.06, fw], "window_frame")
+    add(f"window_{i}_bottom", [x, Y1, WIN_Z0 + fw / 2], [WIN_W, 0.06, fw], "window_frame")
+    # Two casements side by side under a fanlight: a mullion, a transom, and a handle on each.
+    add(f"window_{i}_mullion", [x, Y1, (WIN_Z0 + WIN_Z1) / 2], [0.08, 0.06, WIN_Z1 - WIN_Z0],
+        "window_frame")
+    add(f"window_{i}_transom", [x, Y1, 1.85], [WIN_W, 0.06, 0.06], "window_frame")
+    for k, side in enumerate((-1, 1)):
+        add(f"window_{i}_handle{k}", [x + side * 0.08, Y1 - 0.05, 1.45], [0.025, 0.04, 0.14],
+            "metal")
     add(f"window_{i}_sill", [x, Y1 - T / 2 - 0.08, 0.93], [1.9, 0.16, 0.04], "wall_white")
+    # A black rubber seal round each of the four panes, 1 cm wide, where glass meets frame.
+    g = 0.01
+    for k, (x0, x1) in enumerate(((x - WIN_W / 2 + fw, x - 0.04), (x + 0.04, x + WIN_W / 2 - fw))):
+        for m, (z0, z1) in enumerate(((WIN_Z0 + fw, 1.82), (1.88, WIN_Z1 - fw))):
+            pane = f"window_{i}_seal{2 * k + m}"
+            for n, zz in enumerate((z0 + g / 2, z1 - g / 2)):
+                add(f"{pane}_h{n}", [(x0 + x1) / 2, Y1 - 0.005, zz], [x1 - x0, 0.06, g], "seal")
+            for n, xx in enumerate((x0 + g / 2, x1 - g / 2)):
+                add(f"{pane}_v{n}", [xx, Y1 - 0.005, (z0 + z1) / 2], [g, 0.06, z1 - z0], "seal")
+# Outside: a building across the street 25 m north, and the street. The office is on the first
+# floor, 4 m above the street: from inside, the view out is mostly the facade opposite.
+add("outside_facade", [15, Y1 + 25, 15], [400, 1, 40], "outside_facade")
+add("outside_street", [15, Y1 + 12.6, -4.1], [400, 25, 0.2], "outside_street")
 
 # ---- room A: lab (x 0..10) ----
 desk("a_desk1", 0.5, 4.4, 0.8, 1.6)
@@ -601,7 +640,12 @@ scene = {
         "leaves": {"texture": "stuff", "scale_m": 0.6, "color": [0.35, 0.6, 0.3]},
         "whiteboard": {"texture": "text", "color": [1.0, 1.0, 1.0]},
         "notice_board": {"texture": "box_scene", "color": [0.95, 0.9, 0.8]},
-        "window": {"texture": "building", "color": [0.9, 0.95, 1.0], "no_depth": True, "unlit": True},
+        "window_frame": {"color": [0.93, 0.93, 0.91]},
+        "seal": {"color": [0.08, 0.08, 0.09]},
+        "outside_facade": {"texture": "building", "scale_m": 12.0, "color": [0.9, 0.95, 1.0],
+                           "no_depth": True, "unlit": True},
+        "outside_street": {"texture": "leuven", "scale_m": 8.0, "color": [0.6, 0.6, 0.6],
+                           "no_depth": True, "unlit": True},
         "screen_desktop": {"texture": "aero3", "color": [0.85, 0.85, 0.9], "no_depth": True, "unlit": True},
         "screen_tv": {"texture": "leuvenB", "color": [0.9, 0.9, 0.9], "no_depth": True, "unlit": True},
         "projection": {"color": [0.95, 0.95, 0.95]},
