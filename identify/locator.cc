@@ -26,8 +26,6 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "neighbour_radius_m and max_neighbours must not be negative";
   else if (match_node_level < 0)
     why << "match_node_level must not be negative";
-  else if (match_node_level < 0)
-    why << "match_node_level must not be negative";
   else if (!(match_ratio > 0.0 && match_ratio <= 1.0))
     why << "match_ratio must be in (0, 1]";
   else if (same_point_m < 0.0)
