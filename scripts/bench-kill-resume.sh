@@ -51,6 +51,6 @@ for model in whole killed; do
   keyframes=$(sed -n 's/^  "keyframes": *\([0-9]*\).*/\1/p' <<<"$info")
   parts=$(sed -n 's/^  "segments": *\([0-9]*\).*/\1/p' <<<"$info")
   ate=$("$bin" eval trajectory --gt "$gt/groundtruth.txt" --est "$out/$model-trajectory.txt" |
-    awk '/^ATE rmse/ {print $3}')
+    awk '$1 == "ATE" && $2 == "rmse" {print $3; exit}')
   printf '%-8s keyframes %5s  parts %4s  ATE %s m\n' "$model" "$keyframes" "$parts" "$ate"
 done
