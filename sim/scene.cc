@@ -338,15 +338,16 @@ double ViewScore(const Scene& scene, const Eigen::Vector3d& eye, double yaw,
       const double a = yaw + k * 0.12;
       const Eigen::Vector3d dir(std::cos(a) * std::cos(down), std::sin(a) * std::cos(down),
                                 -std::sin(down));
-      const auto hit = scene.Raycast(eye, dir, 4.3);
-      if (!hit) {
-        // Through a window: the street outside is as bare as the wall around it.
-        const auto far = scene.Raycast(eye, dir, 60.0);
-        if (far && far->second.rfind("outside", 0) == 0) score += 0.25;
+      // One ray to the street: the room's things count within 4.3 m, and a view out of a window
+      // (the street 25-60 m away) as bare as the wall around it.
+      const auto hit = scene.Raycast(eye, dir, 60.0);
+      if (!hit) continue;
+      const std::string& name = hit->second;
+      if (hit->first > 4.3) {
+        if (name.rfind("outside", 0) == 0) score += 0.25;
         continue;
       }
       if (hit->first < 0.8) continue;
-      const std::string& name = hit->second;
       const bool bare = name.rfind("wall", 0) == 0 || name.rfind("window", 0) == 0 ||
                         name.rfind("skirting", 0) == 0 || name.rfind("floor", 0) == 0 ||
                         (also_bare != nullptr && also_bare->count(name) > 0);
