@@ -271,9 +271,9 @@ TEST_F(LocatorTest, APortraitPhotoStoredSidewaysLandsWhereTheUprightOneDoes) {
     IntrinsicsHint given;
     given.upright = query.intrinsics;
     // The upright photo is stored as a JPEG too, so that what is compared is the orientation
-    // alone: with anisotropic texture filtering in the simulator, JPEG at quality 95 alone took
-    // one photo from 421 inliers to none. One matched without margin could fall under the bar
-    // either way up.
+    // alone: JPEG at quality 95 alone took one photo from 421 inliers to none (measured with
+    // anisotropic texture filtering, tried in the simulator and not kept). One matched without
+    // margin could fall under the bar either way up.
     const LocateResult upright = locator_->Locate(as_stored(query.image, {}), given);
     if (!upright.matched || upright.inliers < 2 * LocatorOptions().min_inliers) continue;
     cv::Mat sideways;

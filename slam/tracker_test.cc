@@ -274,9 +274,10 @@ Chain TrackAll(const Walk& walk, Tracker* tracker) {
 }
 
 // The seed 1 walk starts facing a bare wall: frames 0 and 1 hold 16-17 3D keypoints, frame 2 holds
-// 30 (a renderer with anisotropic texture filtering gave frame 2 28, and the map rightly started
-// on frame 3). Anchored on frame 0, the map hung on a 0.3 s blind link claiming no motion while the
-// walker turned 10 degrees, and the whole map sat 10.4 degrees off its anchor.
+// 30 (with anisotropic texture filtering, tried in the simulator and not kept, frame 2 held 28 and
+// the map rightly started on frame 3). Anchored on frame 0, the map hung on a 0.3 s blind link
+// claiming no motion while the walker turned 10 degrees, and the whole map sat 10.4 degrees off its
+// anchor.
 TEST(Tracker, TheMapStartsOnAFrameThatCanAnchorIt) {
   const Walk walk = WalkStart(1, 12);
   // The first frame rich enough to anchor the map, counted here rather than remembered.
