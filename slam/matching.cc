@@ -1,32 +1,89 @@
 #include "slam/matching.h"
 
+#include <cstring>
+#include <limits>
+
 #include <opencv2/features2d.hpp>
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "slam/hamming.h"
 
 namespace sightmap::slam {
+namespace {
 
-bool MatchOptions::Check(std::string* error) const {
-  if (!(ratio > 0.0 && ratio <= 1.0)) {
-    if (error) *error = "ratio must be in (0, 1]";
-    return false;
+constexpr int kNoDistance = std::numeric_limits<int>::max();
+
+// One pass over every (query, reference) pair of 256-bit descriptors gives both directions: each
+// query's two nearest references and each reference's nearest query. cv::BFMatcher took 20-35 ms
+// for knnMatch plus the backward match of 1,000 x 1,000 ORB descriptors on this machine, this
+// loop 1.5 ms: OpenCV's Hamming kernel enters a trace region per pair, and the cross check
+// computed every distance a second time. The popcnt clone is chosen at load time; the default
+// one serves CPUs without the instruction.
+__attribute__((target_clones("popcnt", "default"))) void NearestBinary(
+    const uint64_t* query, int num_query, const uint64_t* reference, int num_reference,
+    BinaryNeighbours* neighbours) {
+  neighbours->best.assign(static_cast<size_t>(num_query), -1);
+  neighbours->best_distance.assign(static_cast<size_t>(num_query), kNoDistance);
+  neighbours->second_distance.assign(static_cast<size_t>(num_query), kNoDistance);
+  neighbours->best_query.assign(static_cast<size_t>(num_reference), -1);
+  std::vector<int> best_query_distance(static_cast<size_t>(num_reference), kNoDistance);
+  for (int q = 0; q < num_query; ++q) {
+    const uint64_t* a = query + 4 * static_cast<size_t>(q);
+    int best = -1;
+    int best_distance = kNoDistance;
+    int second_distance = kNoDistance;
+    for (int r = 0; r < num_reference; ++r) {
+      const int distance = Hamming256(a, reference + 4 * static_cast<size_t>(r));
+      // Strict comparisons keep the first of equal distances, as cv::BFMatcher does.
+      if (distance < best_distance) {
+        second_distance = best_distance;
+        best_distance = distance;
+        best = r;
+      } else if (distance < second_distance) {
+        second_distance = distance;
+      }
+      if (distance < best_query_distance[static_cast<size_t>(r)]) {
+        best_query_distance[static_cast<size_t>(r)] = distance;
+        neighbours->best_query[static_cast<size_t>(r)] = q;
+      }
+    }
+    neighbours->best[static_cast<size_t>(q)] = best;
+    neighbours->best_distance[static_cast<size_t>(q)] = best_distance;
+    neighbours->second_distance[static_cast<size_t>(q)] = second_distance;
   }
-  return true;
 }
 
-std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& reference,
-                                         const MatchOptions& options) {
-  SIGHTMAP_CHECK_OPTIONS(options);
+// Descriptor rows of a cv::Mat carry no alignment promise: copied into words once.
+std::vector<uint64_t> Words(const cv::Mat& descriptors) {
+  std::vector<uint64_t> words(static_cast<size_t>(descriptors.rows) * 4);
+  for (int i = 0; i < descriptors.rows; ++i) {
+    std::memcpy(&words[4 * static_cast<size_t>(i)], descriptors.ptr<uint8_t>(i), 32);
+  }
+  return words;
+}
+
+std::vector<cv::DMatch> MatchBinary(const cv::Mat& query, const cv::Mat& reference,
+                                    const MatchOptions& options) {
+  const BinaryNeighbours neighbours = FindBinaryNeighbours(query, reference);
   std::vector<cv::DMatch> matches;
-  if (query.empty() || reference.rows < 2) return matches;
-  SIGHTMAP_CHECK(query.type() == reference.type() && query.cols == reference.cols,
-                 "cannot match descriptors of different types or lengths");
-  const int norm = query.type() == CV_8U ? cv::NORM_HAMMING : cv::NORM_L2;
-  cv::BFMatcher matcher(norm);
+  for (int q = 0; q < query.rows; ++q) {
+    const size_t i = static_cast<size_t>(q);
+    const int best = neighbours.best[i];
+    if (best < 0) continue;
+    if (neighbours.best_distance[i] >= options.ratio * neighbours.second_distance[i]) continue;
+    if (options.mutual && neighbours.best_query[static_cast<size_t>(best)] != q) continue;
+    matches.emplace_back(q, best, static_cast<float>(neighbours.best_distance[i]));
+  }
+  return matches;
+}
+
+// Other lengths and float descriptors.
+std::vector<cv::DMatch> MatchWithOpenCv(const cv::Mat& query, const cv::Mat& reference,
+                                        const MatchOptions& options) {
+  cv::BFMatcher matcher(query.type() == CV_8U ? cv::NORM_HAMMING : cv::NORM_L2);
   std::vector<std::vector<cv::DMatch>> knn;
   matcher.knnMatch(query, reference, knn, 2);
-
   std::vector<int> best_query_for_reference;
   if (options.mutual) {
     std::vector<cv::DMatch> backward;
@@ -36,6 +93,7 @@ std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& re
       best_query_for_reference[static_cast<size_t>(match.queryIdx)] = match.trainIdx;
     }
   }
+  std::vector<cv::DMatch> matches;
   for (const std::vector<cv::DMatch>& pair : knn) {
     if (pair.size() < 2) continue;
     if (pair[0].distance >= options.ratio * pair[1].distance) continue;
@@ -46,6 +104,38 @@ std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& re
     matches.push_back(pair[0]);
   }
   return matches;
+}
+
+}  // namespace
+
+bool MatchOptions::Check(std::string* error) const {
+  if (!(ratio > 0.0 && ratio <= 1.0)) {
+    if (error) *error = "ratio must be in (0, 1]";
+    return false;
+  }
+  return true;
+}
+
+BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& reference) {
+  SIGHTMAP_CHECK(query.type() == CV_8U && reference.type() == CV_8U && query.cols == 32 &&
+                     reference.cols == 32,
+                 "binary neighbours need 256-bit (32-byte) descriptors");
+  BinaryNeighbours neighbours;
+  const std::vector<uint64_t> query_words = Words(query);
+  const std::vector<uint64_t> reference_words = Words(reference);
+  NearestBinary(query_words.data(), query.rows, reference_words.data(), reference.rows,
+                &neighbours);
+  return neighbours;
+}
+
+std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& reference,
+                                         const MatchOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  if (query.empty() || reference.rows < 2) return {};
+  SIGHTMAP_CHECK(query.type() == reference.type() && query.cols == reference.cols,
+                 "cannot match descriptors of different types or lengths");
+  if (query.type() == CV_8U && query.cols == 32) return MatchBinary(query, reference, options);
+  return MatchWithOpenCv(query, reference, options);
 }
 
 SIGHTMAP_OPTIONS_JSON(MatchOptions, ratio, mutual)

@@ -23,6 +23,17 @@ struct MatchOptions {
 void to_json(nlohmann::json& json, const MatchOptions& options);
 void from_json(const nlohmann::json& json, MatchOptions& options);
 
+// For every query descriptor its nearest and second-nearest reference, and for every reference
+// its nearest query, by Hamming distance (256-bit descriptors: ORB); the first of equal distances
+// wins. The ratio test and the cross check of MatchDescriptors read these.
+struct BinaryNeighbours {
+  std::vector<int> best;             // per query: index into reference, -1 if there is none
+  std::vector<int> best_distance;    // per query [bits]; INT_MAX if there is none
+  std::vector<int> second_distance;  // per query [bits]; INT_MAX with fewer than two references
+  std::vector<int> best_query;       // per reference: index into query, -1 if there is none
+};
+BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& reference);
+
 // Matches query descriptors to reference descriptors (both CV_8U binary, or both CV_32F).
 // DMatch::queryIdx indexes `query`, trainIdx indexes `reference`.
 std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& reference,

@@ -1,0 +1,125 @@
+#include "slam/matching.h"
+
+#include <algorithm>
+#include <climits>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/features2d.hpp>
+
+namespace sightmap::slam {
+namespace {
+
+// Random 256-bit descriptors; every third query is a copy of a reference with a few bits flipped,
+// so that the ratio test and the cross check both keep and refuse matches.
+void PlantedDescriptors(int num_query, int num_reference, cv::Mat* query, cv::Mat* reference) {
+  cv::RNG rng(7);
+  reference->create(num_reference, 32, CV_8U);
+  rng.fill(*reference, cv::RNG::UNIFORM, 0, 256);
+  query->create(num_query, 32, CV_8U);
+  rng.fill(*query, cv::RNG::UNIFORM, 0, 256);
+  for (int q = 0; q < num_query; q += 3) {
+    const int r = (q * 7) % num_reference;
+    reference->row(r).copyTo(query->row(q));
+    const int flips = q % 40;
+    for (int f = 0; f < flips; ++f) {
+      const int bit = rng.uniform(0, 256);
+      query->at<uint8_t>(q, bit / 8) ^= static_cast<uint8_t>(1u << (bit % 8));
+    }
+  }
+}
+
+// What the matcher did before: cv::BFMatcher's two nearest, its backward match as cross check.
+std::vector<cv::DMatch> ReferenceMatches(const cv::Mat& query, const cv::Mat& reference,
+                                         const MatchOptions& options) {
+  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  std::vector<std::vector<cv::DMatch>> knn;
+  matcher.knnMatch(query, reference, knn, 2);
+  std::vector<cv::DMatch> backward;
+  matcher.match(reference, query, backward);
+  std::vector<cv::DMatch> matches;
+  for (const std::vector<cv::DMatch>& pair : knn) {
+    if (pair[0].distance >= options.ratio * pair[1].distance) continue;
+    if (options.mutual &&
+        backward[static_cast<size_t>(pair[0].trainIdx)].trainIdx != pair[0].queryIdx) {
+      continue;
+    }
+    matches.push_back(pair[0]);
+  }
+  return matches;
+}
+
+void ExpectSameMatches(const std::vector<cv::DMatch>& actual,
+                       const std::vector<cv::DMatch>& expected) {
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < actual.size(); ++i) {
+    EXPECT_EQ(actual[i].queryIdx, expected[i].queryIdx) << i;
+    EXPECT_EQ(actual[i].trainIdx, expected[i].trainIdx) << i;
+    EXPECT_EQ(actual[i].distance, expected[i].distance) << i;
+  }
+}
+
+TEST(Matching, BinaryMatchesAreOpenCvsBruteForceMatches) {
+  cv::Mat query, reference;
+  PlantedDescriptors(600, 500, &query, &reference);
+  for (const bool mutual : {true, false}) {
+    for (const double ratio : {0.8, 0.9, 1.0}) {
+      MatchOptions options;
+      options.mutual = mutual;
+      options.ratio = ratio;
+      const std::vector<cv::DMatch> expected = ReferenceMatches(query, reference, options);
+      SCOPED_TRACE(testing::Message() << "mutual " << mutual << ", ratio " << ratio);
+      ExpectSameMatches(MatchDescriptors(query, reference, options), expected);
+      // The planted copies (200 queries, up to 39 bits flipped) pass; with a ratio below 1 few
+      // random queries do.
+      EXPECT_GT(expected.size(), 150u);
+      if (ratio < 1.0) {
+        EXPECT_LT(expected.size(), 400u);
+      }
+    }
+  }
+}
+
+TEST(Matching, EqualDistancesKeepTheFirstReferenceAndFailTheRatioTest) {
+  cv::Mat reference(3, 32, CV_8U, cv::Scalar(0));
+  reference.row(2).setTo(cv::Scalar(255));
+  cv::Mat query(1, 32, CV_8U, cv::Scalar(0));
+  const BinaryNeighbours neighbours = FindBinaryNeighbours(query, reference);
+  EXPECT_EQ(neighbours.best[0], 0);  // rows 0 and 1 are both at distance 0
+  EXPECT_EQ(neighbours.best_distance[0], 0);
+  EXPECT_EQ(neighbours.second_distance[0], 0);
+  EXPECT_EQ(neighbours.best_query[0], 0);
+  EXPECT_EQ(neighbours.best_query[2], 0);
+  EXPECT_TRUE(MatchDescriptors(query, reference).empty());
+}
+
+TEST(Matching, OneReferenceHasNoSecondNeighbour) {
+  cv::Mat reference(1, 32, CV_8U, cv::Scalar(0));
+  cv::Mat query(2, 32, CV_8U, cv::Scalar(1));
+  const BinaryNeighbours neighbours = FindBinaryNeighbours(query, reference);
+  EXPECT_EQ(neighbours.best[1], 0);
+  EXPECT_EQ(neighbours.best_distance[1], 32);
+  EXPECT_EQ(neighbours.second_distance[1], INT_MAX);
+  EXPECT_EQ(neighbours.best_query[0], 0);
+  // The ratio test needs a second neighbour: nothing is matched against one reference.
+  EXPECT_TRUE(MatchDescriptors(query, reference).empty());
+}
+
+TEST(Matching, FloatDescriptorsStillMatch) {
+  cv::Mat reference(4, 8, CV_32F);
+  cv::randu(reference, 0.0, 1.0);
+  cv::Mat query = reference.row(2).clone();
+  query.at<float>(0, 0) += 0.01f;
+  const std::vector<cv::DMatch> matches = MatchDescriptors(query, reference);
+  ASSERT_EQ(matches.size(), 1u);
+  EXPECT_EQ(matches[0].trainIdx, 2);
+}
+
+TEST(Matching, RefusesDescriptorsOfDifferentLengths) {
+  const cv::Mat query(2, 32, CV_8U, cv::Scalar(0));
+  const cv::Mat reference(2, 16, CV_8U, cv::Scalar(0));
+  EXPECT_ANY_THROW(MatchDescriptors(query, reference));
+}
+
+}  // namespace
+}  // namespace sightmap::slam
