@@ -7,7 +7,6 @@
 #include <unordered_map>
 
 #include <opencv2/calib3d.hpp>
-#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
@@ -16,6 +15,7 @@
 #include "identify/photo.h"
 #include "slam/features.h"
 #include "slam/hamming.h"
+#include "slam/matching.h"
 
 namespace sightmap::identify {
 
@@ -151,7 +151,7 @@ void RefineFocal(const std::vector<cv::Point3f>& object, const std::vector<cv::P
 }
 
 // The k nearest `train` descriptors of each `query` descriptor among those under the same
-// vocabulary node, nearest first, as cv::BFMatcher::knnMatch gives them.
+// vocabulary node, nearest first, as slam::KNearestBinary gives them.
 std::vector<std::vector<cv::DMatch>> KnnWithinNodes(const cv::Mat& query,
                                                     const std::vector<int>& query_nodes,
                                                     const cv::Mat& train,
@@ -495,8 +495,7 @@ PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
   if (bounded) {
     knn = KnnWithinNodes(query, photo.nodes, matches.model_descriptors, model_nodes, 4);
   } else {
-    // OpenCV's exhaustive search uses the machine's vector popcount.
-    cv::BFMatcher(cv::NORM_HAMMING).knnMatch(query, matches.model_descriptors, knn, 4);
+    knn = slam::KNearestBinary(query, matches.model_descriptors, 4);
   }
   const double same_point_sq = options.same_point_m * options.same_point_m;
   for (const std::vector<cv::DMatch>& neighbours : knn) {

@@ -1,5 +1,6 @@
 #include "slam/matching.h"
 
+#include <algorithm>
 #include <cstring>
 #include <limits>
 
@@ -51,6 +52,33 @@ __attribute__((target_clones("popcnt", "default"))) void NearestBinary(
     neighbours->best[static_cast<size_t>(q)] = best;
     neighbours->best_distance[static_cast<size_t>(q)] = best_distance;
     neighbours->second_distance[static_cast<size_t>(q)] = second_distance;
+  }
+}
+
+// Each query's k nearest references, nearest first, kept by insertion: strict comparisons keep
+// the first of equal distances first, as cv::BFMatcher::knnMatch does.
+__attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t* query,
+                                                                  int num_query,
+                                                                  const uint64_t* reference,
+                                                                  int num_reference, int k,
+                                                                  int* indices, int* distances) {
+  for (int q = 0; q < num_query; ++q) {
+    const uint64_t* a = query + 4 * static_cast<size_t>(q);
+    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
+    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
+    std::fill(index, index + k, -1);
+    std::fill(distance, distance + k, kNoDistance);
+    for (int r = 0; r < num_reference; ++r) {
+      const int d = Hamming256(a, reference + 4 * static_cast<size_t>(r));
+      if (d >= distance[k - 1]) continue;
+      int j = k - 1;
+      for (; j > 0 && d < distance[j - 1]; --j) {
+        distance[j] = distance[j - 1];
+        index[j] = index[j - 1];
+      }
+      distance[j] = d;
+      index[j] = r;
+    }
   }
 }
 
@@ -126,6 +154,32 @@ BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& refer
   NearestBinary(query_words.data(), query.rows, reference_words.data(), reference.rows,
                 &neighbours);
   return neighbours;
+}
+
+std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
+                                                    int k) {
+  SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");
+  SIGHTMAP_CHECK(query.type() == CV_8U && reference.type() == CV_8U &&
+                     (query.empty() || query.cols == 32) &&
+                     (reference.empty() || reference.cols == 32),
+                 "k nearest needs 256-bit (32-byte) descriptors");
+  const size_t slots = static_cast<size_t>(query.rows) * static_cast<size_t>(k);
+  std::vector<int> indices(slots);
+  std::vector<int> distances(slots);
+  const std::vector<uint64_t> query_words = Words(query);
+  const std::vector<uint64_t> reference_words = Words(reference);
+  KNearest(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
+           indices.data(), distances.data());
+  std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(query.rows));
+  for (int q = 0; q < query.rows; ++q) {
+    std::vector<cv::DMatch>& neighbours = knn[static_cast<size_t>(q)];
+    for (int j = 0; j < k; ++j) {
+      const size_t slot = static_cast<size_t>(q) * static_cast<size_t>(k) + static_cast<size_t>(j);
+      if (indices[slot] < 0) break;
+      neighbours.emplace_back(q, indices[slot], static_cast<float>(distances[slot]));
+    }
+  }
+  return knn;
 }
 
 std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& reference,

@@ -80,6 +80,42 @@ TEST(Matching, BinaryMatchesAreOpenCvsBruteForceMatches) {
   }
 }
 
+TEST(Matching, KNearestAreOpenCvsKnnMatch) {
+  cv::Mat query, reference;
+  PlantedDescriptors(300, 400, &query, &reference);
+  // Duplicated references give equal distances; their order must be OpenCV's too.
+  reference.row(5).copyTo(reference.row(6));
+  reference.row(5).copyTo(reference.row(300));
+  reference.row(5).copyTo(query.row(1));
+  for (const int k : {1, 2, 4}) {
+    std::vector<std::vector<cv::DMatch>> expected;
+    cv::BFMatcher(cv::NORM_HAMMING).knnMatch(query, reference, expected, k);
+    const std::vector<std::vector<cv::DMatch>> actual = KNearestBinary(query, reference, k);
+    ASSERT_EQ(actual.size(), expected.size());
+    for (size_t q = 0; q < actual.size(); ++q) {
+      SCOPED_TRACE(testing::Message() << "k " << k << ", query " << q);
+      ExpectSameMatches(actual[q], expected[q]);
+    }
+  }
+  const std::vector<std::vector<cv::DMatch>> four = KNearestBinary(query, reference, 4);
+  EXPECT_EQ(four[1][0].trainIdx, 5);
+  EXPECT_EQ(four[1][1].trainIdx, 6);
+  EXPECT_EQ(four[1][2].trainIdx, 300);
+  EXPECT_EQ(four[1][2].distance, 0.0f);
+}
+
+TEST(Matching, KNearestOfFewerReferencesThanKListsThemAll) {
+  cv::Mat query, reference;
+  PlantedDescriptors(3, 2, &query, &reference);
+  const std::vector<std::vector<cv::DMatch>> knn = KNearestBinary(query, reference, 4);
+  ASSERT_EQ(knn.size(), 3u);
+  for (const std::vector<cv::DMatch>& neighbours : knn) {
+    ASSERT_EQ(neighbours.size(), 2u);
+    EXPECT_LE(neighbours[0].distance, neighbours[1].distance);
+  }
+  EXPECT_TRUE(KNearestBinary(query, cv::Mat(0, 32, CV_8U), 4)[0].empty());
+}
+
 TEST(Matching, EqualDistancesKeepTheFirstReferenceAndFailTheRatioTest) {
   cv::Mat reference(3, 32, CV_8U, cv::Scalar(0));
   reference.row(2).setTo(cv::Scalar(255));
