@@ -18,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli/command_util.h"
+#include "core/atomic_file.h"
 #include "core/check.h"
 #include "identify/coverage.h"
 #include "identify/identify_eval.h"
@@ -197,6 +198,9 @@ CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
   identify->add_option("--limit", args.limit, "locate only the first N photos (0: all)")
       ->check(Within(0, 1e9))
       ->capture_default_str();
+  identify->add_option("--photos-out", args.photos_out,
+                       "write one JSON line per photo: its answer, inliers, keyframe and pose "
+                       "error, to find the photos behind a figure");
   return identify;
 }
 
@@ -209,6 +213,7 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     plot_height = size.height;
     CheckOutputFile(args.plot_path, "--plot");
   }
+  if (!args.photos_out.empty()) CheckOutputFile(args.photos_out, "--photos-out");
   std::vector<identify::QueryTruth> truths = identify::ReadQueryTruths(args.queries_path);
   SIGHTMAP_CHECK(!truths.empty(), "the query set " << args.queries_path << " holds no photo");
   if (args.limit > 0 && static_cast<size_t>(args.limit) < truths.size()) {
@@ -260,6 +265,13 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   if (!args.plot_path.empty()) {
     render::WriteImageAtomically(args.plot_path,
                                  identify::DrawIdentifyPlot(evaluation, plot_width, plot_height));
+  }
+  if (!args.photos_out.empty()) {
+    std::string lines;
+    for (const nlohmann::json& row : identify::PhotoRows(truths, answers)) {
+      lines += row.dump() + "\n";
+    }
+    WriteFileAtomically(args.photos_out, lines);
   }
   if (args.json) {
     nlohmann::json out = identify::ToJson(evaluation);

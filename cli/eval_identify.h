@@ -16,7 +16,8 @@ struct EvalIdentifyArgs {
   std::string plot_path;
   std::string plot_size = "1200x560";
   bool json = false;
-  int limit = 0;  // 0 = every photo
+  int limit = 0;           // 0 = every photo
+  std::string photos_out;  // one JSON line per photo (identify::PhotoRows); empty = none
 };
 
 // Adds the `identify` subcommand to `eval`, filling `args` when parsed.

@@ -144,6 +144,8 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.timings = result.timings;
   if (!result.matched) return answer;
   answer.world_from_cam = result.world_from_cam;
+  answer.inliers = result.inliers;
+  if (result.keyframe.valid()) answer.keyframe = result.keyframe.value();
   for (const ApplianceInView& appliance : result.appliances) {
     (appliance.occluded ? answer.reported_occluded : answer.identified).push_back(appliance.name);
   }
@@ -173,6 +175,11 @@ PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& 
   return error;
 }
 
+bool IsWrongPose(const PoseError& error, const IdentifyEvalOptions& options) {
+  return error.position_m > options.wrong_position_m ||
+         error.rotation_deg > options.wrong_rotation_deg;
+}
+
 void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<PhotoAnswer>& answers,
                    bool covered, std::vector<QueryTruth>* selected_truths,
                    std::vector<PhotoAnswer>* selected_answers) {
@@ -184,6 +191,42 @@ void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<Phot
     selected_truths->push_back(truths[i]);
     selected_answers->push_back(answers[i]);
   }
+}
+
+std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
+                                      const std::vector<PhotoAnswer>& answers,
+                                      const IdentifyEvalOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(truths.size() == answers.size(), "PhotoRows: " << truths.size()
+                                                                << " ground truths but "
+                                                                << answers.size() << " answers");
+  std::vector<nlohmann::json> rows;
+  rows.reserve(truths.size());
+  for (size_t i = 0; i < truths.size(); ++i) {
+    const QueryTruth& truth = truths[i];
+    const PhotoAnswer& answer = answers[i];
+    nlohmann::json row;
+    row["index"] = i;
+    row["image"] = truth.image_path;
+    row["target"] = truth.target;
+    row["covered"] = truth.covered ? nlohmann::json(*truth.covered) : nlohmann::json();
+    row["matched"] = answer.matched;
+    row["reason"] = answer.matched ? nlohmann::json() : nlohmann::json(answer.reason);
+    row["inliers"] = answer.matched ? nlohmann::json(answer.inliers) : nlohmann::json();
+    row["keyframe"] = answer.keyframe ? nlohmann::json(*answer.keyframe) : nlohmann::json();
+    row["position_error_m"] = nlohmann::json();
+    row["rotation_error_deg"] = nlohmann::json();
+    row["wrong_pose"] = nlohmann::json();
+    if (answer.matched && answer.world_from_cam && truth.world_from_cam) {
+      const PoseError error = ComparePoses(*truth.world_from_cam, *answer.world_from_cam);
+      row["position_error_m"] = error.position_m;
+      row["rotation_error_deg"] = error.rotation_deg;
+      row["wrong_pose"] = IsWrongPose(error, options);
+    }
+    row["identified"] = answer.identified;
+    rows.push_back(std::move(row));
+  }
+  return rows;
 }
 
 IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
@@ -219,8 +262,7 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
     if (truth.world_from_cam && answer.world_from_cam) {
       const PoseError error = ComparePoses(*truth.world_from_cam, *answer.world_from_cam);
       ++out.posed_photos;
-      out.wrong_poses += error.position_m > options.wrong_position_m ||
-                         error.rotation_deg > options.wrong_rotation_deg;
+      out.wrong_poses += IsWrongPose(error, options);
       position_errors.push_back(error.position_m);
       rotation_errors.push_back(error.rotation_deg);
     }

@@ -67,6 +67,8 @@ struct PhotoAnswer {
   std::vector<std::string> identified;              // names reported in view and not occluded
   std::vector<std::string> reported_occluded;       // names reported in the view cone but occluded
   std::optional<Eigen::Isometry3d> world_from_cam;  // the pose found, when matched
+  int inliers = 0;                                  // of the pose, when matched
+  std::optional<int64_t> keyframe;  // the keyframe holding most of its inliers, when matched
   LocateTimings timings;
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
@@ -131,6 +133,8 @@ struct PoseError {
   double rotation_deg = 0.0;
 };
 PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& estimate);
+// Beyond options.wrong_position_m or options.wrong_rotation_deg.
+bool IsWrongPose(const PoseError& error, const IdentifyEvalOptions& options);
 
 // `truths` and `answers` are parallel (photo i).
 IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
@@ -141,6 +145,15 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
 void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<PhotoAnswer>& answers,
                    bool covered, std::vector<QueryTruth>* selected_truths,
                    std::vector<PhotoAnswer>* selected_answers);
+
+// One JSON object per photo (truths and answers parallel), to find the photos behind a figure:
+// "index", "image", "target", "covered" (null when unknown), "matched", "reason" (null when
+// matched), "inliers" and "keyframe" (null when not matched), "position_error_m",
+// "rotation_error_deg" and "wrong_pose" (null unless matched with a true pose, wrong as
+// EvaluateIdentification counts it), "identified" (names in view and not occluded).
+std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
+                                      const std::vector<PhotoAnswer>& answers,
+                                      const IdentifyEvalOptions& options = {});
 
 // Stable keys: photos, matched_photos, matched_ratio, recall_ge_0_8_ratio, precision_ge_0_8_ratio,
 // posed_photos, wrong_poses, wrong_pose_ratio, median_position_error_m, median_rotation_error_deg,

@@ -280,6 +280,55 @@ TEST(IdentifyEval, WrongPosesAreCountedAndPhotosSplitByCoverage) {
   EXPECT_EQ(EvaluateIdentification(selected_truths, selected_answers).wrong_poses, 1);
 }
 
+TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
+  std::vector<QueryTruth> truths(3, Truth({{"lamp", T::kVisible}}));
+  const Eigen::Isometry3d truth_pose(Eigen::Translation3d(1, 2, 1.5));
+  for (QueryTruth& truth : truths) {
+    truth.world_from_cam = truth_pose;
+    truth.target = "lamp";
+  }
+  truths[0].image_path = "q/0.jpg";
+  truths[0].covered = true;
+  truths[1].covered = false;
+  std::vector<PhotoAnswer> answers;
+  answers.push_back(Answer(true, {"lamp"}, 10));  // 0.7 m off: wrong
+  answers[0].world_from_cam = truth_pose * Eigen::Translation3d(0.7, 0, 0);
+  answers[0].inliers = 123;
+  answers[0].keyframe = 42;
+  answers.push_back(Answer(false, {}, 10));
+  answers.push_back(Answer(true, {}, 10));  // right
+  answers[2].world_from_cam = truth_pose * Eigen::Translation3d(0, 0.05, 0);
+
+  const std::vector<nlohmann::json> rows = PhotoRows(truths, answers);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0]["index"], 0);
+  EXPECT_EQ(rows[0]["image"], "q/0.jpg");
+  EXPECT_EQ(rows[0]["target"], "lamp");
+  EXPECT_EQ(rows[0]["covered"], true);
+  EXPECT_EQ(rows[0]["matched"], true);
+  EXPECT_TRUE(rows[0]["reason"].is_null());
+  EXPECT_EQ(rows[0]["inliers"], 123);
+  EXPECT_EQ(rows[0]["keyframe"], 42);
+  EXPECT_NEAR(rows[0]["position_error_m"].get<double>(), 0.7, 1e-12);
+  EXPECT_NEAR(rows[0]["rotation_error_deg"].get<double>(), 0.0, 1e-9);
+  EXPECT_EQ(rows[0]["wrong_pose"], true);
+  EXPECT_EQ(rows[0]["identified"], nlohmann::json::array({"lamp"}));
+
+  EXPECT_EQ(rows[1]["covered"], false);
+  EXPECT_EQ(rows[1]["matched"], false);
+  EXPECT_EQ(rows[1]["reason"], "too few inliers");
+  EXPECT_TRUE(rows[1]["inliers"].is_null());
+  EXPECT_TRUE(rows[1]["keyframe"].is_null());
+  EXPECT_TRUE(rows[1]["wrong_pose"].is_null());
+
+  EXPECT_TRUE(rows[2]["covered"].is_null());
+  EXPECT_EQ(rows[2]["wrong_pose"], false);
+  EXPECT_TRUE(rows[2]["keyframe"].is_null());
+  // The rows count wrong poses as the evaluation does.
+  EXPECT_EQ(EvaluateIdentification(truths, answers).wrong_poses, 1);
+  EXPECT_ANY_THROW(PhotoRows(truths, {}));
+}
+
 TEST(IdentifyEval, PlotShowsRightAndWrongColours) {
   const HandMade data;
   const cv::Mat plot =

@@ -708,9 +708,11 @@ TEST_F(ServeTest, ASecondServerOnTheSamePortFailsAtStart) {
 TEST_F(ServeTest, EvalIdentifyReportsThePapersFigures) {
   const std::string model = (*dir_ / "model.db").string();
   const std::string plot = (*dir_ / "identify.png").string();
+  const std::string rows = (*dir_ / "photos.jsonl").string();
   const testing::CommandResult json = testing::RunCommand(
       SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
-                           (*dir_ / "queries").string() + " --limit 6 --json --plot " + plot);
+                           (*dir_ / "queries").string() + " --limit 6 --json --plot " + plot +
+                           " --photos-out " + rows);
   ASSERT_EQ(json.exit_code, 0) << json.err;
   const nlohmann::json e = nlohmann::json::parse(json.out, nullptr, false);
   for (const char* key : {"photos", "matched_ratio", "recall_ge_0_8_ratio",
@@ -723,6 +725,20 @@ TEST_F(ServeTest, EvalIdentifyReportsThePapersFigures) {
   EXPECT_NE(json.err.find("6/6 photos"), std::string::npos) << json.err;  // progress
   const cv::Mat image = cv::imread(plot);
   EXPECT_EQ(image.cols, 1200);
+  // One line per photo, matched as the summary counts them.
+  std::ifstream rows_file(rows);
+  int lines = 0;
+  int matched = 0;
+  for (std::string line; std::getline(rows_file, line); ++lines) {
+    const nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
+    ASSERT_FALSE(row.is_discarded()) << line;
+    EXPECT_EQ(row["index"], lines) << line;
+    matched += row["matched"].get<bool>() ? 1 : 0;
+    EXPECT_EQ(row["matched"].get<bool>(), row["reason"].is_null()) << line;
+    EXPECT_EQ(row["matched"].get<bool>(), row["wrong_pose"].is_boolean()) << line;
+  }
+  EXPECT_EQ(lines, 6);
+  EXPECT_EQ(matched, e["matched_photos"].get<int>());
   // The queries/ folder itself is accepted too; the human table names the figures.
   const testing::CommandResult table = testing::RunCommand(
       SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
