@@ -139,6 +139,11 @@ TEST(Matching, OneReferenceHasNoSecondNeighbour) {
   EXPECT_EQ(neighbours.best_query[0], 0);
   // The ratio test needs a second neighbour: nothing is matched against one reference.
   EXPECT_TRUE(MatchDescriptors(query, reference).empty());
+  // No references: every query has none; no queries: every reference has none.
+  const BinaryNeighbours none = FindBinaryNeighbours(query, cv::Mat(0, 32, CV_8U));
+  EXPECT_EQ(none.best, std::vector<int>({-1, -1}));
+  EXPECT_TRUE(none.best_query.empty());
+  EXPECT_EQ(FindBinaryNeighbours(cv::Mat(), reference).best_query, std::vector<int>({-1}));
 }
 
 TEST(Matching, FloatDescriptorsStillMatch) {
