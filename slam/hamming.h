@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <cstring>
+#include <limits>
 
 namespace sightmap::slam {
 
@@ -20,5 +21,23 @@ inline int Hamming256(const uint8_t* a, const uint8_t* b) {
   std::memcpy(wb, b, sizeof(wb));
   return Hamming256(wa, wb);
 }
+
+// The nearest and second-nearest of a stream of candidates, for the ratio test. Strict
+// comparisons keep the first of equal distances, as cv::BFMatcher does.
+struct TwoNearest {
+  int best = -1;  // index of the nearest offered candidate; -1 before the first
+  int best_distance = std::numeric_limits<int>::max();
+  int second_distance = std::numeric_limits<int>::max();
+
+  void Offer(int index, int distance) {
+    if (distance < best_distance) {
+      second_distance = best_distance;
+      best_distance = distance;
+      best = index;
+    } else if (distance < second_distance) {
+      second_distance = distance;
+    }
+  }
+};
 
 }  // namespace sightmap::slam

@@ -30,27 +30,19 @@ __attribute__((target_clones("popcnt", "default"))) void NearestBinary(
   std::vector<int> best_query_distance(static_cast<size_t>(num_reference), kNoDistance);
   for (int q = 0; q < num_query; ++q) {
     const uint64_t* a = query + 4 * static_cast<size_t>(q);
-    int best = -1;
-    int best_distance = kNoDistance;
-    int second_distance = kNoDistance;
+    TwoNearest nearest;
     for (int r = 0; r < num_reference; ++r) {
       const int distance = Hamming256(a, reference + 4 * static_cast<size_t>(r));
-      // Strict comparisons keep the first of equal distances, as cv::BFMatcher does.
-      if (distance < best_distance) {
-        second_distance = best_distance;
-        best_distance = distance;
-        best = r;
-      } else if (distance < second_distance) {
-        second_distance = distance;
-      }
+      nearest.Offer(r, distance);
+      // Strict, as TwoNearest: the first query of equal distances stays.
       if (distance < best_query_distance[static_cast<size_t>(r)]) {
         best_query_distance[static_cast<size_t>(r)] = distance;
         neighbours->best_query[static_cast<size_t>(r)] = q;
       }
     }
-    neighbours->best[static_cast<size_t>(q)] = best;
-    neighbours->best_distance[static_cast<size_t>(q)] = best_distance;
-    neighbours->second_distance[static_cast<size_t>(q)] = second_distance;
+    neighbours->best[static_cast<size_t>(q)] = nearest.best;
+    neighbours->best_distance[static_cast<size_t>(q)] = nearest.best_distance;
+    neighbours->second_distance[static_cast<size_t>(q)] = nearest.second_distance;
   }
 }
 

@@ -288,9 +288,7 @@ std::vector<cv::DMatch> GuidedMatches(const Features& source, const Features& ta
     }
     const int gx = static_cast<int>(px.x() / cell);
     const int gy = static_cast<int>(px.y() / cell);
-    int best = -1;
-    int best_distance = 1 << 30;
-    int second_distance = 1 << 30;
+    TwoNearest nearest;
     for (int y = gy - 1; y <= gy + 1; ++y) {
       for (int x = gx - 1; x <= gx + 1; ++x) {
         if (x < 0 || y < 0 || x >= cols || y >= rows) continue;
@@ -299,24 +297,19 @@ std::vector<cv::DMatch> GuidedMatches(const Features& source, const Features& ta
           const double dx = pt.x - px.x();
           const double dy = pt.y - px.y();
           if (dx * dx + dy * dy > radius2) continue;
-          const int distance = Hamming256(source.descriptors.ptr<uint8_t>(static_cast<int>(s)),
-                                          target.descriptors.ptr<uint8_t>(t));
-          if (distance < best_distance) {
-            second_distance = best_distance;
-            best_distance = distance;
-            best = t;
-          } else if (distance < second_distance) {
-            second_distance = distance;
-          }
+          nearest.Offer(t, Hamming256(source.descriptors.ptr<uint8_t>(static_cast<int>(s)),
+                                      target.descriptors.ptr<uint8_t>(t)));
         }
       }
     }
-    if (best < 0 || best_distance > options.guided_max_hamming) continue;
-    if (best_distance >= options.matching.ratio * second_distance) continue;
-    candidates.push_back(cv::DMatch(static_cast<int>(s), best, static_cast<float>(best_distance)));
-    if (best_distance < best_distance_for_target[static_cast<size_t>(best)]) {
-      best_distance_for_target[static_cast<size_t>(best)] = best_distance;
-      best_source_for_target[static_cast<size_t>(best)] = static_cast<int>(s);
+    if (nearest.best < 0 || nearest.best_distance > options.guided_max_hamming) continue;
+    if (nearest.best_distance >= options.matching.ratio * nearest.second_distance) continue;
+    candidates.push_back(
+        cv::DMatch(static_cast<int>(s), nearest.best, static_cast<float>(nearest.best_distance)));
+    const size_t target_index = static_cast<size_t>(nearest.best);
+    if (nearest.best_distance < best_distance_for_target[target_index]) {
+      best_distance_for_target[target_index] = nearest.best_distance;
+      best_source_for_target[target_index] = static_cast<int>(s);
     }
   }
   for (const cv::DMatch& match : candidates) {
