@@ -8,6 +8,7 @@ int RunDevices(int argc, char** argv);
 int RunProbe(int argc, char** argv);
 int RunInfo(int argc, char** argv);
 int RunCoverage(int argc, char** argv);
+int RunSynthesize(int argc, char** argv);
 int RunExport(int argc, char** argv);
 int RunSim(int argc, char** argv);
 int RunEval(int argc, char** argv);

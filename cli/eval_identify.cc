@@ -133,9 +133,19 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
 }
 
 // Marks each photo whose view the model saw (identify::ViewWasSeen of the photo's target label),
-// where the photo has a true pose and the model a label of its target's name.
-void MarkCoveredPhotos(const store::Model& model, std::vector<identify::QueryTruth>* truths) {
-  const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
+// where the photo has a true pose and the model a label of its target's name: seen by a keyframe,
+// or by a synthetic view when the locator matches against them.
+void MarkCoveredPhotos(const store::Model& model, bool with_synthetic_views,
+                       std::vector<identify::QueryTruth>* truths) {
+  std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
+  if (with_synthetic_views) {
+    for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
+      store::KeyframeInfo info;
+      info.world_from_cam = view.world_from_cam;
+      info.intrinsics = view.intrinsics;
+      keyframes.push_back(info);
+    }
+  }
   std::map<std::string, Eigen::Vector3d> label_points;
   for (const store::LabelRecord& label : model.Labels()) {
     label_points[label.name] = label.points.front().world;
@@ -144,6 +154,8 @@ void MarkCoveredPhotos(const store::Model& model, std::vector<identify::QueryTru
     const auto label = label_points.find(truth.target);
     if (!truth.world_from_cam || label == label_points.end()) continue;
     truth.covered = identify::ViewWasSeen(*truth.world_from_cam, label->second, keyframes);
+    truth.view_angle_deg =
+        identify::NearestViewAngleDeg(*truth.world_from_cam, label->second, keyframes);
   }
 }
 
@@ -161,8 +173,9 @@ std::optional<identify::IdentifyEvaluation> EvaluateStratum(
 void PrintStrata(const std::optional<identify::IdentifyEvaluation>& covered,
                  const std::optional<identify::IdentifyEvaluation>& not_covered) {
   if (!covered && !not_covered) return;
-  std::cout << "\nby coverage (a keyframe saw the photo's target within 40 deg and a factor 2 in "
-               "distance)\n";
+  std::cout
+      << "\nby coverage (a keyframe or synthetic view saw the photo's target within 40 deg and "
+         "a factor 2 in distance)\n";
   std::cout << std::left << std::setw(14) << "" << std::right << std::setw(8) << "photos"
             << std::setw(10) << "matched" << std::setw(8) << "wrong" << std::setw(12)
             << "recall>=.8" << std::setw(14) << "precision>=.8"
@@ -198,6 +211,9 @@ CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
   identify->add_option("--limit", args.limit, "locate only the first N photos (0: all)")
       ->check(Within(0, 1e9))
       ->capture_default_str();
+  identify->add_flag("--without-synthetic", args.without_synthetic_views,
+                     "ignore the model's synthetic views ('sightmap synthesize'), to see what they "
+                     "add");
   identify->add_option("--photos-out", args.photos_out,
                        "write one JSON line per photo: its answer, inliers, keyframe and pose "
                        "error, to find the photos behind a figure");
@@ -227,8 +243,10 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   std::unique_ptr<identify::Locator> locator;
   {
     const store::Model model = store::Model::Open(args.model_path, model_options);
-    locator = std::make_unique<identify::Locator>(model);
-    MarkCoveredPhotos(model, &truths);
+    identify::LocatorOptions locator_options;
+    locator_options.use_synthetic_views = !args.without_synthetic_views;
+    locator = std::make_unique<identify::Locator>(model, locator_options);
+    MarkCoveredPhotos(model, locator_options.use_synthetic_views, &truths);
   }
   const double load_s = SecondsSince(load_start);
 

@@ -18,6 +18,7 @@ struct EvalIdentifyArgs {
   bool json = false;
   int limit = 0;           // 0 = every photo
   std::string photos_out;  // one JSON line per photo (identify::PhotoRows); empty = none
+  bool without_synthetic_views = false;  // locate against keyframes only
 };
 
 // Adds the `identify` subcommand to `eval`, filling `args` when parsed.

@@ -69,6 +69,8 @@ int RunInfo(int argc, char** argv) {
                                     : 0.0;
     out["prior_links"] = summary.prior_links;
     out["labels"] = summary.labels;
+    out["synthetic_views"] = summary.synthetic_views;
+    out["synthetic_view_bytes"] = summary.synthetic_view_bytes;
     out["size_bytes"] = summary.size_bytes;
     out["links"] = {{"odometry", summary.odometry_links},
                     {"loop", summary.loop_closures},
@@ -117,6 +119,11 @@ int RunInfo(int argc, char** argv) {
   std::cout << "labels         " << summary.labels;
   for (size_t i = 0; i < labels.size(); ++i) std::cout << (i ? ", " : "  ") << labels[i].name;
   std::cout << "\n";
+  if (summary.synthetic_views > 0) {
+    std::cout << "synthetic      " << summary.synthetic_views << " views for photos ("
+              << std::setprecision(1) << summary.synthetic_view_bytes / 1e6
+              << " MB; 'sightmap synthesize')\n";
+  }
   if (coverage) {
     std::cout << "coverage       " << coverage->seen << " of " << coverage->open
               << " open directions around the labels seen (" << std::setprecision(0)

@@ -29,6 +29,8 @@ constexpr Command kCommands[] = {
      "report what a MODEL holds: sessions, keyframes, links, labels, size"},
     {"coverage", sightmap::cli::RunCoverage,
      "from which directions a MODEL's keyframes saw each labelled appliance, and what they missed"},
+    {"synthesize", sightmap::cli::RunSynthesize,
+     "render views of labelled appliances from the directions the walk missed, for photos"},
     {"export", sightmap::cli::RunExport,
      "write a MODEL's point cloud (PLY), trajectory (TUM) and labels (point lists)"},
     {"label", sightmap::cli::RunLabel,
@@ -49,7 +51,7 @@ void PrintUsage(std::ostream& out) {
          "Usage: sightmap <command> [options]   (sightmap <command> --help for its options)\n\n"
          "Commands:\n";
   for (const Command& command : kCommands) {
-    out << "  " << command.name << std::string(10 - std::strlen(command.name), ' ')
+    out << "  " << command.name << std::string(12 - std::strlen(command.name), ' ')
         << command.summary << "\n";
   }
   out << "\nSOURCE is openni:// (first sensor), openni://URI, FILE.oni, tum:DIR, 3dmatch:DIR or\n"

@@ -1,5 +1,5 @@
-// The typed ids of what a model stores (sessions, keyframes, links, labels), for every layer that
-// names them.
+// The typed ids of what a model stores (sessions, keyframes, links, labels, synthetic views), for
+// every layer that names them.
 #pragma once
 
 #include <cstdint>
@@ -27,5 +27,6 @@ using SessionId = StoreId<struct SessionIdTag>;
 using KeyframeId = StoreId<struct KeyframeIdTag>;
 using LinkId = StoreId<struct LinkIdTag>;
 using LabelId = StoreId<struct LabelIdTag>;
+using SyntheticViewId = StoreId<struct SyntheticViewIdTag>;
 
 }  // namespace sightmap

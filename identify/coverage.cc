@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
@@ -164,12 +165,15 @@ void FindOpenSectors(const SpaceGrid& grid, const CoverageOptions& options,
                      const ModelCoverage& coverage, LabelCoverage* label) {
   for (SectorCoverage& sector : label->sectors) {
     const double bearing = 0.5 * (sector.from_deg + sector.to_deg);
-    for (int probe = 0; probe < options.probes_per_sector && !sector.open; ++probe) {
+    for (int probe = 0; probe < options.probes_per_sector; ++probe) {
       const double distance =
           options.min_distance_m + (options.max_distance_m - options.min_distance_m) *
                                        (probe + 0.5) / options.probes_per_sector;
-      sector.open = CanSeeFrom(label->centre, bearing, distance, coverage, grid, options);
+      if (CanSeeFrom(label->centre, bearing, distance, coverage, grid, options)) {
+        sector.open_distances_m.push_back(distance);
+      }
     }
+    sector.open = !sector.open_distances_m.empty();
     // Someone stood there and saw it.
     sector.open = sector.open || sector.seen();
     label->open += sector.open ? 1 : 0;
@@ -322,7 +326,8 @@ nlohmann::json CoverageToJson(const ModelCoverage& coverage) {
                          {"seen", sector.seen()},
                          {"keyframes", sector.keyframes},
                          {"nearest_m", sector.nearest_m},
-                         {"farthest_m", sector.farthest_m}});
+                         {"farthest_m", sector.farthest_m},
+                         {"open_distances_m", sector.open_distances_m}});
     }
     labels.push_back({{"id", label.id.value()},
                       {"name", label.name},
@@ -416,31 +421,42 @@ bool ViewSeenOptions::Check(std::string* error) const {
   return true;
 }
 
-bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,
-                 const std::vector<store::KeyframeInfo>& keyframes,
-                 const ViewSeenOptions& options) {
-  SIGHTMAP_CHECK_OPTIONS(options);
+std::optional<double> NearestViewAngleDeg(const Eigen::Isometry3d& world_from_photo,
+                                          const Eigen::Vector3d& point_world,
+                                          const std::vector<store::KeyframeInfo>& keyframes,
+                                          double max_distance_ratio) {
   const Eigen::Vector3d photo_ray = point_world - world_from_photo.translation();
   const double photo_distance = photo_ray.norm();
-  if (photo_distance < 1e-6) return false;
-  const double min_cos = std::cos(options.max_angle_deg / kDegPerRad);
+  if (photo_distance < 1e-6) return std::nullopt;
+  double best_cos = -2.0;
   for (const store::KeyframeInfo& keyframe : keyframes) {
     const Eigen::Vector3d ray = point_world - keyframe.world_from_cam.translation();
     const double distance = ray.norm();
-    if (distance < photo_distance / options.max_distance_ratio ||
-        distance > photo_distance * options.max_distance_ratio) {
+    if (distance < photo_distance / max_distance_ratio ||
+        distance > photo_distance * max_distance_ratio) {
       continue;
     }
-    if (ray.dot(photo_ray) < min_cos * distance * photo_distance) continue;
+    const double cos = ray.dot(photo_ray) / (distance * photo_distance);
+    if (cos <= best_cos) continue;
     const Eigen::Vector3d in_cam = keyframe.world_from_cam.inverse() * point_world;
     if (in_cam.z() <= 0.0) continue;
     const Eigen::Vector2d pixel = keyframe.intrinsics.Project(in_cam);
     if (pixel.x() >= 0.0 && pixel.y() >= 0.0 && pixel.x() < keyframe.intrinsics.width &&
         pixel.y() < keyframe.intrinsics.height) {
-      return true;
+      best_cos = cos;
     }
   }
-  return false;
+  if (best_cos < -1.5) return std::nullopt;
+  return std::acos(std::clamp(best_cos, -1.0, 1.0)) * kDegPerRad;
+}
+
+bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,
+                 const std::vector<store::KeyframeInfo>& keyframes,
+                 const ViewSeenOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const std::optional<double> angle =
+      NearestViewAngleDeg(world_from_photo, point_world, keyframes, options.max_distance_ratio);
+  return angle && *angle <= options.max_angle_deg;
 }
 
 }  // namespace sightmap::identify

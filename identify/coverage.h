@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,9 @@ struct SectorCoverage {
   int keyframes = 0;        // keyframes in this sector and distance band that saw the label
   double nearest_m = 0.0;   // of those (0 when none)
   double farthest_m = 0.0;  // of those
+  // The probed distances from which a person could stand and see the label, nearest first (none
+  // in a sector only keyframes opened) [m].
+  std::vector<double> open_distances_m;
   bool seen() const { return keyframes > 0; }
 };
 
@@ -128,11 +132,18 @@ struct ViewSeenOptions {
 bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,
                  const std::vector<store::KeyframeInfo>& keyframes,
                  const ViewSeenOptions& options = ViewSeenOptions());
+// The smallest angle between the photo's line of sight to the point and that of a keyframe with
+// the point in its image, within a factor max_distance_ratio of the photo's distance [deg];
+// nullopt when no keyframe qualifies. ViewWasSeen is this angle <= max_angle_deg.
+std::optional<double> NearestViewAngleDeg(const Eigen::Isometry3d& world_from_photo,
+                                          const Eigen::Vector3d& point_world,
+                                          const std::vector<store::KeyframeInfo>& keyframes,
+                                          double max_distance_ratio = 2.0);
 
 // {"share", "open_sectors", "seen_sectors", "up", "eye_height_m", "labels": [{"id", "name",
 // "type", "centre", "share", "open_sectors", "seen_sectors", "keyframes", "sectors": [{"from_deg",
-// "to_deg", "open", "seen", "keyframes", "nearest_m", "farthest_m"}]}]}: `sightmap coverage
-// --json`.
+// "to_deg", "open", "seen", "keyframes", "nearest_m", "farthest_m", "open_distances_m"}]}]}:
+// `sightmap coverage --json`.
 nlohmann::json CoverageToJson(const ModelCoverage& coverage);
 
 // A floor plan (BGR, the longer side max_side_px, the floor's second axis up the image):

@@ -137,6 +137,10 @@ TEST(Coverage, SeesWhereKeyframesStoodAndMissesOpenDirectionsButNotTheWallBehind
   const std::set<int> open = Sectors(label, IsOpen);
   for (int s : {4, 5, 6, 7}) EXPECT_TRUE(open.count(s)) << "sector " << s;
   for (int s : {0, 1, 2, 9, 10, 11}) EXPECT_FALSE(open.count(s)) << "sector " << s;
+  // Where a person could stand: one of the probed distances (1.5, 2.5, 3.5 m) in open sectors.
+  ASSERT_FALSE(label.sectors[7].open_distances_m.empty());
+  EXPECT_NEAR(label.sectors[7].open_distances_m.front(), 1.5, 1e-6);
+  EXPECT_TRUE(label.sectors[0].open_distances_m.empty());
   EXPECT_EQ(label.open, static_cast<int>(open.size()));
   EXPECT_EQ(label.seen, 3);
   EXPECT_DOUBLE_EQ(label.share(), 3.0 / label.open);
@@ -265,6 +269,15 @@ TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
       eye + Eigen::AngleAxisd(25.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) * (kThermostat - eye);
   EXPECT_TRUE(ViewWasSeen(photo, kThermostat, keyframe_at(eye, aside)));
   EXPECT_FALSE(ViewWasSeen(photo, kThermostat, {}));
+  // The nearest view's angle: the smaller of two keyframes', none beyond the distance factor.
+  std::vector<store::KeyframeInfo> two = keyframe_at(at_bearing(50, 2.0), kThermostat);
+  two.push_back(keyframe_at(at_bearing(-20, 2.5), kThermostat).front());
+  const std::optional<double> angle = NearestViewAngleDeg(photo, kThermostat, two);
+  ASSERT_TRUE(angle.has_value());
+  EXPECT_NEAR(*angle, 20.0, 0.5);
+  EXPECT_FALSE(
+      NearestViewAngleDeg(photo, kThermostat, keyframe_at(at_bearing(0, 4.1), kThermostat)));
+  EXPECT_FALSE(NearestViewAngleDeg(photo, kThermostat, {}));
   ViewSeenOptions bad;
   bad.max_distance_ratio = 0.5;
   EXPECT_THROW(ViewWasSeen(photo, kThermostat, keyframe_at(eye, kThermostat), bad),

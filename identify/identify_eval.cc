@@ -210,6 +210,8 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
     row["image"] = truth.image_path;
     row["target"] = truth.target;
     row["covered"] = truth.covered ? nlohmann::json(*truth.covered) : nlohmann::json();
+    row["view_angle_deg"] =
+        truth.view_angle_deg ? nlohmann::json(*truth.view_angle_deg) : nlohmann::json();
     row["matched"] = answer.matched;
     row["reason"] = answer.matched ? nlohmann::json() : nlohmann::json(answer.reason);
     row["inliers"] = answer.matched ? nlohmann::json(answer.inliers) : nlohmann::json();

@@ -55,6 +55,9 @@ struct QueryTruth {
   std::optional<Eigen::Isometry3d> world_from_cam;  // the phone's true pose
   // Whether the model saw this view (ViewWasSeen), set by the caller; nullopt = not known.
   std::optional<bool> covered;
+  // The nearest view's angle to the photo's line of sight to its target (NearestViewAngleDeg),
+  // set by the caller; nullopt = not known or no view within the distance factor [deg].
+  std::optional<double> view_angle_deg;
 };
 
 // Reads a simulator query set. `path` may be the dataset folder (holding queries/queries.json),

@@ -289,6 +289,7 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   }
   truths[0].image_path = "q/0.jpg";
   truths[0].covered = true;
+  truths[0].view_angle_deg = 12.5;
   truths[1].covered = false;
   std::vector<PhotoAnswer> answers;
   answers.push_back(Answer(true, {"lamp"}, 10));  // 0.7 m off: wrong
@@ -305,6 +306,8 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   EXPECT_EQ(rows[0]["image"], "q/0.jpg");
   EXPECT_EQ(rows[0]["target"], "lamp");
   EXPECT_EQ(rows[0]["covered"], true);
+  EXPECT_DOUBLE_EQ(rows[0]["view_angle_deg"].get<double>(), 12.5);
+  EXPECT_TRUE(rows[1]["view_angle_deg"].is_null());
   EXPECT_EQ(rows[0]["matched"], true);
   EXPECT_TRUE(rows[0]["reason"].is_null());
   EXPECT_EQ(rows[0]["inliers"], 123);

@@ -28,7 +28,8 @@ struct Refusal {
 
 // One keyframe as the locator matches against it.
 struct LocatorKeyframe {
-  KeyframeId id;
+  KeyframeId id;                   // for a synthetic view, the keyframe it was rendered from
+  SyntheticViewId synthetic_view;  // valid for a synthetic view
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   Eigen::Vector3d view_direction = Eigen::Vector3d::UnitZ();  // camera z in the world
   // The features that have a 3D point: their descriptors (one 32-byte ORB row each) and world

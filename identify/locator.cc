@@ -99,7 +99,8 @@ struct Locator::Impl {
   LocatorOptions options;
   std::vector<LocatorKeyframe> keyframes;
   slam::Vocabulary vocabulary;
-  slam::PlaceIndex index;  // ids are slots into `keyframes`
+  slam::PlaceIndex index;          // ids are slots into `keyframes`
+  size_t num_synthetic_views = 0;  // the last ones of `keyframes`
   OcclusionCloud cloud;
   // Every keyframe's depth at 80x60, to tell from which side the walk saw each label point.
   std::vector<SightingView> sighting_views;
@@ -145,6 +146,41 @@ slam::Vocabulary LoadOrTrainVocabulary(const store::Model& model,
   return slam::Vocabulary::Train(descriptors);
 }
 
+// A keyframe, real or synthetic, as the locator matches it: its features that have a 3D point,
+// in the world. Every ORB descriptor (with or without a point) votes in retrieval: it is added
+// to `index` under `slot` when the vocabulary is not empty.
+LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& world_from_cam,
+                                    const Features& features, size_t slot,
+                                    const slam::Vocabulary& vocabulary,
+                                    const LocatorOptions& options, slam::PlaceIndex* index) {
+  LocatorKeyframe keyframe;
+  keyframe.id = id;
+  keyframe.world_from_cam = world_from_cam;
+  keyframe.view_direction = world_from_cam.linear().col(2);
+  if (!IsOrbDescriptors(features.descriptors)) return keyframe;
+  // Not the index: a model with one keyframe of features has no vocabulary to index by.
+  if (!vocabulary.empty()) {
+    index->Add(static_cast<int64_t>(slot), vocabulary.Transform(features.descriptors));
+  }
+  std::vector<int> rows;
+  for (size_t i = 0; i < features.points_cam.size(); ++i) {
+    if (!features.has_point[i]) continue;
+    rows.push_back(static_cast<int>(i));
+    const Eigen::Vector3d world = world_from_cam * features.points_cam[i];
+    keyframe.world_points.emplace_back(static_cast<float>(world.x()), static_cast<float>(world.y()),
+                                       static_cast<float>(world.z()));
+  }
+  keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
+  for (size_t r = 0; r < rows.size(); ++r) {
+    features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
+    if (options.match_node_level > 0 && !vocabulary.empty()) {
+      keyframe.nodes.push_back(vocabulary.NodeOf(
+          keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
+    }
+  }
+  return keyframe;
+}
+
 }  // namespace
 
 Locator::Locator(const store::Model& model, const LocatorOptions& options)
@@ -161,38 +197,11 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   bool any_orb_features = false;
   impl_->keyframes.reserve(infos.size());
   for (const store::KeyframeInfo& info : infos) {
-    LocatorKeyframe keyframe;
-    keyframe.id = info.id;
-    keyframe.world_from_cam = info.world_from_cam;
-    keyframe.view_direction = info.world_from_cam.linear().col(2);
     const Features features = model.LoadFeatures(info.id);
-    const size_t slot = impl_->keyframes.size();
-    // Every descriptor votes in retrieval; only those with a 3D point can be matched for PnP.
-    if (IsOrbDescriptors(features.descriptors)) {
-      // Not the index: a model with one keyframe of features has no vocabulary to index by.
-      any_orb_features = true;
-      if (!impl_->vocabulary.empty()) {
-        impl_->index.Add(static_cast<int64_t>(slot),
-                         impl_->vocabulary.Transform(features.descriptors));
-      }
-      std::vector<int> rows;
-      for (size_t i = 0; i < features.points_cam.size(); ++i) {
-        if (!features.has_point[i]) continue;
-        rows.push_back(static_cast<int>(i));
-        const Eigen::Vector3d world = info.world_from_cam * features.points_cam[i];
-        keyframe.world_points.emplace_back(static_cast<float>(world.x()),
-                                           static_cast<float>(world.y()),
-                                           static_cast<float>(world.z()));
-      }
-      keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
-      for (size_t r = 0; r < rows.size(); ++r) {
-        features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
-        if (options.match_node_level > 0 && !impl_->vocabulary.empty()) {
-          keyframe.nodes.push_back(impl_->vocabulary.NodeOf(
-              keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
-        }
-      }
-    }
+    any_orb_features = any_orb_features || IsOrbDescriptors(features.descriptors);
+    impl_->keyframes.push_back(MakeLocatorKeyframe(info.id, info.world_from_cam, features,
+                                                   impl_->keyframes.size(), impl_->vocabulary,
+                                                   options, &impl_->index));
     if (info.depth_bytes > 0) {
       const cv::Mat depth = model.LoadDepth(info.id);
       cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
@@ -200,7 +209,19 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
       impl_->sighting_views.push_back(
           MakeSightingView(depth, info.intrinsics, info.world_from_cam, 80, 60));
     }
-    impl_->keyframes.push_back(std::move(keyframe));
+  }
+  // Views rendered where the walk did not stand: matched like keyframes, never part of the
+  // occlusion cloud or the sightings (their depth is the keyframes', already in both).
+  if (options.use_synthetic_views) {
+    for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
+      if (!IsOrbDescriptors(view.features.descriptors)) continue;
+      LocatorKeyframe keyframe =
+          MakeLocatorKeyframe(view.source, view.world_from_cam, view.features,
+                              impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index);
+      keyframe.synthetic_view = view.id;
+      impl_->keyframes.push_back(std::move(keyframe));
+      ++impl_->num_synthetic_views;
+    }
   }
   SIGHTMAP_CHECK(any_orb_features, "the model " << model.path()
                                                 << " has no keyframe with ORB features; "
@@ -221,7 +242,10 @@ void Locator::ReloadLabels(const store::Model& model) {
   impl_->labels = std::move(labels);
 }
 
-size_t Locator::NumKeyframes() const { return impl_->keyframes.size(); }
+size_t Locator::NumKeyframes() const {
+  return impl_->keyframes.size() - impl_->num_synthetic_views;
+}
+size_t Locator::NumSyntheticViews() const { return impl_->num_synthetic_views; }
 const LocatorOptions& Locator::options() const { return impl_->options; }
 size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.size(); }
 std::vector<store::LabelRecord> Locator::Labels() const { return impl_->CurrentLabels()->labels; }
@@ -309,6 +333,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   result.projected_points = best.projected;
   result.inlier_cells = best.cells;
   result.keyframe = impl_->keyframes[best.verified_slot].id;
+  result.synthetic_view = impl_->keyframes[best.verified_slot].synthetic_view;
   result.intrinsics = best.pose.intrinsics.Scaled(photo.cols, photo.rows);
 
   stage = Clock::now();
@@ -389,6 +414,7 @@ nlohmann::json ToJson(const LocateResult& result) {
         {"world_from_cam",
          {{"position", {t.x(), t.y(), t.z()}}, {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}}}};
     out["keyframe"] = result.keyframe.value();
+    if (result.synthetic_view.valid()) out["synthetic_view"] = result.synthetic_view.value();
   } else {
     out["pose"] = nullptr;
     out["keyframe"] = nullptr;
@@ -441,6 +467,7 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, max_image_side_px, retrieval_can
                       confident_inliers, max_rotation_from_keyframe_deg, focal_candidates_35mm,
                       refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
                       occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
-                      occlusion_margin_ratio, min_in_view_share, min_unoccluded_share)
+                      occlusion_margin_ratio, min_in_view_share, min_unoccluded_share,
+                      use_synthetic_views)
 
 }  // namespace sightmap::identify

@@ -123,6 +123,9 @@ struct LocatorOptions {
   // front of the camera, and visible when at least this share of those are not occluded.
   double min_in_view_share = 0.5;
   double min_unoccluded_share = 0.5;
+  // Match photos against the model's synthetic views too (`sightmap synthesize`): views rendered
+  // where the walk did not stand, indexed and matched like keyframes.
+  bool use_synthetic_views = true;
 
   bool Check(std::string* error) const;
 };
@@ -173,8 +176,10 @@ struct LocateResult {
   UnmatchedReason reason_code = UnmatchedReason::kNone;
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   int inliers = 0;
-  int matches = 0;        // 2D-3D matches of the winning candidate
-  KeyframeId keyframe;    // the retrieved keyframe holding most of the pose's inliers
+  int matches = 0;      // 2D-3D matches of the winning candidate
+  KeyframeId keyframe;  // the retrieved keyframe holding most of the pose's inliers
+  // When that was a synthetic view: its id (`keyframe` is then the keyframe it was rendered from).
+  SyntheticViewId synthetic_view;
   Intrinsics intrinsics;  // at the photo's full resolution
   IntrinsicsSource intrinsics_source = IntrinsicsSource::kEstimated;
   // Appliances in the view cone, nearest first; occluded ones are listed with occluded = true
@@ -203,10 +208,11 @@ nlohmann::json ToJson(const LocateResult& result);
 
 class Locator {
  public:
-  // Reads the model's keyframes (features, poses, depth for the occlusion cloud), vocabulary and
-  // labels. A model without a vocabulary (fewer keyframes than the mapper trains one on) gets one
-  // trained from its keyframes, and a model of at most retrieval_candidates keyframes verifies
-  // every one of them. Throws Error with one line when the model has no keyframe.
+  // Reads the model's keyframes (features, poses, depth for the occlusion cloud), its synthetic
+  // views (with use_synthetic_views), vocabulary and labels. A model without a vocabulary (fewer
+  // keyframes than the mapper trains one on) gets one trained from its keyframes, and a model of at
+  // most retrieval_candidates keyframes verifies every one of them. Throws Error with one line when
+  // the model has no keyframe.
   Locator(const store::Model& model, const LocatorOptions& options = LocatorOptions());
   ~Locator();
   Locator(const Locator&) = delete;
@@ -224,7 +230,8 @@ class Locator {
   // Re-reads the labels (after `label add` on a served model).
   void ReloadLabels(const store::Model& model);
 
-  size_t NumKeyframes() const;
+  size_t NumKeyframes() const;       // real keyframes
+  size_t NumSyntheticViews() const;  // loaded synthetic views
   const LocatorOptions& options() const;
   // Voxels of the occlusion cloud (0 when the model stores no depth).
   size_t NumOcclusionVoxels() const;

@@ -218,6 +218,15 @@ void MeshRenderer::AddMesh(TriangleMesh mesh) {
 }
 
 void MeshRenderer::ClearMeshes() { impl_->meshes.clear(); }
+
+void MeshRenderer::ClearTextures() {
+  impl_->meshes.clear();
+  if (impl_->textures.empty()) return;
+  impl_->context.MakeCurrent();
+  impl_->gl.DeleteTextures(static_cast<GLsizei>(impl_->textures.size()), impl_->textures.data());
+  impl_->textures.clear();
+}
+size_t MeshRenderer::num_textures() const { return impl_->textures.size(); }
 size_t MeshRenderer::num_meshes() const { return impl_->meshes.size(); }
 
 void MeshRenderer::set_options(const RenderOptions& options) {

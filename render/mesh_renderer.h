@@ -83,6 +83,11 @@ class MeshRenderer {
   void AddMesh(TriangleMesh mesh);
   // Removes every mesh (textures stay).
   void ClearMeshes();
+  // Removes every texture and every mesh (which may refer to them), freeing their memory: a
+  // caller drawing a stream of different images keeps the renderer's memory bounded. Handles
+  // start again from 0.
+  void ClearTextures();
+  size_t num_textures() const;
   size_t num_meshes() const;
 
   void set_options(const RenderOptions& options);

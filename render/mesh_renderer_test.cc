@@ -20,6 +20,17 @@ Intrinsics TestCamera() {
   return k;
 }
 
+// A camera at `position` looking along world +x (z up): world_from_cam's columns are the camera
+// axes (x right = -y world, y down = -z world, z forward = +x world).
+Eigen::Isometry3d LookingAlongX(const Eigen::Vector3d& position) {
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  world_from_cam.linear().col(0) = Eigen::Vector3d(0, -1, 0);
+  world_from_cam.linear().col(1) = Eigen::Vector3d(0, 0, -1);
+  world_from_cam.linear().col(2) = Eigen::Vector3d(1, 0, 0);
+  world_from_cam.translation() = position;
+  return world_from_cam;
+}
+
 TEST(OffscreenContext, ReportsAGlVersionAndResizes) {
   OffscreenContext context(32, 16);
   EXPECT_FALSE(context.GlVersion().empty());
@@ -41,15 +52,7 @@ TEST(MeshRenderer, BoxLandsWhereTheIntrinsicsProjectItWithTrueDepth) {
   const Eigen::Vector3f size(0.2f, 0.6f, 0.4f);
   renderer.AddMesh(MakeBox(center, size, 0.0f, red, 7));
 
-  // Camera at the origin looking along world +x (z up): world_from_cam columns are the camera
-  // axes (x right = -y world, y down = -z world, z forward = +x world), raised to z = 1.2.
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
-  Eigen::Matrix3d r;
-  r.col(0) = Eigen::Vector3d(0, -1, 0);
-  r.col(1) = Eigen::Vector3d(0, 0, -1);
-  r.col(2) = Eigen::Vector3d(1, 0, 0);
-  world_from_cam.linear() = r;
-  world_from_cam.translation() = Eigen::Vector3d(0, 0.9, 1.1);
+  const Eigen::Isometry3d world_from_cam = LookingAlongX(Eigen::Vector3d(0, 0.9, 1.1));
   const Intrinsics k = TestCamera();
   const RenderedView view = renderer.Render(k, world_from_cam);
   ASSERT_EQ(view.color.type(), CV_8UC3);
@@ -107,13 +110,7 @@ TEST(MeshRenderer, FarWallDepthAndNoDepthMask) {
   glass.no_depth = true;
   renderer.AddMesh(
       MakeBox(Eigen::Vector3f(2.99f, -0.5f, 1.5f), Eigen::Vector3f(0.02f, 0.4f, 0.4f), 0, glass));
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
-  Eigen::Matrix3d r;
-  r.col(0) = Eigen::Vector3d(0, -1, 0);
-  r.col(1) = Eigen::Vector3d(0, 0, -1);
-  r.col(2) = Eigen::Vector3d(1, 0, 0);
-  world_from_cam.linear() = r;
-  world_from_cam.translation() = Eigen::Vector3d(0, 0, 1.5);
+  const Eigen::Isometry3d world_from_cam = LookingAlongX(Eigen::Vector3d(0, 0, 1.5));
   Intrinsics k = TestCamera();
   k.cx = 159.5;
   k.cy = 119.5;
@@ -135,6 +132,34 @@ TEST(MeshRenderer, FarWallDepthAndNoDepthMask) {
   cv::Scalar mean, stddev;
   cv::meanStdDev(view.color, mean, stddev);
   EXPECT_GT(stddev[0], 20.0);  // the random texture shows through
+}
+
+// A stream of textures (view synthesis draws each keyframe's image once) does not pile up:
+// ClearTextures drops them and every mesh, handles restart at 0, and an old handle is refused.
+TEST(MeshRenderer, ClearTexturesDropsTexturesAndMeshes) {
+  MeshRenderer renderer;
+  cv::Mat green(8, 8, CV_8UC3, cv::Scalar(0, 255, 0));
+  cv::Mat blue(8, 8, CV_8UC3, cv::Scalar(255, 0, 0));
+  Material material;
+  material.unlit = true;
+  material.color_rgb = Eigen::Vector3f(1, 1, 1);
+  EXPECT_EQ(renderer.AddTexture(green), 0);
+  material.texture = renderer.AddTexture(green);
+  EXPECT_EQ(material.texture, 1);
+  renderer.AddMesh(MakeBox(Eigen::Vector3f(3, 0, 0), Eigen::Vector3f(0.1f, 4, 4), 0, material));
+  renderer.ClearTextures();
+  EXPECT_EQ(renderer.num_textures(), 0u);
+  EXPECT_EQ(renderer.num_meshes(), 0u);
+  EXPECT_THROW(
+      renderer.AddMesh(MakeBox(Eigen::Vector3f(3, 0, 0), Eigen::Vector3f(0.1f, 4, 4), 0, material)),
+      Error);
+  material.texture = renderer.AddTexture(blue);
+  EXPECT_EQ(material.texture, 0);
+  renderer.AddMesh(MakeBox(Eigen::Vector3f(3, 0, 0), Eigen::Vector3f(0.1f, 4, 4), 0, material));
+  const RenderedView view = renderer.Render(TestCamera(), LookingAlongX(Eigen::Vector3d::Zero()));
+  const cv::Vec3b centre = view.color.at<cv::Vec3b>(120, 160);
+  EXPECT_GT(centre[0], 200);  // the new texture, blue
+  EXPECT_LT(centre[1], 50);
 }
 
 }  // namespace

@@ -186,6 +186,57 @@ Statement& BindRowAsBlob(Statement& statement, int index, const std::vector<Row>
   return statement.BindBlob(index, rows.data(), rows.size() * sizeof(Row));
 }
 
+// Features from the columns count, keypoints, descriptor_type, descriptor_rows,
+// descriptor_cols, descriptors, cam_points starting at `first`; `what` names the owner in errors.
+Features ColumnFeatures(const Statement& query, int first, const std::string& what) {
+  Features features;
+  features.keypoints = DecodeKeypoints(query.Blob(first + 1));
+  const int type = static_cast<int>(query.Int(first + 2));
+  const int rows = static_cast<int>(query.Int(first + 3));
+  const int cols = static_cast<int>(query.Int(first + 4));
+  const std::vector<uint8_t> descriptors = query.Blob(first + 5);
+  if (rows > 0 && cols > 0) {
+    features.descriptors.create(rows, cols, type);
+    const size_t bytes = features.descriptors.total() * features.descriptors.elemSize();
+    SIGHTMAP_CHECK(bytes == descriptors.size(), "corrupt descriptors of " << what);
+    std::memcpy(features.descriptors.data, descriptors.data(), bytes);
+  }
+  const std::vector<uint8_t> points = query.Blob(first + 6);
+  SIGHTMAP_CHECK(points.size() % sizeof(Eigen::Vector3f) == 0, "corrupt 3D points of " << what);
+  DecodePoints(points, &features);
+  SIGHTMAP_CHECK(features.PointsMatchKeypoints(),
+                 what << " has " << features.points_cam.size() << " 3D points for "
+                      << features.keypoints.size() << " keypoints");
+  SIGHTMAP_CHECK(
+      static_cast<int64_t>(features.keypoints.size()) == query.Int(first),
+      what << " lists " << query.Int(first) << " features but has " << features.keypoints.size());
+  return features;
+}
+
+// The encoded blobs of one image's features, bound as count, keypoints, descriptor_type,
+// descriptor_rows, descriptor_cols, descriptors, cam_points from `first`.
+struct EncodedFeatures {
+  explicit EncodedFeatures(const Features& features)
+      : count(static_cast<int64_t>(features.keypoints.size())),
+        keypoints(EncodeKeypoints(features.keypoints)),
+        cam_points(EncodePoints(features)),
+        descriptors(features.descriptors.isContinuous() ? features.descriptors
+                                                        : features.descriptors.clone()) {}
+  void Bind(Statement& statement, int first) const {
+    statement.Bind(first, count);
+    BindRowAsBlob(statement, first + 1, keypoints);
+    statement.Bind(first + 2, descriptors.type())
+        .Bind(first + 3, descriptors.rows)
+        .Bind(first + 4, descriptors.cols);
+    statement.BindBlob(first + 5, descriptors.data, descriptors.total() * descriptors.elemSize());
+    BindRowAsBlob(statement, first + 6, cam_points);
+  }
+  int64_t count;
+  std::vector<uint8_t> keypoints;
+  std::vector<Eigen::Vector3f> cam_points;
+  cv::Mat descriptors;
+};
+
 std::string FileDescription(const std::string& path) { return "'" + path + "'"; }
 
 bool IsMemoryPath(const std::string& path) { return path == ":memory:" || path.empty(); }
@@ -648,10 +699,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   SIGHTMAP_CHECK(cv::imencode(".png", keyframe.depth, png,
                               {cv::IMWRITE_PNG_COMPRESSION, impl_->options.png_compression}),
                  "cannot encode a keyframe's depth image as PNG");
-  const std::vector<uint8_t> keypoints = EncodeKeypoints(features.keypoints);
-  const std::vector<Eigen::Vector3f> cam_points = EncodePoints(features);
-  const cv::Mat descriptors =
-      features.descriptors.isContinuous() ? features.descriptors : features.descriptors.clone();
+  const EncodedFeatures encoded(features);
 
   sqlite3* db = impl_->db;
   Transaction transaction(db);
@@ -684,11 +732,8 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
                             "INSERT INTO features (keyframe_id, count, keypoints, descriptor_type, "
                             "descriptor_rows, descriptor_cols, descriptors, cam_points) VALUES (?, "
                             "?, ?, ?, ?, ?, ?, ?)");
-  insert_features.Bind(1, id.value()).Bind(2, static_cast<int64_t>(features.keypoints.size()));
-  BindRowAsBlob(insert_features, 3, keypoints);
-  insert_features.Bind(4, descriptors.type()).Bind(5, descriptors.rows).Bind(6, descriptors.cols);
-  insert_features.BindBlob(7, descriptors.data, descriptors.total() * descriptors.elemSize());
-  BindRowAsBlob(insert_features, 8, cam_points);
+  insert_features.Bind(1, id.value());
+  encoded.Bind(insert_features, 2);
   insert_features.Run();
 
   for (const LinkRecord& link : keyframe.links) impl_->InsertLink(link, id);
@@ -778,29 +823,94 @@ Features Model::LoadFeatures(KeyframeId id) const {
   query.Bind(1, id.value());
   SIGHTMAP_CHECK(query.Step(), "keyframe " << id.value() << " has no features in model "
                                            << FileDescription(impl_->path));
-  Features features;
-  features.keypoints = DecodeKeypoints(query.Blob(1));
-  const int type = static_cast<int>(query.Int(2));
-  const int rows = static_cast<int>(query.Int(3));
-  const int cols = static_cast<int>(query.Int(4));
-  const std::vector<uint8_t> descriptors = query.Blob(5);
-  if (rows > 0 && cols > 0) {
-    features.descriptors.create(rows, cols, type);
-    const size_t bytes = features.descriptors.total() * features.descriptors.elemSize();
-    SIGHTMAP_CHECK(bytes == descriptors.size(), "corrupt descriptors of keyframe " << id.value());
-    std::memcpy(features.descriptors.data, descriptors.data(), bytes);
+  return ColumnFeatures(query, 0, "keyframe " + std::to_string(id.value()));
+}
+
+SyntheticViewId Model::AddSyntheticView(const SyntheticViewRecord& view) {
+  impl_->CheckWritable();
+  SIGHTMAP_CHECK(view.source.valid(), "a synthetic view needs the keyframe it was rendered from");
+  SIGHTMAP_CHECK(view.color.type() == CV_8UC3 && view.color.cols == view.intrinsics.width &&
+                     view.color.rows == view.intrinsics.height,
+                 "a synthetic view needs 8-bit BGR colour of its intrinsics' size");
+  SIGHTMAP_CHECK(
+      view.features.IsConsistent() && view.features.points_cam.size() == view.features.size(),
+      "a synthetic view needs one descriptor row and one 3D point slot per keypoint");
+  std::vector<uint8_t> jpeg;
+  SIGHTMAP_CHECK(cv::imencode(".jpg", view.color, jpeg,
+                              {cv::IMWRITE_JPEG_QUALITY, impl_->options.jpeg_quality}),
+                 "cannot encode a synthetic view's colour image as JPEG");
+  const EncodedFeatures encoded(view.features);
+  sqlite3* db = impl_->db;
+  Transaction transaction(db);
+  Statement insert(db,
+                   "INSERT INTO synthetic_views (source_keyframe_id, label_id, tx, ty, tz, qx, qy, "
+                   "qz, qw, width, height, fx, fy, cx, cy, created_ns, color_jpeg, count, "
+                   "keypoints, descriptor_type, descriptor_rows, descriptor_cols, descriptors, "
+                   "cam_points) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                   "?, ?, ?, ?, ?)");
+  insert.Bind(1, view.source.value());
+  if (view.label.valid()) {
+    insert.Bind(2, view.label.value());
+  } else {
+    insert.BindNull(2);
   }
-  const std::vector<uint8_t> points = query.Blob(6);
-  SIGHTMAP_CHECK(points.size() % sizeof(Eigen::Vector3f) == 0,
-                 "corrupt 3D points of keyframe " << id.value());
-  DecodePoints(points, &features);
-  SIGHTMAP_CHECK(features.PointsMatchKeypoints(),
-                 "keyframe " << id.value() << " has " << features.points_cam.size()
-                             << " 3D points for " << features.keypoints.size() << " keypoints");
-  SIGHTMAP_CHECK(static_cast<int64_t>(features.keypoints.size()) == query.Int(0),
-                 "keyframe " << id.value() << " lists " << query.Int(0) << " features but has "
-                             << features.keypoints.size());
-  return features;
+  BindPose(insert, 3, view.source_from_cam);
+  BindIntrinsics(insert, 10, view.intrinsics);
+  insert.Bind(16, NowNs());
+  BindRowAsBlob(insert, 17, jpeg);
+  encoded.Bind(insert, 18);
+  insert.Run();
+  const SyntheticViewId id(sqlite3_last_insert_rowid(db));
+  transaction.Commit();
+  return id;
+}
+
+int64_t Model::DeleteSyntheticViews() {
+  impl_->CheckWritable();
+  Statement remove(impl_->db, "DELETE FROM synthetic_views");
+  remove.Run();
+  return sqlite3_changes(impl_->db);
+}
+
+std::vector<SyntheticViewRecord> Model::SyntheticViews() const {
+  Statement query(impl_->db,
+                  "SELECT v.id, v.source_keyframe_id, v.label_id, v.tx, v.ty, v.tz, v.qx, v.qy, "
+                  "v.qz, v.qw, v.width, v.height, v.fx, v.fy, v.cx, v.cy, length(v.color_jpeg), "
+                  "v.count, v.keypoints, v.descriptor_type, v.descriptor_rows, "
+                  "v.descriptor_cols, v.descriptors, v.cam_points, k.tx, k.ty, k.tz, k.qx, k.qy, "
+                  "k.qz, k.qw FROM synthetic_views v JOIN keyframes k ON "
+                  "k.id = v.source_keyframe_id ORDER BY v.id");
+  std::vector<SyntheticViewRecord> views;
+  while (query.Step()) {
+    SyntheticViewRecord view;
+    view.id = SyntheticViewId(query.Int(0));
+    view.source = KeyframeId(query.Int(1));
+    if (!query.IsNull(2)) view.label = LabelId(query.Int(2));
+    view.source_from_cam = ColumnPose(query, 3);
+    view.intrinsics = ColumnIntrinsics(query, 10);
+    view.color_bytes = query.Int(16);
+    view.features = ColumnFeatures(query, 17, "synthetic view " + std::to_string(view.id.value()));
+    view.world_from_cam = ColumnPose(query, 24) * view.source_from_cam;
+    views.push_back(std::move(view));
+  }
+  return views;
+}
+
+int64_t Model::NumSyntheticViews() const {
+  Statement query(impl_->db, "SELECT count(*) FROM synthetic_views");
+  query.Step();
+  return query.Int(0);
+}
+
+cv::Mat Model::LoadSyntheticColor(SyntheticViewId id) const {
+  Statement query(impl_->db, "SELECT color_jpeg FROM synthetic_views WHERE id = ?");
+  query.Bind(1, id.value());
+  SIGHTMAP_CHECK(query.Step(), "synthetic view " << id.value() << " is not in model "
+                                                 << FileDescription(impl_->path));
+  const std::vector<uint8_t> jpeg = query.Blob(0);
+  cv::Mat color = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+  SIGHTMAP_CHECK(!color.empty(), "corrupt image of synthetic view " << id.value());
+  return color;
 }
 
 LinkId Model::AddLink(const LinkRecord& link) {
@@ -910,6 +1020,10 @@ ModelSummary Model::Summary() const {
   summary.sessions = count("SELECT count(*) FROM sessions");
   summary.keyframes = count("SELECT count(*) FROM keyframes");
   summary.labels = count("SELECT count(*) FROM labels");
+  summary.synthetic_views = count("SELECT count(*) FROM synthetic_views");
+  summary.synthetic_view_bytes = count(
+      "SELECT coalesce(sum(length(color_jpeg) + length(keypoints) + length(descriptors) + "
+      "length(cam_points)), 0) FROM synthetic_views");
   {
     summary.inactive_links = count("SELECT count(*) FROM links WHERE active = 0");
     Statement query(db, "SELECT type, count(*) FROM links WHERE active = 1 GROUP BY type");

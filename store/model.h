@@ -87,6 +87,23 @@ struct KeyframeInfo {
   int64_t depth_bytes = 0;
 };
 
+// A view rendered from the model at a standpoint the walk missed (identify's view synthesis): its
+// features help locate photos taken from there; mapping never reads it. It is stored relative to
+// the real keyframe it was mostly rendered from, and moves with that keyframe when a later
+// session's loop closures re-optimise the graph.
+struct SyntheticViewRecord {
+  SyntheticViewId id;  // set by the model
+  KeyframeId source;   // must exist; deleting it deletes the view
+  LabelId label;       // the appliance it was rendered for; invalid for none
+  Eigen::Isometry3d source_from_cam = Eigen::Isometry3d::Identity();
+  // Derived when read: the source keyframe's optimised world_from_cam * source_from_cam.
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  Intrinsics intrinsics;    // its width/height are the image size
+  cv::Mat color;            // CV_8UC3 BGR, stored as JPEG; read only by LoadSyntheticColor
+  Features features;        // 3D points in this view's camera frame
+  int64_t color_bytes = 0;  // encoded size, when read
+};
+
 enum class LabelPointSource { kKeyframePixel = 0, kImportedFile = 1, kTyped = 2 };
 
 struct LabelPoint {
@@ -160,6 +177,9 @@ struct ModelSummary {
   int64_t segments = 0;
   int64_t largest_segment_keyframes = 0;  // keyframes in the largest part
   int64_t labels = 0;
+  int64_t synthetic_views = 0;
+  // Their stored bytes (image, keypoints, descriptors, points), a share of size_bytes.
+  int64_t synthetic_view_bytes = 0;
   int64_t size_bytes = 0;  // the database file plus its WAL
   // Axis-aligned box of keyframe positions and label points [m]; empty when there are none.
   bool has_bounding_box = false;
@@ -219,6 +239,15 @@ class Model {
   void DeleteLabel(LabelId id);
   std::optional<LabelRecord> FindLabel(const std::string& name) const;
   std::vector<LabelRecord> Labels() const;  // ordered by name
+
+  // Synthetic views. AddSyntheticView writes one view in one transaction (features must have a 3D
+  // point slot per keypoint); DeleteSyntheticViews removes them all and returns how many.
+  SyntheticViewId AddSyntheticView(const SyntheticViewRecord& view);
+  int64_t DeleteSyntheticViews();
+  // Every synthetic view with its features and world pose, by id; no image is read.
+  std::vector<SyntheticViewRecord> SyntheticViews() const;
+  int64_t NumSyntheticViews() const;
+  cv::Mat LoadSyntheticColor(SyntheticViewId id) const;  // CV_8UC3 BGR
 
   // The visual vocabulary place recognition trains (format names the library that reads it).
   void SetVocabulary(const std::string& format, const std::vector<uint8_t>& data);

@@ -209,6 +209,84 @@ TEST(Model, UpdatePosesIsAllOrNothingAndLabelsFollowKeyframes) {
   EXPECT_EQ(found->points[1].source, LabelPointSource::kTyped);
 }
 
+TEST(Model, SyntheticViewsRoundTripFollowTheirKeyframeAndStayOutOfTheMap) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  SyntheticKeyframeOptions medium = SmallKeyframes();
+  medium.width = 320;
+  medium.height = 240;
+  const KeyframeRecord source = MakeSyntheticKeyframe(session, 0, medium);
+  const KeyframeId a = model.AddKeyframe(source);
+  LabelRecord lamp;
+  lamp.name = "lamp";
+  lamp.points.resize(1);
+  const LabelId lamp_id = model.AddLabel(lamp);
+
+  SyntheticViewRecord view;
+  view.source = a;
+  view.label = lamp_id;
+  view.source_from_cam = MakePose(0.4, {0.5, 0.0, -1.0});
+  view.intrinsics = source.intrinsics;
+  view.intrinsics.width = 320;
+  view.intrinsics.height = 240;
+  view.color = source.color;
+  view.features = source.features;
+  const SyntheticViewId id = model.AddSyntheticView(view);
+  EXPECT_TRUE(id.valid());
+  EXPECT_EQ(model.NumSyntheticViews(), 1);
+  // Not a keyframe: mapping, info's keyframe counts and the pose graph never see it.
+  EXPECT_EQ(model.NumKeyframes(), 1);
+  const ModelSummary summary = model.Summary();
+  EXPECT_EQ(summary.synthetic_views, 1);
+  EXPECT_GT(summary.synthetic_view_bytes, 0);
+  EXPECT_LT(summary.synthetic_view_bytes, summary.size_bytes == 0 ? INT64_MAX : summary.size_bytes);
+
+  std::vector<SyntheticViewRecord> read = model.SyntheticViews();
+  ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0].id, id);
+  EXPECT_EQ(read[0].source, a);
+  EXPECT_EQ(read[0].label, lamp_id);
+  EXPECT_TRUE(read[0].source_from_cam.isApprox(view.source_from_cam, 1e-12));
+  EXPECT_TRUE(read[0].world_from_cam.isApprox(view.source_from_cam, 1e-12));  // source at origin
+  EXPECT_EQ(read[0].intrinsics.width, 320);
+  EXPECT_GT(read[0].color_bytes, 0);
+  ASSERT_EQ(read[0].features.size(), source.features.size());
+  EXPECT_EQ(cv::norm(read[0].features.descriptors, source.features.descriptors, cv::NORM_INF), 0);
+  EXPECT_EQ(read[0].features.NumPoints(), source.features.NumPoints());
+  EXPECT_EQ(model.LoadSyntheticColor(id).size(), source.color.size());
+
+  // A loop closure that moves the source keyframe moves its views with it.
+  const Eigen::Isometry3d moved = MakePose(0.2, {3.0, 1.0, 0.0});
+  model.UpdatePoses({{a, moved}});
+  read = model.SyntheticViews();
+  EXPECT_TRUE(read[0].world_from_cam.isApprox(moved * view.source_from_cam, 1e-12));
+
+  // Deleting the label keeps the view (its features still help), without the label.
+  model.DeleteLabel(lamp_id);
+  EXPECT_FALSE(model.SyntheticViews()[0].label.valid());
+
+  // Bad views are refused and leave nothing behind.
+  SyntheticViewRecord orphan = view;
+  orphan.source = KeyframeId();
+  EXPECT_THROW(model.AddSyntheticView(orphan), Error);
+  SyntheticViewRecord missing_source = view;
+  missing_source.source = KeyframeId(99);
+  EXPECT_THROW(model.AddSyntheticView(missing_source), Error);
+  SyntheticViewRecord wrong_size = view;
+  wrong_size.intrinsics.width = 100;
+  EXPECT_THROW(model.AddSyntheticView(wrong_size), Error);
+  SyntheticViewRecord no_points = view;
+  no_points.features.points_cam.clear();
+  no_points.features.has_point.clear();
+  EXPECT_THROW(model.AddSyntheticView(no_points), Error);
+  EXPECT_EQ(model.NumSyntheticViews(), 1);
+  EXPECT_THROW(model.LoadSyntheticColor(SyntheticViewId(42)), Error);
+
+  EXPECT_EQ(model.DeleteSyntheticViews(), 1);
+  EXPECT_TRUE(model.SyntheticViews().empty());
+  EXPECT_EQ(model.IntegrityCheck(), "ok");
+}
+
 TEST(Model, LabelCrud) {
   Model model = Model::Open(":memory:");
   LabelRecord projector;
@@ -433,8 +511,9 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
   }
   Model model = Model::Open(path);
   EXPECT_EQ(model.SchemaVersion(), Model::LatestSchemaVersion());
-  model.SetVocabulary("dbow3", {9});   // the table migration 2 added
-  EXPECT_TRUE(model.Links().empty());  // reads the column migration 3 added
+  model.SetVocabulary("dbow3", {9});            // the table migration 2 added
+  EXPECT_TRUE(model.Links().empty());           // reads the column migration 3 added
+  EXPECT_TRUE(model.SyntheticViews().empty());  // the table migration 5 added
   EXPECT_EQ(model.IntegrityCheck(), "ok");
   // The data written under schema 1 survived.
   sqlite3* db = nullptr;
@@ -442,7 +521,7 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
   sqlite3_stmt* stmt = nullptr;
   sqlite3_prepare_v2(db, "SELECT group_concat(version) FROM sightmap_schema", -1, &stmt, nullptr);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3,4");
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3,4,5");
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }

@@ -116,6 +116,29 @@ ALTER TABLE links_v4 RENAME TO links;
 CREATE INDEX links_by_from ON links(from_id);
 CREATE INDEX links_by_to ON links(to_id);
 )sql",
+      // 5: views rendered from the model where the walk did not stand, for locating photos only
+      // (never for mapping). Each is stored relative to the keyframe it was mostly rendered from,
+      // so it moves with that keyframe when a later session's loops re-optimise the graph.
+      R"sql(
+CREATE TABLE synthetic_views (
+  id INTEGER PRIMARY KEY,
+  source_keyframe_id INTEGER NOT NULL REFERENCES keyframes(id) ON DELETE CASCADE,
+  label_id INTEGER REFERENCES labels(id) ON DELETE SET NULL,
+  tx REAL NOT NULL, ty REAL NOT NULL, tz REAL NOT NULL,
+  qx REAL NOT NULL, qy REAL NOT NULL, qz REAL NOT NULL, qw REAL NOT NULL,
+  width INTEGER NOT NULL, height INTEGER NOT NULL,
+  fx REAL NOT NULL, fy REAL NOT NULL, cx REAL NOT NULL, cy REAL NOT NULL,
+  created_ns INTEGER NOT NULL,
+  color_jpeg BLOB NOT NULL,
+  count INTEGER NOT NULL,
+  keypoints BLOB NOT NULL,
+  descriptor_type INTEGER NOT NULL,
+  descriptor_rows INTEGER NOT NULL,
+  descriptor_cols INTEGER NOT NULL,
+  descriptors BLOB NOT NULL,
+  cam_points BLOB NOT NULL);
+CREATE INDEX synthetic_views_by_source ON synthetic_views(source_keyframe_id);
+)sql",
   };
   return kMigrations;
 }

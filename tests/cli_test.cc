@@ -194,6 +194,8 @@ TEST(Cli, InfoJsonKeysOfASmallModel) {
   EXPECT_EQ(info.at("loop_closures"), 1);
   EXPECT_EQ(info.at("segments"), 2);
   EXPECT_EQ(info.at("labels"), 2);
+  EXPECT_EQ(info.at("synthetic_views"), 0);
+  EXPECT_EQ(info.at("synthetic_view_bytes"), 0);
   EXPECT_EQ(info.at("schema_version"), store::Model::LatestSchemaVersion());
   EXPECT_GT(info.at("size_bytes").get<int64_t>(), 10000);
   EXPECT_EQ(info.at("links").at("odometry"), 2);
@@ -249,6 +251,49 @@ TEST(Cli, CoverageSaysFromWhereEachLabelWasSeen) {
                      "cannot write --png");
   ExpectOneLineError(Sightmap("coverage " + path + " --sectors 2"), 2, "--sectors");
   ExpectOneLineError(Sightmap("coverage"), 2, "MODEL");
+}
+
+// The small model's keyframes are flat synthetic images: `synthesize` runs its coverage, plans
+// standpoints around both labels, refuses or stores each view, and says so; its errors are one
+// line.
+TEST(Cli, SynthesizeReportsItsViewsAndRefusesAModelWithoutLabels) {
+  const std::string path = MakeSmallModel("cli_synthesize");
+  const CommandResult run = Sightmap("synthesize " + path + " --all-sectors --json");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json report = nlohmann::json::parse(run.out);
+  for (const char* key :
+       {"labels", "standpoints", "written", "refused", "deleted", "bytes", "seconds"}) {
+    EXPECT_TRUE(report.contains(key)) << key;
+  }
+  EXPECT_EQ(report.at("labels"), 2);
+  EXPECT_EQ(report.at("written").get<int>() + report.at("refused").get<int>(),
+            report.at("standpoints").get<int>());
+  const CommandResult info = Sightmap("info " + path + " --json");
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_EQ(nlohmann::json::parse(info.out).at("synthetic_views"), report.at("written"));
+
+  const CommandResult text = Sightmap("synthesize " + path);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("standpoints    "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("refused        "), std::string::npos) << text.out;
+  const CommandResult clear = Sightmap("synthesize " + path + " --clear --json");
+  ASSERT_EQ(clear.exit_code, 0) << clear.err;
+  EXPECT_TRUE(nlohmann::json::parse(clear.out).contains("deleted"));
+  const CommandResult after = Sightmap("info " + path + " --json");
+  EXPECT_EQ(nlohmann::json::parse(after.out).at("synthetic_views"), 0);
+
+  ExpectOneLineError(Sightmap("synthesize"), 2, "MODEL");
+  ExpectOneLineError(Sightmap("synthesize /no/such/model.db"), 1, "/no/such/model.db");
+  const std::string unlabelled = testing::MakeTempDir("cli_synthesize_bare") + "/model.db";
+  {
+    store::Model model = store::Model::Open(unlabelled);
+    const SessionId session = model.BeginSession({});
+    store::SyntheticKeyframeOptions small;
+    small.width = 64;
+    small.height = 48;
+    model.AddKeyframe(store::MakeSyntheticKeyframe(session, 0, small));
+  }
+  ExpectOneLineError(Sightmap("synthesize " + unlabelled), 1, "has no labels");
 }
 
 TEST(Cli, ExportWritesPlyTrajectoryAndLabels) {
