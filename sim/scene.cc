@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -154,7 +155,12 @@ Scene ParseScene(const std::string& json_text, const std::string& origin) {
     scene.ceiling_height_m = j.value("ceiling_height_m", 2.8);
     const json textures = j.value("textures", json::object());  // items() must not outlive it
     for (const auto& [key, value] : textures.items()) {
-      scene.texture_files[key] = value.get<std::string>();
+      const std::string file = value.get<std::string>();
+      SIGHTMAP_CHECK(file.rfind(kProceduralPrefix, 0) != 0 ||
+                         !ProceduralTexture(file.substr(std::strlen(kProceduralPrefix))).empty(),
+                     "scene " << origin << ": texture '" << key << "' names an unknown " << file
+                              << " (procedural:ceiling_tile or procedural:vent)");
+      scene.texture_files[key] = file;
     }
     SIGHTMAP_CHECK(j.contains("materials"), "scene " << origin << " has no \"materials\"");
     for (const auto& [key, value] : j["materials"].items()) {
@@ -261,12 +267,71 @@ std::string TextureDirectory() {
   return "/usr/share/doc/opencv-doc/examples/data";
 }
 
+namespace {
+
+// An acoustic ceiling tile as every tile of a suspended ceiling shows it (one repeat of the grid):
+// a light grey board with short dark fissures and pinholes, framed by the T-bar grid's strip.
+// Fixed seed: every tile, every run, the same pattern, as in a real grid.
+cv::Mat CeilingTileTexture() {
+  constexpr int kSize = 256;
+  cv::Mat tile(kSize, kSize, CV_8UC3, cv::Scalar::all(236));
+  cv::RNG rng(0x7113);
+  for (int i = 0; i < 220; ++i) {
+    const cv::Point a(rng.uniform(10, kSize - 10), rng.uniform(10, kSize - 10));
+    const double angle = rng.uniform(0.0, CV_PI);
+    const int length = rng.uniform(3, 14);
+    const cv::Point b(a.x + static_cast<int>(length * std::cos(angle)),
+                      a.y + static_cast<int>(length * std::sin(angle)));
+    const int shade = rng.uniform(150, 205);
+    cv::line(tile, a, b, cv::Scalar::all(shade), 1, cv::LINE_AA);
+  }
+  for (int i = 0; i < 400; ++i) {
+    const cv::Point at(rng.uniform(8, kSize - 8), rng.uniform(8, kSize - 8));
+    cv::circle(tile, at, 1, cv::Scalar::all(rng.uniform(170, 215)), cv::FILLED);
+  }
+  // The T-bar: 24 mm of a 600 mm tile, half on each edge of the repeat.
+  const int bar = std::max(1, kSize * 12 / 600);
+  const cv::Scalar metal(205, 208, 210);
+  const cv::Scalar shadow(150, 150, 152);
+  cv::rectangle(tile, cv::Rect(0, 0, kSize, bar), metal, cv::FILLED);
+  cv::rectangle(tile, cv::Rect(0, kSize - bar, kSize, bar), metal, cv::FILLED);
+  cv::rectangle(tile, cv::Rect(0, 0, bar, kSize), metal, cv::FILLED);
+  cv::rectangle(tile, cv::Rect(kSize - bar, 0, bar, kSize), metal, cv::FILLED);
+  cv::rectangle(tile, cv::Rect(bar, bar, kSize - 2 * bar, kSize - 2 * bar), shadow, 1);
+  return tile;
+}
+
+// A supply-air diffuser's face: nested square louvres round a square centre.
+cv::Mat VentTexture() {
+  constexpr int kSize = 256;
+  cv::Mat vent(kSize, kSize, CV_8UC3, cv::Scalar::all(225));
+  for (int ring = 0; ring < 6; ++ring) {
+    const int inset = 10 + ring * 18;
+    cv::rectangle(vent, cv::Rect(inset, inset, kSize - 2 * inset, kSize - 2 * inset),
+                  cv::Scalar::all(ring % 2 == 0 ? 95 : 180), 5);
+  }
+  cv::rectangle(vent, cv::Rect(0, 0, kSize, kSize), cv::Scalar::all(160), 4);
+  return vent;
+}
+
+}  // namespace
+
+cv::Mat ProceduralTexture(const std::string& name) {
+  if (name == "ceiling_tile") return CeilingTileTexture();
+  if (name == "vent") return VentTexture();
+  return cv::Mat();
+}
+
 void AddSceneToRenderer(const Scene& scene, render::MeshRenderer* renderer) {
   const std::filesystem::path scene_dir = std::filesystem::path(scene.source).has_parent_path()
                                               ? std::filesystem::path(scene.source).parent_path()
                                               : std::filesystem::path(".");
   std::map<std::string, cv::Mat> images;
   for (const auto& [key, file] : scene.texture_files) {
+    if (file.rfind(kProceduralPrefix, 0) == 0) {
+      images[key] = ProceduralTexture(file.substr(std::strlen(kProceduralPrefix)));
+      continue;
+    }
     std::filesystem::path path = file;
     if (path.is_relative()) {
       const std::filesystem::path beside = scene_dir / file;

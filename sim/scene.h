@@ -5,7 +5,9 @@
 // tools/make_office_scene.py which writes it):
 //   {"name": "...", "ceiling_height_m": 2.8,
 //    "textures":  {"graf": "graf1.png", ...},          // file names: absolute, relative to the
-//                                                      // scene file, or in the texture folder
+//                                                      // scene file, or in the texture folder;
+//                                                      // "procedural:ceiling_tile" or
+//                                                      // "procedural:vent" are drawn
 //    "materials": {"wall": {"color": [r, g, b],        // [0, 1]
 //                           "texture": "graf",         // optional, a key of "textures"
 //                           "scale_m": 1.0,            // metres per texture repeat; 0 = stretch
@@ -30,6 +32,7 @@
 #include <vector>
 
 #include <Eigen/Geometry>
+#include <opencv2/core.hpp>
 
 #include "render/mesh_renderer.h"
 
@@ -129,6 +132,12 @@ Scene ApplySession(const Scene& scene, int session, uint64_t seed);
 
 // Folder of the opencv-doc sample photographs used as textures ($SIGHTMAP_TEXTURE_DIR overrides).
 std::string TextureDirectory();
+
+// Textures a scene names as "procedural:NAME" are drawn, not read: "ceiling_tile" (one 600 mm
+// acoustic tile of a suspended ceiling with its T-bar, the same on every tile, as in a real grid)
+// and "vent" (a square diffuser's louvres). Empty for another name.
+inline constexpr char kProceduralPrefix[] = "procedural:";
+cv::Mat ProceduralTexture(const std::string& name);
 
 // Loads the textures (cached by the renderer's lifetime) and adds every box as a mesh; appliance
 // boxes carry their appliance ID. Throws sightmap::Error naming a missing texture file and the

@@ -115,6 +115,14 @@ bool QueryOptions::Check(std::string* error) const {
     *error = "occluder_share must be in [0, 1] and jitters >= 0";
     return false;
   }
+  if (!(overhead_max_elevation_deg > 0.0 && overhead_max_elevation_deg <= 90.0) ||
+      !(overhead_frame_offset_deg >= 0.0 && overhead_frame_offset_deg < 45.0) ||
+      !(overhead_min_height_m > 0.0)) {
+    *error =
+        "overhead_max_elevation_deg must be in (0, 90], overhead_frame_offset_deg in [0, 45) "
+        "and overhead_min_height_m positive";
+    return false;
+  }
   return thresholds.Check(error);
 }
 
@@ -259,6 +267,7 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
   for (int q = 0; q < count; ++q) {
     const Appliance& target = scene_.appliances[order[static_cast<size_t>(q) % order.size()]];
     const Eigen::Vector3d aim = target.points.front();
+    const bool overhead = aim.z() > options.overhead_min_height_m;
     const Room* room = scene_.RoomAt(aim.head<2>());
     const bool want_occluder = UniformReal(rng, 0.0, 1.0) < options.occluder_share;
     Eigen::Vector3d position = Eigen::Vector3d::Zero();
@@ -272,6 +281,10 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
       const Eigen::Vector3d p(aim.x() + distance * std::cos(angle),
                               aim.y() + distance * std::sin(angle), height);
       if (room != nullptr && !room->Contains(p.head<2>(), 0.3)) continue;
+      if (overhead && std::atan2(aim.z() - p.z(), (aim - p).head<2>().norm()) >
+                          options.overhead_max_elevation_deg * kPi / 180.0) {
+        continue;
+      }
       if (!scene_.IsFree(p, 0.25)) continue;
       const Eigen::Vector3d ray = aim - p;
       const auto hit = scene_.Raycast(p, ray.normalized(), ray.norm() - 0.05, target.id);
@@ -290,7 +303,8 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
     const Eigen::Vector3d to = aim - position;
     const double yaw = std::atan2(to.y(), to.x()) +
                        UniformReal(rng, -1.0, 1.0) * options.max_yaw_jitter_deg * kPi / 180.0;
-    const double pitch = std::atan2(to.z(), to.head<2>().norm()) +
+    const double frame_offset = overhead ? options.overhead_frame_offset_deg * kPi / 180.0 : 0.0;
+    const double pitch = std::atan2(to.z(), to.head<2>().norm()) - frame_offset +
                          UniformReal(rng, -1.0, 1.0) * options.max_pitch_jitter_deg * kPi / 180.0;
     const double roll = UniformReal(rng, -1.0, 1.0) * options.max_roll_deg * kPi / 180.0;
     Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();

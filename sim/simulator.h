@@ -81,6 +81,15 @@ struct QueryOptions {
   double max_pitch_jitter_deg = 8.0;  // aim error up/down [deg]
   double max_roll_deg = 15.0;         // phone tilt [deg]
   double occluder_share = 0.25;  // share of photos taken with furniture between camera and target
+  // A person photographing something overhead (a ceiling light) holds the phone level-ish: they
+  // step back until it is at most overhead_max_elevation_deg above the horizon, and aim
+  // overhead_frame_offset_deg below it, so it sits in the upper part of the frame (a 65 x 51 deg
+  // phone: half-way between the centre and the top) with the room's walls and furniture below it,
+  // not a view straight up at a bare ceiling. Targets above overhead_min_height_m are overhead
+  // [deg], [deg], [m].
+  double overhead_max_elevation_deg = 40.0;
+  double overhead_frame_offset_deg = 13.0;
+  double overhead_min_height_m = 2.3;
   VisibilityThresholds thresholds;
 
   bool Check(std::string* error) const;

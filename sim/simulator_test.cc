@@ -232,6 +232,38 @@ TEST(Simulator, PhonePhotosAreAimedAtAppliancesWithinTheEnvelope) {
   EXPECT_GE(occluders, 1);
 }
 
+// A person photographs a ceiling light the way they would a painting high on a wall: from far
+// enough back that the phone tilts up moderately, the light in the upper half of the frame and
+// the room below it.
+TEST(Simulator, PhotosOfCeilingLightsLookUpModeratelyWithTheLightHighInTheFrame) {
+  Simulator simulator(FastOptions());
+  QueryOptions options;
+  options.width = 640;
+  options.height = 480;
+  const int count = 2 * static_cast<int>(simulator.scene().appliances.size());
+  int overhead = 0;
+  for (const QueryPhoto& photo : simulator.MakeQueries(count, options)) {
+    const Appliance& target =
+        simulator.scene().appliances[static_cast<size_t>(photo.target_appliance - 1)];
+    if (target.points.front().z() <= options.overhead_min_height_m) continue;
+    ++overhead;
+    const Eigen::Vector3d to = target.points.front() - photo.world_from_cam.translation();
+    const double elevation_deg = std::atan2(to.z(), to.head<2>().norm()) * 180.0 / kPi;
+    EXPECT_LE(elevation_deg, options.overhead_max_elevation_deg + 1e-9) << target.name;
+    // The optical axis (camera z) tilts up by at most elevation - offset + jitter.
+    const Eigen::Vector3d axis = photo.world_from_cam.linear().col(2);
+    const double pitch_deg = std::asin(axis.z()) * 180.0 / kPi;
+    EXPECT_LE(pitch_deg, options.overhead_max_elevation_deg - options.overhead_frame_offset_deg +
+                             options.max_pitch_jitter_deg + 1e-6)
+        << target.name;
+    const Eigen::Vector3d in_cam = photo.world_from_cam.inverse() * target.points.front();
+    ASSERT_GT(in_cam.z(), 0.0) << target.name;
+    EXPECT_LT(photo.intrinsics.Project(in_cam).y(), photo.intrinsics.cy) << target.name;
+  }
+  // The office's six ceiling lights and its ceiling-mounted projector, twice each.
+  EXPECT_EQ(overhead, 14);
+}
+
 TEST(SimSource, OpensThroughOpenSourceWithOptions) {
   RegisterSimSource();
   auto source = capture::OpenSource("sim:office?trajectory=robot&session=2&seed=3&frames=3&fps=1");

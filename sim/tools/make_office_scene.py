@@ -578,6 +578,27 @@ add("k_sanitiser", [3.62, YC - W_IN - 0.05, 1.05], [0.12, 0.1, 0.22], "plastic_l
 add("k_sanitiser_label", [3.62, YC - W_IN - 0.101, 1.08], [0.08, 0.002, 0.08], "note_text")
 clear_of_tour(first)
 
+# ---- ceilings as real office ceilings are: on the tile grid, supply-air diffusers, sprinkler
+# heads and smoke detectors (a photo of a ceiling light shows them, not a bare plane) ----
+def ceiling_fixtures(prefix, vents, sprinklers, detectors):
+    for i, (x, y) in enumerate(vents):
+        add(f"{prefix}_vent{i}", [x, y, H - 0.012], [0.6, 0.6, 0.024], "vent")
+    for i, (x, y) in enumerate(sprinklers):
+        add(f"{prefix}_sprinkler{i}", [x, y, H - 0.025], [0.045, 0.045, 0.05], "sprinkler")
+    for i, (x, y) in enumerate(detectors):
+        add(f"{prefix}_smoke_detector{i}", [x, y, H - 0.022], [0.13, 0.13, 0.044], "smoke_detector")
+
+
+for prefix, ox in (("a", 0.0), ("b", 10.0), ("c", 20.0)):
+    ceiling_fixtures(f"{prefix}_ceiling",
+                     vents=[(ox + 5.0, 4.2), (ox + 5.0, 8.9)],
+                     sprinklers=[(ox + 2.0, 3.5), (ox + 5.0, 6.4), (ox + 8.0, 3.5), (ox + 2.0, 9.0),
+                                 (ox + 8.0, 9.2)],
+                     detectors=[(ox + 5.6, 5.6)])
+ceiling_fixtures("k_ceiling", vents=[(12.0, 1.2), (18.0, 1.2)],
+                 sprinklers=[(1.5 + 3.0 * k, 1.2) for k in range(10)],
+                 detectors=[(7.5, 1.0), (22.5, 1.0)])
+
 scene = {
     "name": "office",
     "description": "Three 10 x 8 m rooms (lab, meeting room, office) north of a 30 m corridor; "
@@ -594,12 +615,18 @@ scene = {
         "suzanne": "Blender_Suzanne1.jpg", "blox": "blox.jpg", "cards": "cards.png", "sudoku": "sudoku.png",
         "linux": "LinuxLogo.jpg", "plate": "licenseplate_motion.jpg", "pic1": "pic1.png", "pic5": "pic5.png",
         "box": "box.png", "textN": "imageTextN.png", "chicky": "chicky_512.png",
+        # Drawn by sightmap (sim/scene.h): one 600 mm tile of the suspended ceiling's grid, the
+        # same on every tile as real grids are, and a diffuser's louvres.
+        "ceiling_tile": "procedural:ceiling_tile", "vent": "procedural:vent",
     },
     "materials": {
         # Paint and plaster: a photograph at a few percent contrast, so walls stay low-texture.
         "wall_white": {"texture": "ela", "scale_m": 2.0, "contrast": 0.2, "color": [0.92, 0.91, 0.87]},
         "wall_corridor": {"texture": "aloe", "scale_m": 2.5, "contrast": 0.2, "color": [0.84, 0.86, 0.80]},
-        "ceiling": {"color": [0.93, 0.93, 0.92]},
+        "ceiling": {"texture": "ceiling_tile", "scale_m": 0.6, "contrast": 0.35, "color": [0.95, 0.95, 0.94]},
+        "vent": {"texture": "vent", "scale_m": 0.0, "color": [0.95, 0.95, 0.95]},
+        "sprinkler": {"color": [0.78, 0.68, 0.45]},
+        "smoke_detector": {"color": [0.97, 0.97, 0.96]},
         "carpet": {"texture": "baboon", "scale_m": 0.5, "contrast": 0.6, "color": [0.36, 0.36, 0.42]},
         "lino": {"texture": "baboon", "scale_m": 0.6, "contrast": 0.5, "color": [0.55, 0.53, 0.50]},
         # stuff.jpg is a photograph of a light wooden table top: grain, a pen, a ball.
