@@ -865,9 +865,10 @@ SyntheticViewId Model::AddSyntheticView(const SyntheticViewRecord& view) {
   return id;
 }
 
-int64_t Model::DeleteSyntheticViews() {
+int64_t Model::DeleteSyntheticViews(SyntheticViewId last) {
   impl_->CheckWritable();
-  Statement remove(impl_->db, "DELETE FROM synthetic_views");
+  Statement remove(impl_->db, "DELETE FROM synthetic_views WHERE id <= ?");
+  remove.Bind(1, last.valid() ? last.value() : std::numeric_limits<int64_t>::max());
   remove.Run();
   return sqlite3_changes(impl_->db);
 }

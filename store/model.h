@@ -241,9 +241,11 @@ class Model {
   std::vector<LabelRecord> Labels() const;  // ordered by name
 
   // Synthetic views. AddSyntheticView writes one view in one transaction (features must have a 3D
-  // point slot per keypoint); DeleteSyntheticViews removes them all and returns how many.
+  // point slot per keypoint); DeleteSyntheticViews removes those with an id up to `last` (all when
+  // `last` is invalid) and returns how many, so a caller replacing them removes the old ones only
+  // once the new ones are written.
   SyntheticViewId AddSyntheticView(const SyntheticViewRecord& view);
-  int64_t DeleteSyntheticViews();
+  int64_t DeleteSyntheticViews(SyntheticViewId last = SyntheticViewId());
   // Every synthetic view with its features and world pose, by id; no image is read.
   std::vector<SyntheticViewRecord> SyntheticViews() const;
   int64_t NumSyntheticViews() const;

@@ -282,6 +282,13 @@ TEST(Model, SyntheticViewsRoundTripFollowTheirKeyframeAndStayOutOfTheMap) {
   EXPECT_EQ(model.NumSyntheticViews(), 1);
   EXPECT_THROW(model.LoadSyntheticColor(SyntheticViewId(42)), Error);
 
+  // Replacing: the old views go only once the new one is written.
+  SyntheticViewRecord unlabelled = view;
+  unlabelled.label = LabelId();  // the lamp was deleted above
+  const SyntheticViewId newer = model.AddSyntheticView(unlabelled);
+  EXPECT_EQ(model.DeleteSyntheticViews(id), 1);
+  ASSERT_EQ(model.SyntheticViews().size(), 1u);
+  EXPECT_EQ(model.SyntheticViews()[0].id, newer);
   EXPECT_EQ(model.DeleteSyntheticViews(), 1);
   EXPECT_TRUE(model.SyntheticViews().empty());
   EXPECT_EQ(model.IntegrityCheck(), "ok");

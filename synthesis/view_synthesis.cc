@@ -373,7 +373,12 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
   SynthesisReport report;
   report.labels = static_cast<int>(coverage.labels.size());
   report.standpoints = static_cast<int>(standpoints.size());
-  report.deleted = model.DeleteSyntheticViews();
+  // The previous run's views stay until this run's are written: a run killed half-way leaves
+  // both, and the next run replaces both.
+  SyntheticViewId previous_last;
+  for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
+    previous_last = std::max(previous_last, view.id);
+  }
   for (size_t i = 0; i < standpoints.size(); ++i) {
     const Standpoint& standpoint = standpoints[i];
     ViewSynthesizer::Result result =
@@ -391,6 +396,7 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
     }
     if (progress) progress(static_cast<int>(i + 1), static_cast<int>(standpoints.size()));
   }
+  if (previous_last.valid()) report.deleted = model.DeleteSyntheticViews(previous_last);
   report.bytes = model.Summary().synthetic_view_bytes;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;

@@ -109,7 +109,7 @@ Composite CompositeLayers(const std::vector<render::RenderedView>& layers, doubl
 // scene's.
 Features KeepFeaturesOnDrawnPixels(const Features& features, const cv::Mat& drawn);
 
-// Renders views from one model. Not thread-safe (one off-screen context).
+// Renders views from one model, which must outlive it. Not thread-safe (one off-screen context).
 class ViewSynthesizer {
  public:
   // Reads the keyframes' poses; images are read per view. Throws Error when the model has none.
@@ -155,7 +155,8 @@ struct SynthesisReport {
 nlohmann::json ToJson(const SynthesisReport& report);
 
 // Replaces the model's synthetic views with views rendered at the standpoints of its current
-// coverage; each view is committed on its own, so a killed run leaves the views written so far.
+// coverage. Each view is committed on its own and the previous views are removed only at the end,
+// so a killed run leaves the previous views and those written so far (the next run replaces all).
 // `progress` (optional) gets the standpoints done and their total. Throws Error when the model
 // has no labels or no keyframes.
 SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions& options,
