@@ -20,6 +20,7 @@
 #include "cli/command_util.h"
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/options_json.h"
 #include "identify/coverage.h"
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
@@ -211,6 +212,15 @@ CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
   identify->add_option("--limit", args.limit, "locate only the first N photos (0: all)")
       ->check(Within(0, 1e9))
       ->capture_default_str();
+  identify
+      ->add_option_function<std::string>(
+          "--config",
+          [&args](const std::string& path) {
+            options_json::ParseInto(ReadConfigFile(path), "--config " + path, args.locator);
+          },
+          "read the locator's options from this JSON file (as 'sightmap locate --print-config' "
+          "prints them), to measure a setting")
+      ->trigger_on_parse();
   identify->add_flag("--without-synthetic", args.without_synthetic_views,
                      "ignore the model's synthetic views ('sightmap synthesize'), to see what they "
                      "add");
@@ -243,8 +253,8 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
   std::unique_ptr<identify::Locator> locator;
   {
     const store::Model model = store::Model::Open(args.model_path, model_options);
-    identify::LocatorOptions locator_options;
-    locator_options.use_synthetic_views = !args.without_synthetic_views;
+    identify::LocatorOptions locator_options = args.locator;
+    if (args.without_synthetic_views) locator_options.use_synthetic_views = false;
     locator = std::make_unique<identify::Locator>(model, locator_options);
     MarkCoveredPhotos(model, locator_options.use_synthetic_views, &truths);
   }

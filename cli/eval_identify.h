@@ -1,12 +1,14 @@
-// `sightmap eval identify --model M --queries DIR [--json] [--plot PNG] [--limit N]`: locates every
-// phone photo of a simulator query set against the model (the Locator loaded once, as `serve`
-// does) and reports the paper's Section 5 figures (identify/identify_eval.h). Kept apart from
+// `sightmap eval identify --model M --queries DIR [--json] [--plot PNG] [--limit N] [--config F]`:
+// locates every phone photo of a simulator query set against the model (the Locator loaded once,
+// as `serve` does, with the locator options of --config) and reports the paper's Section 5 figures (identify/identify_eval.h). Kept apart from
 // eval_command.cc, which only registers the subcommand.
 #pragma once
 
 #include <string>
 
 #include <CLI/CLI.hpp>
+
+#include "identify/locator.h"
 
 namespace sightmap::cli {
 
@@ -19,6 +21,7 @@ struct EvalIdentifyArgs {
   int limit = 0;           // 0 = every photo
   std::string photos_out;  // one JSON line per photo (identify::PhotoRows); empty = none
   bool without_synthetic_views = false;  // locate against keyframes only
+  identify::LocatorOptions locator;      // --config FILE (as `locate --print-config` prints)
 };
 
 // Adds the `identify` subcommand to `eval`, filling `args` when parsed.

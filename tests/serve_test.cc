@@ -750,6 +750,23 @@ TEST_F(ServeTest, EvalIdentifyReportsThePapersFigures) {
       SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " + dir_->string());
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.err.find("no queries.json"), std::string::npos) << missing.err;
+  // --config sets the locator's options: no photo reaches 100,000 inliers; an unknown key is a
+  // usage error naming the file and the key.
+  const std::string strict = (*dir_ / "strict.json").string();
+  std::ofstream(strict) << R"({"min_inliers": 100000, "confident_inliers": 100000})";
+  const testing::CommandResult refused = testing::RunCommand(
+      SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
+                           (*dir_ / "queries").string() + " --limit 2 --json --config " + strict);
+  ASSERT_EQ(refused.exit_code, 0) << refused.err;
+  EXPECT_EQ(nlohmann::json::parse(refused.out)["matched_photos"], 0);
+  const std::string typo = (*dir_ / "typo.json").string();
+  std::ofstream(typo) << R"({"min_inlier": 10})";
+  const testing::CommandResult bad =
+      testing::RunCommand(SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
+                                               (*dir_ / "queries").string() + " --config " + typo);
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--config " + typo), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("min_inlier"), std::string::npos) << bad.err;
 }
 
 // Last (gtest runs a file's tests in order): SIGTERM stops the suite's server cleanly.
