@@ -1,7 +1,8 @@
 // `sightmap eval identify --model M --queries DIR [--json] [--plot PNG] [--limit N] [--config F]`:
 // locates every phone photo of a simulator query set against the model (the Locator loaded once,
-// as `serve` does, with the locator options of --config) and reports the paper's Section 5 figures (identify/identify_eval.h). Kept apart from
-// eval_command.cc, which only registers the subcommand.
+// as `serve` does, with the locator options of --config) and reports the paper's Section 5
+// figures (identify/identify_eval.h). Kept apart from eval_command.cc, which only registers the
+// subcommand.
 #pragma once
 
 #include <string>

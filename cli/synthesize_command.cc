@@ -1,6 +1,7 @@
-// sightmap synthesize MODEL [--json] [--all-sectors] [--dry-run]: renders views of each labelled
-// appliance from the open directions the walk missed (synthesis/view_synthesis.h) and stores them
-// as synthetic views, which `locate` and `serve` match photos against; mapping never reads them.
+// sightmap synthesize MODEL [--json] [--all-sectors] [--clear] [--images DIR]: renders views of
+// each labelled appliance from the open directions the walk missed (synthesis/view_synthesis.h) and
+// stores them as synthetic views, which `locate` and `serve` match photos against; mapping never
+// reads them.
 #include <iomanip>
 #include <iostream>
 

@@ -151,10 +151,11 @@ void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<Phot
                    std::vector<PhotoAnswer>* selected_answers);
 
 // One JSON object per photo (truths and answers parallel), to find the photos behind a figure:
-// "index", "image", "target", "covered" (null when unknown), "matched", "reason" (null when
-// matched), "inliers" and "keyframe" (null when not matched), "position_error_m",
-// "rotation_error_deg" and "wrong_pose" (null unless matched with a true pose, wrong as
-// EvaluateIdentification counts it), "identified" (names in view and not occluded).
+// "index", "image", "target", "covered" (null when unknown), "view_angle_deg" (QueryTruth's, null
+// when unknown), "matched", "reason" (null when matched), "inliers" and "keyframe" (null when not
+// matched), "position_error_m", "rotation_error_deg" and "wrong_pose" (null unless matched with a
+// true pose, wrong as EvaluateIdentification counts it), "identified" (names in view and not
+// occluded).
 std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
                                       const std::vector<PhotoAnswer>& answers,
                                       const IdentifyEvalOptions& options = {});

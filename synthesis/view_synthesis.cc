@@ -234,6 +234,15 @@ struct ViewSynthesizer::Impl {
   Impl(const store::Model& m, const ViewSynthesisOptions& o)
       : model(m), options(o), keyframes(m.Keyframes()), renderer(RendererOptions()) {}
 
+  // A keyframe to draw, with the depth image read to choose it.
+  struct Source {
+    const store::KeyframeInfo* info;
+    cv::Mat depth_mm;
+  };
+  // The keyframes that saw `target` unhidden, best first (ViewSynthesizer::ChooseSources).
+  std::vector<Source> ChooseSources(const Eigen::Isometry3d& world_from_cam,
+                                    const Eigen::Vector3d& target, KeyframeId exclude) const;
+
   static render::RenderOptions RendererOptions() {
     render::RenderOptions options;
     options.near_m = 0.1;
@@ -254,15 +263,14 @@ ViewSynthesizer::ViewSynthesizer(const store::Model& model, const ViewSynthesisO
 
 ViewSynthesizer::~ViewSynthesizer() = default;
 
-std::vector<KeyframeId> ViewSynthesizer::ChooseSources(const Eigen::Isometry3d& world_from_cam,
-                                                       const Eigen::Vector3d& target,
-                                                       KeyframeId exclude) const {
-  const ViewSynthesisOptions& options = impl_->options;
+std::vector<ViewSynthesizer::Impl::Source> ViewSynthesizer::Impl::ChooseSources(
+    const Eigen::Isometry3d& world_from_cam, const Eigen::Vector3d& target,
+    KeyframeId exclude) const {
   const Eigen::Vector3d view_sight = target - world_from_cam.translation();
   // Candidates by the angle of their line of sight to the target, before any image is read.
   std::vector<std::pair<double, size_t>> ranked;
-  for (size_t i = 0; i < impl_->keyframes.size(); ++i) {
-    const store::KeyframeInfo& info = impl_->keyframes[i];
+  for (size_t i = 0; i < keyframes.size(); ++i) {
+    const store::KeyframeInfo& info = keyframes[i];
     if (info.id == exclude) continue;
     const Eigen::Vector3d in_cam = info.world_from_cam.inverse() * target;
     if (in_cam.z() < options.features.min_depth_m || in_cam.z() > options.max_depth_m) continue;
@@ -277,19 +285,30 @@ std::vector<KeyframeId> ViewSynthesizer::ChooseSources(const Eigen::Isometry3d& 
   }
   std::sort(ranked.begin(), ranked.end());
   // Then not hidden: the keyframe's depth at the target is not much nearer than the target.
-  std::vector<KeyframeId> sources;
+  std::vector<Source> sources;
   for (const auto& [angle, i] : ranked) {
     if (static_cast<int>(sources.size()) >= options.max_sources) break;
-    const store::KeyframeInfo& info = impl_->keyframes[i];
+    const store::KeyframeInfo& info = keyframes[i];
     if (info.depth_bytes == 0) continue;
     const Eigen::Vector3d in_cam = info.world_from_cam.inverse() * target;
-    const double depth = DepthAt(impl_->model.LoadDepth(info.id), info.intrinsics.Project(in_cam));
+    cv::Mat depth_mm = model.LoadDepth(info.id);
+    const double depth = DepthAt(depth_mm, info.intrinsics.Project(in_cam));
     const double margin = options.coverage.view.depth_margin_m +
                           options.coverage.view.depth_margin_ratio * in_cam.z();
     if (depth > 0.0 && depth < in_cam.z() - margin) continue;
-    sources.push_back(info.id);
+    sources.push_back({&info, std::move(depth_mm)});
   }
   return sources;
+}
+
+std::vector<KeyframeId> ViewSynthesizer::ChooseSources(const Eigen::Isometry3d& world_from_cam,
+                                                       const Eigen::Vector3d& target,
+                                                       KeyframeId exclude) const {
+  std::vector<KeyframeId> ids;
+  for (const Impl::Source& source : impl_->ChooseSources(world_from_cam, target, exclude)) {
+    ids.push_back(source.info->id);
+  }
+  return ids;
 }
 
 ViewSynthesizer::Result ViewSynthesizer::Synthesize(const Eigen::Isometry3d& world_from_cam,
@@ -297,7 +316,7 @@ ViewSynthesizer::Result ViewSynthesizer::Synthesize(const Eigen::Isometry3d& wor
                                                     KeyframeId exclude) const {
   const ViewSynthesisOptions& options = impl_->options;
   Result result;
-  const std::vector<KeyframeId> sources = ChooseSources(world_from_cam, target, exclude);
+  const std::vector<Impl::Source> sources = impl_->ChooseSources(world_from_cam, target, exclude);
   result.sources = static_cast<int>(sources.size());
   if (sources.empty()) {
     result.refusal = "no keyframe saw the target unhidden from within " +
@@ -308,14 +327,12 @@ ViewSynthesizer::Result ViewSynthesizer::Synthesize(const Eigen::Isometry3d& wor
   render::MeshRenderer& renderer = impl_->renderer;
   const Intrinsics& intrinsics = impl_->intrinsics;
   std::vector<render::RenderedView> layers;
-  Eigen::Isometry3d world_from_source = Eigen::Isometry3d::Identity();
-  for (const KeyframeId id : sources) {
-    const store::KeyframeInfo info = impl_->model.Keyframe(id);
-    if (layers.empty()) world_from_source = info.world_from_cam;
+  for (const Impl::Source& source : sources) {
+    const store::KeyframeInfo& info = *source.info;
     renderer.ClearTextures();
-    const int texture = renderer.AddTexture(impl_->model.LoadColor(id));
-    renderer.AddMesh(KeyframeMesh(impl_->model.LoadDepth(id), info.intrinsics, info.world_from_cam,
-                                  texture, options));
+    const int texture = renderer.AddTexture(impl_->model.LoadColor(info.id));
+    renderer.AddMesh(
+        KeyframeMesh(source.depth_mm, info.intrinsics, info.world_from_cam, texture, options));
     layers.push_back(renderer.Render(intrinsics, world_from_cam));
   }
   renderer.ClearTextures();
@@ -342,8 +359,8 @@ ViewSynthesizer::Result ViewSynthesizer::Synthesize(const Eigen::Isometry3d& wor
     return result;
   }
   store::SyntheticViewRecord view;
-  view.source = sources.front();
-  view.source_from_cam = world_from_source.inverse() * world_from_cam;
+  view.source = sources.front().info->id;
+  view.source_from_cam = sources.front().info->world_from_cam.inverse() * world_from_cam;
   view.world_from_cam = world_from_cam;
   view.intrinsics = intrinsics;
   view.color = composite.color;
@@ -374,18 +391,17 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
   report.labels = static_cast<int>(coverage.labels.size());
   report.standpoints = static_cast<int>(standpoints.size());
   // The previous run's views stay until this run's are written: a run killed half-way leaves
-  // both, and the next run replaces both.
-  SyntheticViewId previous_last;
-  for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
-    previous_last = std::max(previous_last, view.id);
-  }
+  // both, and the next run replaces both. A new view's id exceeds every stored one (SQLite row
+  // ids), so the old views are those before the first new one.
+  SyntheticViewId first_written;
   for (size_t i = 0; i < standpoints.size(); ++i) {
     const Standpoint& standpoint = standpoints[i];
     ViewSynthesizer::Result result =
         synthesizer.Synthesize(standpoint.world_from_cam, standpoint.target);
     if (result.view) {
       result.view->label = standpoint.label;
-      model.AddSyntheticView(*result.view);
+      const SyntheticViewId id = model.AddSyntheticView(*result.view);
+      if (!first_written.valid()) first_written = id;
       ++report.written;
     } else {
       ++report.refused;
@@ -396,7 +412,11 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
     }
     if (progress) progress(static_cast<int>(i + 1), static_cast<int>(standpoints.size()));
   }
-  if (previous_last.valid()) report.deleted = model.DeleteSyntheticViews(previous_last);
+  if (!first_written.valid()) {
+    report.deleted = model.DeleteSyntheticViews();
+  } else if (first_written.value() > 1) {  // id 1: the table was empty, nothing is old
+    report.deleted = model.DeleteSyntheticViews(SyntheticViewId(first_written.value() - 1));
+  }
   report.bytes = model.Summary().synthetic_view_bytes;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;

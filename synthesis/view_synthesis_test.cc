@@ -291,6 +291,7 @@ TEST_F(SynthesisOnTheWalk, ViewsAroundLabelsAreStoredReplacedAndLocatedAgainst) 
   EXPECT_GT(first.standpoints, 0);
   EXPECT_GT(first.written, 0);
   EXPECT_EQ(first.written + first.refused, first.standpoints);
+  EXPECT_EQ(first.deleted, 0);  // nothing to replace: its own views stay
   EXPECT_EQ(static_cast<int>(first.refusals.size()), first.refused);
   EXPECT_EQ(model.NumSyntheticViews(), first.written);
   EXPECT_EQ(model.Summary().synthetic_view_bytes, first.bytes);
