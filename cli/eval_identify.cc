@@ -154,9 +154,11 @@ void MarkCoveredPhotos(const store::Model& model, bool with_synthetic_views,
   for (identify::QueryTruth& truth : *truths) {
     const auto label = label_points.find(truth.target);
     if (!truth.world_from_cam || label == label_points.end()) continue;
-    truth.covered = identify::ViewWasSeen(*truth.world_from_cam, label->second, keyframes);
-    truth.view_angle_deg =
-        identify::NearestViewAngleDeg(*truth.world_from_cam, label->second, keyframes);
+    // ViewWasSeen's rule, from one pass over the keyframes.
+    const identify::ViewSeenOptions seen;
+    truth.view_angle_deg = identify::NearestViewAngleDeg(*truth.world_from_cam, label->second,
+                                                         keyframes, seen.max_distance_ratio);
+    truth.covered = truth.view_angle_deg && *truth.view_angle_deg <= seen.max_angle_deg;
   }
 }
 

@@ -142,7 +142,12 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.matched = result.matched;
   answer.reason = result.reason;
   answer.timings = result.timings;
+  answer.photo_detail_cells = result.photo_detail_cells;
   if (!result.matched) return answer;
+  answer.matches = result.matches;
+  answer.runner_up_inliers = result.runner_up_inliers;
+  answer.projected_points = result.projected_points;
+  answer.inlier_cells = result.inlier_cells;
   answer.world_from_cam = result.world_from_cam;
   answer.inliers = result.inliers;
   if (result.keyframe.valid()) answer.keyframe = result.keyframe.value();
@@ -226,6 +231,14 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
       row["wrong_pose"] = IsWrongPose(error, options);
     }
     row["identified"] = answer.identified;
+    const auto if_matched = [&](int value) {
+      return answer.matched ? nlohmann::json(value) : nlohmann::json();
+    };
+    row["matches"] = if_matched(answer.matches);
+    row["runner_up_inliers"] = if_matched(answer.runner_up_inliers);
+    row["projected_points"] = if_matched(answer.projected_points);
+    row["inlier_cells"] = if_matched(answer.inlier_cells);
+    row["photo_detail_cells"] = answer.photo_detail_cells;
     rows.push_back(std::move(row));
   }
   return rows;

@@ -74,6 +74,12 @@ struct PhotoAnswer {
   int inliers = 0;                                  // of the pose, when matched
   std::optional<int64_t> keyframe;  // the keyframe holding most of its inliers, when matched
   LocateTimings timings;
+  // What the locator's checks saw (LocateResult's), to tell right poses from wrong ones.
+  int matches = 0;
+  int runner_up_inliers = 0;
+  int projected_points = 0;
+  int inlier_cells = 0;
+  int photo_detail_cells = 0;
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
 
@@ -155,7 +161,8 @@ void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<Phot
 // when unknown), "matched", "reason" (null when matched), "inliers" and "keyframe" (null when not
 // matched), "position_error_m", "rotation_error_deg" and "wrong_pose" (null unless matched with a
 // true pose, wrong as EvaluateIdentification counts it), "identified" (names in view and not
-// occluded).
+// occluded), and the checks' figures: "matches", "runner_up_inliers", "projected_points",
+// "inlier_cells" (null when not matched) and "photo_detail_cells".
 std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
                                       const std::vector<PhotoAnswer>& answers,
                                       const IdentifyEvalOptions& options = {});

@@ -296,7 +296,12 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   answers[0].world_from_cam = truth_pose * Eigen::Translation3d(0.7, 0, 0);
   answers[0].inliers = 123;
   answers[0].keyframe = 42;
+  answers[0].inlier_cells = 9;
+  answers[0].runner_up_inliers = 31;
+  answers[0].photo_detail_cells = 12;
   answers.push_back(Answer(false, {}, 10));
+  answers[1].photo_detail_cells = 2;
+  answers[1].inlier_cells = 5;              // not matched: not reported
   answers.push_back(Answer(true, {}, 10));  // right
   answers[2].world_from_cam = truth_pose * Eigen::Translation3d(0, 0.05, 0);
 
@@ -316,6 +321,11 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   EXPECT_NEAR(rows[0]["rotation_error_deg"].get<double>(), 0.0, 1e-9);
   EXPECT_EQ(rows[0]["wrong_pose"], true);
   EXPECT_EQ(rows[0]["identified"], nlohmann::json::array({"lamp"}));
+  EXPECT_EQ(rows[0]["inlier_cells"], 9);
+  EXPECT_EQ(rows[0]["runner_up_inliers"], 31);
+  EXPECT_EQ(rows[0]["photo_detail_cells"], 12);
+  EXPECT_TRUE(rows[1]["inlier_cells"].is_null());
+  EXPECT_EQ(rows[1]["photo_detail_cells"], 2);
 
   EXPECT_EQ(rows[1]["covered"], false);
   EXPECT_EQ(rows[1]["matched"], false);
