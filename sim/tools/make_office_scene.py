@@ -302,6 +302,11 @@ for i, x in enumerate(WINDOWS_X):
                 add(f"{pane}_v{n}", [xx, Y1 - 0.005, (z0 + z1) / 2], [g, 0.06, z1 - z0], "seal")
 # Outside: a building across the street 25 m north, and the street. The office is on the first
 # floor, 4 m above the street: from inside, the view out is mostly the facade opposite.
+# What is seen through glass or on a screen (the facade, the street, the monitors' desktop, the
+# TV) has no depth; no poster inside shows the same picture (or another view of the same scene,
+# as aero1/aero3 and leuvenA/leuvenB are), since a poster of the view out of the window is a
+# twin no real office has: a photo of the window matched room B's poster of the facade, 12 m and
+# 145 degrees from the truth.
 add("outside_facade", [15, Y1 + 25, 15], [400, 1, 40], "outside_facade")
 add("outside_street", [15, Y1 + 12.6, -4.1], [400, 25, 0.2], "outside_street")
 
@@ -325,7 +330,7 @@ add("a_plant_pot", [8.8, 9.6, 0.25], [0.4, 0.4, 0.5], "pot")
 add("a_plant", [8.8, 9.6, 0.9], [0.6, 0.6, 0.8], "leaves")
 poster("a_poster_graf", 9.94 - 0.0, 3.8, 1.55, 1.0, 0.8, "poster_graf", "w")
 poster("a_poster_starry", 9.94, 6.8, 1.55, 1.0, 0.8, "poster_starry", "w")
-poster("a_poster_leuven", 6.5, YC, 1.5, 1.2, 0.9, "poster_leuven", "n")
+poster("a_poster_books", 6.5, YC, 1.5, 1.2, 0.9, "poster_books", "n")
 add("a_whiteboard", [0.06 + T / 2, 8.6, 1.45], [0.02, 1.8, 1.1], "whiteboard")
 switch("switch_a", 3.7, YC, "n")
 thermostat("thermostat_a", 0.0, 3.2, "e")
@@ -358,8 +363,8 @@ add("b_sideboard", [19.6, 5.0, 0.4], [0.5, 1.8, 0.8], "wood_dark")
 bookshelf("b_shelf1", 10.24, 7.2, 0, "books2")
 add("b_flipchart", [11.2, 9.8, 0.95], [0.7, 0.05, 1.0], "whiteboard", 0)
 add("b_cabinet", [17.5, YC + T / 2 + 0.25, 0.45], [1.6, 0.5, 0.9], "wood")
-poster("b_poster_aero", 10.0, 5.0, 1.55, 1.1, 0.8, "poster_aero", "e")
-poster("b_poster_building", 17.5, YC, 1.5, 1.2, 0.85, "poster_building", "n")
+poster("b_poster_basketball", 10.0, 5.0, 1.55, 1.1, 0.8, "poster_basketball", "e")
+poster("b_poster_board", 17.5, YC, 1.5, 1.2, 0.85, "poster_board", "n")
 poster("b_poster_fruits", 11.6, YC, 1.5, 0.8, 0.75, "poster_fruits", "n")
 switch("switch_b", 13.7, YC, "n")
 ceiling_light("ceiling_light_3", 13.0, 5.4)
@@ -431,7 +436,7 @@ extra_posters = [
     ("k_poster_n6", 28.0, YC, 1.5, 1.0, 0.75, "poster_blox", "s"),
 ]
 # The corridor: a notice or picture every ~2.5 m on both walls, as corridors have.
-corridor_textures = ["poster_graf", "poster_leuven", "poster_fruits", "poster_home", "poster_butterfly",
+corridor_textures = ["poster_graf", "poster_books", "poster_fruits", "poster_home", "poster_butterfly",
                      "poster_cards", "poster_sudoku", "poster_plate", "poster_pic5", "poster_squirrel",
                      "poster_apple", "poster_baboon"]
 # Every other one a printed notice (text, a timetable) rather than a picture.
@@ -606,7 +611,7 @@ scene = {
     "ceiling_height_m": H,
     "textures": {
         "graf": "graf1.png", "graf3": "graf3.png", "starry": "starry_night.jpg", "leuven": "leuvenA.jpg",
-        "aero": "aero1.jpg", "building": "building.jpg", "fruits": "fruits.jpg", "baboon": "baboon.jpg",
+        "books": "left.jpg", "basketball": "basketball1.png", "building": "building.jpg", "fruits": "fruits.jpg", "baboon": "baboon.jpg",
         "home": "home.jpg", "butterfly": "butterfly.jpg", "messi": "messi5.jpg", "fish": "HappyFish.jpg",
         "smarties": "smarties.png", "whale": "rubberwhale1.png", "box_scene": "box_in_scene.png",
         "stuff": "stuff.jpg", "board": "board.jpg", "leuvenB": "leuvenB.jpg", "notes": "notes.png",
@@ -686,8 +691,8 @@ scene = {
         "books2": {"texture": "box_scene", "color": [1, 0.95, 0.85]},
         "books3": {"texture": "fruits", "color": [0.9, 0.9, 0.9]},
         "poster_graf": {"texture": "graf"}, "poster_graf3": {"texture": "graf3"},
-        "poster_starry": {"texture": "starry"}, "poster_leuven": {"texture": "leuven"},
-        "poster_aero": {"texture": "aero"}, "poster_building": {"texture": "building"},
+        "poster_starry": {"texture": "starry"}, "poster_books": {"texture": "books"},
+        "poster_basketball": {"texture": "basketball"}, "poster_board": {"texture": "board"},
         "poster_fruits": {"texture": "fruits"}, "poster_baboon": {"texture": "baboon"},
         "poster_home": {"texture": "home"}, "poster_butterfly": {"texture": "butterfly"},
         "poster_messi": {"texture": "messi"}, "poster_fish": {"texture": "fish"},
