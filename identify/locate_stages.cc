@@ -295,6 +295,24 @@ int CoveredCells(const std::vector<cv::Point2f>& image, const std::vector<int>& 
       height, 1);
 }
 
+// The cell of an 8x8 grid over an image of `size` holding p, row-major: fine enough that two
+// places explaining different parts of a photo show it (a desk and the poster behind it).
+int FineCell(const cv::Point2f& p, const cv::Size& size) {
+  constexpr int kCells = 8;
+  const int c = std::clamp(static_cast<int>(p.x * kCells / size.width), 0, kCells - 1);
+  const int r = std::clamp(static_cast<int>(p.y * kCells / size.height), 0, kCells - 1);
+  return r * kCells + c;
+}
+
+// The share of `verdict`'s inliers in fine cells where `rival` has none.
+double UniqueInlierShare(const PlaceVerdict& verdict, const PlaceVerdict& rival) {
+  if (verdict.inlier_fine_cells.empty()) return 1.0;
+  const auto unique = std::count_if(
+      verdict.inlier_fine_cells.begin(), verdict.inlier_fine_cells.end(),
+      [&rival](uint8_t cell) { return (rival.fine_cell_mask & (uint64_t{1} << cell)) == 0; });
+  return static_cast<double>(unique) / static_cast<double>(verdict.inlier_fine_cells.size());
+}
+
 // A cell holds detail with this many features (of up to 3,000 over 16 cells).
 constexpr int kDetailCellFeatures = 20;
 
@@ -472,6 +490,53 @@ std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidat
   return places;
 }
 
+double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
+                        const LocatorOptions& options, int* matches) {
+  *matches = 0;
+  if (a.descriptors.empty() || b.descriptors.empty()) return 0.0;
+  int shared = 0;
+  for (const std::vector<cv::DMatch>& nearest :
+       slam::KNearestBinary(a.descriptors, b.descriptors, 2)) {
+    if (nearest.empty() || nearest[0].distance > options.max_descriptor_distance) continue;
+    if (nearest.size() > 1 && nearest[0].distance > options.match_ratio * nearest[1].distance) {
+      continue;
+    }
+    ++*matches;
+    const cv::Point3f offset = a.world_points[static_cast<size_t>(nearest[0].queryIdx)] -
+                               b.world_points[static_cast<size_t>(nearest[0].trainIdx)];
+    if (std::sqrt(offset.dot(offset)) <= options.same_pose_m) ++shared;
+  }
+  return *matches > 0 ? static_cast<double>(shared) / *matches : 0.0;
+}
+
+std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alikes,
+                              size_t verified_slot, const std::vector<Place>& tried,
+                              const std::vector<LocatorKeyframe>& keyframes,
+                              const LocatorOptions& options) {
+  SIGHTMAP_CHECK(verified_slot < keyframes.size(),
+                 "verified slot " << verified_slot << " is not a keyframe slot");
+  if (options.twin_places <= 0) return {};
+  std::vector<slam::PlaceCandidate> twins;
+  for (const slam::PlaceCandidate& candidate : look_alikes) {
+    const size_t slot = static_cast<size_t>(candidate.id);
+    SIGHTMAP_CHECK(candidate.id >= 0 && slot < keyframes.size(),
+                   "look-alike " << candidate.id << " is not a keyframe slot");
+    const bool tried_already = std::any_of(tried.begin(), tried.end(), [slot](const Place& place) {
+      return std::find(place.slots.begin(), place.slots.end(), slot) != place.slots.end();
+    });
+    if (tried_already) continue;
+    int matches = 0;
+    const double shared =
+        SharedPointShare(keyframes[verified_slot], keyframes[slot], options, &matches);
+    if (matches >= options.min_inliers && shared < options.twin_max_shared_share) {
+      twins.push_back(candidate);
+    }
+  }
+  LocatorOptions grouping = options;
+  grouping.max_places = options.twin_places;
+  return GroupPlaces(twins, keyframes, grouping);
+}
+
 PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
                         const std::vector<LocatorKeyframe>& keyframes,
                         const LocatorOptions& options) {
@@ -595,6 +660,24 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
     return verdict;
   }
   verdict.inliers = static_cast<int>(found.inliers.size());
+  for (int i : found.inliers) {
+    const cv::Point2f& p = (*image)[static_cast<size_t>(i)];
+    const int cell = FineCell(p, photo.size);
+    verdict.inlier_fine_cells.push_back(static_cast<uint8_t>(cell));
+    verdict.fine_cell_mask |= uint64_t{1} << cell;
+  }
+  for (int i : found.inliers) {
+    const cv::Point3f& point =
+        matches.model_points[static_cast<size_t>((*object_model)[static_cast<size_t>(i)])];
+    verdict.inlier_centroid += Eigen::Vector3d(point.x, point.y, point.z);
+  }
+  if (verdict.inliers > 0) verdict.inlier_centroid /= verdict.inliers;
+  verdict.inlier_descriptors.create(verdict.inliers, matches.model_descriptors.cols,
+                                    matches.model_descriptors.type());
+  for (int i = 0; i < verdict.inliers; ++i) {
+    const int row = (*object_model)[static_cast<size_t>(found.inliers[static_cast<size_t>(i)])];
+    matches.model_descriptors.row(row).copyTo(verdict.inlier_descriptors.row(i));
+  }
   // The paper's check is against the retrieved keyframe the pose was verified on: the member of
   // the place holding most inliers (a place spans views up to ~100 deg apart, so its head may
   // face away from a right pose).
@@ -660,20 +743,7 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
     if (!verdict.accepted) continue;
     if (decision.winner < 0 ||
         verdict.inliers > verdicts[static_cast<size_t>(decision.winner)].inliers) {
-      if (decision.winner >= 0) {
-        const PlaceVerdict& dethroned = verdicts[static_cast<size_t>(decision.winner)];
-        if (disagree(dethroned.pose.world_from_cam, verdict.pose.world_from_cam) &&
-            dethroned.inliers > decision.runner_up_inliers) {
-          decision.runner_up_inliers = dethroned.inliers;
-          decision.runner_up_pose = dethroned.pose.world_from_cam;
-        }
-      }
       decision.winner = static_cast<int>(v);
-    } else if (disagree(verdicts[static_cast<size_t>(decision.winner)].pose.world_from_cam,
-                        verdict.pose.world_from_cam) &&
-               verdict.inliers > decision.runner_up_inliers) {
-      decision.runner_up_inliers = verdict.inliers;
-      decision.runner_up_pose = verdict.pose.world_from_cam;
     }
   }
   if (decision.winner < 0) {
@@ -681,28 +751,40 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
     return decision;
   }
   const PlaceVerdict& best = verdicts[static_cast<size_t>(decision.winner)];
-  // A pose the checks refused still fits the photo: when it has the inliers and disagrees with
-  // the winner, the view is as ambiguous as with an accepted one (measured on 200 photos: one
-  // wrong pose fewer, the same right ones).
+  // The strongest pose elsewhere, accepted or not: a pose the checks refused still fits the photo,
+  // and when it has the inliers the view is as ambiguous as with an accepted one (measured on 200
+  // photos: one wrong pose fewer, the same right ones).
+  const PlaceVerdict* runner_up = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
-    if (verdict.accepted || !verdict.pose.valid || verdict.inliers < options.min_inliers) continue;
-    if (verdict.inliers > decision.runner_up_inliers &&
-        disagree(best.pose.world_from_cam, verdict.pose.world_from_cam)) {
-      decision.runner_up_inliers = verdict.inliers;
-      decision.runner_up_pose = verdict.pose.world_from_cam;
-    }
+    if (&verdict == &best || !verdict.pose.valid || verdict.inliers < options.min_inliers) continue;
+    if (!disagree(best.pose.world_from_cam, verdict.pose.world_from_cam)) continue;
+    if (runner_up == nullptr || verdict.inliers > runner_up->inliers) runner_up = &verdict;
   }
-  if (decision.runner_up_inliers > 0 &&
-      static_cast<double>(best.inliers) <
-          options.min_inlier_ratio_over_runner_up * decision.runner_up_inliers) {
-    std::ostringstream why;
+  if (runner_up == nullptr) return decision;
+  decision.runner_up_inliers = runner_up->inliers;
+  decision.runner_up_pose = runner_up->pose.world_from_cam;
+  const double apart_m =
+      (best.pose.world_from_cam.translation() - runner_up->pose.world_from_cam.translation())
+          .norm();
+  std::ostringstream why;
+  why << std::fixed << std::setprecision(1);
+  if (static_cast<double>(best.inliers) <
+      options.min_inlier_ratio_over_runner_up * runner_up->inliers) {
     why << "two places fit the photo about as well (" << best.inliers << " and "
-        << decision.runner_up_inliers << " inliers, " << std::fixed << std::setprecision(1)
-        << (best.pose.world_from_cam.translation() - decision.runner_up_pose.translation()).norm()
-        << " m apart): the view is ambiguous.";
-    decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
-    decision.winner = -1;
+        << runner_up->inliers << " inliers, " << apart_m << " m apart): the view is ambiguous.";
+  } else if (UniqueInlierShare(best, *runner_up) < options.min_unique_inlier_share &&
+             (best.inlier_centroid - runner_up->inlier_centroid).norm() > options.same_pose_m) {
+    // More inliers, but on the same part of the photo and on other things: the model repeats
+    // itself there (identical desks), and the count says only which copy the walk saw better. (On
+    // the same things, the two poses differ by the focal length tried, with estimated intrinsics.)
+    why << "two places fit the same part of the photo (" << best.inliers << " and "
+        << runner_up->inliers << " inliers, " << apart_m
+        << " m apart): the view is ambiguous; include something that tells them apart.";
+  } else {
+    return decision;
   }
+  decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
+  decision.winner = -1;
   return decision;
 }
 

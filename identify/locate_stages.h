@@ -147,6 +147,14 @@ struct PlaceVerdict {
   int matches = 0;      // correspondences the pose was last refined on
   int projected = 0;    // place points the guided pose projects into the photo
   int inliers = 0;
+  cv::Mat inlier_descriptors;  // their model descriptors, one row each
+  // Per inlier, its cell of an 8x8 grid over the photo (row-major), and the cells holding one:
+  // what part of the photo this place explains.
+  std::vector<uint8_t> inlier_fine_cells;
+  uint64_t fine_cell_mask = 0;
+  // The mean of the inliers' model points (world): which things the pose explains the photo with
+  // [m].
+  Eigen::Vector3d inlier_centroid = Eigen::Vector3d::Zero();
   size_t verified_slot = 0;   // the place's keyframe holding most inliers
   double rotation_deg = 0.0;  // from the verified keyframe's view
   int cells = 0;              // of a 4x4 grid holding an inlier
@@ -159,10 +167,36 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);
 
+// Stage 5b: places that may be the winner's twin. The model repeats itself (identical desks, the
+// same box in two rooms), and a photo of one copy verifies against the other; the search stops at
+// the first confident place and retrieval ranks by the photo's words, so the other copy may never
+// be verified. The winning place's verified keyframe, as a query (RetrieveCandidates of its
+// descriptors), ranks the keyframes that look like it: `look_alikes`. Those whose descriptor
+// matches with it (at least min_inliers) mostly join different 3D points (SharedPointShare below
+// twin_max_shared_share) look like it without looking at the same things: they are grouped as
+// GroupPlaces does, at most twin_places places (none already in a place tried), to be verified
+// against the photo and decided with the rest. A twin that fits about as well makes the photo
+// ambiguous; one that fits better wins.
+std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alikes,
+                              size_t verified_slot, const std::vector<Place>& tried,
+                              const std::vector<LocatorKeyframe>& keyframes,
+                              const LocatorOptions& options);
+
+// Of a's descriptors matched to b's (nearest within max_descriptor_distance, passing match_ratio
+// against the second nearest), the share whose 3D points lie within same_pose_m of each other:
+// near 1 for two views of the same things, near 0 for views of identical things elsewhere.
+// `matches` receives the number of matches.
+double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
+                        const LocatorOptions& options, int* matches);
+
 // Stage 6: the answer from the verdicts, in the order the places were tried. The accepted
-// verdict with most inliers wins unless a disagreeing pose (more than same_pose_m or
-// same_pose_deg away, accepted or refused with min_inliers) has more than
-// 1 / min_inlier_ratio_over_runner_up of its inliers: then the photo is ambiguous.
+// verdict with most inliers wins unless the disagreeing pose with most inliers (more than
+// same_pose_m or same_pose_deg away, accepted or refused with min_inliers) has more than
+// 1 / min_inlier_ratio_over_runner_up of its inliers, or explains nearly the same part of the
+// photo with other things (less than min_unique_inlier_share of the winner's inliers lie in cells
+// of the 8x8 grid the runner-up's leave empty, and the two inlier centroids lie more than
+// same_pose_m apart: a copy elsewhere, not the same things seen with another focal length): then
+// the photo is ambiguous.
 struct Decision {
   int winner = -1;  // index into the verdicts, -1 when not matched
   int runner_up_inliers = 0;

@@ -106,6 +106,67 @@ TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxP
   EXPECT_THROW(GroupPlaces({{7, 0.5}}, keyframes, options), Error);
 }
 
+TEST(SharedPointShareTest, TheSameThingsSeenAgainShareTheirPointsACopyElsewhereDoesNot) {
+  std::mt19937 rng(3);
+  const LocatorOptions options;  // same_pose_m 0.5
+  LocatorKeyframe desk = KeyframeAt({0, 0, 0}, 0, 0);
+  desk.descriptors = RandomDescriptors(60, &rng);
+  for (int i = 0; i < 60; ++i) desk.world_points.emplace_back(0.02f * i, 0.0f, 2.0f);
+  // Another view of the same desk: its points within centimetres (SLAM's error).
+  LocatorKeyframe again = desk;
+  for (cv::Point3f& p : again.world_points) p.y += 0.03f;
+  // The identical desk 2.2 m along.
+  LocatorKeyframe twin = desk;
+  for (cv::Point3f& p : twin.world_points) p.x += 2.2f;
+  int matches = 0;
+  EXPECT_DOUBLE_EQ(SharedPointShare(desk, again, options, &matches), 1.0);
+  EXPECT_EQ(matches, 60);
+  EXPECT_DOUBLE_EQ(SharedPointShare(desk, twin, options, &matches), 0.0);
+  EXPECT_EQ(matches, 60);
+  // Nothing in common: no matches, no share.
+  LocatorKeyframe other = KeyframeAt({9, 0, 0}, 0, 0);
+  other.descriptors = RandomDescriptors(60, &rng);
+  other.world_points = desk.world_points;
+  EXPECT_DOUBLE_EQ(SharedPointShare(desk, other, options, &matches), 0.0);
+  EXPECT_EQ(matches, 0);
+}
+
+TEST(TwinPlacesTest, LookAlikesThatSeeOtherPointsBecomePlacesThoseOfTheWinnersOwnDoNot) {
+  std::mt19937 rng(5);
+  LocatorOptions options;
+  options.twin_places = 2;
+  const cv::Mat desk = RandomDescriptors(40, &rng);
+  auto view = [&](const Eigen::Vector3d& at, const cv::Mat& descriptors, float shift_x) {
+    LocatorKeyframe keyframe = KeyframeAt(at, 0, 0);
+    keyframe.descriptors = descriptors.clone();
+    for (int i = 0; i < descriptors.rows; ++i) {
+      keyframe.world_points.emplace_back(shift_x + 0.02f * i, 0.0f, 2.0f);
+    }
+    return keyframe;
+  };
+  std::vector<LocatorKeyframe> keyframes = {
+      view({0, 0, 0}, desk, 0.0f),    // 0: the winner's verified keyframe
+      view({0.3, 0, 0}, desk, 0.0f),  // 1: the same desk again, not tried
+      view({2.2, 0, 0}, desk, 2.2f),  // 2: the identical desk
+      view({2.4, 0, 0}, desk, 2.2f),  // 3: the identical desk, next to 2: its place
+      view({9, 0, 0}, desk, 9.0f),    // 4: a third copy, but already tried
+      view({15, 0, 0}, desk, 15.0f),  // 5: a fourth copy, over the cap of two places
+      view({20, 0, 0}, RandomDescriptors(40, &rng), 20.0f),  // 6: nothing alike
+  };
+  const std::vector<Place> tried = {Place{0, {0}}, Place{4, {4}}};
+  const std::vector<slam::PlaceCandidate> look_alikes = {{0, 0.9}, {1, 0.5}, {2, 0.4}, {3, 0.35},
+                                                         {4, 0.3}, {6, 0.2}, {5, 0.1}};
+  const std::vector<Place> twins = TwinPlaces(look_alikes, 0, tried, keyframes, options);
+  ASSERT_EQ(twins.size(), 2u);
+  EXPECT_EQ(twins[0].head, 2u);
+  EXPECT_EQ(twins[0].slots, (std::vector<size_t>{2, 3}));
+  EXPECT_EQ(twins[1].head, 5u);
+
+  options.twin_places = 0;
+  EXPECT_TRUE(TwinPlaces(look_alikes, 0, tried, keyframes, options).empty());
+  EXPECT_THROW(TwinPlaces(look_alikes, 9, tried, keyframes, options), Error);
+}
+
 // A place of two keyframes over random descriptors, and a photo holding some of them.
 class MatchPlaceTest : public ::testing::Test {
  protected:
@@ -227,6 +288,17 @@ TEST_F(VerifyPlaceTest, TrueMatchesGiveThePhotosPoseAndPassEveryCheck) {
             0.05);
   EXPECT_EQ(verdict.inliers, static_cast<int>(matches.object.size()));
   EXPECT_EQ(verdict.cells, 16);
+  // Each inlier's descriptor and cell of the 8x8 grid, for the twin search and Decide: inliers
+  // in all 16 coarse cells lie in at least 16 fine ones.
+  EXPECT_EQ(verdict.inlier_descriptors.rows, verdict.inliers);
+  ASSERT_EQ(verdict.inlier_fine_cells.size(), static_cast<size_t>(verdict.inliers));
+  uint64_t mask = 0;
+  for (uint8_t cell : verdict.inlier_fine_cells) {
+    ASSERT_LT(cell, 64);
+    mask |= uint64_t{1} << cell;
+  }
+  EXPECT_EQ(verdict.fine_cell_mask, mask);
+  EXPECT_GE(__builtin_popcountll(mask), 16);
   EXPECT_NEAR(verdict.rotation_deg, 12.0, 0.05);
   EXPECT_EQ(verdict.verified_slot, 0u);
   // Guided matching saw every place point that lands in the photo.
@@ -327,6 +399,50 @@ TEST(DecideTest, ARefusedPoseWithEnoughInliersStillMakesThePhotoAmbiguous) {
   EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
   decision =
       Decide({Verdict(30, {0, 0, 0}, true), Verdict(24, {3, 0, 0}, false, 10.0, 2)}, options);
+  EXPECT_EQ(decision.winner, 0);
+}
+
+// A verdict whose inliers lie in the given cells of the 8x8 grid, `per_cell` in each.
+PlaceVerdict VerdictIn(int per_cell, const std::vector<int>& fine_cells,
+                       const Eigen::Vector3d& position) {
+  PlaceVerdict verdict =
+      Verdict(per_cell * static_cast<int>(fine_cells.size()), position, /*accepted=*/true);
+  for (int cell : fine_cells) {
+    verdict.inlier_fine_cells.insert(verdict.inlier_fine_cells.end(), static_cast<size_t>(per_cell),
+                                     static_cast<uint8_t>(cell));
+    verdict.fine_cell_mask |= uint64_t{1} << cell;
+  }
+  verdict.inlier_centroid = position + Eigen::Vector3d(0, 0, 2);
+  return verdict;
+}
+
+TEST(DecideTest, MoreInliersOnTheSamePartOfThePhotoAsTheRunnerUpAreAmbiguous) {
+  const LocatorOptions options;  // 10% of the winner's inliers where the runner-up has none
+  // The wrong one of two identical desks: three times the inliers, all where the other has some.
+  Decision decision = Decide(
+      {VerdictIn(30, {9, 10, 17, 18}, {0, 0, 0}), VerdictIn(10, {9, 10, 17, 18}, {2.2, 0, 0})},
+      options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  EXPECT_NE(decision.refusal->reason.find("same part of the photo"), std::string::npos);
+  EXPECT_EQ(decision.runner_up_inliers, 40);
+  // The right desk with the poster behind it: a fifth of its inliers where the twin has none.
+  decision = Decide(
+      {VerdictIn(30, {9, 10, 17, 18, 40}, {0, 0, 0}), VerdictIn(10, {9, 10, 17, 18}, {2.2, 0, 0})},
+      options);
+  EXPECT_EQ(decision.winner, 0);
+  EXPECT_FALSE(decision.refusal.has_value());
+  // The same things from a pose 0.9 m along the view (another focal length): not a copy.
+  PlaceVerdict same_things = VerdictIn(10, {9, 10, 17, 18}, {0.9, 0, 0});
+  same_things.inlier_centroid = Eigen::Vector3d(0.1, 0, 2);
+  decision = Decide({VerdictIn(30, {9, 10, 17, 18}, {0, 0, 0}), same_things}, options);
+  EXPECT_EQ(decision.winner, 0);
+  EXPECT_EQ(decision.runner_up_inliers, 40);
+  // A pose that agrees with the winner is no rival, wherever its inliers are.
+  decision = Decide(
+      {VerdictIn(30, {9, 10, 17, 18}, {0, 0, 0}), VerdictIn(10, {9, 10, 17, 18}, {0.2, 0, 0})},
+      options);
   EXPECT_EQ(decision.winner, 0);
 }
 

@@ -38,6 +38,8 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "min_inliers must be at least 4 (PnP needs 4 points)";
   else if (confident_inliers < min_inliers)
     why << "confident_inliers must be at least min_inliers";
+  else if (twin_places < 0 || !(twin_max_shared_share >= 0.0 && twin_max_shared_share <= 1.0))
+    why << "twin_places must not be negative, twin_max_shared_share in [0, 1]";
   else if (!(max_rotation_from_keyframe_deg > 0.0 && max_rotation_from_keyframe_deg <= 180.0))
     why << "max_rotation_from_keyframe_deg must be in (0, 180]";
   else if (!(place_radius_m >= 0.0) || !(place_max_angle_deg >= 0.0) || max_places < 1)
@@ -53,9 +55,10 @@ bool LocatorOptions::Check(std::string* error) const {
   else if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0))
     why << "min_inlier_share must be in [0, 1]";
   else if (!(same_pose_m >= 0.0) || !(same_pose_deg >= 0.0) ||
-           !(min_inlier_ratio_over_runner_up >= 1.0))
+           !(min_inlier_ratio_over_runner_up >= 1.0) ||
+           !(min_unique_inlier_share >= 0.0 && min_unique_inlier_share <= 1.0))
     why << "same_pose_m and same_pose_deg must not be negative, "
-           "min_inlier_ratio_over_runner_up at least 1";
+           "min_inlier_ratio_over_runner_up at least 1, min_unique_inlier_share in [0, 1]";
   else if (focal_candidates_35mm.empty())
     why << "focal_candidates_35mm must not be empty";
   else if (!(occlusion_voxel_m > 0.0) || occlusion_downscale < 1 || occlusion_pixel_step < 1 ||
@@ -115,7 +118,39 @@ struct Locator::Impl {
     std::lock_guard<std::mutex> lock(labels_mutex);
     return labels;
   }
+
+  // Stage 5b strung together: the places elsewhere that look like the winner's verified keyframe
+  // (TwinPlaces), each matched and verified against the photo with the winner's camera (the photo
+  // was taken with one). Their verdicts, for Decide with the rest.
+  std::vector<PlaceVerdict> VerifyTwins(const PreparedPhoto& photo, const PlaceVerdict& winner,
+                                        const std::vector<Place>& tried,
+                                        LocateTimings* timings) const;
 };
+
+std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
+                                                     const PlaceVerdict& winner,
+                                                     const std::vector<Place>& tried,
+                                                     LocateTimings* timings) const {
+  Clock::time_point stage = Clock::now();
+  const std::vector<Place> twins = TwinPlaces(
+      RetrieveCandidates(winner.inlier_descriptors, vocabulary, index, keyframes, options),
+      winner.verified_slot, tried, keyframes, options);
+  timings->retrieval_ms += MsSince(stage);
+  std::vector<PlaceVerdict> verdicts;
+  if (twins.empty()) return verdicts;
+  PreparedPhoto same_camera = photo;
+  same_camera.feature_candidates = {winner.pose.intrinsics};
+  same_camera.intrinsics_given = true;
+  for (const Place& twin : twins) {
+    stage = Clock::now();
+    const PlaceMatches matches = MatchPlace(same_camera, twin, keyframes, options);
+    timings->matching_ms += MsSince(stage);
+    stage = Clock::now();
+    verdicts.push_back(VerifyPlace(same_camera, twin, matches, keyframes, options));
+    timings->pnp_ms += MsSince(stage);
+  }
+  return verdicts;
+}
 
 namespace {
 
@@ -320,9 +355,19 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     const PlaceVerdict& verdict = verdicts.back();
     if (verdict.accepted && verdict.inliers >= options.confident_inliers) break;
   }
+  Decision decision = Decide(verdicts, options);
+  if (decision.winner >= 0 && options.twin_places > 0) {
+    const std::vector<Place> tried(places.begin(),
+                                   places.begin() + static_cast<std::ptrdiff_t>(verdicts.size()));
+    std::vector<PlaceVerdict> twins = impl_->VerifyTwins(
+        prepared, verdicts[static_cast<size_t>(decision.winner)], tried, &result.timings);
+    if (!twins.empty()) {
+      verdicts.insert(verdicts.end(), std::make_move_iterator(twins.begin()),
+                      std::make_move_iterator(twins.end()));
+      decision = Decide(verdicts, options);
+    }
+  }
   result.candidates_tried = static_cast<int>(verdicts.size());
-
-  const Decision decision = Decide(verdicts, options);
   result.runner_up_inliers = decision.runner_up_inliers;
   if (decision.refusal) return finish(*decision.refusal);
   const PlaceVerdict& best = verdicts[static_cast<size_t>(decision.winner)];
@@ -464,6 +509,7 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, max_image_side_px, retrieval_can
                       min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
                       guided_rounds, min_inlier_cells, bare_view_max_detail_cells, min_inlier_share,
                       same_pose_m, same_pose_deg, min_inlier_ratio_over_runner_up,
+                      min_unique_inlier_share, twin_places, twin_max_shared_share,
                       confident_inliers, max_rotation_from_keyframe_deg, focal_candidates_35mm,
                       refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
                       occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,

@@ -224,14 +224,23 @@ TEST_F(LocatorTest, ABareViewIsAnsweredInWords) {
 
 TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
   int tried = 0;
+  int ambiguous = 0;
   std::vector<double> focal_errors;
   for (const sim::QueryPhoto& photo : *seen_photos_) {
     if (tried == 4) break;
     const LocateResult given = locator_->Locate(photo.image, photo.intrinsics);
     if (!given.matched) continue;
-    ++tried;
     const LocateResult estimated = locator_->Locate(photo.image, std::nullopt);
-    ASSERT_TRUE(estimated.matched) << estimated.reason;
+    // A free focal length lets a pose slide along the view: photo 33 fits 0.9 m away as well
+    // with another focal (19% off, 1.2 m from the truth), and is refused as ambiguous rather
+    // than answered there. Any other refusal is a failure.
+    if (!estimated.matched) {
+      EXPECT_EQ(estimated.reason_code, UnmatchedReason::kAmbiguous)
+          << "photo " << photo.index << ": " << estimated.reason;
+      ++ambiguous;
+      continue;
+    }
+    ++tried;
     EXPECT_EQ(estimated.intrinsics_source, IntrinsicsSource::kEstimated);
     const double focal_error = std::abs(estimated.intrinsics.fx / photo.intrinsics.fx - 1.0);
     std::printf("photo %d: estimated fx %.1f, true %.1f (%.1f%%), position error %.1f mm\n",
@@ -241,6 +250,7 @@ TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
     EXPECT_NEAR(estimated.intrinsics.cx, (photo.image.cols - 1) / 2.0, 1e-9);
   }
   EXPECT_EQ(tried, 4);
+  EXPECT_LE(ambiguous, 1);
   // Measured with the defaults (960 px, 1500 features): 0.5%, 3.5%, 13.5% and 30% (a shallow view
   // where 35 mm fits as well as the true 27 mm); with 1280 px and 2000 features 1.7-4.0%. Only
   // half of them are held to 5% until the focal search is made robust.
