@@ -170,10 +170,11 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
 // Stage 5b: places that may be the winner's twin. The model repeats itself (identical desks, the
 // same box in two rooms), and a photo of one copy verifies against the other; the search stops at
 // the first confident place and retrieval ranks by the photo's words, so the other copy may never
-// be verified. The winning place's verified keyframe, as a query (RetrieveCandidates of its
-// descriptors), ranks the keyframes that look like it: `look_alikes`. Those whose descriptor
-// matches with it (at least min_inliers) mostly join different 3D points (SharedPointShare below
-// twin_max_shared_share) look like it without looking at the same things: they are grouped as
+// be verified. The winner's inliers' model descriptors, as a query (RetrieveCandidates), rank the
+// keyframes that look like what the photo matched: `look_alikes`. Those whose descriptor matches
+// with the winner's verified keyframe (at least min_inliers) mostly join different 3D points
+// (SharedPointShare below twin_max_shared_share) look like it without looking at the same things:
+// they are grouped as
 // GroupPlaces does, at most twin_places places (none already in a place tried), to be verified
 // against the photo and decided with the rest. A twin that fits about as well makes the photo
 // ambiguous; one that fits better wins.

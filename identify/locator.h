@@ -107,7 +107,7 @@ struct LocatorOptions {
   // one right answer with most of its inliers where a runner-up also has them kept 17%, every other
   // at least 31%; a photo of the wrong one of two identical desks kept 4% [0, 1].
   double min_unique_inlier_share = 0.1;
-  // After the search, up to this many places that look like the winner's keyframe but lie
+  // After the search, up to this many places that look like what the winner matched but lie
   // elsewhere (its twins: the office's identical desks, the same box in two rooms) are verified
   // against the photo too, with the winner's intrinsics; 0 turns the check off.
   int twin_places = 2;
