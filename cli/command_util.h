@@ -66,16 +66,23 @@ std::string ReadConfigFile(const std::string& path);
 // CLI11 assigns the other flags after parsing, so a flag on the command line overrides the file
 // whatever their order. A key the file leaves out keeps its default. Errors (a missing file, bad
 // JSON, an unknown key) throw InvalidArgument naming the file and the key. `print_config` is set
-// by `--print-config`: print every option (PrintConfig) and do nothing else.
+// by `--print-config`: print every option (PrintConfig) and do nothing else. AddConfigOption
+// adds `--config` alone, for a command that reads another command's options.
 template <typename Options>
-void AddConfigOptions(CLI::App& app, Options& options, bool& print_config) {
+void AddConfigOption(CLI::App& app, Options& options, const std::string& description) {
   app.add_option_function<std::string>(
          "--config",
          [&options](const std::string& path) {
            options_json::ParseInto(ReadConfigFile(path), "--config " + path, options);
          },
-         "read the options from this JSON file (see --print-config); flags given here override it")
+         description)
       ->trigger_on_parse();
+}
+template <typename Options>
+void AddConfigOptions(CLI::App& app, Options& options, bool& print_config) {
+  AddConfigOption(
+      app, options,
+      "read the options from this JSON file (see --print-config); flags given here override it");
   app.add_flag("--print-config", print_config,
                "print every option as the JSON --config reads (after --config and the flags), "
                "and exit");

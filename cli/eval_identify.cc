@@ -20,7 +20,6 @@
 #include "cli/command_util.h"
 #include "core/atomic_file.h"
 #include "core/check.h"
-#include "core/options_json.h"
 #include "identify/coverage.h"
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
@@ -154,11 +153,10 @@ void MarkCoveredPhotos(const store::Model& model, bool with_synthetic_views,
   for (identify::QueryTruth& truth : *truths) {
     const auto label = label_points.find(truth.target);
     if (!truth.world_from_cam || label == label_points.end()) continue;
-    // ViewWasSeen's rule, from one pass over the keyframes.
     const identify::ViewSeenOptions seen;
     truth.view_angle_deg = identify::NearestViewAngleDeg(*truth.world_from_cam, label->second,
                                                          keyframes, seen.max_distance_ratio);
-    truth.covered = truth.view_angle_deg && *truth.view_angle_deg <= seen.max_angle_deg;
+    truth.covered = identify::IsSeenAngle(truth.view_angle_deg, seen);
   }
 }
 
@@ -214,15 +212,9 @@ CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
   identify->add_option("--limit", args.limit, "locate only the first N photos (0: all)")
       ->check(Within(0, 1e9))
       ->capture_default_str();
-  identify
-      ->add_option_function<std::string>(
-          "--config",
-          [&args](const std::string& path) {
-            options_json::ParseInto(ReadConfigFile(path), "--config " + path, args.locator);
-          },
-          "read the locator's options from this JSON file (as 'sightmap locate --print-config' "
-          "prints them), to measure a setting")
-      ->trigger_on_parse();
+  AddConfigOption(*identify, args.locator,
+                  "read the locator's options from this JSON file (as 'sightmap locate "
+                  "--print-config' prints them), to measure a setting");
   identify->add_flag("--without-synthetic", args.without_synthetic_views,
                      "ignore the model's synthetic views ('sightmap synthesize'), to see what they "
                      "add");

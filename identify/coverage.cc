@@ -454,9 +454,13 @@ bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3
                  const std::vector<store::KeyframeInfo>& keyframes,
                  const ViewSeenOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  const std::optional<double> angle =
-      NearestViewAngleDeg(world_from_photo, point_world, keyframes, options.max_distance_ratio);
-  return angle && *angle <= options.max_angle_deg;
+  return IsSeenAngle(
+      NearestViewAngleDeg(world_from_photo, point_world, keyframes, options.max_distance_ratio),
+      options);
+}
+
+bool IsSeenAngle(const std::optional<double>& nearest_angle_deg, const ViewSeenOptions& options) {
+  return nearest_angle_deg && *nearest_angle_deg <= options.max_angle_deg;
 }
 
 }  // namespace sightmap::identify

@@ -270,18 +270,20 @@ bool RefineOn(const std::vector<cv::Point3f>& object, const std::vector<cv::Poin
   return hypothesis->valid;
 }
 
+// The cell of a cells x cells grid over a width x height image holding p, row-major.
+int GridCell(const cv::Point2f& p, int width, int height, int cells) {
+  const int c = std::clamp(static_cast<int>(p.x * cells / width), 0, cells - 1);
+  const int r = std::clamp(static_cast<int>(p.y * cells / height), 0, cells - 1);
+  return r * cells + c;
+}
+
 // Cells of a 4x4 grid over a width x height photo holding at least `min_points` of the points
 // point_at(0 .. count-1).
 template <typename PointAt>
 int GridCellsHolding(size_t count, PointAt point_at, int width, int height, int min_points) {
   constexpr int kCells = 4;
   int counts[kCells * kCells] = {};
-  for (size_t i = 0; i < count; ++i) {
-    const cv::Point2f p = point_at(i);
-    const int c = std::clamp(static_cast<int>(p.x * kCells / width), 0, kCells - 1);
-    const int r = std::clamp(static_cast<int>(p.y * kCells / height), 0, kCells - 1);
-    ++counts[r * kCells + c];
-  }
+  for (size_t i = 0; i < count; ++i) ++counts[GridCell(point_at(i), width, height, kCells)];
   return static_cast<int>(std::count_if(std::begin(counts), std::end(counts),
                                         [min_points](int n) { return n >= min_points; }));
 }
@@ -295,14 +297,9 @@ int CoveredCells(const std::vector<cv::Point2f>& image, const std::vector<int>& 
       height, 1);
 }
 
-// The cell of an 8x8 grid over an image of `size` holding p, row-major: fine enough that two
-// places explaining different parts of a photo show it (a desk and the poster behind it).
-int FineCell(const cv::Point2f& p, const cv::Size& size) {
-  constexpr int kCells = 8;
-  const int c = std::clamp(static_cast<int>(p.x * kCells / size.width), 0, kCells - 1);
-  const int r = std::clamp(static_cast<int>(p.y * kCells / size.height), 0, kCells - 1);
-  return r * kCells + c;
-}
+// An 8x8 grid is fine enough that two places explaining different parts of a photo show it (a
+// desk and the poster behind it).
+constexpr int kFineCells = 8;
 
 // The share of `verdict`'s inliers in fine cells where `rival` has none.
 double UniqueInlierShare(const PlaceVerdict& verdict, const PlaceVerdict& rival) {
@@ -660,24 +657,20 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
     return verdict;
   }
   verdict.inliers = static_cast<int>(found.inliers.size());
-  for (int i : found.inliers) {
-    const cv::Point2f& p = (*image)[static_cast<size_t>(i)];
-    const int cell = FineCell(p, photo.size);
-    verdict.inlier_fine_cells.push_back(static_cast<uint8_t>(cell));
-    verdict.fine_cell_mask |= uint64_t{1} << cell;
-  }
-  for (int i : found.inliers) {
-    const cv::Point3f& point =
-        matches.model_points[static_cast<size_t>((*object_model)[static_cast<size_t>(i)])];
-    verdict.inlier_centroid += Eigen::Vector3d(point.x, point.y, point.z);
-  }
-  if (verdict.inliers > 0) verdict.inlier_centroid /= verdict.inliers;
+  // What each inlier explains: its photo cell, its model point and descriptor.
   verdict.inlier_descriptors.create(verdict.inliers, matches.model_descriptors.cols,
                                     matches.model_descriptors.type());
-  for (int i = 0; i < verdict.inliers; ++i) {
-    const int row = (*object_model)[static_cast<size_t>(found.inliers[static_cast<size_t>(i)])];
-    matches.model_descriptors.row(row).copyTo(verdict.inlier_descriptors.row(i));
+  for (int k = 0; k < verdict.inliers; ++k) {
+    const size_t i = static_cast<size_t>(found.inliers[static_cast<size_t>(k)]);
+    const int cell = GridCell((*image)[i], photo.size.width, photo.size.height, kFineCells);
+    verdict.inlier_fine_cells.push_back(static_cast<uint8_t>(cell));
+    verdict.fine_cell_mask |= uint64_t{1} << cell;
+    const int row = (*object_model)[i];
+    const cv::Point3f& point = matches.model_points[static_cast<size_t>(row)];
+    verdict.inlier_centroid += Eigen::Vector3d(point.x, point.y, point.z);
+    matches.model_descriptors.row(row).copyTo(verdict.inlier_descriptors.row(k));
   }
+  if (verdict.inliers > 0) verdict.inlier_centroid /= verdict.inliers;
   // The paper's check is against the retrieved keyframe the pose was verified on: the member of
   // the place holding most inliers (a place spans views up to ~100 deg apart, so its head may
   // face away from a right pose).
