@@ -1,6 +1,7 @@
 #include "slam/features.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -12,6 +13,10 @@ namespace sightmap::slam {
 namespace {
 
 cv::Ptr<cv::Feature2D> MakeDetector(const FeatureOptions& options, int max_features) {
+  if (options.type == FeatureOptions::Type::kSift) {
+    // Every keypoint SIFT finds, then the grid keeps max_features of them spread out.
+    return cv::SIFT::create(/*nfeatures=*/0, /*nOctaveLayers=*/3, options.sift_contrast_threshold);
+  }
   return cv::ORB::create(max_features, static_cast<float>(options.orb_scale_factor),
                          options.orb_levels, /*edgeThreshold=*/31, /*firstLevel=*/0,
                          /*WTA_K=*/2, cv::ORB::HARRIS_SCORE, /*patchSize=*/31,
@@ -51,26 +56,55 @@ std::vector<cv::KeyPoint> SpreadOverGrid(std::vector<cv::KeyPoint> keypoints, cv
   return kept;
 }
 
+// SIFT rows (CV_32F) to RootSIFT bytes: each row L1-normalised, square-rooted (unit L2 norm), and
+// scaled by kRootSiftScale.
+cv::Mat ToRootSiftBytes(const cv::Mat& sift) {
+  cv::Mat bytes(sift.rows, sift.cols, CV_8U);
+  for (int r = 0; r < sift.rows; ++r) {
+    const float* in = sift.ptr<float>(r);
+    double sum = 0.0;
+    for (int c = 0; c < sift.cols; ++c) sum += std::abs(in[c]);
+    uint8_t* out = bytes.ptr<uint8_t>(r);
+    for (int c = 0; c < sift.cols; ++c) {
+      const double root = sum > 0.0 ? std::sqrt(std::abs(in[c]) / sum) : 0.0;
+      out[c] = cv::saturate_cast<uint8_t>(root * kRootSiftScale);
+    }
+  }
+  return bytes;
+}
+
 }  // namespace
+
+FeatureOptions RootSiftForPhotos() {
+  FeatureOptions options;
+  options.type = FeatureOptions::Type::kSift;
+  options.max_features = 1000;
+  return options;
+}
+
+bool CheckOrbFeatures(const FeatureOptions& options, std::string* error) {
+  if (!options.Check(error)) return false;
+  if (options.type == FeatureOptions::Type::kOrb) return true;
+  if (error) {
+    *error =
+        "SLAM takes ORB features (type \"orb\"): tracking, loop closure and the vocabulary "
+        "match binary descriptors; SIFT is for photos";
+  }
+  return false;
+}
 
 bool FeatureOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
     if (error) *error = what;
     return false;
   };
-  if (type != Type::kOrb) {
-    // The vocabulary, the place index and the photo matcher take 32-byte binary descriptors:
-    // SIFT would be extracted and then refused (or silently skipped) downstream.
-    return fail(
-        "only ORB features are supported: the vocabulary, the place index and the photo "
-        "matcher take binary descriptors");
-  }
   if (max_features <= 0) return fail("max_features must be positive");
   if (grid_cols <= 0 || grid_rows <= 0) return fail("grid_cols and grid_rows must be positive");
   if (orb_levels <= 0 || !(orb_scale_factor > 1.0)) {
     return fail("orb_levels must be positive and orb_scale_factor above 1");
   }
   if (orb_fast_threshold <= 0) return fail("orb_fast_threshold must be positive");
+  if (!(sift_contrast_threshold > 0.0)) return fail("sift_contrast_threshold must be positive");
   if (!(min_depth_m > 0.0) || !(max_depth_m > min_depth_m)) {
     return fail("need 0 < min_depth_m < max_depth_m");
   }
@@ -102,6 +136,9 @@ Features ExtractFeatures(const cv::Mat& image, const cv::Mat& depth_mm, const In
   Features features;
   features.keypoints = SpreadOverGrid(std::move(candidates), grey.size(), options);
   detector->compute(grey, features.keypoints, features.descriptors);
+  if (options.type == FeatureOptions::Type::kSift) {
+    features.descriptors = ToRootSiftBytes(features.descriptors);
+  }
 
   features.points_cam.assign(features.keypoints.size(), Eigen::Vector3d::Zero());
   features.has_point.assign(features.keypoints.size(), false);
@@ -128,6 +165,22 @@ Features ExtractFeatures(const cv::Mat& image, const cv::Mat& depth_mm, const In
   return features;
 }
 
+Features ExtractFeaturesAtMostOfSide(const cv::Mat& image, const cv::Mat& depth_mm,
+                                     const Intrinsics& camera, int max_side_px,
+                                     const FeatureOptions& options) {
+  SIGHTMAP_CHECK(max_side_px > 0, "features need a positive image side, not " << max_side_px);
+  const int longer = std::max(image.cols, image.rows);
+  if (longer <= max_side_px) return ExtractFeatures(image, depth_mm, camera, options);
+  const double scale = static_cast<double>(max_side_px) / longer;
+  const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
+                      std::max(1, static_cast<int>(std::lround(image.rows * scale))));
+  cv::Mat small_image;
+  cv::resize(image, small_image, size, 0.0, 0.0, cv::INTER_AREA);
+  cv::Mat small_depth;
+  if (!depth_mm.empty()) cv::resize(depth_mm, small_depth, size, 0.0, 0.0, cv::INTER_NEAREST);
+  return ExtractFeatures(small_image, small_depth, camera.Scaled(size.width, size.height), options);
+}
+
 namespace {
 const std::pair<FeatureOptions::Type, const char*> kFeatureTypeNames[] = {
     {FeatureOptions::Type::kOrb, "orb"}, {FeatureOptions::Type::kSift, "sift"}};
@@ -141,7 +194,7 @@ void from_json(const nlohmann::json& json, FeatureOptions::Type& type) {
 }
 
 SIGHTMAP_OPTIONS_JSON(FeatureOptions, type, max_features, grid_cols, grid_rows, orb_levels,
-                      orb_scale_factor, orb_fast_threshold, min_depth_m, max_depth_m,
-                      depth_window_radius_px, depth_edge_ratio)
+                      orb_scale_factor, orb_fast_threshold, sift_contrast_threshold, min_depth_m,
+                      max_depth_m, depth_window_radius_px, depth_edge_ratio)
 
 }  // namespace sightmap::slam

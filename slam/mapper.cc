@@ -75,8 +75,8 @@ bool MapperOptions::Check(std::string* error) const {
     if (error) *error = what;
     return false;
   };
-  if (!features.Check(error) || !registration.Check(error) || !vocabulary.Check(error) ||
-      !pose_graph.Check(error)) {
+  if (!CheckOrbFeatures(features, error) || !registration.Check(error) ||
+      !vocabulary.Check(error) || !pose_graph.Check(error)) {
     return false;
   }
   if (odometry_window < 1) return fail("odometry_window must be at least 1");

@@ -1,10 +1,14 @@
 #include "slam/matching.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 
+#include <mutex>
+
 #include <opencv2/features2d.hpp>
+#include <opencv2/flann.hpp>
 
 #include "core/check.h"
 #include "core/options_json.h"
@@ -169,6 +173,49 @@ std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const 
       const size_t slot = static_cast<size_t>(q) * static_cast<size_t>(k) + static_cast<size_t>(j);
       if (indices[slot] < 0) break;
       neighbours.emplace_back(q, indices[slot], static_cast<float>(distances[slot]));
+    }
+  }
+  return knn;
+}
+
+std::vector<std::vector<cv::DMatch>> KNearestEuclidean(const cv::Mat& query,
+                                                       const cv::Mat& reference, int k) {
+  SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");
+  SIGHTMAP_CHECK((query.type() == CV_8U || query.type() == CV_32F) &&
+                     query.type() == reference.type() &&
+                     (query.empty() || reference.empty() || query.cols == reference.cols),
+                 "Euclidean k nearest needs byte or float rows of one width");
+  std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(query.rows));
+  if (query.empty() || reference.empty()) return knn;
+  cv::Mat query_f;
+  cv::Mat reference_f;
+  query.convertTo(query_f, CV_32F);
+  reference.convertTo(reference_f, CV_32F);
+  const double pairs = static_cast<double>(query.rows) * reference.rows;
+  if (pairs <= kExactEuclideanPairs) {
+    knn.clear();  // knnMatch appends
+    cv::BFMatcher(cv::NORM_L2).knnMatch(query_f, reference_f, knn, k);
+    return knn;
+  }
+  const int kk = std::min(k, reference.rows);
+  cv::Mat indices(query.rows, kk, CV_32S);
+  cv::Mat distances_sq(query.rows, kk, CV_32F);
+  cv::flann::Index index;
+  {
+    // FLANN's kd-trees split on dimensions drawn with std::rand: seeded under a lock so that one
+    // input always gives one answer.
+    static std::mutex seed_mutex;
+    std::lock_guard<std::mutex> lock(seed_mutex);
+    cvflann::seed_random(7);
+    index.build(reference_f, cv::flann::KDTreeIndexParams(4));
+  }
+  index.knnSearch(query_f, indices, distances_sq, kk, cv::flann::SearchParams(64));
+  for (int q = 0; q < query.rows; ++q) {
+    std::vector<cv::DMatch>& neighbours = knn[static_cast<size_t>(q)];
+    for (int j = 0; j < kk; ++j) {
+      const int r = indices.at<int>(q, j);
+      if (r < 0 || r >= reference.rows) break;
+      neighbours.emplace_back(q, r, std::sqrt(distances_sq.at<float>(q, j)));
     }
   }
   return knn;

@@ -40,6 +40,14 @@ BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& refer
 std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
                                                     int k);
 
+// For every query descriptor its k nearest references by Euclidean distance (equal-width byte or
+// float rows: RootSIFT), nearest first; fewer when the reference has fewer rows. Distances in the
+// rows' own units. Exact up to kExactEuclideanPairs query x reference pairs, approximate above
+// (randomised kd-trees, seeded, so the same input gives the same answer).
+inline constexpr double kExactEuclideanPairs = 4e6;
+std::vector<std::vector<cv::DMatch>> KNearestEuclidean(const cv::Mat& query,
+                                                       const cv::Mat& reference, int k);
+
 // Matches query descriptors to reference descriptors (both CV_8U binary, or both CV_32F).
 // DMatch::queryIdx indexes `query`, trainIdx indexes `reference`.
 std::vector<cv::DMatch> MatchDescriptors(const cv::Mat& query, const cv::Mat& reference,

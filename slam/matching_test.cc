@@ -162,5 +162,78 @@ TEST(Matching, RefusesDescriptorsOfDifferentLengths) {
   EXPECT_ANY_THROW(MatchDescriptors(query, reference));
 }
 
+// Random 128-byte rows (RootSIFT-like); query q is reference (q * 7) % n with small noise.
+void PlantedByteRows(int num_query, int num_reference, cv::Mat* query, cv::Mat* reference) {
+  cv::RNG rng(11);
+  reference->create(num_reference, 128, CV_8U);
+  rng.fill(*reference, cv::RNG::UNIFORM, 0, 64);
+  query->create(num_query, 128, CV_8U);
+  for (int q = 0; q < num_query; ++q) {
+    const int r = (q * 7) % num_reference;
+    for (int c = 0; c < 128; ++c) {
+      query->at<uint8_t>(q, c) =
+          cv::saturate_cast<uint8_t>(reference->at<uint8_t>(r, c) + rng.uniform(-3, 4));
+    }
+  }
+}
+
+TEST(Matching, EuclideanKNearestIsOpenCvsKnnMatchWhenExact) {
+  cv::Mat query;
+  cv::Mat reference;
+  PlantedByteRows(200, 300, &query, &reference);
+  ASSERT_LE(200.0 * 300.0, kExactEuclideanPairs);
+  const auto knn = KNearestEuclidean(query, reference, 3);
+  cv::Mat query_f;
+  cv::Mat reference_f;
+  query.convertTo(query_f, CV_32F);
+  reference.convertTo(reference_f, CV_32F);
+  std::vector<std::vector<cv::DMatch>> expected;
+  cv::BFMatcher(cv::NORM_L2).knnMatch(query_f, reference_f, expected, 3);
+  ASSERT_EQ(knn.size(), 200u);
+  for (size_t q = 0; q < knn.size(); ++q) {
+    ASSERT_EQ(knn[q].size(), 3u);
+    for (size_t j = 0; j < 3; ++j) {
+      EXPECT_EQ(knn[q][j].trainIdx, expected[q][j].trainIdx) << q << " " << j;
+      EXPECT_NEAR(knn[q][j].distance, expected[q][j].distance, 1e-3);
+    }
+    EXPECT_EQ(knn[q][0].trainIdx, static_cast<int>((q * 7) % 300));
+  }
+}
+
+// Above kExactEuclideanPairs the kd-trees answer: nearly every planted neighbour is found, with
+// its true distance, and the same input gives the same answer.
+TEST(Matching, EuclideanKNearestOfManyPairsFindsThePlantedNeighbourTheSameWayTwice) {
+  cv::Mat query;
+  cv::Mat reference;
+  PlantedByteRows(1000, 6000, &query, &reference);
+  ASSERT_GT(1000.0 * 6000.0, kExactEuclideanPairs);
+  const auto knn = KNearestEuclidean(query, reference, 2);
+  const auto again = KNearestEuclidean(query, reference, 2);
+  ASSERT_EQ(knn.size(), 1000u);
+  int found = 0;
+  for (size_t q = 0; q < knn.size(); ++q) {
+    ASSERT_EQ(knn[q].size(), 2u);
+    ASSERT_EQ(again[q].size(), 2u);
+    EXPECT_EQ(knn[q][0].trainIdx, again[q][0].trainIdx);
+    EXPECT_LE(knn[q][0].distance, knn[q][1].distance);
+    const int r = knn[q][0].trainIdx;
+    EXPECT_NEAR(knn[q][0].distance, cv::norm(query.row(static_cast<int>(q)), reference.row(r)),
+                1e-2);
+    if (r == static_cast<int>((q * 7) % 6000)) ++found;
+  }
+  EXPECT_GE(found, 950);
+}
+
+TEST(Matching, EuclideanKNearestOfNothingIsEmptyAndOfMismatchedRowsThrows) {
+  cv::Mat query;
+  cv::Mat reference;
+  PlantedByteRows(5, 10, &query, &reference);
+  const auto none = KNearestEuclidean(query, cv::Mat(0, 128, CV_8U), 2);
+  ASSERT_EQ(none.size(), 5u);
+  for (const auto& neighbours : none) EXPECT_TRUE(neighbours.empty());
+  EXPECT_THROW(KNearestEuclidean(query, cv::Mat(4, 64, CV_8U, cv::Scalar(1)), 2), std::exception);
+  EXPECT_THROW(KNearestEuclidean(query, reference, 0), std::exception);
+}
+
 }  // namespace
 }  // namespace sightmap::slam

@@ -39,7 +39,7 @@ bool ViewSynthesisOptions::Check(std::string* error) const {
   };
   std::string why;
   if (!coverage.Check(&why)) return fail("coverage: " + why);
-  if (!features.Check(&why)) return fail("features: " + why);
+  if (!slam::CheckOrbFeatures(features, &why)) return fail("features: " + why);
   if (!(max_pitch_deg > 0.0 && max_pitch_deg <= 90.0)) {
     return fail("max_pitch_deg must be in (0, 90]");
   }
