@@ -41,12 +41,16 @@ int RunInfo(int argc, char** argv) {
   std::string path;
   bool json = false;
   AddModelArgument(app, path);
+  bool upgrade = false;
   app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
+  app.add_flag("--upgrade", upgrade,
+               "upgrade a model written by an older sightmap to this one's schema, in place");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
   if (const int code = RequireModelArgument(app, path); code >= 0) return code;
 
   store::ModelOptions options;
-  options.read_only = true;
+  options.read_only = !upgrade;
+  options.create_if_missing = false;
   const store::Model model = store::Model::Open(path, options);
   const store::ModelSummary summary = model.Summary();
   const std::vector<store::LabelRecord> labels = model.Labels();
@@ -71,6 +75,8 @@ int RunInfo(int argc, char** argv) {
     out["labels"] = summary.labels;
     out["synthetic_views"] = summary.synthetic_views;
     out["synthetic_view_bytes"] = summary.synthetic_view_bytes;
+    out["photo_feature_keyframes"] = summary.photo_feature_keyframes;
+    out["photo_feature_bytes"] = summary.photo_feature_bytes;
     out["size_bytes"] = summary.size_bytes;
     out["links"] = {{"odometry", summary.odometry_links},
                     {"loop", summary.loop_closures},
@@ -123,6 +129,11 @@ int RunInfo(int argc, char** argv) {
     std::cout << "synthetic      " << summary.synthetic_views << " views for photos ("
               << std::setprecision(1) << summary.synthetic_view_bytes / 1e6
               << " MB; 'sightmap synthesize')\n";
+  }
+  if (summary.photo_feature_keyframes > 0) {
+    std::cout << "photo features " << summary.photo_feature_keyframes
+              << " keyframes with RootSIFT (" << std::setprecision(1)
+              << summary.photo_feature_bytes / 1e6 << " MB)\n";
   }
   if (coverage) {
     std::cout << "coverage       " << coverage->seen << " of " << coverage->open

@@ -237,6 +237,27 @@ struct EncodedFeatures {
   cv::Mat descriptors;
 };
 
+// Photo features are stored with a descriptor row and a 3D point slot per keypoint.
+void CheckPhotoFeatures(const Features& features) {
+  SIGHTMAP_CHECK(
+      features.keypoints.empty() ||
+          (features.IsConsistent() && features.points_cam.size() == features.keypoints.size()),
+      "photo features need a descriptor row and a 3D point slot per keypoint");
+}
+
+// One keyframe's row of `table` ("features" or "photo_features": the same columns), replacing
+// the one it has.
+void InsertFeatures(sqlite3* db, const std::string& table, KeyframeId id,
+                    const EncodedFeatures& encoded) {
+  Statement insert(db, "INSERT OR REPLACE INTO " + table +
+                           " (keyframe_id, count, keypoints, descriptor_type, descriptor_rows, "
+                           "descriptor_cols, descriptors, cam_points) VALUES (?, ?, ?, ?, ?, ?, "
+                           "?, ?)");
+  insert.Bind(1, id.value());
+  encoded.Bind(insert, 2);
+  insert.Run();
+}
+
 std::string FileDescription(const std::string& path) { return "'" + path + "'"; }
 
 bool IsMemoryPath(const std::string& path) { return path == ":memory:" || path.empty(); }
@@ -587,9 +608,9 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
                                    << "): update sightmap");
   }
   if (options.read_only && impl->schema_version < latest) {
-    SIGHTMAP_THROW(Error, "model " << what << " has the older schema version "
-                                   << impl->schema_version
-                                   << ": open it once for writing to upgrade it");
+    SIGHTMAP_THROW(
+        Error, "model " << what << " has the older schema version " << impl->schema_version
+                        << ": upgrade it once with 'sightmap info --upgrade " << impl->path << "'");
   }
   Exec(db, "PRAGMA foreign_keys=ON");
   return Model(std::move(impl));
@@ -689,6 +710,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
                  "a keyframe needs one descriptor row per keypoint");
   SIGHTMAP_CHECK(features.PointsMatchKeypoints(),
                  "a keyframe needs a 3D point slot per keypoint, or none");
+  CheckPhotoFeatures(keyframe.photo_features);
 
   // Encode before taking the write lock: the lock is held only for the inserts.
   std::vector<uint8_t> jpeg;
@@ -700,6 +722,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
                               {cv::IMWRITE_PNG_COMPRESSION, impl_->options.png_compression}),
                  "cannot encode a keyframe's depth image as PNG");
   const EncodedFeatures encoded(features);
+  const EncodedFeatures photo_encoded(keyframe.photo_features);
 
   sqlite3* db = impl_->db;
   Transaction transaction(db);
@@ -728,13 +751,10 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   BindRowAsBlob(images, 3, png);
   images.Run();
 
-  Statement insert_features(db,
-                            "INSERT INTO features (keyframe_id, count, keypoints, descriptor_type, "
-                            "descriptor_rows, descriptor_cols, descriptors, cam_points) VALUES (?, "
-                            "?, ?, ?, ?, ?, ?, ?)");
-  insert_features.Bind(1, id.value());
-  encoded.Bind(insert_features, 2);
-  insert_features.Run();
+  InsertFeatures(db, "features", id, encoded);
+  if (!keyframe.photo_features.keypoints.empty()) {
+    InsertFeatures(db, "photo_features", id, photo_encoded);
+  }
 
   for (const LinkRecord& link : keyframe.links) impl_->InsertLink(link, id);
   transaction.Commit();
@@ -824,6 +844,34 @@ Features Model::LoadFeatures(KeyframeId id) const {
   SIGHTMAP_CHECK(query.Step(), "keyframe " << id.value() << " has no features in model "
                                            << FileDescription(impl_->path));
   return ColumnFeatures(query, 0, "keyframe " + std::to_string(id.value()));
+}
+
+std::optional<Features> Model::LoadPhotoFeatures(KeyframeId id) const {
+  Statement query(impl_->db,
+                  "SELECT count, keypoints, descriptor_type, descriptor_rows, descriptor_cols, "
+                  "descriptors, cam_points FROM photo_features WHERE keyframe_id = ?");
+  query.Bind(1, id.value());
+  if (!query.Step()) return std::nullopt;
+  return ColumnFeatures(query, 0, "keyframe " + std::to_string(id.value()) + "'s photo features");
+}
+
+void Model::SetPhotoFeatures(KeyframeId id, const Features& features) {
+  impl_->CheckWritable();
+  CheckPhotoFeatures(features);
+  const EncodedFeatures encoded(features);
+  Transaction transaction(impl_->db);
+  Statement exists(impl_->db, "SELECT 1 FROM keyframes WHERE id = ?");
+  exists.Bind(1, id.value());
+  SIGHTMAP_CHECK(exists.Step(),
+                 "keyframe " << id.value() << " is not in model " << FileDescription(impl_->path));
+  InsertFeatures(impl_->db, "photo_features", id, encoded);
+  transaction.Commit();
+}
+
+int64_t Model::NumKeyframesWithPhotoFeatures() const {
+  Statement query(impl_->db, "SELECT COUNT(*) FROM photo_features");
+  SIGHTMAP_CHECK(query.Step(), "cannot count photo features");
+  return query.Int(0);
 }
 
 SyntheticViewId Model::AddSyntheticView(const SyntheticViewRecord& view) {
@@ -1025,6 +1073,10 @@ ModelSummary Model::Summary() const {
   summary.synthetic_view_bytes = count(
       "SELECT coalesce(sum(length(color_jpeg) + length(keypoints) + length(descriptors) + "
       "length(cam_points)), 0) FROM synthetic_views");
+  summary.photo_feature_keyframes = count("SELECT count(*) FROM photo_features");
+  summary.photo_feature_bytes = count(
+      "SELECT coalesce(sum(length(keypoints) + length(descriptors) + length(cam_points)), 0) "
+      "FROM photo_features");
   {
     summary.inactive_links = count("SELECT count(*) FROM links WHERE active = 0");
     Statement query(db, "SELECT type, count(*) FROM links WHERE active = 1 GROUP BY type");

@@ -70,6 +70,8 @@ struct KeyframeRecord {
   cv::Mat color;  // CV_8UC3 BGR, stored as JPEG
   cv::Mat depth;  // CV_16UC1 [mm], stored as lossless 16-bit PNG
   Features features;
+  // Features for matching phone photos (RootSIFT, with 3D points); none when empty.
+  Features photo_features;
   // Links written in the same transaction. An invalid id at either end stands for this keyframe.
   std::vector<LinkRecord> links;
 };
@@ -180,6 +182,9 @@ struct ModelSummary {
   int64_t synthetic_views = 0;
   // Their stored bytes (image, keypoints, descriptors, points), a share of size_bytes.
   int64_t synthetic_view_bytes = 0;
+  // Keyframes stored with features for matching photos (RootSIFT), and those features' bytes.
+  int64_t photo_feature_keyframes = 0;
+  int64_t photo_feature_bytes = 0;
   int64_t size_bytes = 0;  // the database file plus its WAL
   // Axis-aligned box of keyframe positions and label points [m]; empty when there are none.
   bool has_bounding_box = false;
@@ -228,6 +233,11 @@ class Model {
   cv::Mat LoadColor(KeyframeId id) const;  // CV_8UC3 BGR
   cv::Mat LoadDepth(KeyframeId id) const;  // CV_16UC1 [mm]
   Features LoadFeatures(KeyframeId id) const;
+  // A keyframe's features for matching photos, when it has them; SetPhotoFeatures adds or
+  // replaces them (a 3D point slot per keypoint).
+  std::optional<Features> LoadPhotoFeatures(KeyframeId id) const;
+  void SetPhotoFeatures(KeyframeId id, const Features& features);
+  int64_t NumKeyframesWithPhotoFeatures() const;
 
   // Links of the pose graph.
   LinkId AddLink(const LinkRecord& link);

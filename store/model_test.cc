@@ -130,6 +130,43 @@ TEST(Model, FloatDescriptorsAndKeypointsWithoutAPointRoundTrip) {
   EXPECT_TRUE(features.IsConsistent());
 }
 
+// RootSIFT-like byte rows for photos, written with the keyframe or later (replacing), read back
+// as written; a keyframe without them has none, and deleting nothing else is needed.
+TEST(Model, PhotoFeaturesRoundTripWithTheKeyframeOrAddedLater) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  KeyframeRecord keyframe = MakeSyntheticKeyframe(session, 0, SmallKeyframes());
+  keyframe.photo_features = keyframe.features;
+  keyframe.photo_features.descriptors = cv::Mat(50, 128, CV_8U);
+  cv::randu(keyframe.photo_features.descriptors, 0, 256);
+  keyframe.photo_features.has_point[7] = false;
+  const KeyframeId with = model.AddKeyframe(keyframe);
+  const KeyframeId without = model.AddKeyframe(MakeSyntheticKeyframe(session, 1, SmallKeyframes()));
+  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 1);
+  const std::optional<Features> stored = model.LoadPhotoFeatures(with);
+  ASSERT_TRUE(stored.has_value());
+  EXPECT_EQ(stored->descriptors.type(), CV_8U);
+  EXPECT_EQ(cv::norm(stored->descriptors, keyframe.photo_features.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_FALSE(stored->has_point[7]);
+  EXPECT_EQ(stored->NumPoints(), 49u);
+  EXPECT_FALSE(model.LoadPhotoFeatures(without).has_value());
+  // The ORB features are untouched.
+  EXPECT_EQ(model.LoadFeatures(with).descriptors.cols, keyframe.features.descriptors.cols);
+
+  Features later = keyframe.photo_features;
+  later.descriptors.setTo(cv::Scalar(3));
+  model.SetPhotoFeatures(without, later);
+  model.SetPhotoFeatures(with, later);  // replaces
+  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 2);
+  EXPECT_EQ(cv::norm(model.LoadPhotoFeatures(with)->descriptors, later.descriptors, cv::NORM_INF),
+            0.0);
+  EXPECT_THROW(model.SetPhotoFeatures(KeyframeId(999), later), Error);
+  Features inconsistent = later;
+  inconsistent.points_cam.clear();
+  inconsistent.has_point.clear();
+  EXPECT_THROW(model.SetPhotoFeatures(with, inconsistent), Error);
+}
+
 TEST(Model, AKeyframeWithoutDepthPointsRoundTripsWithoutThem) {
   Model model = Model::Open(":memory:");
   const SessionId session = model.BeginSession({});
@@ -515,12 +552,14 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
     ADD_FAILURE() << "a read-only open of an old model must ask for an upgrade";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("older schema version 1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("sightmap info --upgrade"), std::string::npos) << e.what();
   }
   Model model = Model::Open(path);
   EXPECT_EQ(model.SchemaVersion(), Model::LatestSchemaVersion());
-  model.SetVocabulary("dbow3", {9});            // the table migration 2 added
-  EXPECT_TRUE(model.Links().empty());           // reads the column migration 3 added
-  EXPECT_TRUE(model.SyntheticViews().empty());  // the table migration 5 added
+  model.SetVocabulary("dbow3", {9});                    // the table migration 2 added
+  EXPECT_TRUE(model.Links().empty());                   // reads the column migration 3 added
+  EXPECT_TRUE(model.SyntheticViews().empty());          // the table migration 5 added
+  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 0);  // the table migration 6 added
   EXPECT_EQ(model.IntegrityCheck(), "ok");
   // The data written under schema 1 survived.
   sqlite3* db = nullptr;
@@ -528,7 +567,7 @@ TEST(Model, OlderSchemaIsUpgradedInPlace) {
   sqlite3_stmt* stmt = nullptr;
   sqlite3_prepare_v2(db, "SELECT group_concat(version) FROM sightmap_schema", -1, &stmt, nullptr);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3,4,5");
+  EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0)), "1,2,3,4,5,6");
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }

@@ -139,6 +139,19 @@ CREATE TABLE synthetic_views (
   cam_points BLOB NOT NULL);
 CREATE INDEX synthetic_views_by_source ON synthetic_views(source_keyframe_id);
 )sql",
+      // 6: each keyframe's features for matching phone photos (RootSIFT), beside the ORB
+      // features SLAM uses; a keyframe written before, or by a map run without them, has none.
+      R"sql(
+CREATE TABLE photo_features (
+  keyframe_id INTEGER PRIMARY KEY REFERENCES keyframes(id) ON DELETE CASCADE,
+  count INTEGER NOT NULL,
+  keypoints BLOB NOT NULL,
+  descriptor_type INTEGER NOT NULL,
+  descriptor_rows INTEGER NOT NULL,
+  descriptor_cols INTEGER NOT NULL,
+  descriptors BLOB NOT NULL,
+  cam_points BLOB NOT NULL);
+)sql",
   };
   return kMigrations;
 }

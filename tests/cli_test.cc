@@ -1,5 +1,6 @@
 // End-to-end tests of the `sightmap` binary: exit codes, one-line errors, and the --json keys that
 // scripts depend on, checked against the real recordings.
+#include <sqlite3.h>
 #include <sys/wait.h>
 
 #include <cmath>
@@ -196,6 +197,8 @@ TEST(Cli, InfoJsonKeysOfASmallModel) {
   EXPECT_EQ(info.at("labels"), 2);
   EXPECT_EQ(info.at("synthetic_views"), 0);
   EXPECT_EQ(info.at("synthetic_view_bytes"), 0);
+  EXPECT_EQ(info.at("photo_feature_keyframes"), 0);
+  EXPECT_EQ(info.at("photo_feature_bytes"), 0);
   EXPECT_EQ(info.at("schema_version"), store::Model::LatestSchemaVersion());
   EXPECT_GT(info.at("size_bytes").get<int64_t>(), 10000);
   EXPECT_EQ(info.at("links").at("odometry"), 2);
@@ -209,6 +212,32 @@ TEST(Cli, InfoJsonKeysOfASmallModel) {
 // The small model's four cameras stand at x = 0-0.3 m on the floor plane (up is their -y), 2 m
 // before the wall the two labels hang on at (1, 0.5, 2): all four see both labels, from one
 // direction, 2.18-2.29 m away.
+// A model of the previous schema (as the last sightmap wrote it: no photo_features table): read
+// commands refuse it naming the command that upgrades it, which does, keeping its keyframes.
+TEST(Cli, InfoUpgradesAModelOfAnOlderSchema) {
+  const std::string path = MakeSmallModel("cli_upgrade");
+  ASSERT_EQ(Sightmap("info " + path).exit_code, 0);
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(
+      sqlite3_exec(db, "DROP TABLE photo_features; DELETE FROM sightmap_schema WHERE version = 6",
+                   nullptr, nullptr, nullptr),
+      SQLITE_OK);
+  sqlite3_close(db);
+  const CommandResult refused = Sightmap("info " + path + " --json");
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.err.find("older schema version 5"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("sightmap info --upgrade"), std::string::npos) << refused.err;
+  EXPECT_EQ(CountLines(refused.err), 1) << refused.err;
+  const CommandResult upgraded = Sightmap("info --upgrade " + path + " --json");
+  ASSERT_EQ(upgraded.exit_code, 0) << upgraded.err;
+  const nlohmann::json info = nlohmann::json::parse(upgraded.out);
+  EXPECT_EQ(info.at("schema_version"), store::Model::LatestSchemaVersion());
+  EXPECT_EQ(info.at("keyframes"), 4);
+  EXPECT_EQ(Sightmap("info " + path + " --json").exit_code, 0);
+  EXPECT_EQ(Sightmap("info --upgrade " + path + "-missing.db").exit_code, 1);
+}
+
 TEST(Cli, CoverageSaysFromWhereEachLabelWasSeen) {
   const std::string path = MakeSmallModel("cli_coverage");
   const std::string png = testing::MakeTempDir("cli_coverage_out") + "/plan.png";
