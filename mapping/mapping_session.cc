@@ -83,8 +83,14 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "queue capacities must be >= 1";
     return false;
   }
+  if (photo_features && (photo_feature_options.type != slam::FeatureOptions::Type::kSift ||
+                         photo_feature_side_px < 320)) {
+    *error = "photo features must be of type \"sift\" at a side of at least 320 px";
+    return false;
+  }
   return source_options.Check(error) && sampler.Check(error) && tracking.Check(error) &&
-         mapper.Check(error) && model.Check(error) && ply.Check(error) && view.Check(error);
+         photo_feature_options.Check(error) && mapper.Check(error) && model.Check(error) &&
+         ply.Check(error) && view.Check(error);
 }
 
 MappingSession::MappingSession(const MappingOptions& options) : options_(options) {
@@ -437,8 +443,14 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   BoundedQueue<RgbdFrame> frames(static_cast<size_t>(options_.frame_queue_capacity));
   BoundedQueue<KeyframeItem> keyframes(static_cast<size_t>(options_.keyframe_queue_capacity));
   const Clock::time_point start = Clock::now();
+  std::optional<PhotoFeatureExtraction> photo_features;
+  if (options_.photo_features) {
+    photo_features =
+        PhotoFeatureExtraction{options_.photo_feature_options, options_.photo_feature_side_px};
+  }
   WriteStage writer(&model, view.get(), static_cast<int>(summary.session_number),
-                    restored.store_ids, static_cast<size_t>(options_.write_queue_capacity));
+                    restored.store_ids, static_cast<size_t>(options_.write_queue_capacity),
+                    std::move(photo_features));
   TrackStage track(camera, tracking, &frames, &keyframes, std::move(continue_from));
   CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track, continue_after),
                        &frames, view.get());
@@ -495,6 +507,7 @@ SIGHTMAP_OPTIONS_JSON(MappingOptions, source, model_path, ply_path, trajectory_p
                       continue_replay, max_keyframes, live, anchor_to_ground_truth,
                       ground_truth_poses, frame_queue_capacity, keyframe_queue_capacity,
                       write_queue_capacity, source_options, sampler, tracking, track_every, mapper,
-                      model, ply, view, show_view)
+                      photo_features, photo_feature_options, photo_feature_side_px, model, ply,
+                      view, show_view)
 
 }  // namespace sightmap::mapping

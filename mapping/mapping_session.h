@@ -84,6 +84,12 @@ struct MappingOptions {
   // Track every Nth frame of the source (1: all of them) [frames].
   int track_every = 1;
   slam::MapperOptions mapper;
+  // Each keyframe is stored with RootSIFT features for matching phone photos (`sightmap locate`'s
+  // RootSIFT matcher reads them rather than extracting them at load), extracted by the writer
+  // off the tracking thread; photo_feature_side_px is the photo matcher's scale [px].
+  bool photo_features = true;
+  slam::FeatureOptions photo_feature_options = slam::RootSiftForPhotos();
+  int photo_feature_side_px = 640;
   store::ModelOptions model;
   store::PlyExportOptions ply;
   MapViewFeedOptions view;

@@ -6,15 +6,40 @@
 
 namespace sightmap::mapping {
 
+namespace {
+
+Features WithPointsOnly(const Features& features) {
+  Features kept;
+  std::vector<int> rows;
+  for (size_t i = 0; i < features.size(); ++i) {
+    if (i < features.has_point.size() && features.has_point[i]) rows.push_back(static_cast<int>(i));
+  }
+  kept.descriptors.create(static_cast<int>(rows.size()), features.descriptors.cols,
+                          features.descriptors.type());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const size_t i = static_cast<size_t>(rows[k]);
+    kept.keypoints.push_back(features.keypoints[i]);
+    kept.points_cam.push_back(features.points_cam[i]);
+    kept.has_point.push_back(true);
+    features.descriptors.row(rows[k]).copyTo(kept.descriptors.row(static_cast<int>(k)));
+  }
+  return kept;
+}
+
+}  // namespace
+
 WriteStage::WriteStage(store::Model* model, MapViewFeed* view, int session_number,
-                       std::vector<KeyframeId> store_ids, size_t queue_capacity)
+                       std::vector<KeyframeId> store_ids, size_t queue_capacity,
+                       std::optional<PhotoFeatureExtraction> photo_features)
     : model_(model),
       view_(view),
       session_number_(session_number),
+      photo_features_(std::move(photo_features)),
       store_ids_(std::move(store_ids)),
       tasks_(queue_capacity) {
   SIGHTMAP_CHECK(model_ != nullptr, "the write stage needs a model");
   SIGHTMAP_CHECK(session_number_ >= 1, "session numbers start at 1, not " << session_number_);
+  if (photo_features_) SIGHTMAP_CHECK_OPTIONS(photo_features_->features);
   thread_ = std::thread([this] { Run(); });
 }
 
@@ -74,6 +99,13 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
     stored.information = link.information;
     stored.active = link.active;
     record.links.push_back(stored);
+  }
+  if (photo_features_ && record.photo_features.keypoints.empty()) {
+    // Only features with a 3D point: a photo is matched to points, the rest would be stored for
+    // nothing.
+    record.photo_features = WithPointsOnly(
+        slam::ExtractFeaturesAtMostOfSide(record.color, record.depth, record.intrinsics,
+                                          photo_features_->max_side_px, photo_features_->features));
   }
   store_ids_.push_back(model_->AddKeyframe(record));
   ++committed_;

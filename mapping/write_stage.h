@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdint>
 #include <exception>
+#include <optional>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -18,6 +19,7 @@
 
 #include "mapping/bounded_queue.h"
 #include "mapping/map_view_feed.h"
+#include "slam/features.h"
 #include "slam/mapper.h"
 #include "store/model.h"
 
@@ -41,13 +43,22 @@ struct WriteTask {
   std::vector<uint8_t> vocabulary;
 };
 
+// Features for matching phone photos (RootSIFT), extracted from each keyframe's colour and depth
+// on the writer's thread, so tracking and mapping keep their rate, and stored with it.
+struct PhotoFeatureExtraction {
+  slam::FeatureOptions features;
+  int max_side_px = 640;  // keyframes larger than this are downscaled first [px]
+};
+
 class WriteStage {
  public:
   // Starts the thread. `store_ids` maps the mapper ids of the keyframes already in the model
   // (restored, in mapper order) to their model ids; `session_number` (>= 1) colours the view's
-  // track. `model` and `view` (may be null) must outlive the stage.
+  // track. `model` and `view` (may be null) must outlive the stage. With `photo_features`, each
+  // keyframe is written with them.
   WriteStage(store::Model* model, MapViewFeed* view, int session_number,
-             std::vector<KeyframeId> store_ids, size_t queue_capacity);
+             std::vector<KeyframeId> store_ids, size_t queue_capacity,
+             std::optional<PhotoFeatureExtraction> photo_features = std::nullopt);
   ~WriteStage();
   WriteStage(const WriteStage&) = delete;
   WriteStage& operator=(const WriteStage&) = delete;
@@ -74,6 +85,7 @@ class WriteStage {
   store::Model* model_;
   MapViewFeed* view_;
   int session_number_;
+  std::optional<PhotoFeatureExtraction> photo_features_;
   std::vector<KeyframeId> store_ids_;  // by mapper id; only the thread touches it once started
   BoundedQueue<WriteTask> tasks_;
   std::atomic<bool> failed_{false};

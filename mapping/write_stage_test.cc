@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "tests/test_data.h"
 
@@ -60,6 +61,46 @@ SessionId Begin(store::Model& model) {
   record.source = "test";
   record.intrinsics = SmallCamera();
   return model.BeginSession(record);
+}
+
+// Photo features are the writer's work: each keyframe is stored with RootSIFT features and their
+// points, taken from its own colour and depth (downscaled when larger than max_side_px).
+TEST(WriteStage, KeyframesAreWrittenWithTheirPhotoFeatures) {
+  const std::string path = testing::MakeTempDir("write-stage-photo") + "/model.db";
+  store::Model model = store::Model::Open(path);
+  const SessionId session = Begin(model);
+  PhotoFeatureExtraction extraction;
+  extraction.features.type = slam::FeatureOptions::Type::kSift;
+  extraction.max_side_px = 320;
+  WriteTask task = KeyframeTask(session, 0, {});
+  task.record.intrinsics = SmallCamera().Scaled(640, 480);
+  task.record.color = cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128));
+  cv::RNG rng(3);
+  for (int i = 0; i < 300; ++i) {
+    const cv::Point centre(rng.uniform(0, 640), rng.uniform(0, 480));
+    cv::circle(task.record.color, centre, rng.uniform(3, 20), cv::Scalar::all(rng.uniform(0, 256)),
+               cv::FILLED);
+  }
+  task.record.depth = cv::Mat(480, 640, CV_16UC1, cv::Scalar(1500));
+  {
+    WriteStage stage(&model, nullptr, 1, {}, 2, extraction);
+    ASSERT_TRUE(stage.Push(task));
+    ASSERT_TRUE(stage.Push(KeyframeTask(session, 1, {})));  // blank: none found
+    stage.Finish();
+    ASSERT_FALSE(stage.failed());
+  }
+  const std::vector<store::KeyframeInfo> infos = model.Keyframes();
+  ASSERT_EQ(infos.size(), 2u);
+  const std::optional<Features> stored = model.LoadPhotoFeatures(infos[0].id);
+  ASSERT_TRUE(stored.has_value());
+  EXPECT_GT(stored->size(), 50u);
+  EXPECT_EQ(stored->descriptors.cols, 128);
+  EXPECT_EQ(stored->NumPoints(), stored->size());
+  for (const cv::KeyPoint& keypoint : stored->keypoints) {
+    EXPECT_LT(keypoint.pt.x, 320.0f);  // found on the 320x240 copy
+  }
+  for (const Eigen::Vector3d& point : stored->points_cam) EXPECT_NEAR(point.z(), 1.5, 1e-9);
+  EXPECT_FALSE(model.LoadPhotoFeatures(infos[1].id).has_value());
 }
 
 TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
