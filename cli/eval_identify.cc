@@ -250,6 +250,9 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     identify::LocatorOptions locator_options = args.locator;
     if (args.without_synthetic_views) locator_options.use_synthetic_views = false;
     locator = std::make_unique<identify::Locator>(model, locator_options);
+    if (!locator->LoadWarning().empty()) {
+      std::cerr << "sightmap: " << locator->LoadWarning() << "\n";
+    }
     MarkCoveredPhotos(model, locator_options.use_synthetic_views, &truths);
   }
   const double load_s = SecondsSince(load_start);

@@ -148,6 +148,7 @@ int RunLocate(int argc, char** argv) {
   model_options.create_if_missing = false;
   const store::Model model = store::Model::Open(model_path, model_options);
   const identify::Locator locator(model, options);
+  if (!locator.LoadWarning().empty()) std::cerr << "sightmap: " << locator.LoadWarning() << "\n";
   const identify::LocateResult result = locator.Locate(photo, hint);
   if (json) {
     std::cout << identify::ToJson(result).dump(2) << "\n";

@@ -693,6 +693,9 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
     model_options.read_only = true;
     const store::Model model = store::Model::Open(model_path, model_options);
     impl.locator = std::make_unique<identify::Locator>(model, options.locator);
+    if (!impl.locator->LoadWarning().empty()) {
+      std::cerr << "sightmap: " << impl.locator->LoadWarning() << "\n";
+    }
   }
   LabelServiceOptions label_options = options.labels;
   label_options.editable = !options.read_only;

@@ -53,6 +53,39 @@ std::vector<T> Subset(const std::vector<T>& values, const std::vector<int>& indi
   return subset;
 }
 
+// ORB rows are 32 bytes compared by Hamming distance; RootSIFT rows 128 bytes compared by
+// Euclidean distance.
+bool IsBinary(const cv::Mat& descriptors) { return descriptors.cols == 32; }
+
+std::vector<std::vector<cv::DMatch>> KNearest(const cv::Mat& query, const cv::Mat& reference,
+                                              int k) {
+  return IsBinary(reference) ? slam::KNearestBinary(query, reference, k)
+                             : slam::KNearestEuclidean(query, reference, k);
+}
+
+// The distance of two rows of `cols` bytes: bits for ORB, rounded Euclidean for RootSIFT.
+int RowDistance(const uint8_t* a, const uint8_t* b, int cols) {
+  if (cols == 32) return slam::Hamming256(a, b);
+  int sum = 0;
+  for (int c = 0; c < cols; ++c) {
+    const int d = static_cast<int>(a[c]) - static_cast<int>(b[c]);
+    sum += d * d;
+  }
+  return static_cast<int>(std::lround(std::sqrt(static_cast<double>(sum))));
+}
+
+// The largest matching distance for descriptors like `descriptors`, in their units, and the
+// largest for guided matching.
+double MaxDistance(const cv::Mat& descriptors, const LocatorOptions& options) {
+  return IsBinary(descriptors) ? options.max_descriptor_distance
+                               : options.sift_max_distance * slam::kRootSiftScale;
+}
+int GuidedMaxDistance(const cv::Mat& descriptors, const LocatorOptions& options) {
+  return IsBinary(descriptors) ? options.guided_max_distance
+                               : static_cast<int>(std::lround(options.sift_guided_max_distance *
+                                                              slam::kRootSiftScale));
+}
+
 void ToRvecTvec(const Eigen::Isometry3d& world_from_cam, cv::Vec3d* rvec, cv::Vec3d* tvec) {
   const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
   cv::Matx33d rotation;
@@ -192,7 +225,7 @@ std::vector<std::vector<cv::DMatch>> KnnWithinNodes(const cv::Mat& query,
 void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f>& photo_points,
                  const PhotoGrid& grid, const cv::Mat& model_descriptors,
                  const std::vector<cv::Point3f>& model_points, const PoseHypothesis& hypothesis,
-                 const LocatorOptions& options, std::vector<cv::Point3f>* object,
+                 int max_distance, const LocatorOptions& options, std::vector<cv::Point3f>* object,
                  std::vector<cv::Point2f>* image, std::vector<int>* model_index, int* projected) {
   *projected = 0;
   object->clear();
@@ -206,7 +239,7 @@ void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f
   cv::Matx33d rotation;
   cv::Rodrigues(rvec, rotation);
   std::vector<int> best_model(photo_points.size(), -1);
-  std::vector<int> best_distance(photo_points.size(), options.guided_max_distance + 1);
+  std::vector<int> best_distance(photo_points.size(), max_distance + 1);
   const double radius_sq = options.guided_radius_px * options.guided_radius_px;
   for (size_t m = 0; m < model_points.size(); ++m) {
     const cv::Point3f& w = model_points[m];
@@ -218,11 +251,12 @@ void GuidedMatch(const cv::Mat& photo_descriptors, const std::vector<cv::Point2f
     ++*projected;
     const uint8_t* model_row = model_descriptors.ptr<uint8_t>(static_cast<int>(m));
     int nearest = -1;
-    int nearest_distance = options.guided_max_distance + 1;
+    int nearest_distance = max_distance + 1;
     grid.ForEachNear(uv, options.guided_radius_px, [&](int i) {
       const cv::Point2f d = photo_points[static_cast<size_t>(i)] - uv;
       if (d.x * d.x + d.y * d.y > radius_sq) return;
-      const int distance = slam::Hamming256(photo_descriptors.ptr<uint8_t>(i), model_row);
+      const int distance =
+          RowDistance(photo_descriptors.ptr<uint8_t>(i), model_row, model_descriptors.cols);
       if (distance < nearest_distance) {
         nearest_distance = distance;
         nearest = i;
@@ -314,6 +348,27 @@ double UniqueInlierShare(const PlaceVerdict& verdict, const PlaceVerdict& rival)
 constexpr int kDetailCellFeatures = 20;
 
 // Cells holding detail: a photo of a bare ceiling or wall has its few features in one or two.
+// `image` (8-bit grey, BGR or BGRA) as grey, downscaled (area) when its longer side exceeds
+// `max_side` [px].
+cv::Mat GreyAtMostOfSide(const cv::Mat& image, int max_side) {
+  cv::Mat grey;
+  if (image.channels() == 3)
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4)
+    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+  else
+    grey = image;
+  const int longer = std::max(image.cols, image.rows);
+  if (longer <= max_side) return grey;
+  const double scale = static_cast<double>(max_side) / longer;
+  cv::Mat scaled;
+  cv::resize(grey, scaled,
+             cv::Size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
+                      std::max(1, static_cast<int>(std::lround(image.rows * scale)))),
+             0.0, 0.0, cv::INTER_AREA);
+  return scaled;
+}
+
 int DetailCells(const Features& features, const cv::Size& size) {
   return GridCellsHolding(
       features.keypoints.size(), [&](size_t i) { return features.keypoints[i].pt; }, size.width,
@@ -357,6 +412,47 @@ PhotoGrid::PhotoGrid(const std::vector<cv::Point2f>& points, int width, int heig
   }
 }
 
+namespace {
+
+// The image features are found on: its size, and the intrinsics candidates at its scale. False
+// (refused) when a side is too short to hold features: the photo rule refuses a side under
+// kMinPhotoSidePx, but a caller may hand pixels directly, and downscaling a long thin photo
+// shrinks its short side; ORB's pyramid throws on a side it shrinks to nothing, and finds nothing
+// on one this short.
+bool UseFeatureImage(const cv::Mat& grey, PreparedPhoto* prepared) {
+  prepared->size = grey.size();
+  prepared->feature_candidates.clear();
+  for (const Intrinsics& k : prepared->full_candidates) {
+    prepared->feature_candidates.push_back(k.Scaled(grey.cols, grey.rows));
+  }
+  if (std::min(grey.cols, grey.rows) >= kMinPhotoSidePx) return true;
+  std::ostringstream why;
+  why << "the photo is too small or too narrow to hold features (" << grey.cols << "x" << grey.rows
+      << " px as matched, at least " << kMinPhotoSidePx << " px a side needed).";
+  prepared->refusal = Refusal{UnmatchedReason::kFewFeatures, why.str()};
+  return false;
+}
+
+// Refuses a photo with fewer features than a pose needs inliers; else fills its keypoint
+// positions and their grid.
+void RefuseFewFeaturesOrIndex(const LocatorOptions& options, PreparedPhoto* prepared) {
+  if (static_cast<int>(prepared->features.size()) < options.min_inliers) {
+    std::ostringstream why;
+    why << "the photo has only " << prepared->features.size() << " features (at least "
+        << options.min_inliers << " needed): it is blank, blurred or too dark.";
+    prepared->refusal = Refusal{UnmatchedReason::kFewFeatures, why.str()};
+    return;
+  }
+  prepared->points.resize(prepared->features.size());
+  for (size_t i = 0; i < prepared->features.size(); ++i) {
+    prepared->points[i] = prepared->features.keypoints[i].pt;
+  }
+  prepared->grid = PhotoGrid(prepared->points, prepared->size.width, prepared->size.height,
+                             options.guided_radius_px);
+}
+
+}  // namespace
+
 PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                            const LocatorOptions& options) {
   SIGHTMAP_CHECK(!photo.empty() && photo.depth() == CV_8U &&
@@ -382,50 +478,28 @@ PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>
   }
 
   // Features, on a downscaled copy when the photo is larger than keyframes can match.
-  cv::Mat grey;
-  if (photo.channels() == 3)
-    cv::cvtColor(photo, grey, cv::COLOR_BGR2GRAY);
-  else if (photo.channels() == 4)
-    cv::cvtColor(photo, grey, cv::COLOR_BGRA2GRAY);
-  else
-    grey = photo;
-  const int longer = std::max(photo.cols, photo.rows);
-  if (longer > options.max_image_side_px) {
-    const double scale = static_cast<double>(options.max_image_side_px) / longer;
-    cv::resize(grey, grey,
-               cv::Size(std::max(1, static_cast<int>(std::lround(photo.cols * scale))),
-                        std::max(1, static_cast<int>(std::lround(photo.rows * scale)))),
-               0.0, 0.0, cv::INTER_AREA);
-  }
-  prepared.size = grey.size();
-  for (const Intrinsics& k : prepared.full_candidates) {
-    prepared.feature_candidates.push_back(k.Scaled(grey.cols, grey.rows));
-  }
-  // The photo rule refuses a side under kMinPhotoSidePx, but a caller may hand pixels directly,
-  // and downscaling a long thin photo shrinks its short side: ORB's pyramid throws on a side it
-  // shrinks to nothing, and finds nothing on one this short.
-  if (std::min(grey.cols, grey.rows) < kMinPhotoSidePx) {
-    std::ostringstream why;
-    why << "the photo is too small or too narrow to hold features (" << grey.cols << "x"
-        << grey.rows << " px as matched, at least " << kMinPhotoSidePx << " px a side needed).";
-    prepared.refusal = Refusal{UnmatchedReason::kFewFeatures, why.str()};
-    return prepared;
-  }
+  const cv::Mat grey = GreyAtMostOfSide(photo, options.max_image_side_px);
+  if (!UseFeatureImage(grey, &prepared)) return prepared;
   prepared.features =
       slam::ExtractFeatures(grey, cv::Mat(), prepared.feature_candidates.front(), options.features);
   prepared.detail_cells = DetailCells(prepared.features, grey.size());
-  if (static_cast<int>(prepared.features.size()) < options.min_inliers) {
-    std::ostringstream why;
-    why << "the photo has only " << prepared.features.size() << " features (at least "
-        << options.min_inliers << " needed): it is blank, blurred or too dark.";
-    prepared.refusal = Refusal{UnmatchedReason::kFewFeatures, why.str()};
-    return prepared;
-  }
-  prepared.points.resize(prepared.features.size());
-  for (size_t i = 0; i < prepared.features.size(); ++i) {
-    prepared.points[i] = prepared.features.keypoints[i].pt;
-  }
-  prepared.grid = PhotoGrid(prepared.points, grey.cols, grey.rows, options.guided_radius_px);
+  prepared.retrieval_descriptors = prepared.features.descriptors;
+  RefuseFewFeaturesOrIndex(options, &prepared);
+  return prepared;
+}
+
+PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
+                            const LocatorOptions& options) {
+  PreparedPhoto prepared;
+  prepared.full_candidates = orb.full_candidates;
+  prepared.intrinsics_given = orb.intrinsics_given;
+  prepared.detail_cells = orb.detail_cells;
+  prepared.retrieval_descriptors = orb.retrieval_descriptors;
+  const cv::Mat grey = GreyAtMostOfSide(photo, options.sift_image_side_px);
+  if (!UseFeatureImage(grey, &prepared)) return prepared;
+  prepared.features = slam::ExtractFeatures(grey, cv::Mat(), prepared.feature_candidates.front(),
+                                            options.sift_features);
+  RefuseFewFeaturesOrIndex(options, &prepared);
   return prepared;
 }
 
@@ -492,9 +566,9 @@ double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
   *matches = 0;
   if (a.descriptors.empty() || b.descriptors.empty()) return 0.0;
   int shared = 0;
-  for (const std::vector<cv::DMatch>& nearest :
-       slam::KNearestBinary(a.descriptors, b.descriptors, 2)) {
-    if (nearest.empty() || nearest[0].distance > options.max_descriptor_distance) continue;
+  const double max_distance = MaxDistance(a.descriptors, options);
+  for (const std::vector<cv::DMatch>& nearest : KNearest(a.descriptors, b.descriptors, 2)) {
+    if (nearest.empty() || nearest[0].distance > max_distance) continue;
     if (nearest.size() > 1 && nearest[0].distance > options.match_ratio * nearest[1].distance) {
       continue;
     }
@@ -557,13 +631,14 @@ PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
   if (bounded) {
     knn = KnnWithinNodes(query, photo.nodes, matches.model_descriptors, model_nodes, 4);
   } else {
-    knn = slam::KNearestBinary(query, matches.model_descriptors, 4);
+    knn = KNearest(query, matches.model_descriptors, 4);
   }
   const double same_point_sq = options.same_point_m * options.same_point_m;
+  const double max_distance = MaxDistance(matches.model_descriptors, options);
   for (const std::vector<cv::DMatch>& neighbours : knn) {
     if (neighbours.empty()) continue;
     const cv::DMatch& nearest = neighbours[0];
-    if (nearest.distance > options.max_descriptor_distance) continue;
+    if (nearest.distance > max_distance) continue;
     const cv::Point3f& p = matches.model_points[static_cast<size_t>(nearest.trainIdx)];
     // The second-nearest that is another 3D point; the same point seen by a neighbour
     // keyframe confirms rather than competes.
@@ -643,8 +718,9 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
   if (found.valid && static_cast<int>(found.inliers.size()) >= options.min_ransac_inliers) {
     for (int round = 0; round < options.guided_rounds; ++round) {
       GuidedMatch(photo.features.descriptors, photo.points, photo.grid, matches.model_descriptors,
-                  matches.model_points, found, options, &guided_object, &guided_image,
-                  &guided_model, &verdict.projected);
+                  matches.model_points, found,
+                  GuidedMaxDistance(matches.model_descriptors, options), options, &guided_object,
+                  &guided_image, &guided_model, &verdict.projected);
       if (!RefineOn(guided_object, guided_image, options, &found)) break;
       verdict.matches = static_cast<int>(guided_object.size());
       // The inliers now index the guided correspondences.

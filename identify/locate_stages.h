@@ -32,8 +32,8 @@ struct LocatorKeyframe {
   SyntheticViewId synthetic_view;  // valid for a synthetic view
   Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
   Eigen::Vector3d view_direction = Eigen::Vector3d::UnitZ();  // camera z in the world
-  // The features that have a 3D point: their descriptors (one 32-byte ORB row each) and world
-  // points [m].
+  // The features that have a 3D point: their descriptors (one 32-byte ORB row each, or one
+  // 128-byte RootSIFT row) and world points [m].
   cv::Mat descriptors;
   std::vector<cv::Point3f> world_points;
   std::vector<int> nodes;  // per descriptor: its vocabulary node at match_node_level (> 0 only)
@@ -81,7 +81,9 @@ struct PreparedPhoto {
   std::vector<Intrinsics> full_candidates;
   std::vector<Intrinsics> feature_candidates;
   bool intrinsics_given = false;
-  Features features;
+  Features features;  // what is matched: ORB or RootSIFT (LocatorOptions::matcher)
+  // ORB descriptors, what retrieval ranks keyframes by (features' when the matcher is ORB).
+  cv::Mat retrieval_descriptors;
   std::vector<cv::Point2f> points;  // keypoint positions, at the feature image's scale
   std::vector<int> nodes;           // per descriptor, for matching bounded by vocabulary nodes
   PhotoGrid grid;                   // cells of guided_radius_px
@@ -93,6 +95,11 @@ struct PreparedPhoto {
 // when unusable) and scaled to the photo when made for another size.
 PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                            const LocatorOptions& options);
+// Stage 1 for the RootSIFT matcher: the same photo (`orb` is its PreparePhoto) matched with
+// RootSIFT at sift_image_side_px; intrinsics, detail cells and the ORB retrieval descriptors are
+// orb's.
+PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
+                            const LocatorOptions& options);
 
 // Stage 2: retrieval. The inverted index's best candidates for the photo's descriptors, best
 // first; in a model of no more keyframes than retrieval_candidates, or without a vocabulary,

@@ -494,6 +494,41 @@ TEST(PreparePhotoTest, ALargePhotoIsDownscaledAndEveryFocalCandidateScaledWithIt
   EXPECT_EQ(prepared.detail_cells, 16);
 }
 
+// RootSIFT's photo: matched at sift_image_side_px with 128-byte rows, while retrieval keeps the
+// ORB descriptors and the detail cells of PreparePhoto; a blank photo is refused, a narrow one
+// too short to hold features.
+TEST(PreparePhotoTest, TheRootSiftPhotoIsMatchedAtItsOwnScaleAndRetrievedByOrb) {
+  LocatorOptions options;
+  const cv::Mat photo = TexturedPhoto(2560, 1920);
+  const PreparedPhoto orb = PreparePhoto(photo, std::nullopt, options);
+  const PreparedPhoto sift = RootSiftPhoto(photo, orb, options);
+  ASSERT_FALSE(sift.refusal.has_value()) << sift.refusal->reason;
+  EXPECT_EQ(sift.size, cv::Size(640, 480));
+  ASSERT_EQ(sift.feature_candidates.size(), orb.full_candidates.size());
+  EXPECT_NEAR(sift.feature_candidates[0].fx, orb.full_candidates[0].fx * 640 / 2560, 1e-6);
+  EXPECT_EQ(sift.features.descriptors.cols, 128);
+  EXPECT_GT(sift.features.size(), 300u);
+  EXPECT_LE(sift.features.size(), static_cast<size_t>(options.sift_features.max_features));
+  EXPECT_EQ(sift.points.size(), sift.features.size());
+  for (const cv::Point2f& p : sift.points) EXPECT_LT(p.x, 640.0f);
+  EXPECT_EQ(sift.retrieval_descriptors.cols, 32);
+  EXPECT_EQ(sift.retrieval_descriptors.rows, orb.features.descriptors.rows);
+  EXPECT_EQ(sift.detail_cells, orb.detail_cells);
+
+  const cv::Mat blank(480, 640, CV_8UC3, cv::Scalar::all(128));
+  const PreparedPhoto refused =
+      RootSiftPhoto(blank, PreparePhoto(blank, std::nullopt, options), options);
+  ASSERT_TRUE(refused.refusal.has_value());
+  EXPECT_EQ(refused.refusal->code, UnmatchedReason::kFewFeatures);
+  // 4000x300 is matched at 640x48 by RootSIFT: too short a side.
+  const cv::Mat narrow = TexturedPhoto(4000, 300);
+  const PreparedPhoto short_side =
+      RootSiftPhoto(narrow, PreparePhoto(narrow, std::nullopt, options), options);
+  ASSERT_TRUE(short_side.refusal.has_value());
+  EXPECT_NE(short_side.refusal->reason.find("640x48"), std::string::npos)
+      << short_side.refusal->reason;
+}
+
 TEST(PreparePhotoTest, GivenIntrinsicsForAnotherSizeAreScaledToThePhoto) {
   LocatorOptions options;
   const Intrinsics half = Intrinsics::FromPinhole(320, 240, 250.0, 250.0, 159.5, 119.5);

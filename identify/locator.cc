@@ -4,6 +4,8 @@
 #include <mutex>
 #include <sstream>
 
+#include <opencv2/imgproc.hpp>
+
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
@@ -17,9 +19,18 @@ namespace sightmap::identify {
 
 bool LocatorOptions::Check(std::string* error) const {
   std::ostringstream why;
-  if (!features.Check(error)) return false;
+  if (!slam::CheckOrbFeatures(features, error)) return false;
+  if (!sift_features.Check(error)) return false;
   if (max_image_side_px < 320)
     why << "max_image_side_px must be at least 320";
+  else if (sift_features.type != slam::FeatureOptions::Type::kSift)
+    why << "sift_features must be of type \"sift\"";
+  else if (sift_image_side_px < 320)
+    why << "sift_image_side_px must be at least 320";
+  else if (!(sift_max_distance > 0.0) || !(sift_guided_max_distance > 0.0))
+    why << "sift_max_distance and sift_guided_max_distance must be positive";
+  else if (second_look_max_places < 1)
+    why << "second_look_max_places must be positive";
   else if (retrieval_candidates < 1)
     why << "retrieval_candidates must be at least 1";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
@@ -100,10 +111,14 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
 
 struct Locator::Impl {
   LocatorOptions options;
-  std::vector<LocatorKeyframe> keyframes;
+  std::vector<LocatorKeyframe> keyframes;  // ORB's
+  // The same slots with RootSIFT features (synthetic views without any); empty with the ORB
+  // matcher.
+  std::vector<LocatorKeyframe> sift_keyframes;
   slam::Vocabulary vocabulary;
   slam::PlaceIndex index;          // ids are slots into `keyframes`
   size_t num_synthetic_views = 0;  // the last ones of `keyframes`
+  size_t num_sift_extracted = 0;
   OcclusionCloud cloud;
   // Every keyframe's depth at 80x60, to tell from which side the walk saw each label point.
   std::vector<SightingView> sighting_views;
@@ -124,17 +139,33 @@ struct Locator::Impl {
   // was taken with one). Their verdicts, for Decide with the rest.
   std::vector<PlaceVerdict> VerifyTwins(const PreparedPhoto& photo, const PlaceVerdict& winner,
                                         const std::vector<Place>& tried,
+                                        const std::vector<LocatorKeyframe>& matched,
                                         LocateTimings* timings) const;
+
+  // Stages 3-6 for one matcher: the candidates grouped into places, each matched against
+  // `matched` (keyframes or sift_keyframes) and verified until one is certain, the twin check,
+  // the decision.
+  struct Search {
+    std::vector<PlaceVerdict> verdicts;
+    Decision decision;
+  };
+  Search SearchPlaces(PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
+                      const std::vector<LocatorKeyframe>& matched, int max_places,
+                      LocateTimings* timings) const;
 };
 
 std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
                                                      const PlaceVerdict& winner,
                                                      const std::vector<Place>& tried,
+                                                     const std::vector<LocatorKeyframe>& matched,
                                                      LocateTimings* timings) const {
   Clock::time_point stage = Clock::now();
-  const std::vector<Place> twins = TwinPlaces(
-      RetrieveCandidates(winner.inlier_descriptors, vocabulary, index, keyframes, options),
-      winner.verified_slot, tried, keyframes, options);
+  // The vocabulary is ORB's: RootSIFT inliers ask with their keyframe's ORB features.
+  const cv::Mat& query = &matched == &keyframes ? winner.inlier_descriptors
+                                                : keyframes[winner.verified_slot].descriptors;
+  const std::vector<Place> twins =
+      TwinPlaces(RetrieveCandidates(query, vocabulary, index, keyframes, options),
+                 winner.verified_slot, tried, matched, options);
   timings->retrieval_ms += MsSince(stage);
   std::vector<PlaceVerdict> verdicts;
   if (twins.empty()) return verdicts;
@@ -143,13 +174,60 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
   same_camera.intrinsics_given = true;
   for (const Place& twin : twins) {
     stage = Clock::now();
-    const PlaceMatches matches = MatchPlace(same_camera, twin, keyframes, options);
+    const PlaceMatches matches = MatchPlace(same_camera, twin, matched, options);
     timings->matching_ms += MsSince(stage);
     stage = Clock::now();
-    verdicts.push_back(VerifyPlace(same_camera, twin, matches, keyframes, options));
+    verdicts.push_back(VerifyPlace(same_camera, twin, matches, matched, options));
     timings->pnp_ms += MsSince(stage);
   }
   return verdicts;
+}
+
+Locator::Impl::Search Locator::Impl::SearchPlaces(
+    PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
+    const std::vector<LocatorKeyframe>& matched, int max_places, LocateTimings* timings) const {
+  LocatorOptions grouping = options;
+  grouping.max_places = max_places;
+  const std::vector<Place> places = GroupPlaces(candidates, matched, grouping);
+  // Vocabulary nodes only for ORB matching bounded by them; exhaustive matching needs none.
+  Clock::time_point stage = Clock::now();
+  if (options.match_node_level > 0 && !vocabulary.empty() && &matched == &keyframes &&
+      photo->nodes.empty()) {
+    const cv::Mat& descriptors = photo->features.descriptors;
+    for (int r = 0; r < descriptors.rows; ++r) {
+      photo->nodes.push_back(
+          vocabulary.NodeOf(descriptors.ptr<uint8_t>(r), options.match_node_level));
+    }
+  }
+  timings->matching_ms += MsSince(stage);
+
+  Search search;
+  std::vector<PlaceVerdict>& verdicts = search.verdicts;
+  for (const Place& place : places) {
+    stage = Clock::now();
+    const PlaceMatches matches = MatchPlace(*photo, place, matched, options);
+    timings->matching_ms += MsSince(stage);
+    stage = Clock::now();
+    verdicts.push_back(VerifyPlace(*photo, place, matches, matched, options));
+    timings->pnp_ms += MsSince(stage);
+    // A verified pose with this many inliers is certain: the remaining places would cost their
+    // matching time for nothing.
+    const PlaceVerdict& verdict = verdicts.back();
+    if (verdict.accepted && verdict.inliers >= options.confident_inliers) break;
+  }
+  search.decision = Decide(verdicts, options);
+  if (search.decision.winner >= 0 && options.twin_places > 0) {
+    const std::vector<Place> tried(places.begin(),
+                                   places.begin() + static_cast<std::ptrdiff_t>(verdicts.size()));
+    std::vector<PlaceVerdict> twins = VerifyTwins(
+        *photo, verdicts[static_cast<size_t>(search.decision.winner)], tried, matched, timings);
+    if (!twins.empty()) {
+      verdicts.insert(verdicts.end(), std::make_move_iterator(twins.begin()),
+                      std::make_move_iterator(twins.end()));
+      search.decision = Decide(verdicts, options);
+    }
+  }
+  return search;
 }
 
 namespace {
@@ -181,22 +259,18 @@ slam::Vocabulary LoadOrTrainVocabulary(const store::Model& model,
   return slam::Vocabulary::Train(descriptors);
 }
 
-// A keyframe, real or synthetic, as the locator matches it: its features that have a 3D point,
-// in the world. Every ORB descriptor (with or without a point) votes in retrieval: it is added
-// to `index` under `slot` when the vocabulary is not empty.
+// A keyframe, real or synthetic, as the locator matches it: its features (ORB or RootSIFT) that
+// have a 3D point, in the world.
 LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& world_from_cam,
-                                    const Features& features, size_t slot,
-                                    const slam::Vocabulary& vocabulary,
-                                    const LocatorOptions& options, slam::PlaceIndex* index) {
+                                    const Features& features, const slam::Vocabulary& vocabulary,
+                                    const LocatorOptions& options) {
   LocatorKeyframe keyframe;
   keyframe.id = id;
   keyframe.world_from_cam = world_from_cam;
   keyframe.view_direction = world_from_cam.linear().col(2);
-  if (!IsOrbDescriptors(features.descriptors)) return keyframe;
-  // Not the index: a model with one keyframe of features has no vocabulary to index by.
-  if (!vocabulary.empty()) {
-    index->Add(static_cast<int64_t>(slot), vocabulary.Transform(features.descriptors));
-  }
+  if (features.descriptors.empty() || features.descriptors.type() != CV_8U) return keyframe;
+  const bool by_nodes =
+      options.match_node_level > 0 && !vocabulary.empty() && IsOrbDescriptors(features.descriptors);
   std::vector<int> rows;
   for (size_t i = 0; i < features.points_cam.size(); ++i) {
     if (!features.has_point[i]) continue;
@@ -205,15 +279,43 @@ LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& worl
     keyframe.world_points.emplace_back(static_cast<float>(world.x()), static_cast<float>(world.y()),
                                        static_cast<float>(world.z()));
   }
-  keyframe.descriptors.create(static_cast<int>(rows.size()), 32, CV_8U);
+  keyframe.descriptors.create(static_cast<int>(rows.size()), features.descriptors.cols, CV_8U);
   for (size_t r = 0; r < rows.size(); ++r) {
     features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
-    if (options.match_node_level > 0 && !vocabulary.empty()) {
+    if (by_nodes) {
       keyframe.nodes.push_back(vocabulary.NodeOf(
           keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
     }
   }
   return keyframe;
+}
+
+// Every ORB descriptor of a keyframe (with or without a point) votes in retrieval: added to
+// `index` under `slot`. Not without a vocabulary: a model with one keyframe of features has none
+// to index by.
+void IndexKeyframe(const Features& orb, size_t slot, const slam::Vocabulary& vocabulary,
+                   slam::PlaceIndex* index) {
+  if (vocabulary.empty() || !IsOrbDescriptors(orb.descriptors)) return;
+  index->Add(static_cast<int64_t>(slot), vocabulary.Transform(orb.descriptors));
+}
+
+// A keyframe's RootSIFT features with their 3D points: those the model stores (`sightmap map`
+// extracts them as it writes keyframes), else extracted from its stored colour and depth at the
+// matcher's scale (a model mapped without them); none for a keyframe stored without images.
+Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeInfo& info,
+                              const LocatorOptions& options, int* extracted) {
+  if (std::optional<Features> stored = model.LoadPhotoFeatures(info.id)) {
+    if (stored->descriptors.cols == 128 && stored->descriptors.type() == CV_8U) {
+      return std::move(*stored);
+    }
+  }
+  if (info.color_bytes <= 0 || info.depth_bytes <= 0) return {};
+  const cv::Mat color = model.LoadColor(info.id);
+  const cv::Mat depth = model.LoadDepth(info.id);
+  if (color.size() != depth.size()) return {};
+  ++*extracted;
+  return slam::ExtractFeaturesAtMostOfSide(color, depth, info.intrinsics,
+                                           options.sift_image_side_px, options.sift_features);
 }
 
 }  // namespace
@@ -230,13 +332,20 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
 
   OcclusionCloudBuilder cloud(options.occlusion_voxel_m);
   bool any_orb_features = false;
+  const bool with_sift = options.matcher != LocatorOptions::Matcher::kOrb;
+  int sift_extracted = 0;  // keyframes the model stores no RootSIFT for
   impl_->keyframes.reserve(infos.size());
   for (const store::KeyframeInfo& info : infos) {
     const Features features = model.LoadFeatures(info.id);
     any_orb_features = any_orb_features || IsOrbDescriptors(features.descriptors);
-    impl_->keyframes.push_back(MakeLocatorKeyframe(info.id, info.world_from_cam, features,
-                                                   impl_->keyframes.size(), impl_->vocabulary,
-                                                   options, &impl_->index));
+    IndexKeyframe(features, impl_->keyframes.size(), impl_->vocabulary, &impl_->index);
+    impl_->keyframes.push_back(
+        MakeLocatorKeyframe(info.id, info.world_from_cam, features, impl_->vocabulary, options));
+    if (with_sift) {
+      impl_->sift_keyframes.push_back(MakeLocatorKeyframe(
+          info.id, info.world_from_cam, KeyframeSiftFeatures(model, info, options, &sift_extracted),
+          impl_->vocabulary, options));
+    }
     if (info.depth_bytes > 0) {
       const cv::Mat depth = model.LoadDepth(info.id);
       cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
@@ -246,14 +355,21 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     }
   }
   // Views rendered where the walk did not stand: matched like keyframes, never part of the
-  // occlusion cloud or the sightings (their depth is the keyframes', already in both).
+  // occlusion cloud or the sightings (their depth is the keyframes', already in both). They
+  // store ORB features only: RootSIFT matching has a slot without points for each.
   if (options.use_synthetic_views) {
     for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
       if (!IsOrbDescriptors(view.features.descriptors)) continue;
-      LocatorKeyframe keyframe =
-          MakeLocatorKeyframe(view.source, view.world_from_cam, view.features,
-                              impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index);
+      IndexKeyframe(view.features, impl_->keyframes.size(), impl_->vocabulary, &impl_->index);
+      LocatorKeyframe keyframe = MakeLocatorKeyframe(view.source, view.world_from_cam,
+                                                     view.features, impl_->vocabulary, options);
       keyframe.synthetic_view = view.id;
+      if (with_sift) {
+        LocatorKeyframe without_points = MakeLocatorKeyframe(
+            view.source, view.world_from_cam, Features(), impl_->vocabulary, options);
+        without_points.synthetic_view = view.id;
+        impl_->sift_keyframes.push_back(std::move(without_points));
+      }
       impl_->keyframes.push_back(std::move(keyframe));
       ++impl_->num_synthetic_views;
     }
@@ -262,6 +378,8 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
                                                 << " has no keyframe with ORB features; "
                                                    "map it again with ORB features");
   FindNeighbours(options, &impl_->keyframes);
+  if (with_sift) FindNeighbours(options, &impl_->sift_keyframes);
+  impl_->num_sift_extracted = static_cast<size_t>(sift_extracted);
   impl_->cloud = cloud.Build();
   ReloadLabels(model);
 }
@@ -281,6 +399,13 @@ size_t Locator::NumKeyframes() const {
   return impl_->keyframes.size() - impl_->num_synthetic_views;
 }
 size_t Locator::NumSyntheticViews() const { return impl_->num_synthetic_views; }
+size_t Locator::NumSiftExtractedAtLoad() const { return impl_->num_sift_extracted; }
+std::string Locator::LoadWarning() const {
+  if (impl_->num_sift_extracted == 0) return "";
+  return std::to_string(impl_->num_sift_extracted) + " of " + std::to_string(NumKeyframes()) +
+         " keyframes had no stored RootSIFT features and were extracted while loading; models "
+         "mapped by this sightmap store them";
+}
 const LocatorOptions& Locator::options() const { return impl_->options; }
 size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.size(); }
 std::vector<store::LabelRecord> Locator::Labels() const { return impl_->CurrentLabels()->labels; }
@@ -313,8 +438,10 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   };
   if (photo.empty()) return finish({UnmatchedReason::kEmptyPhoto, "the photo is empty."});
 
+  using Matcher = LocatorOptions::Matcher;
   Clock::time_point stage = Clock::now();
   PreparedPhoto prepared = PreparePhoto(photo, intrinsics, options);
+  if (options.matcher == Matcher::kRootSift) prepared = RootSiftPhoto(photo, prepared, options);
   result.intrinsics = prepared.full_candidates.front();
   result.photo_features = static_cast<int>(prepared.features.size());
   result.photo_detail_cells = prepared.detail_cells;
@@ -323,50 +450,40 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
 
   stage = Clock::now();
   const std::vector<slam::PlaceCandidate> candidates = RetrieveCandidates(
-      prepared.features.descriptors, impl_->vocabulary, impl_->index, impl_->keyframes, options);
+      prepared.retrieval_descriptors, impl_->vocabulary, impl_->index, impl_->keyframes, options);
   result.timings.retrieval_ms = MsSince(stage);
   if (candidates.empty()) {
     return finish({UnmatchedReason::kUnknownPlace,
                    "no keyframe of the model shares a visual word with the photo."});
   }
-  const std::vector<Place> places = GroupPlaces(candidates, impl_->keyframes, options);
-
-  // Vocabulary nodes only for matching bounded by them; exhaustive matching needs none.
-  stage = Clock::now();
-  if (options.match_node_level > 0 && !impl_->vocabulary.empty()) {
-    const cv::Mat& descriptors = prepared.features.descriptors;
-    for (int r = 0; r < descriptors.rows; ++r) {
-      prepared.nodes.push_back(
-          impl_->vocabulary.NodeOf(descriptors.ptr<uint8_t>(r), options.match_node_level));
+  const std::vector<LocatorKeyframe>* matched =
+      options.matcher == Matcher::kRootSift ? &impl_->sift_keyframes : &impl_->keyframes;
+  Impl::Search search =
+      impl_->SearchPlaces(&prepared, candidates, *matched, options.max_places, &result.timings);
+  // A photo ORB could not place (not one two places fit) gets a second look with RootSIFT; its
+  // answer stands when it places the photo or finds it ambiguous.
+  const auto retry_code =
+      search.decision.refusal ? search.decision.refusal->code : UnmatchedReason::kNone;
+  if (options.matcher == Matcher::kOrbThenRootSift && search.decision.winner < 0 &&
+      retry_code != UnmatchedReason::kAmbiguous) {
+    stage = Clock::now();
+    PreparedPhoto sift = RootSiftPhoto(photo, prepared, options);
+    result.timings.features_ms += MsSince(stage);
+    if (!sift.refusal) {
+      Impl::Search again = impl_->SearchPlaces(&sift, candidates, impl_->sift_keyframes,
+                                               options.second_look_max_places, &result.timings);
+      const bool answered =
+          again.decision.winner >= 0 ||
+          (again.decision.refusal && again.decision.refusal->code == UnmatchedReason::kAmbiguous);
+      if (answered) {
+        search = std::move(again);
+        matched = &impl_->sift_keyframes;
+        result.photo_features = static_cast<int>(sift.features.size());
+      }
     }
   }
-  result.timings.matching_ms += MsSince(stage);
-
-  std::vector<PlaceVerdict> verdicts;
-  for (const Place& place : places) {
-    stage = Clock::now();
-    const PlaceMatches matches = MatchPlace(prepared, place, impl_->keyframes, options);
-    result.timings.matching_ms += MsSince(stage);
-    stage = Clock::now();
-    verdicts.push_back(VerifyPlace(prepared, place, matches, impl_->keyframes, options));
-    result.timings.pnp_ms += MsSince(stage);
-    // A verified pose with this many inliers is certain: the remaining places would cost their
-    // matching time for nothing.
-    const PlaceVerdict& verdict = verdicts.back();
-    if (verdict.accepted && verdict.inliers >= options.confident_inliers) break;
-  }
-  Decision decision = Decide(verdicts, options);
-  if (decision.winner >= 0 && options.twin_places > 0) {
-    const std::vector<Place> tried(places.begin(),
-                                   places.begin() + static_cast<std::ptrdiff_t>(verdicts.size()));
-    std::vector<PlaceVerdict> twins = impl_->VerifyTwins(
-        prepared, verdicts[static_cast<size_t>(decision.winner)], tried, &result.timings);
-    if (!twins.empty()) {
-      verdicts.insert(verdicts.end(), std::make_move_iterator(twins.begin()),
-                      std::make_move_iterator(twins.end()));
-      decision = Decide(verdicts, options);
-    }
-  }
+  const std::vector<PlaceVerdict>& verdicts = search.verdicts;
+  const Decision& decision = search.decision;
   result.candidates_tried = static_cast<int>(verdicts.size());
   result.runner_up_inliers = decision.runner_up_inliers;
   if (decision.refusal) return finish(*decision.refusal);
@@ -377,8 +494,8 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   result.matches = best.matches;
   result.projected_points = best.projected;
   result.inlier_cells = best.cells;
-  result.keyframe = impl_->keyframes[best.verified_slot].id;
-  result.synthetic_view = impl_->keyframes[best.verified_slot].synthetic_view;
+  result.keyframe = (*matched)[best.verified_slot].id;
+  result.synthetic_view = (*matched)[best.verified_slot].synthetic_view;
   result.intrinsics = best.pose.intrinsics.Scaled(photo.cols, photo.rows);
 
   stage = Clock::now();
@@ -502,18 +619,33 @@ LocateResult Locator::Locate(const Photo& photo, const IntrinsicsHint& hint) con
   return result;
 }
 
-SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, max_image_side_px, retrieval_candidates,
-                      place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
-                      neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
-                      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
-                      min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
-                      guided_rounds, min_inlier_cells, bare_view_max_detail_cells, min_inlier_share,
-                      same_pose_m, same_pose_deg, min_inlier_ratio_over_runner_up,
-                      min_unique_inlier_share, twin_places, twin_max_shared_share,
-                      confident_inliers, max_rotation_from_keyframe_deg, focal_candidates_35mm,
-                      refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
-                      occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
-                      occlusion_margin_ratio, min_in_view_share, min_unoccluded_share,
-                      use_synthetic_views)
+namespace {
+const std::pair<LocatorOptions::Matcher, const char*> kMatcherNames[] = {
+    {LocatorOptions::Matcher::kOrb, "orb"},
+    {LocatorOptions::Matcher::kRootSift, "rootsift"},
+    {LocatorOptions::Matcher::kOrbThenRootSift, "orb_then_rootsift"}};
+}  // namespace
+
+void to_json(nlohmann::json& json, const LocatorOptions::Matcher& matcher) {
+  options_json::WriteEnum(json, matcher, kMatcherNames);
+}
+void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
+  options_json::ReadEnum(json, matcher, kMatcherNames);
+}
+
+SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
+                      sift_max_distance, sift_guided_max_distance, second_look_max_places,
+                      max_image_side_px, retrieval_candidates, place_radius_m, place_max_angle_deg,
+                      max_places, neighbour_radius_m, neighbour_max_angle_deg, max_neighbours,
+                      match_node_level, match_ratio, same_point_m, max_descriptor_distance,
+                      pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
+                      guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
+                      bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
+                      min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
+                      twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,
+                      focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
+                      occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
+                      occlusion_margin_m, occlusion_margin_ratio, min_in_view_share,
+                      min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify
