@@ -133,9 +133,10 @@ struct PlaceMatches {
   std::vector<cv::Point2f> image;         // and the photo keypoint
   std::vector<int> object_model;          // and its row in model_points
 };
-// A photo descriptor's nearest model descriptor within max_descriptor_distance passes when it
-// beats match_ratio x the nearest descriptor of another 3D point (more than same_point_m away:
-// the same point seen by a neighbour keyframe confirms rather than competes).
+// A photo descriptor's nearest model descriptor within max_descriptor_distance (ORB) or
+// sift_max_distance (RootSIFT) passes when it beats match_ratio x the nearest descriptor of another
+// 3D point (more than same_point_m away: the same point seen by a neighbour keyframe confirms
+// rather than competes).
 PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
                         const std::vector<LocatorKeyframe>& keyframes,
                         const LocatorOptions& options);
@@ -190,8 +191,9 @@ std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alik
                               const std::vector<LocatorKeyframe>& keyframes,
                               const LocatorOptions& options);
 
-// Of a's descriptors matched to b's (nearest within max_descriptor_distance, passing match_ratio
-// against the second nearest), the share whose 3D points lie within same_pose_m of each other:
+// Of a's descriptors matched to b's (nearest within max_descriptor_distance or sift_max_distance,
+// passing match_ratio against the second nearest), the share whose 3D points lie within
+// same_pose_m of each other:
 // near 1 for two views of the same things, near 0 for views of identical things elsewhere.
 // `matches` receives the number of matches.
 double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,

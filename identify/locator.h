@@ -78,7 +78,8 @@ struct LocatorOptions {
   // model descriptor whose point lies within this distance of the nearest's is the same point, and
   // does not count against the ratio test [m].
   double same_point_m = 0.05;
-  // Matches farther than this Hamming distance are dropped whatever their ratio [bits of 256].
+  // ORB matches farther than this Hamming distance are dropped whatever their ratio [bits of 256]
+  // (RootSIFT's: sift_max_distance).
   int max_descriptor_distance = 80;
   // PnP RANSAC (OpenCV): reprojection threshold [px, at the feature image's scale], iterations,
   // and the inliers a pose needs to count as matched.
