@@ -185,4 +185,16 @@ void PrintError(const std::string& message) {
   std::cerr << "error: " << line << std::endl;
 }
 
+std::function<void(int64_t, int64_t)> TenthsProgress(const std::string& what,
+                                                     const std::string& unit) {
+  const bool tty = ::isatty(2) != 0;
+  return [what, unit, tty, reported_tenth = int64_t{-1}](int64_t done, int64_t total) mutable {
+    const int64_t tenth = total > 0 ? 10 * done / total : 10;
+    if (tenth == reported_tenth) return;
+    reported_tenth = tenth;
+    std::cerr << (tty ? "\r" : "") << what << ": " << done << "/" << total << " " << unit
+              << (tty && done < total ? "" : "\n") << std::flush;
+  };
+}
+
 }  // namespace sightmap::cli

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <initializer_list>
 #include <iostream>
 #include <string>
@@ -99,5 +100,10 @@ int RequireGiven(const CLI::App& app, std::initializer_list<const CLI::Option*> 
 
 // Prints `error: <message>` as one line on stderr.
 void PrintError(const std::string& message);
+
+// Progress of long work on stderr, "<what>: done/total <unit>" every tenth: one line redrawn on a
+// terminal, a line per tenth in a log.
+std::function<void(int64_t, int64_t)> TenthsProgress(const std::string& what,
+                                                     const std::string& unit);
 
 }  // namespace sightmap::cli

@@ -102,17 +102,9 @@ int RunCoverage(int argc, char** argv) {
   store::ModelOptions model_options;
   model_options.read_only = true;
   const store::Model model = store::Model::Open(path, model_options);
-  // Progress every tenth of the keyframes: a 3,000-keyframe model takes a while to read.
-  const bool tty = ::isatty(2) != 0;
-  int reported_tenth = -1;
+  // A 3,000-keyframe model takes a while to read.
   const identify::ModelCoverage coverage =
-      identify::ComputeCoverage(model, options, [&](int done, int total) {
-        const int tenth = 10 * done / total;
-        if (tenth == reported_tenth) return;
-        reported_tenth = tenth;
-        std::cerr << (tty ? "\r" : "") << "coverage: " << done << "/" << total << " keyframes"
-                  << (tty && done < total ? "" : "\n") << std::flush;
-      });
+      identify::ComputeCoverage(model, options, TenthsProgress("coverage", "keyframes"));
   if (!png_path.empty()) {
     render::WriteImageAtomically(png_path, identify::DrawCoverage(coverage));
   }

@@ -8,6 +8,7 @@
 #include "cli/command_util.h"
 #include "cli/commands.h"
 #include "identify/coverage.h"
+#include "mapping/photo_features.h"
 #include "store/model.h"
 
 namespace sightmap::cli {
@@ -44,14 +45,21 @@ int RunInfo(int argc, char** argv) {
   bool upgrade = false;
   app.add_flag("--json", json, "print one JSON object (stable keys) instead of text");
   app.add_flag("--upgrade", upgrade,
-               "upgrade a model written by an older sightmap to this one's schema, in place");
+               "upgrade a model written by an older sightmap, in place: this one's schema, and the "
+               "RootSIFT features photos are matched with for keyframes that lack them (so "
+               "that locate and serve need not extract them at every start)");
   if (const int code = ParseOrExit(app, argc, argv); code >= 0) return code;
   if (const int code = RequireModelArgument(app, path); code >= 0) return code;
 
   store::ModelOptions options;
   options.read_only = !upgrade;
   options.create_if_missing = false;
-  const store::Model model = store::Model::Open(path, options);
+  store::Model model = store::Model::Open(path, options);
+  // One transaction a keyframe: an interrupted upgrade keeps what it stored and goes on from there.
+  if (upgrade) {
+    mapping::AddMissingPhotoFeatures(&model, mapping::PhotoFeatureExtraction(),
+                                     TenthsProgress("upgrade: photo features", "keyframes"));
+  }
   const store::ModelSummary summary = model.Summary();
   const std::vector<store::LabelRecord> labels = model.Labels();
   // How much of what people could photograph the walk saw (identify/coverage.h); it reads every

@@ -55,16 +55,8 @@ int RunSynthesize(int argc, char** argv) {
     }
     return kExitSuccess;
   }
-  const bool tty = ::isatty(2) != 0;
-  int reported_tenth = -1;
   const synthesis::SynthesisReport report =
-      synthesis::SynthesizeViews(model, options, [&](int done, int total) {
-        const int tenth = total > 0 ? 10 * done / total : 10;
-        if (tenth == reported_tenth) return;
-        reported_tenth = tenth;
-        std::cerr << (tty ? "\r" : "") << "synthesize: " << done << "/" << total << " views"
-                  << (tty && done < total ? "" : "\n") << std::flush;
-      });
+      synthesis::SynthesizeViews(model, options, TenthsProgress("synthesize", "views"));
   if (!images_dir.empty()) {
     for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
       render::WriteImageAtomically(images_dir + "/view-" + std::to_string(view.id.value()) + ".png",

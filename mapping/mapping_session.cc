@@ -83,14 +83,12 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "queue capacities must be >= 1";
     return false;
   }
-  if (photo_features && (photo_feature_options.type != slam::FeatureOptions::Type::kSift ||
-                         photo_feature_side_px < 320)) {
-    *error = "photo features must be of type \"sift\" at a side of at least 320 px";
+  if (photo_features &&
+      !PhotoFeatureExtraction{photo_feature_options, photo_feature_side_px}.Check(error)) {
     return false;
   }
   return source_options.Check(error) && sampler.Check(error) && tracking.Check(error) &&
-         photo_feature_options.Check(error) && mapper.Check(error) && model.Check(error) &&
-         ply.Check(error) && view.Check(error);
+         mapper.Check(error) && model.Check(error) && ply.Check(error) && view.Check(error);
 }
 
 MappingSession::MappingSession(const MappingOptions& options) : options_(options) {

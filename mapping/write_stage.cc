@@ -6,28 +6,6 @@
 
 namespace sightmap::mapping {
 
-namespace {
-
-Features WithPointsOnly(const Features& features) {
-  Features kept;
-  std::vector<int> rows;
-  for (size_t i = 0; i < features.size(); ++i) {
-    if (i < features.has_point.size() && features.has_point[i]) rows.push_back(static_cast<int>(i));
-  }
-  kept.descriptors.create(static_cast<int>(rows.size()), features.descriptors.cols,
-                          features.descriptors.type());
-  for (size_t k = 0; k < rows.size(); ++k) {
-    const size_t i = static_cast<size_t>(rows[k]);
-    kept.keypoints.push_back(features.keypoints[i]);
-    kept.points_cam.push_back(features.points_cam[i]);
-    kept.has_point.push_back(true);
-    features.descriptors.row(rows[k]).copyTo(kept.descriptors.row(static_cast<int>(k)));
-  }
-  return kept;
-}
-
-}  // namespace
-
 WriteStage::WriteStage(store::Model* model, MapViewFeed* view, int session_number,
                        std::vector<KeyframeId> store_ids, size_t queue_capacity,
                        std::optional<PhotoFeatureExtraction> photo_features)
@@ -100,12 +78,11 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
     stored.active = link.active;
     record.links.push_back(stored);
   }
-  if (photo_features_ && record.photo_features.keypoints.empty()) {
+  if (photo_features_ && !record.photo_features) {
     // Only features with a 3D point: a photo is matched to points, the rest would be stored for
     // nothing.
-    record.photo_features = WithPointsOnly(
-        slam::ExtractFeaturesAtMostOfSide(record.color, record.depth, record.intrinsics,
-                                          photo_features_->max_side_px, photo_features_->features));
+    record.photo_features =
+        ExtractPhotoFeatures(record.color, record.depth, record.intrinsics, *photo_features_);
   }
   store_ids_.push_back(model_->AddKeyframe(record));
   ++committed_;

@@ -19,6 +19,7 @@
 
 #include "mapping/bounded_queue.h"
 #include "mapping/map_view_feed.h"
+#include "mapping/photo_features.h"
 #include "slam/features.h"
 #include "slam/mapper.h"
 #include "store/model.h"
@@ -45,11 +46,6 @@ struct WriteTask {
 
 // Features for matching phone photos (RootSIFT), extracted from each keyframe's colour and depth
 // on the writer's thread, so tracking and mapping keep their rate, and stored with it.
-struct PhotoFeatureExtraction {
-  slam::FeatureOptions features;
-  int max_side_px = 640;  // keyframes larger than this are downscaled first [px]
-};
-
 class WriteStage {
  public:
   // Starts the thread. `store_ids` maps the mapper ids of the keyframes already in the model

@@ -710,7 +710,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
                  "a keyframe needs one descriptor row per keypoint");
   SIGHTMAP_CHECK(features.PointsMatchKeypoints(),
                  "a keyframe needs a 3D point slot per keypoint, or none");
-  CheckPhotoFeatures(keyframe.photo_features);
+  if (keyframe.photo_features) CheckPhotoFeatures(*keyframe.photo_features);
 
   // Encode before taking the write lock: the lock is held only for the inserts.
   std::vector<uint8_t> jpeg;
@@ -722,7 +722,8 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
                               {cv::IMWRITE_PNG_COMPRESSION, impl_->options.png_compression}),
                  "cannot encode a keyframe's depth image as PNG");
   const EncodedFeatures encoded(features);
-  const EncodedFeatures photo_encoded(keyframe.photo_features);
+  std::optional<EncodedFeatures> photo_encoded;
+  if (keyframe.photo_features) photo_encoded.emplace(*keyframe.photo_features);
 
   sqlite3* db = impl_->db;
   Transaction transaction(db);
@@ -752,9 +753,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   images.Run();
 
   InsertFeatures(db, "features", id, encoded);
-  if (!keyframe.photo_features.keypoints.empty()) {
-    InsertFeatures(db, "photo_features", id, photo_encoded);
-  }
+  if (photo_encoded) InsertFeatures(db, "photo_features", id, *photo_encoded);
 
   for (const LinkRecord& link : keyframe.links) impl_->InsertLink(link, id);
   transaction.Commit();
@@ -866,6 +865,12 @@ void Model::SetPhotoFeatures(KeyframeId id, const Features& features) {
                  "keyframe " << id.value() << " is not in model " << FileDescription(impl_->path));
   InsertFeatures(impl_->db, "photo_features", id, encoded);
   transaction.Commit();
+}
+
+bool Model::HasPhotoFeatures(KeyframeId id) const {
+  Statement query(impl_->db, "SELECT 1 FROM photo_features WHERE keyframe_id = ?");
+  query.Bind(1, id.value());
+  return query.Step();
 }
 
 int64_t Model::NumKeyframesWithPhotoFeatures() const {

@@ -70,8 +70,9 @@ struct KeyframeRecord {
   cv::Mat color;  // CV_8UC3 BGR, stored as JPEG
   cv::Mat depth;  // CV_16UC1 [mm], stored as lossless 16-bit PNG
   Features features;
-  // Features for matching phone photos (RootSIFT, with 3D points); none when empty.
-  Features photo_features;
+  // Features for matching phone photos (RootSIFT, with 3D points). Without a value: not extracted
+  // (none stored); empty: extracted and none found, stored so that nobody extracts them again.
+  std::optional<Features> photo_features;
   // Links written in the same transaction. An invalid id at either end stands for this keyframe.
   std::vector<LinkRecord> links;
 };
@@ -237,6 +238,7 @@ class Model {
   // replaces them (a 3D point slot per keypoint).
   std::optional<Features> LoadPhotoFeatures(KeyframeId id) const;
   void SetPhotoFeatures(KeyframeId id, const Features& features);
+  bool HasPhotoFeatures(KeyframeId id) const;  // a row, if an empty one
   int64_t NumKeyframesWithPhotoFeatures() const;
 
   // Links of the pose graph.

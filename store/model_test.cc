@@ -137,27 +137,36 @@ TEST(Model, PhotoFeaturesRoundTripWithTheKeyframeOrAddedLater) {
   const SessionId session = model.BeginSession({});
   KeyframeRecord keyframe = MakeSyntheticKeyframe(session, 0, SmallKeyframes());
   keyframe.photo_features = keyframe.features;
-  keyframe.photo_features.descriptors = cv::Mat(50, 128, CV_8U);
-  cv::randu(keyframe.photo_features.descriptors, 0, 256);
-  keyframe.photo_features.has_point[7] = false;
+  keyframe.photo_features->descriptors = cv::Mat(50, 128, CV_8U);
+  cv::randu(keyframe.photo_features->descriptors, 0, 256);
+  keyframe.photo_features->has_point[7] = false;
   const KeyframeId with = model.AddKeyframe(keyframe);
   const KeyframeId without = model.AddKeyframe(MakeSyntheticKeyframe(session, 1, SmallKeyframes()));
-  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 1);
+  // Extracted and nothing found (a bare wall): stored empty, so nobody extracts them again.
+  KeyframeRecord bare = MakeSyntheticKeyframe(session, 2, SmallKeyframes());
+  bare.photo_features = Features();
+  const KeyframeId empty = model.AddKeyframe(bare);
+  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 2);
+  EXPECT_TRUE(model.HasPhotoFeatures(with));
+  EXPECT_FALSE(model.HasPhotoFeatures(without));
+  EXPECT_TRUE(model.HasPhotoFeatures(empty));
+  ASSERT_TRUE(model.LoadPhotoFeatures(empty).has_value());
+  EXPECT_EQ(model.LoadPhotoFeatures(empty)->size(), 0u);
   const std::optional<Features> stored = model.LoadPhotoFeatures(with);
   ASSERT_TRUE(stored.has_value());
   EXPECT_EQ(stored->descriptors.type(), CV_8U);
-  EXPECT_EQ(cv::norm(stored->descriptors, keyframe.photo_features.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(stored->descriptors, keyframe.photo_features->descriptors, cv::NORM_INF), 0.0);
   EXPECT_FALSE(stored->has_point[7]);
   EXPECT_EQ(stored->NumPoints(), 49u);
   EXPECT_FALSE(model.LoadPhotoFeatures(without).has_value());
   // The ORB features are untouched.
   EXPECT_EQ(model.LoadFeatures(with).descriptors.cols, keyframe.features.descriptors.cols);
 
-  Features later = keyframe.photo_features;
+  Features later = *keyframe.photo_features;
   later.descriptors.setTo(cv::Scalar(3));
   model.SetPhotoFeatures(without, later);
   model.SetPhotoFeatures(with, later);  // replaces
-  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 2);
+  EXPECT_EQ(model.NumKeyframesWithPhotoFeatures(), 3);
   EXPECT_EQ(cv::norm(model.LoadPhotoFeatures(with)->descriptors, later.descriptors, cv::NORM_INF),
             0.0);
   EXPECT_THROW(model.SetPhotoFeatures(KeyframeId(999), later), Error);
