@@ -143,6 +143,7 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.reason = result.reason;
   answer.timings = result.timings;
   answer.photo_detail_cells = result.photo_detail_cells;
+  answer.second_look = result.second_look;
   if (!result.matched) return answer;
   answer.matches = result.matches;
   answer.runner_up_inliers = result.runner_up_inliers;
@@ -239,6 +240,12 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
     row["projected_points"] = if_matched(answer.projected_points);
     row["inlier_cells"] = if_matched(answer.inlier_cells);
     row["photo_detail_cells"] = answer.photo_detail_cells;
+    row["second_look"] = answer.second_look;
+    const LocateTimings& t = answer.timings;
+    row["timings_ms"] = {{"features", t.features_ms},      {"retrieval", t.retrieval_ms},
+                         {"matching", t.matching_ms},      {"pnp", t.pnp_ms},
+                         {"visibility", t.visibility_ms},  {"total", t.total_ms},
+                         {"second_look", t.second_look_ms}};
     rows.push_back(std::move(row));
   }
   return rows;
@@ -269,6 +276,7 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
     stage_values["pnp"].push_back(t.pnp_ms);
     stage_values["visibility"].push_back(t.visibility_ms);
     stage_values["total"].push_back(t.total_ms);
+    out.second_look_photos += answer.second_look ? 1 : 0;
     if (!answer.matched) {
       ++out.unmatched_reasons[answer.reason.empty() ? "(no reason given)" : answer.reason];
       continue;
@@ -352,6 +360,7 @@ nlohmann::json ToJson(const IdentifyEvaluation& e) {
   out["occluded_false_positive_ratio"] = e.occluded_false_positive_ratio;
   out["not_visible_identified"] = e.not_visible_identified;
   out["posed_photos"] = e.posed_photos;
+  out["second_look_photos"] = e.second_look_photos;
   out["wrong_poses"] = e.wrong_poses;
   out["wrong_pose_ratio"] = e.wrong_pose_ratio;
   out["median_position_error_m"] = e.median_position_error_m;

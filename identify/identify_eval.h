@@ -80,6 +80,7 @@ struct PhotoAnswer {
   int projected_points = 0;
   int inlier_cells = 0;
   int photo_detail_cells = 0;
+  bool second_look = false;  // LocateResult's
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
 
@@ -103,6 +104,7 @@ struct StageTiming {
 struct IdentifyEvaluation {
   int photos = 0;
   int matched_photos = 0;
+  int second_look_photos = 0;  // that the RootSIFT search ran on (matched or not)
   double matched_ratio = 0.0;
   // categories[type][identified ? 1 : 0]: instances of matched photos.
   std::array<std::array<int, 2>, kNumTruthTypes> categories{};

@@ -301,7 +301,10 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   answers[0].photo_detail_cells = 12;
   answers.push_back(Answer(false, {}, 10));
   answers[1].photo_detail_cells = 2;
-  answers[1].inlier_cells = 5;              // not matched: not reported
+  answers[1].inlier_cells = 5;  // not matched: not reported
+  answers[1].second_look = true;
+  answers[1].timings.matching_ms = 40.0;
+  answers[1].timings.second_look_ms = 25.0;
   answers.push_back(Answer(true, {}, 10));  // right
   answers[2].world_from_cam = truth_pose * Eigen::Translation3d(0, 0.05, 0);
 
@@ -326,6 +329,12 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   EXPECT_EQ(rows[0]["photo_detail_cells"], 12);
   EXPECT_TRUE(rows[1]["inlier_cells"].is_null());
   EXPECT_EQ(rows[1]["photo_detail_cells"], 2);
+  EXPECT_EQ(rows[0]["second_look"], false);
+  EXPECT_EQ(rows[1]["second_look"], true);
+  EXPECT_DOUBLE_EQ(rows[1]["timings_ms"]["matching"].get<double>(), 40.0);
+  EXPECT_DOUBLE_EQ(rows[1]["timings_ms"]["second_look"].get<double>(), 25.0);
+  EXPECT_DOUBLE_EQ(rows[0]["timings_ms"]["second_look"].get<double>(), 0.0);
+  EXPECT_EQ(EvaluateIdentification(truths, answers).second_look_photos, 1);
 
   EXPECT_EQ(rows[1]["covered"], false);
   EXPECT_EQ(rows[1]["matched"], false);

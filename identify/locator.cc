@@ -1,9 +1,12 @@
 #include "identify/locator.h"
 
+#include <algorithm>
 #include <chrono>
+#include <exception>
 #include <mutex>
 #include <sstream>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <nlohmann/json.hpp>
@@ -31,6 +34,8 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "sift_max_distance and sift_guided_max_distance must be positive";
   else if (second_look_max_places < 1)
     why << "second_look_max_places must be positive";
+  else if (place_threads < 0)
+    why << "place_threads must not be negative";
   else if (retrieval_candidates < 1)
     why << "retrieval_candidates must be at least 1";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
@@ -152,7 +157,72 @@ struct Locator::Impl {
   Search SearchPlaces(PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
                       const std::vector<LocatorKeyframe>& matched, int max_places,
                       LocateTimings* timings) const;
+
+  // Stages 3-4 over `places`, place_threads at a time; with `until_certain`, in order until one
+  // is certain (accepted with confident_inliers), the first alone. Their verdicts in order, none
+  // after the certain one: the same whatever the thread count. Matching and PnP times are summed
+  // over the places, so with threads they may exceed the wall time.
+  std::vector<PlaceVerdict> VerifyPlaces(const PreparedPhoto& photo,
+                                         const std::vector<Place>& places,
+                                         const std::vector<LocatorKeyframe>& matched,
+                                         bool until_certain, LocateTimings* timings) const;
 };
+
+std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(const PreparedPhoto& photo,
+                                                      const std::vector<Place>& places,
+                                                      const std::vector<LocatorKeyframe>& matched,
+                                                      bool until_certain,
+                                                      LocateTimings* timings) const {
+  const size_t threads = static_cast<size_t>(
+      options.place_threads > 0 ? options.place_threads : std::max(1, cv::getNumThreads()));
+  struct Slot {
+    PlaceVerdict verdict;
+    double matching_ms = 0.0;
+    double pnp_ms = 0.0;
+    std::exception_ptr error;
+  };
+  std::vector<PlaceVerdict> verdicts;
+  for (size_t next = 0; next < places.size();) {
+    const size_t batch = next == 0 && until_certain ? 1 : std::min(threads, places.size() - next);
+    std::vector<Slot> slots(batch);
+    const auto verify = [&](const cv::Range& range) {
+      for (int i = range.start; i < range.end; ++i) {
+        Slot& slot = slots[static_cast<size_t>(i)];
+        const Place& place = places[next + static_cast<size_t>(i)];
+        try {
+          Clock::time_point stage = Clock::now();
+          const PlaceMatches matches = MatchPlace(photo, place, matched, options);
+          slot.matching_ms = MsSince(stage);
+          stage = Clock::now();
+          slot.verdict = VerifyPlace(photo, place, matches, matched, options);
+          slot.pnp_ms = MsSince(stage);
+        } catch (...) {
+          slot.error = std::current_exception();
+        }
+      }
+    };
+    const cv::Range range(0, static_cast<int>(batch));
+    if (batch == 1) {
+      verify(range);
+    } else {
+      cv::parallel_for_(range, verify, static_cast<double>(batch));
+    }
+    for (Slot& slot : slots) {
+      if (slot.error) std::rethrow_exception(slot.error);
+      timings->matching_ms += slot.matching_ms;
+      timings->pnp_ms += slot.pnp_ms;
+      verdicts.push_back(std::move(slot.verdict));
+      // A verified pose with this many inliers is certain: the remaining places would cost
+      // their matching time for nothing.
+      const PlaceVerdict& verdict = verdicts.back();
+      if (until_certain && verdict.accepted && verdict.inliers >= options.confident_inliers) {
+        return verdicts;
+      }
+    }
+    next += batch;
+  }
+  return verdicts;
+}
 
 std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
                                                      const PlaceVerdict& winner,
@@ -167,20 +237,11 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
       TwinPlaces(RetrieveCandidates(query, vocabulary, index, keyframes, options),
                  winner.verified_slot, tried, matched, options);
   timings->retrieval_ms += MsSince(stage);
-  std::vector<PlaceVerdict> verdicts;
-  if (twins.empty()) return verdicts;
+  if (twins.empty()) return {};
   PreparedPhoto same_camera = photo;
   same_camera.feature_candidates = {winner.pose.intrinsics};
   same_camera.intrinsics_given = true;
-  for (const Place& twin : twins) {
-    stage = Clock::now();
-    const PlaceMatches matches = MatchPlace(same_camera, twin, matched, options);
-    timings->matching_ms += MsSince(stage);
-    stage = Clock::now();
-    verdicts.push_back(VerifyPlace(same_camera, twin, matches, matched, options));
-    timings->pnp_ms += MsSince(stage);
-  }
-  return verdicts;
+  return VerifyPlaces(same_camera, twins, matched, /*until_certain=*/false, timings);
 }
 
 Locator::Impl::Search Locator::Impl::SearchPlaces(
@@ -202,19 +263,8 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   timings->matching_ms += MsSince(stage);
 
   Search search;
+  search.verdicts = VerifyPlaces(*photo, places, matched, /*until_certain=*/true, timings);
   std::vector<PlaceVerdict>& verdicts = search.verdicts;
-  for (const Place& place : places) {
-    stage = Clock::now();
-    const PlaceMatches matches = MatchPlace(*photo, place, matched, options);
-    timings->matching_ms += MsSince(stage);
-    stage = Clock::now();
-    verdicts.push_back(VerifyPlace(*photo, place, matches, matched, options));
-    timings->pnp_ms += MsSince(stage);
-    // A verified pose with this many inliers is certain: the remaining places would cost their
-    // matching time for nothing.
-    const PlaceVerdict& verdict = verdicts.back();
-    if (verdict.accepted && verdict.inliers >= options.confident_inliers) break;
-  }
   search.decision = Decide(verdicts, options);
   if (search.decision.winner >= 0 && options.twin_places > 0) {
     const std::vector<Place> tried(places.begin(),
@@ -305,6 +355,8 @@ void IndexKeyframe(const Features& orb, size_t slot, const slam::Vocabulary& voc
 Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeInfo& info,
                               const LocatorOptions& options, int* extracted) {
   if (std::optional<Features> stored = model.LoadPhotoFeatures(info.id)) {
+    // An empty row: extracted when mapped, and nothing found.
+    if (stored->size() == 0) return {};
     if (stored->descriptors.cols == 128 && stored->descriptors.type() == CV_8U) {
       return std::move(*stored);
     }
@@ -466,6 +518,8 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       search.decision.refusal ? search.decision.refusal->code : UnmatchedReason::kNone;
   if (options.matcher == Matcher::kOrbThenRootSift && search.decision.winner < 0 &&
       retry_code != UnmatchedReason::kAmbiguous) {
+    const Clock::time_point second_look = Clock::now();
+    result.second_look = true;
     stage = Clock::now();
     PreparedPhoto sift = RootSiftPhoto(photo, prepared, options);
     result.timings.features_ms += MsSince(stage);
@@ -479,8 +533,10 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
         search = std::move(again);
         matched = &impl_->sift_keyframes;
         result.photo_features = static_cast<int>(sift.features.size());
+        result.answered_by_second_look = true;
       }
     }
+    result.timings.second_look_ms = MsSince(second_look);
   }
   const std::vector<PlaceVerdict>& verdicts = search.verdicts;
   const Decision& decision = search.decision;
@@ -604,9 +660,12 @@ nlohmann::json ToJson(const LocateResult& result) {
   out["photo_features"] = result.photo_features;
   out["photo_detail_cells"] = result.photo_detail_cells;
   out["timings_ms"] = {
-      {"features", result.timings.features_ms},     {"retrieval", result.timings.retrieval_ms},
-      {"matching", result.timings.matching_ms},     {"pnp", result.timings.pnp_ms},
-      {"visibility", result.timings.visibility_ms}, {"total", result.timings.total_ms}};
+      {"features", result.timings.features_ms},      {"retrieval", result.timings.retrieval_ms},
+      {"matching", result.timings.matching_ms},      {"pnp", result.timings.pnp_ms},
+      {"visibility", result.timings.visibility_ms},  {"total", result.timings.total_ms},
+      {"second_look", result.timings.second_look_ms}};
+  out["second_look"] = result.second_look;
+  out["answered_by_second_look"] = result.answered_by_second_look;
   return out;
 }
 
@@ -635,17 +694,17 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
 
 SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
                       sift_max_distance, sift_guided_max_distance, second_look_max_places,
-                      max_image_side_px, retrieval_candidates, place_radius_m, place_max_angle_deg,
-                      max_places, neighbour_radius_m, neighbour_max_angle_deg, max_neighbours,
-                      match_node_level, match_ratio, same_point_m, max_descriptor_distance,
-                      pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
-                      guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
-                      bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
-                      min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
-                      twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,
-                      focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
-                      occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
-                      occlusion_margin_m, occlusion_margin_ratio, min_in_view_share,
-                      min_unoccluded_share, use_synthetic_views)
+                      place_threads, max_image_side_px, retrieval_candidates, place_radius_m,
+                      place_max_angle_deg, max_places, neighbour_radius_m, neighbour_max_angle_deg,
+                      max_neighbours, match_node_level, match_ratio, same_point_m,
+                      max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
+                      min_ransac_inliers, guided_radius_px, guided_max_distance, guided_rounds,
+                      min_inlier_cells, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
+                      same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share,
+                      twin_places, twin_max_shared_share, confident_inliers,
+                      max_rotation_from_keyframe_deg, focal_candidates_35mm, refine_estimated_focal,
+                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
+                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
+                      min_in_view_share, min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

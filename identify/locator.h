@@ -47,6 +47,10 @@ struct LocatorOptions {
   double sift_guided_max_distance = 0.6;
   // RootSIFT's second look (orb_then_rootsift) verifies at most this many places.
   int second_look_max_places = 6;
+  // After the first place (most photos are certain after it), places are matched and verified
+  // this many at once, on OpenCV's threads; 0: as many as OpenCV has (the cores). The answer
+  // does not depend on it: verdicts count in order up to the first certain one.
+  int place_threads = 0;
   // Photos whose longer side exceeds this are downscaled for features (a 2560x1920 photo's
   // details are finer than any keyframe's; a 640x480 keyframe's camera sees a 1280x960 photo's
   // detail at about half its size) [px]; the answer's pixels are in the original image.
@@ -192,6 +196,8 @@ struct LocateTimings {
   double pnp_ms = 0.0;
   double visibility_ms = 0.0;
   double total_ms = 0.0;
+  // Of the above, the RootSIFT second look's features, matching and PnP (0 when it did not run).
+  double second_look_ms = 0.0;
 };
 
 // Why a photo was not matched, in classes a client can explain to the person holding the phone.
@@ -239,6 +245,10 @@ struct LocateResult {
   // Cells of a 4x4 grid over the photo holding at least 20 of its features: a
   // photo of a bare ceiling or wall has its few features in one or two cells.
   int photo_detail_cells = 0;
+  // The RootSIFT search ran (matcher orb_then_rootsift, ORB placed the photo nowhere), and its
+  // answer is the one given.
+  bool second_look = false;
+  bool answered_by_second_look = false;
 };
 
 // The answer's JSON: {"matched", "reason"?, "reason_code"?, "advice"?, "pose": {"world_from_cam":

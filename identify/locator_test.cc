@@ -155,6 +155,33 @@ TEST_F(LocatorTest, MatchingBoundedByVocabularyNodesStillMatchesMostSeenPhotos) 
   EXPECT_LE(Median(position_errors), 0.01);
 }
 
+// Places matched and verified several at once give the answers one at a time gives: verdicts
+// count in order up to the first certain one, whatever finishes first.
+TEST_F(LocatorTest, PlacesVerifiedOnThreadsGiveTheSameAnswers) {
+  LocatorOptions serial_options;
+  serial_options.matcher = LocatorOptions::Matcher::kOrb;
+  serial_options.place_threads = 1;
+  LocatorOptions threaded_options = serial_options;
+  threaded_options.place_threads = 3;
+  const Locator serial(*model_, serial_options);
+  const Locator threaded(*model_, threaded_options);
+  int several_places = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult one = serial.Locate(photo.image, photo.intrinsics);
+    const LocateResult three = threaded.Locate(photo.image, photo.intrinsics);
+    EXPECT_EQ(one.matched, three.matched) << photo.index;
+    EXPECT_EQ(one.reason, three.reason) << photo.index;
+    EXPECT_EQ(one.candidates_tried, three.candidates_tried) << photo.index;
+    EXPECT_EQ(one.inliers, three.inliers) << photo.index;
+    EXPECT_EQ(one.runner_up_inliers, three.runner_up_inliers) << photo.index;
+    EXPECT_EQ(one.keyframe, three.keyframe) << photo.index;
+    EXPECT_LT((one.world_from_cam.matrix() - three.world_from_cam.matrix()).norm(), 1e-9)
+        << photo.index;
+    several_places += one.candidates_tried > 2 ? 1 : 0;
+  }
+  EXPECT_GE(several_places, 3);  // the threads had places to share
+}
+
 // The default matcher gives RootSIFT a second look at what ORB could not place: it places at
 // least what ORB alone places and more, none of them wrong; RootSIFT alone places photos too. The
 // fixture's model stores no RootSIFT, so every keyframe's is extracted at load.
@@ -190,7 +217,19 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
       ASSERT_TRUE(both.matched) << photo.index;
       EXPECT_EQ(both.keyframe, first.keyframe) << photo.index;
       EXPECT_EQ(both.inliers, first.inliers) << photo.index;
+      EXPECT_FALSE(both.second_look) << photo.index;
+      EXPECT_EQ(both.timings.second_look_ms, 0.0) << photo.index;
+    } else if (first.reason_code != UnmatchedReason::kAmbiguous) {
+      // Photos ORB gave features for but could not place get the second look; a RootSIFT
+      // answer is a pose or "ambiguous".
+      EXPECT_TRUE(both.second_look) << photo.index;
+      EXPECT_EQ(both.answered_by_second_look,
+                both.matched || both.reason_code == UnmatchedReason::kAmbiguous)
+          << photo.index;
+      EXPECT_GT(both.timings.second_look_ms, 0.0) << photo.index;
+      EXPECT_LE(both.timings.second_look_ms, both.timings.total_ms) << photo.index;
     }
+    EXPECT_FALSE(first.second_look || alone.second_look) << photo.index;
     by_orb += first.matched ? 1 : 0;
     by_default += both.matched ? 1 : 0;
     by_sift += alone.matched ? 1 : 0;
