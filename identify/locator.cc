@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <functional>
+#include <future>
 #include <mutex>
 #include <sstream>
 
@@ -156,23 +158,25 @@ struct Locator::Impl {
   };
   Search SearchPlaces(PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
                       const std::vector<LocatorKeyframe>& matched, int max_places,
-                      LocateTimings* timings) const;
+                      LocateTimings* timings,
+                      const std::function<void()>& first_refused = {}) const;
 
   // Stages 3-4 over `places`, place_threads at a time; with `until_certain`, in order until one
   // is certain (accepted with confident_inliers), the first alone. Their verdicts in order, none
   // after the certain one: the same whatever the thread count. Matching and PnP times are summed
   // over the places, so with threads they may exceed the wall time.
+  // `first_refused` (may be empty) is called when the first place's verdict refuses the photo.
   std::vector<PlaceVerdict> VerifyPlaces(const PreparedPhoto& photo,
                                          const std::vector<Place>& places,
                                          const std::vector<LocatorKeyframe>& matched,
-                                         bool until_certain, LocateTimings* timings) const;
+                                         bool until_certain, LocateTimings* timings,
+                                         const std::function<void()>& first_refused = {}) const;
 };
 
-std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(const PreparedPhoto& photo,
-                                                      const std::vector<Place>& places,
-                                                      const std::vector<LocatorKeyframe>& matched,
-                                                      bool until_certain,
-                                                      LocateTimings* timings) const {
+std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(
+    const PreparedPhoto& photo, const std::vector<Place>& places,
+    const std::vector<LocatorKeyframe>& matched, bool until_certain, LocateTimings* timings,
+    const std::function<void()>& first_refused) const {
   const size_t threads = static_cast<size_t>(
       options.place_threads > 0 ? options.place_threads : std::max(1, cv::getNumThreads()));
   struct Slot {
@@ -212,6 +216,7 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(const PreparedPhoto& photo
       timings->matching_ms += slot.matching_ms;
       timings->pnp_ms += slot.pnp_ms;
       verdicts.push_back(std::move(slot.verdict));
+      if (verdicts.size() == 1 && !verdicts.front().accepted && first_refused) first_refused();
       // A verified pose with this many inliers is certain: the remaining places would cost
       // their matching time for nothing.
       const PlaceVerdict& verdict = verdicts.back();
@@ -246,7 +251,8 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
 
 Locator::Impl::Search Locator::Impl::SearchPlaces(
     PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
-    const std::vector<LocatorKeyframe>& matched, int max_places, LocateTimings* timings) const {
+    const std::vector<LocatorKeyframe>& matched, int max_places, LocateTimings* timings,
+    const std::function<void()>& first_refused) const {
   LocatorOptions grouping = options;
   grouping.max_places = max_places;
   const std::vector<Place> places = GroupPlaces(candidates, matched, grouping);
@@ -263,7 +269,8 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   timings->matching_ms += MsSince(stage);
 
   Search search;
-  search.verdicts = VerifyPlaces(*photo, places, matched, /*until_certain=*/true, timings);
+  search.verdicts =
+      VerifyPlaces(*photo, places, matched, /*until_certain=*/true, timings, first_refused);
   std::vector<PlaceVerdict>& verdicts = search.verdicts;
   search.decision = Decide(verdicts, options);
   if (search.decision.winner >= 0 && options.twin_places > 0) {
@@ -350,10 +357,11 @@ void IndexKeyframe(const Features& orb, size_t slot, const slam::Vocabulary& voc
 }
 
 // A keyframe's RootSIFT features with their 3D points: those the model stores (`sightmap map`
-// extracts them as it writes keyframes), else extracted from its stored colour and depth at the
-// matcher's scale (a model mapped without them); none for a keyframe stored without images.
+// extracts them as it writes keyframes), else extracted from its stored colour and `depth` (the
+// keyframe's, decoded by the caller, who needs it too) at the matcher's scale (a model mapped
+// without them); none for a keyframe stored without images.
 Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeInfo& info,
-                              const LocatorOptions& options, int* extracted) {
+                              const cv::Mat& depth, const LocatorOptions& options, int* extracted) {
   if (std::optional<Features> stored = model.LoadPhotoFeatures(info.id)) {
     // An empty row: extracted when mapped, and nothing found.
     if (stored->size() == 0) return {};
@@ -361,13 +369,37 @@ Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeIn
       return std::move(*stored);
     }
   }
-  if (info.color_bytes <= 0 || info.depth_bytes <= 0) return {};
+  if (info.color_bytes <= 0 || depth.empty()) return {};
   const cv::Mat color = model.LoadColor(info.id);
-  const cv::Mat depth = model.LoadDepth(info.id);
   if (color.size() != depth.size()) return {};
   ++*extracted;
   return slam::ExtractFeaturesAtMostOfSide(color, depth, info.intrinsics,
                                            options.sift_image_side_px, options.sift_features);
+}
+
+// What RootSiftPhoto reads of the ORB-prepared photo, copied so that another thread can extract
+// while the ORB search goes on with the original.
+PreparedPhoto RootSiftSeed(const PreparedPhoto& orb) {
+  PreparedPhoto seed;
+  seed.full_candidates = orb.full_candidates;
+  seed.intrinsics_given = orb.intrinsics_given;
+  seed.detail_cells = orb.detail_cells;
+  seed.retrieval_descriptors = orb.retrieval_descriptors.clone();
+  return seed;
+}
+
+struct TimedSiftPhoto {
+  PreparedPhoto photo;
+  double ms = 0.0;  // the extraction's own time, on whichever thread ran it
+};
+
+TimedSiftPhoto ExtractRootSiftTimed(const cv::Mat& photo, const PreparedPhoto& seed,
+                                    const LocatorOptions& options) {
+  const Clock::time_point start = Clock::now();
+  TimedSiftPhoto timed;
+  timed.photo = RootSiftPhoto(photo, seed, options);
+  timed.ms = MsSince(start);
+  return timed;
 }
 
 }  // namespace
@@ -393,13 +425,14 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     IndexKeyframe(features, impl_->keyframes.size(), impl_->vocabulary, &impl_->index);
     impl_->keyframes.push_back(
         MakeLocatorKeyframe(info.id, info.world_from_cam, features, impl_->vocabulary, options));
+    const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
     if (with_sift) {
-      impl_->sift_keyframes.push_back(MakeLocatorKeyframe(
-          info.id, info.world_from_cam, KeyframeSiftFeatures(model, info, options, &sift_extracted),
-          impl_->vocabulary, options));
+      impl_->sift_keyframes.push_back(
+          MakeLocatorKeyframe(info.id, info.world_from_cam,
+                              KeyframeSiftFeatures(model, info, depth, options, &sift_extracted),
+                              impl_->vocabulary, options));
     }
-    if (info.depth_bytes > 0) {
-      const cv::Mat depth = model.LoadDepth(info.id);
+    if (!depth.empty()) {
       cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
                      options.features.min_depth_m, options.occlusion_max_depth_m);
       impl_->sighting_views.push_back(
@@ -455,8 +488,8 @@ size_t Locator::NumSiftExtractedAtLoad() const { return impl_->num_sift_extracte
 std::string Locator::LoadWarning() const {
   if (impl_->num_sift_extracted == 0) return "";
   return std::to_string(impl_->num_sift_extracted) + " of " + std::to_string(NumKeyframes()) +
-         " keyframes had no stored RootSIFT features and were extracted while loading; models "
-         "mapped by this sightmap store them";
+         " keyframes had no stored RootSIFT features and were extracted while loading; "
+         "'sightmap info --upgrade MODEL' stores them (models mapped by this sightmap have them)";
 }
 const LocatorOptions& Locator::options() const { return impl_->options; }
 size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.size(); }
@@ -510,8 +543,17 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   }
   const std::vector<LocatorKeyframe>* matched =
       options.matcher == Matcher::kRootSift ? &impl_->sift_keyframes : &impl_->keyframes;
-  Impl::Search search =
-      impl_->SearchPlaces(&prepared, candidates, *matched, options.max_places, &result.timings);
+  // When ORB's first place refuses the photo, a second look is likely (62 of 76 photos here
+  // that had one): its RootSIFT is extracted on another thread while ORB tries the other places.
+  // A photo ORB then places waits for that extraction to end before it is answered.
+  std::future<TimedSiftPhoto> sift_ahead;
+  const auto extract_sift_ahead = [&] {
+    if (options.matcher != Matcher::kOrbThenRootSift || !options.extract_sift_ahead) return;
+    sift_ahead = std::async(std::launch::async, ExtractRootSiftTimed, std::cref(photo),
+                            RootSiftSeed(prepared), std::cref(options));
+  };
+  Impl::Search search = impl_->SearchPlaces(&prepared, candidates, *matched, options.max_places,
+                                            &result.timings, extract_sift_ahead);
   // A photo ORB could not place (not one two places fit) gets a second look with RootSIFT; its
   // answer stands when it places the photo or finds it ambiguous.
   const auto retry_code =
@@ -520,9 +562,11 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       retry_code != UnmatchedReason::kAmbiguous) {
     const Clock::time_point second_look = Clock::now();
     result.second_look = true;
-    stage = Clock::now();
-    PreparedPhoto sift = RootSiftPhoto(photo, prepared, options);
-    result.timings.features_ms += MsSince(stage);
+    const TimedSiftPhoto timed = sift_ahead.valid()
+                                     ? sift_ahead.get()
+                                     : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
+    PreparedPhoto sift = timed.photo;
+    result.timings.features_ms += timed.ms;
     if (!sift.refusal) {
       Impl::Search again = impl_->SearchPlaces(&sift, candidates, impl_->sift_keyframes,
                                                options.second_look_max_places, &result.timings);
@@ -694,17 +738,18 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
 
 SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
                       sift_max_distance, sift_guided_max_distance, second_look_max_places,
-                      place_threads, max_image_side_px, retrieval_candidates, place_radius_m,
-                      place_max_angle_deg, max_places, neighbour_radius_m, neighbour_max_angle_deg,
-                      max_neighbours, match_node_level, match_ratio, same_point_m,
-                      max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
-                      min_ransac_inliers, guided_radius_px, guided_max_distance, guided_rounds,
-                      min_inlier_cells, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
-                      same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share,
-                      twin_places, twin_max_shared_share, confident_inliers,
-                      max_rotation_from_keyframe_deg, focal_candidates_35mm, refine_estimated_focal,
-                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
-                      min_in_view_share, min_unoccluded_share, use_synthetic_views)
+                      place_threads, extract_sift_ahead, max_image_side_px, retrieval_candidates,
+                      place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
+                      neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
+                      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
+                      min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
+                      guided_rounds, min_inlier_cells, bare_view_max_detail_cells, min_inlier_share,
+                      same_pose_m, same_pose_deg, min_inlier_ratio_over_runner_up,
+                      min_unique_inlier_share, twin_places, twin_max_shared_share,
+                      confident_inliers, max_rotation_from_keyframe_deg, focal_candidates_35mm,
+                      refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
+                      occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
+                      occlusion_margin_ratio, min_in_view_share, min_unoccluded_share,
+                      use_synthetic_views)
 
 }  // namespace sightmap::identify

@@ -51,6 +51,10 @@ struct LocatorOptions {
   // this many at once, on OpenCV's threads; 0: as many as OpenCV has (the cores). The answer
   // does not depend on it: verdicts count in order up to the first certain one.
   int place_threads = 0;
+  // With orb_then_rootsift: when ORB's first place refuses the photo, its RootSIFT is extracted on
+  // another thread while ORB tries the other places (a second look is then likely). Lower
+  // latency on a machine with a core to spare; off, nothing is extracted before it is needed.
+  bool extract_sift_ahead = true;
   // Photos whose longer side exceeds this are downscaled for features (a 2560x1920 photo's
   // details are finer than any keyframe's; a 640x480 keyframe's camera sees a 1280x960 photo's
   // detail at about half its size) [px]; the answer's pixels are in the original image.

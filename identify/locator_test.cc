@@ -156,16 +156,19 @@ TEST_F(LocatorTest, MatchingBoundedByVocabularyNodesStillMatchesMostSeenPhotos) 
 }
 
 // Places matched and verified several at once give the answers one at a time gives: verdicts
-// count in order up to the first certain one, whatever finishes first.
+// count in order up to the first certain one, whatever finishes first. RootSIFT extracted ahead,
+// on another thread while ORB searches, gives the second look's answers as extracted after it.
 TEST_F(LocatorTest, PlacesVerifiedOnThreadsGiveTheSameAnswers) {
   LocatorOptions serial_options;
-  serial_options.matcher = LocatorOptions::Matcher::kOrb;
   serial_options.place_threads = 1;
+  serial_options.extract_sift_ahead = false;
   LocatorOptions threaded_options = serial_options;
   threaded_options.place_threads = 3;
+  threaded_options.extract_sift_ahead = true;
   const Locator serial(*model_, serial_options);
   const Locator threaded(*model_, threaded_options);
   int several_places = 0;
+  int second_looks = 0;
   for (const sim::QueryPhoto& photo : *seen_photos_) {
     const LocateResult one = serial.Locate(photo.image, photo.intrinsics);
     const LocateResult three = threaded.Locate(photo.image, photo.intrinsics);
@@ -175,11 +178,15 @@ TEST_F(LocatorTest, PlacesVerifiedOnThreadsGiveTheSameAnswers) {
     EXPECT_EQ(one.inliers, three.inliers) << photo.index;
     EXPECT_EQ(one.runner_up_inliers, three.runner_up_inliers) << photo.index;
     EXPECT_EQ(one.keyframe, three.keyframe) << photo.index;
+    EXPECT_EQ(one.second_look, three.second_look) << photo.index;
+    EXPECT_EQ(one.answered_by_second_look, three.answered_by_second_look) << photo.index;
     EXPECT_LT((one.world_from_cam.matrix() - three.world_from_cam.matrix()).norm(), 1e-9)
         << photo.index;
     several_places += one.candidates_tried > 2 ? 1 : 0;
+    second_looks += three.second_look ? 1 : 0;
   }
   EXPECT_GE(several_places, 3);  // the threads had places to share
+  EXPECT_GE(second_looks, 3);    // and RootSIFT was extracted ahead
 }
 
 // The default matcher gives RootSIFT a second look at what ORB could not place: it places at
@@ -196,6 +203,8 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
   EXPECT_TRUE(orb.LoadWarning().empty());
   EXPECT_EQ(locator_->NumSiftExtractedAtLoad(), 100u);
   EXPECT_NE(locator_->LoadWarning().find("100 of 100 keyframes"), std::string::npos)
+      << locator_->LoadWarning();
+  EXPECT_NE(locator_->LoadWarning().find("sightmap info --upgrade"), std::string::npos)
       << locator_->LoadWarning();
   int by_orb = 0;
   int by_default = 0;
