@@ -1,7 +1,10 @@
 #include "mapping/map_view_feed.h"
 
+#include <algorithm>
+
 #include "core/check.h"
 #include "core/options_json.h"
+#include "identify/labels.h"
 #include "render/map_scene.h"
 #include "render/map_view_factory.h"
 
@@ -42,6 +45,7 @@ struct MapViewFeed::Impl {
   MapViewFeedOptions options;
   std::unique_ptr<render::MapView> view;
   render::KeyframeCloudOptions cloud;
+  std::vector<store::LabelRecord> labels;
 };
 
 std::unique_ptr<MapViewFeed> MapViewFeed::Create(const MapViewFeedOptions& options,
@@ -74,6 +78,34 @@ void MapViewFeed::AddKeyframe(int64_t id, int session, const Eigen::Isometry3d& 
   keyframe.world_from_cam = world_from_cam;
   render::MapUpdate update;
   update.keyframes.push_back(std::move(keyframe));
+  if (!impl_->labels.empty() && !depth_mm.empty()) {
+    store::KeyframeInfo info;
+    info.world_from_cam = world_from_cam;
+    info.intrinsics = intrinsics;
+    for (const identify::LabelInKeyframe& in_view :
+         identify::LabelsInKeyframe(info, depth_mm, impl_->labels)) {
+      const bool visible =
+          std::any_of(in_view.points.begin(), in_view.points.end(),
+                      [](const identify::LabelPointInKeyframe& point) { return !point.hidden; });
+      if (!visible) continue;
+      update.sightings.push_back({id, static_cast<int>(in_view.label - impl_->labels.data())});
+    }
+  }
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::SetLabels(const std::vector<store::LabelRecord>& labels) {
+  impl_->labels.clear();
+  std::vector<render::ApplianceLabel> appliances;
+  for (const store::LabelRecord& label : labels) {
+    if (label.points.empty()) continue;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const store::LabelPoint& point : label.points) centre += point.world;
+    appliances.push_back({label.name, centre / static_cast<double>(label.points.size())});
+    impl_->labels.push_back(label);
+  }
+  render::MapUpdate update;
+  update.appliances = std::move(appliances);
   impl_->view->Submit(std::move(update));
 }
 

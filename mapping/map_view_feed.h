@@ -18,6 +18,7 @@
 
 #include "core/camera.h"
 #include "core/tracking_state.h"
+#include "store/model.h"
 
 namespace sightmap::mapping {
 
@@ -59,6 +60,11 @@ class MapViewFeed {
   MapViewFeed(const MapViewFeed&) = delete;
   MapViewFeed& operator=(const MapViewFeed&) = delete;
 
+  // The model's labels, drawn on the map. Every keyframe added after this (restored ones too) is
+  // checked for which of them it sees (in its image, not hidden behind its depth), so the floor
+  // plan shows the directions each was seen from and those still missing (coverage while
+  // mapping). Call before the first keyframe, from one thread.
+  void SetLabels(const std::vector<store::LabelRecord>& labels);
   // A keyframe's cloud from its registered BGR + depth [mm]; `session` >= 1 colours its track.
   void AddKeyframe(int64_t id, int session, const Eigen::Isometry3d& world_from_cam,
                    const cv::Mat& bgr, const cv::Mat& depth_mm, const Intrinsics& intrinsics);

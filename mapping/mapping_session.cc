@@ -409,6 +409,9 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   auto mapper = std::make_unique<slam::Mapper>(camera, options_.mapper);
   // Sessions a crash left running (with or without keyframes) were interrupted.
   summary.interrupted_sessions_marked = model.MarkRunningSessionsInterrupted(WallClockNs());
+  // A model labelled after an earlier session: the floor plan shows from where each label was
+  // seen, the restored keyframes included, so the walk can go to what is missing.
+  if (view) view->SetLabels(model.Labels());
   const RestoredModel restored =
       RestoreModel(model, camera, options_.mapper.dense_refinement, mapper.get(), view.get());
   summary.resumed = !restored.store_ids.empty();

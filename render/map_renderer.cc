@@ -163,7 +163,14 @@ bool MapRenderOptions::Check(std::string* error) const {
     *error = "follow view needs distance >= 0, a field of view in (1, 170) degrees, frustum > 0";
     return false;
   }
-  return true;
+  return coverage.Check(error);
+}
+
+std::optional<Eigen::Vector2d> ViewCamera::ProjectOnPlan(const Eigen::Vector3d& world_point) const {
+  if (!orthographic) return Project(world_point);
+  const Eigen::Vector3d p = world_from_cam.inverse() * world_point;
+  return Eigen::Vector2d(intrinsics.cx + intrinsics.fx * p.x(),
+                         intrinsics.cy + intrinsics.fy * p.y());
 }
 
 std::optional<Eigen::Vector2d> ViewCamera::Project(const Eigen::Vector3d& world_point) const {
@@ -340,6 +347,49 @@ struct MapRenderer::Impl {
   }
 
   Viewport Whole() const { return {0, 0, framebuffer_width, framebuffer_height}; }
+
+  // The coverage ring's radii, in font pixels.
+  static constexpr float kRingInner = 5.0f;
+  static constexpr float kRingOuter = 9.0f;
+
+  // Sectors around an appliance at screen (x, y): seen ones green, the others red, each a band
+  // between two radii [px] drawn as a few quads (the floor plan's screen may mirror the floor, so
+  // each edge's screen direction is projected).
+  void CoverageRing(const MapScene& scene, const ViewCamera& view, const Eigen::Vector3d& centre,
+                    uint64_t seen, float x, float y) {
+    const int sectors = options.coverage.sectors;
+    constexpr int kStepsPerSector = 4;
+    const float inner = kRingInner * static_cast<float>(options.text_scale);
+    const float outer = kRingOuter * static_cast<float>(options.text_scale);
+    const std::optional<Eigen::Vector2d> origin = view.ProjectOnPlan(centre);
+    if (!origin) return;
+    auto edge = [&](int step) {  // the screen direction of a bearing step
+      const double bearing = 360.0 * step / (sectors * kStepsPerSector);
+      const std::optional<Eigen::Vector2d> tip =
+          view.ProjectOnPlan(centre + scene.FloorDirection(bearing));
+      Eigen::Vector2d d = tip ? Eigen::Vector2d(*tip - *origin) : Eigen::Vector2d::UnitX();
+      if (d.norm() < 1e-9) d = Eigen::Vector2d::UnitX();
+      return Eigen::Vector2f(d.normalized().cast<float>());
+    };
+    std::vector<Eigen::Vector2f> green;
+    std::vector<Eigen::Vector2f> red;
+    const Eigen::Vector2f c(x, y);
+    for (int s = 0; s < sectors; ++s) {
+      std::vector<Eigen::Vector2f>& out = (seen >> s) & 1 ? green : red;
+      for (int k = 0; k < kStepsPerSector; ++k) {
+        const int step = s * kStepsPerSector + k;
+        // A hair short of the next sector, so that neighbours stay apart.
+        const Eigen::Vector2f a = edge(step);
+        const Eigen::Vector2f b =
+            k + 1 < kStepsPerSector ? edge(step + 1) : (0.85f * edge(step + 1) + 0.15f * a);
+        const Eigen::Vector2f p0 = c + inner * a, p1 = c + outer * a;
+        const Eigen::Vector2f p2 = c + outer * b, p3 = c + inner * b;
+        out.insert(out.end(), {p0, p1, p2, p0, p2, p3});
+      }
+    }
+    Triangles2D(green, Eigen::Vector4f(0.2f, 0.85f, 0.3f, 1.0f));
+    Triangles2D(red, Eigen::Vector4f(0.75f, 0.15f, 0.15f, 1.0f));
+  }
 
   void Triangles2D(const std::vector<Eigen::Vector2f>& vertices, const Eigen::Vector4f& rgba) {
     if (vertices.empty()) return;
@@ -592,24 +642,39 @@ void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const V
     impl.Lines(frustum, GL_LINES, 2.0f);
   }
 
-  // Appliances: a marker and the name, in screen space so they stay readable at any zoom.
+  // Appliances: a marker and the name, in screen space so they stay readable at any zoom; on the
+  // floor plan, where they hang whatever their height (a ceiling light above the plan's cut),
+  // with the ring of directions they were seen from. The names first, then the rings and markers
+  // over them, so that no name's backing hides a neighbour's ring.
   impl.Begin2D(viewport);
   const int scale = options.text_scale;
-  for (const ApplianceLabel& label : scene.appliances()) {
-    const std::optional<Eigen::Vector2d> pixel = view.Project(label.world_point);
+  const float r = 3.0f * scale;
+  const bool rings = view.orthographic && options.show_coverage;
+  const float clear = rings ? Impl::kRingOuter * static_cast<float>(scale) : r;
+  const std::vector<uint64_t> seen =
+      rings ? scene.SeenSectors(options.coverage) : std::vector<uint64_t>();
+  std::vector<std::pair<size_t, Eigen::Vector2f>> placed;
+  for (size_t a = 0; a < scene.appliances().size(); ++a) {
+    const ApplianceLabel& label = scene.appliances()[a];
+    const std::optional<Eigen::Vector2d> pixel = view.ProjectOnPlan(label.world_point);
     if (!pixel) continue;
     const float x = static_cast<float>(pixel->x()) + 0.5f;
     const float y = static_cast<float>(pixel->y()) + 0.5f;
-    const float r = 3.0f * scale;
+    placed.emplace_back(a, Eigen::Vector2f(x, y));
+    // Right of the marker (and its ring), or left of it when the name would leave the viewport.
+    float text_x = x + clear + scale;
+    if (text_x + TextWidthPx(label.name, scale) > viewport.width) {
+      text_x = x - clear - scale - TextWidthPx(label.name, scale);
+    }
+    impl.Text2D(label.name, text_x, y - 3.5f * scale, scale, Eigen::Vector3f(1.0f, 0.95f, 0.6f));
+  }
+  for (const auto& [a, xy] : placed) {
+    const float x = xy.x();
+    const float y = xy.y();
+    if (rings) impl.CoverageRing(scene, view, scene.appliances()[a].world_point, seen[a], x, y);
     std::vector<Eigen::Vector2f> marker = {{x, y - r}, {x + r, y}, {x, y + r},
                                            {x, y - r}, {x, y + r}, {x - r, y}};
     impl.Triangles2D(marker, Eigen::Vector4f(1.0f, 0.9f, 0.1f, 1.0f));
-    // Right of the marker, or left of it when the name would leave the viewport.
-    float text_x = x + r + scale;
-    if (text_x + TextWidthPx(label.name, scale) > viewport.width) {
-      text_x = x - r - scale - TextWidthPx(label.name, scale);
-    }
-    impl.Text2D(label.name, text_x, y - 3.5f * scale, scale, Eigen::Vector3f(1.0f, 0.95f, 0.6f));
   }
   gl.Disable(GL_SCISSOR_TEST);
 }

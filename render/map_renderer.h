@@ -49,6 +49,10 @@ struct MapRenderOptions {
   double follow_hfov_deg = 75.0;
   double frustum_depth_m = 0.4;  // drawn size of the current camera's frustum [m]
   Eigen::Vector3f background_rgb = Eigen::Vector3f(0.07f, 0.07f, 0.09f);  // [0, 1]
+  // Around each appliance on the floor plan, a ring of sectors: green where a keyframe saw it
+  // from, red where none has yet (MapScene::SeenSectors). Drawn when the scene has appliances.
+  bool show_coverage = true;
+  SectorOptions coverage;
 
   bool Check(std::string* error) const;
 };
@@ -67,6 +71,9 @@ struct ViewCamera {
 
   // Pixel of a world point; nullopt when it is outside the clipping range.
   std::optional<Eigen::Vector2d> Project(const Eigen::Vector3d& world_point) const;
+  // The same without the clipping range when orthographic (where a point lies on the plan,
+  // whatever its height).
+  std::optional<Eigen::Vector2d> ProjectOnPlan(const Eigen::Vector3d& world_point) const;
 };
 
 // The floor plan: looking down world_up from the cut height, fit to the map's extent and centred.

@@ -306,5 +306,102 @@ TEST(MapScene, MergedUpdatesEqualUpdatesInOrder) {
   EXPECT_EQ(scene.status().tracking, TrackingState::kRelocalised);
 }
 
+// Sightings count for the sector their keyframe stands in now, within the distance band; a pose
+// update that moves a keyframe moves its sector; merged updates keep every sighting.
+TEST(MapScene, SeenSectorsFollowTheSightingKeyframesPoses) {
+  MapScene scene;  // z up: bearing 0 along world x, 90 along y
+  MapUpdate update;
+  update.appliances = std::vector<ApplianceLabel>{{"lamp", Eigen::Vector3d(1.0, 1.0, 1.0)},
+                                                  {"tv", Eigen::Vector3d(9.0, 9.0, 1.0)}};
+  const auto at = [](int64_t id, const Eigen::Vector3d& position) {
+    MapKeyframe keyframe;
+    keyframe.id = id;
+    keyframe.world_from_cam = Eigen::Isometry3d(Eigen::Translation3d(position));
+    return keyframe;
+  };
+  update.keyframes = {at(1, {3.0, 1.0, 1.5}),    // 2 m along +x of the lamp: bearing 0
+                      at(2, {1.0, 3.5, 1.2}),    // +y, 2.5 m: bearing 90, sector 3
+                      at(3, {1.0, 1.5, 1.5}),    // too near (0.7 m)
+                      at(4, {-5.0, 1.0, 1.5})};  // too far (6 m)
+  update.sightings = {{1, 0}, {2, 0}, {3, 0}};
+  MapUpdate later;
+  later.sightings = {{4, 0}, {99, 0}, {1, 7}};  // an unknown keyframe, an unknown appliance
+  update.Merge(std::move(later));
+  EXPECT_EQ(update.sightings.size(), 6u);
+  scene.Apply(std::move(update));
+  std::vector<uint64_t> seen = scene.SeenSectors(SectorOptions());
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0], (uint64_t{1} << 0) | (uint64_t{1} << 3));
+  EXPECT_EQ(seen[1], 0u);
+  // Loop closure moves keyframe 1 to -y of the lamp (bearing 270: sector 9).
+  MapUpdate moved;
+  moved.poses.push_back({1, Eigen::Isometry3d(Eigen::Translation3d(1.0, -1.0, 1.5))});
+  scene.Apply(std::move(moved));
+  seen = scene.SeenSectors(SectorOptions());
+  EXPECT_EQ(seen[0], (uint64_t{1} << 9) | (uint64_t{1} << 3));
+  EXPECT_NEAR((scene.FloorDirection(90.0) - Eigen::Vector3d::UnitY()).norm(), 0.0, 1e-12);
+  SectorOptions bad;
+  bad.sectors = 65;
+  EXPECT_THROW(scene.SeenSectors(bad), Error);
+}
+
+// Counts the pixels of `image` within `radius` px of `centre` that are near `bgr`.
+int PixelsNear(const cv::Mat& image, const Eigen::Vector2d& centre, double radius,
+               const cv::Vec3b& bgr) {
+  int count = 0;
+  for (int v = std::max(0, static_cast<int>(centre.y() - radius));
+       v < std::min(image.rows, static_cast<int>(centre.y() + radius) + 1); ++v) {
+    for (int u = std::max(0, static_cast<int>(centre.x() - radius));
+         u < std::min(image.cols, static_cast<int>(centre.x() + radius) + 1); ++u) {
+      const cv::Vec3b& c = image.at<cv::Vec3b>(v, u);
+      if (std::abs(c[0] - bgr[0]) + std::abs(c[1] - bgr[1]) + std::abs(c[2] - bgr[2]) < 40) {
+        ++count;
+      }
+    }
+  }
+  return count;
+}
+
+// The floor plan rings each appliance: green on the side a keyframe saw it from, red elsewhere.
+TEST(MapRenderer, TheFloorPlanRingsEachApplianceGreenWhereItWasSeenFrom) {
+  OffscreenContext context(16, 16);
+  const MapRenderOptions options = ExactOptions();
+  context.Resize(options.width, options.height);
+  MapRenderer renderer(&OffscreenContext::ProcAddress, options);
+  const Eigen::Vector3d lamp(2.0, 1.5, 1.0);
+  MapScene scene = KnownScene(Eigen::Vector3d(3.0, 2.0, 1.0));
+  MapUpdate update;
+  update.appliances = std::vector<ApplianceLabel>{{"lamp", lamp}};
+  update.sightings.push_back({1, 0});  // KnownScene's keyframe stands at (1, 1, 1.5): bearing 207
+  scene.Apply(std::move(update));
+  renderer.DrawProgress(scene, options.width, options.height);
+  const cv::Mat image = renderer.ReadImage(options.width, options.height);
+  const ProgressLayout layout = MakeProgressLayout(scene, options.width, options.height, options);
+  const std::optional<Eigen::Vector2d> centre = layout.top_down.Project(lamp);
+  ASSERT_TRUE(centre.has_value());
+  const cv::Vec3b green(77, 217, 51);  // (0.2, 0.85, 0.3) in BGR
+  const cv::Vec3b red(38, 38, 191);
+  const double ring = 7.0 * options.text_scale;  // between the ring's radii
+  const auto side = [&](double bearing_deg) {
+    const Eigen::Vector2d tip = *layout.top_down.Project(lamp + scene.FloorDirection(bearing_deg));
+    return Eigen::Vector2d(*centre + ring * (tip - *centre).normalized());
+  };
+  EXPECT_GT(PixelsNear(image, side(195.0), 2.5, green), 5);  // the sector of 180-210 degrees
+  EXPECT_EQ(PixelsNear(image, side(195.0), 2.5, red), 0);
+  for (const double bearing : {15.0, 105.0, 285.0}) {
+    EXPECT_GT(PixelsNear(image, side(bearing), 2.5, red), 5) << bearing;
+    EXPECT_EQ(PixelsNear(image, side(bearing), 2.5, green), 0) << bearing;
+  }
+  // Not on the camera view, and not at all with show_coverage off.
+  EXPECT_EQ(PixelsNear(image, Eigen::Vector2d(600, 200), 200, green), 0);
+  MapRenderOptions without = options;
+  without.show_coverage = false;
+  MapRenderer plain(&OffscreenContext::ProcAddress, without);
+  plain.DrawProgress(scene, options.width, options.height);
+  const cv::Mat image_without = plain.ReadImage(options.width, options.height);
+  EXPECT_EQ(PixelsNear(image_without, *centre, ring + 4.0, green), 0);
+  EXPECT_EQ(PixelsNear(image_without, *centre, ring + 4.0, red), 0);
+}
+
 }  // namespace
 }  // namespace sightmap::render

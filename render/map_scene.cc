@@ -104,18 +104,66 @@ void MapUpdate::Merge(MapUpdate&& later) {
     }
   }
   loops.insert(loops.end(), later.loops.begin(), later.loops.end());
+  sightings.insert(sightings.end(), later.sightings.begin(), later.sightings.end());
   if (later.camera) camera = later.camera;
   if (later.appliances) appliances = std::move(later.appliances);
   if (later.status) status = later.status;
 }
 
 bool MapUpdate::empty() const {
-  return keyframes.empty() && poses.empty() && loops.empty() && !camera && !appliances && !status;
+  return keyframes.empty() && poses.empty() && loops.empty() && sightings.empty() && !camera &&
+         !appliances && !status;
 }
 
 MapScene::MapScene(const Eigen::Vector3d& world_up) : world_up_(world_up) {
   SIGHTMAP_CHECK(world_up.norm() > 0.5, "world_up must be a non-zero direction");
   world_up_.normalize();
+  // The world axis least along up, made level.
+  Eigen::Index least = 0;
+  world_up_.cwiseAbs().minCoeff(&least);
+  const Eigen::Vector3d axis = Eigen::Vector3d::Unit(least);
+  floor_x_ = (axis - axis.dot(world_up_) * world_up_).normalized();
+  floor_y_ = world_up_.cross(floor_x_);
+}
+
+bool SectorOptions::Check(std::string* error) const {
+  if (sectors < 1 || sectors > 64) {
+    *error = "sectors must be in [1, 64]";
+    return false;
+  }
+  if (!(min_distance_m >= 0.0 && max_distance_m > min_distance_m)) {
+    *error = "the sectors' distance band needs 0 <= min_distance_m < max_distance_m";
+    return false;
+  }
+  return true;
+}
+
+Eigen::Vector3d MapScene::FloorDirection(double bearing_deg) const {
+  const double a = bearing_deg * M_PI / 180.0;
+  return std::cos(a) * floor_x_ + std::sin(a) * floor_y_;
+}
+
+std::vector<uint64_t> MapScene::SeenSectors(const SectorOptions& options) const {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  std::vector<uint64_t> seen(appliances_.size(), 0);
+  for (const LabelSighting& sighting : sightings_) {
+    const auto keyframe = keyframes_.find(sighting.keyframe_id);
+    if (keyframe == keyframes_.end() || sighting.appliance < 0 ||
+        sighting.appliance >= static_cast<int>(appliances_.size())) {
+      continue;
+    }
+    const Eigen::Vector3d offset = keyframe->second.world_from_cam.translation() -
+                                   appliances_[static_cast<size_t>(sighting.appliance)].world_point;
+    const Eigen::Vector3d level = offset - offset.dot(world_up_) * world_up_;
+    const double distance = offset.norm();
+    if (distance < options.min_distance_m || distance > options.max_distance_m) continue;
+    double bearing = std::atan2(level.dot(floor_y_), level.dot(floor_x_)) * 180.0 / M_PI;
+    if (bearing < 0.0) bearing += 360.0;
+    const int sector =
+        std::min(options.sectors - 1, static_cast<int>(bearing * options.sectors / 360.0));
+    seen[static_cast<size_t>(sighting.appliance)] |= uint64_t{1} << sector;
+  }
+  return seen;
 }
 
 void MapScene::Apply(MapUpdate&& update) {
@@ -138,6 +186,7 @@ void MapScene::Apply(MapUpdate&& update) {
     if (it != keyframes_.end()) it->second.world_from_cam = pose.world_from_cam;
   }
   loops_.insert(loops_.end(), update.loops.begin(), update.loops.end());
+  sightings_.insert(sightings_.end(), update.sightings.begin(), update.sightings.end());
   if (update.camera) camera_ = update.camera;
   if (update.appliances) appliances_ = std::move(*update.appliances);
   if (update.status) status_ = update.status;

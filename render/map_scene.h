@@ -62,6 +62,26 @@ struct ApplianceLabel {
   Eigen::Vector3d world_point = Eigen::Vector3d::Zero();  // [m]
 };
 
+// A keyframe that saw an appliance: one of its points in the keyframe's image and not hidden
+// behind the keyframe's depth. The floor plan shows around each appliance the directions the
+// keyframes that saw it stood in, so that the person mapping walks to the ones missing.
+struct LabelSighting {
+  int64_t keyframe_id = 0;
+  int appliance = 0;  // index into the scene's appliances
+};
+
+// Directions around an appliance in the floor plane: `sectors` equal sectors, bearing 0 along the
+// floor's first axis (FloorAxes), counted towards its second. A sighting counts for the sector its
+// keyframe stands in when min_distance_m to max_distance_m from the appliance (as
+// identify::CoverageOptions counts them) [m].
+struct SectorOptions {
+  int sectors = 12;
+  double min_distance_m = 1.0;
+  double max_distance_m = 4.0;
+
+  bool Check(std::string* error) const;
+};
+
 struct MapStatus {
   int64_t keyframes = 0;
   int64_t loops = 0;
@@ -78,6 +98,7 @@ struct MapUpdate {
   std::vector<LoopEdge> loops;         // new loop-closure edges
   std::optional<Eigen::Isometry3d> camera;                // the current camera pose
   std::optional<std::vector<ApplianceLabel>> appliances;  // replaces every label
+  std::vector<LabelSighting> sightings;                   // new sightings
   std::optional<MapStatus> status;
 
   void Merge(MapUpdate&& later);
@@ -98,6 +119,12 @@ class MapScene {
   const std::vector<LoopEdge>& loops() const { return loops_; }
   const std::optional<Eigen::Isometry3d>& camera() const { return camera_; }
   const std::vector<ApplianceLabel>& appliances() const { return appliances_; }
+  const std::vector<LabelSighting>& sightings() const { return sightings_; }
+  // Per appliance, a bit per sector seen by a sighting keyframe at its current pose (a loop
+  // closure that moves a keyframe moves its sighting too).
+  std::vector<uint64_t> SeenSectors(const SectorOptions& options) const;
+  // The world direction in the floor plane at `bearing_deg` (see SectorOptions).
+  Eigen::Vector3d FloorDirection(double bearing_deg) const;
   // The mapper's status; until it sends one, counts come from the scene.
   MapStatus status() const;
   size_t num_points() const { return num_points_; }
@@ -112,6 +139,9 @@ class MapScene {
   std::map<int64_t, uint64_t> points_versions_;
   uint64_t next_version_ = 1;
   std::vector<LoopEdge> loops_;
+  std::vector<LabelSighting> sightings_;
+  Eigen::Vector3d floor_x_;  // the floor's axes (world_up_ x floor_x_ = floor_y_)
+  Eigen::Vector3d floor_y_;
   std::optional<Eigen::Isometry3d> camera_;
   std::vector<ApplianceLabel> appliances_;
   std::optional<MapStatus> status_;

@@ -1,0 +1,70 @@
+// The feed's coverage while mapping, through the real progress writer (OSMesa): a keyframe that
+// sees a label turns a sector of its ring green in the written floor plan; one whose depth shows a
+// box in front of the label leaves every sector red.
+#include "mapping/map_view_feed.h"
+
+#include <cstdlib>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "store/synthetic_model.h"
+#include "tests/test_data.h"
+
+namespace sightmap::mapping {
+namespace {
+
+// Pixels of `image` within 20 of `bgr` (summed over channels).
+int CountNear(const cv::Mat& image, const cv::Vec3b& bgr) {
+  int count = 0;
+  for (int v = 0; v < image.rows; ++v) {
+    for (int u = 0; u < image.cols; ++u) {
+      const cv::Vec3b& c = image.at<cv::Vec3b>(v, u);
+      count += std::abs(c[0] - bgr[0]) + std::abs(c[1] - bgr[1]) + std::abs(c[2] - bgr[2]) < 20;
+    }
+  }
+  return count;
+}
+
+// The floor plan written after one keyframe at the origin looking along +z at a label 2 m ahead,
+// its depth a wall at 2.5 m, with a box 1 m ahead in front of the label when `boxed`.
+cv::Mat FloorPlanAfterOneKeyframe(const std::string& name, bool boxed) {
+  MapViewFeedOptions options;
+  options.choice = ViewChoice::kHeadless;
+  options.progress_png = testing::MakeTempDir(name) + "/progress.png";
+  std::unique_ptr<MapViewFeed> feed = MapViewFeed::Create(options, nullptr);
+  store::LabelRecord label;
+  label.name = "lamp";
+  store::LabelPoint point;
+  point.world = Eigen::Vector3d(0.0, 0.0, 2.0);
+  label.points.push_back(point);
+  feed->SetLabels({label});
+  const Intrinsics camera = store::SyntheticIntrinsics(640, 480);
+  cv::Mat bgr(480, 640, CV_8UC3, cv::Scalar(120, 120, 120));
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(2500));
+  if (boxed) depth(cv::Rect(270, 190, 100, 100)).setTo(cv::Scalar(1000));
+  // A floor below the camera gives the plan its extent.
+  bgr(cv::Rect(0, 400, 640, 80)).setTo(cv::Scalar(60, 60, 60));
+  feed->AddKeyframe(1, 1, Eigen::Isometry3d::Identity(), bgr, depth, camera);
+  feed->Finish();
+  const cv::Mat image = cv::imread(options.progress_png);
+  EXPECT_FALSE(image.empty()) << options.progress_png;
+  return image.empty() ? image : image(cv::Rect(0, 0, image.cols / 2, image.rows)).clone();
+}
+
+TEST(MapViewFeed, AKeyframeThatSeesALabelTurnsItsSectorGreen) {
+  const cv::Vec3b green(77, 217, 51);  // the ring's colours (render/map_renderer.cc), BGR
+  const cv::Vec3b red(38, 38, 191);
+  const cv::Mat seen = FloorPlanAfterOneKeyframe("feed_seen", false);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_GT(CountNear(seen, green), 20);
+  EXPECT_GT(CountNear(seen, red), 10 * CountNear(seen, green));  // 11 of 12 sectors unseen
+  const cv::Mat hidden = FloorPlanAfterOneKeyframe("feed_hidden", true);
+  ASSERT_FALSE(hidden.empty());
+  EXPECT_EQ(CountNear(hidden, green), 0);
+  EXPECT_GT(CountNear(hidden, red), 100);
+}
+
+}  // namespace
+}  // namespace sightmap::mapping
