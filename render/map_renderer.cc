@@ -166,6 +166,15 @@ bool MapRenderOptions::Check(std::string* error) const {
   return coverage.Check(error);
 }
 
+std::string CoverageLine(const MapScene& scene, const SectorOptions& options) {
+  if (scene.appliances().empty()) return "";
+  int seen = 0;
+  for (const uint64_t sectors : scene.SeenSectors(options)) seen += __builtin_popcountll(sectors);
+  const size_t directions = scene.appliances().size() * static_cast<size_t>(options.sectors);
+  return "labels " + std::to_string(scene.appliances().size()) + "  seen from " +
+         std::to_string(seen) + " of " + std::to_string(directions) + " directions";
+}
+
 std::optional<Eigen::Vector2d> ViewCamera::ProjectOnPlan(const Eigen::Vector3d& world_point) const {
   if (!orthographic) return Project(world_point);
   const Eigen::Vector3d p = world_from_cam.inverse() * world_point;
@@ -692,21 +701,25 @@ void MapRenderer::DrawStatus(const MapScene& scene, const Viewport& viewport) {
   std::snprintf(line3, sizeof(line3), "%.2f kf/s  elapsed %d:%02d:%02d", status.keyframes_per_s,
                 elapsed / 3600, (elapsed / 60) % 60, elapsed % 60);
   const std::string line2 = std::string("state: ") + ToString(status.tracking);
+  const std::string line4 =
+      impl.options.show_coverage ? CoverageLine(scene, impl.options.coverage) : std::string();
+  const int lines = line4.empty() ? 3 : 4;
   impl.Begin2D(viewport);
   const float x = 6.0f * scale;
   const float y = 6.0f * scale;
   const float line = static_cast<float>(kLineAdvance * scale);
   // One backing for the block, then the lines.
   std::vector<Eigen::Vector2f> rect;
-  const int width =
-      std::max({TextWidthPx(line1, scale), TextWidthPx(line2, scale), TextWidthPx(line3, scale)});
+  const int width = std::max({TextWidthPx(line1, scale), TextWidthPx(line2, scale),
+                              TextWidthPx(line3, scale), TextWidthPx(line4, scale)});
   Impl::AppendRect(x - 2.0f * scale, y - 2.0f * scale, x + width + 2.0f * scale,
-                   y + 2 * line + kGlyphHeight * scale + 2.0f * scale, &rect);
+                   y + (lines - 1) * line + kGlyphHeight * scale + 2.0f * scale, &rect);
   impl.Triangles2D(rect, Eigen::Vector4f(0, 0, 0, 0.6f));
   const Eigen::Vector3f white(0.95f, 0.95f, 0.95f);
   impl.Text2D(line1, x, y, scale, white, false);
   impl.Text2D(line2, x, y + line, scale, TrackingColor(status.tracking), false);
   impl.Text2D(line3, x, y + 2 * line, scale, white, false);
+  if (!line4.empty()) impl.Text2D(line4, x, y + 3 * line, scale, white, false);
   impl.gl.Disable(GL_SCISSOR_TEST);
 }
 

@@ -76,6 +76,10 @@ struct ViewCamera {
   std::optional<Eigen::Vector2d> ProjectOnPlan(const Eigen::Vector3d& world_point) const;
 };
 
+// The status block's coverage line, "labels N  seen from S of M directions" (M = N x sectors);
+// empty without labels.
+std::string CoverageLine(const MapScene& scene, const SectorOptions& options);
+
 // The floor plan: looking down world_up from the cut height, fit to the map's extent and centred.
 // Horizontal axes: x_world projected on the floor is image-right, up x that is image-up.
 ViewCamera TopDownCamera(const MapScene& scene, int width, int height,

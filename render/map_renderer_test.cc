@@ -340,6 +340,8 @@ TEST(MapScene, SeenSectorsFollowTheSightingKeyframesPoses) {
   seen = scene.SeenSectors(SectorOptions());
   EXPECT_EQ(seen[0], (uint64_t{1} << 9) | (uint64_t{1} << 3));
   EXPECT_NEAR((scene.FloorDirection(90.0) - Eigen::Vector3d::UnitY()).norm(), 0.0, 1e-12);
+  EXPECT_EQ(CoverageLine(scene, SectorOptions()), "labels 2  seen from 2 of 24 directions");
+  EXPECT_EQ(CoverageLine(MapScene(), SectorOptions()), "");
   SectorOptions bad;
   bad.sectors = 65;
   EXPECT_THROW(scene.SeenSectors(bad), Error);
