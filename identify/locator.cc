@@ -562,10 +562,10 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       retry_code != UnmatchedReason::kAmbiguous) {
     const Clock::time_point second_look = Clock::now();
     result.second_look = true;
-    const TimedSiftPhoto timed = sift_ahead.valid()
-                                     ? sift_ahead.get()
-                                     : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
-    PreparedPhoto sift = timed.photo;
+    TimedSiftPhoto timed = sift_ahead.valid()
+                               ? sift_ahead.get()
+                               : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
+    PreparedPhoto sift = std::move(timed.photo);
     result.timings.features_ms += timed.ms;
     if (!sift.refusal) {
       Impl::Search again = impl_->SearchPlaces(&sift, candidates, impl_->sift_keyframes,

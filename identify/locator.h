@@ -200,7 +200,9 @@ struct LocateTimings {
   double pnp_ms = 0.0;
   double visibility_ms = 0.0;
   double total_ms = 0.0;
-  // Of the above, the RootSIFT second look's features, matching and PnP (0 when it did not run).
+  // The wall time the RootSIFT second look added after ORB's search (0 when it did not run): its
+  // matching and PnP, and what was left of its extraction (with extract_sift_ahead the extraction
+  // may have run during ORB's search; features_ms counts all of it).
   double second_look_ms = 0.0;
 };
 
