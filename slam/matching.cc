@@ -52,8 +52,20 @@ __attribute__((target_clones("popcnt", "default"))) void NearestBinary(
   }
 }
 
-// Each query's k nearest references, nearest first, kept by insertion: strict comparisons keep
-// the first of equal distances first, as cv::BFMatcher::knnMatch does.
+// Keeps `d` (of reference `r`) among a query's k nearest, nearest first, by insertion: strict
+// comparisons keep the first of equal distances first, as cv::BFMatcher::knnMatch does.
+inline void OfferNearest(int r, int d, int k, int* index, int* distance) {
+  if (d >= distance[k - 1]) return;
+  int j = k - 1;
+  for (; j > 0 && d < distance[j - 1]; --j) {
+    distance[j] = distance[j - 1];
+    index[j] = index[j - 1];
+  }
+  distance[j] = d;
+  index[j] = r;
+}
+
+// Each query's k nearest references, nearest first (OfferNearest).
 __attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t* query,
                                                                   int num_query,
                                                                   const uint64_t* reference,
@@ -66,30 +78,9 @@ __attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t
     std::fill(index, index + k, -1);
     std::fill(distance, distance + k, kNoDistance);
     for (int r = 0; r < num_reference; ++r) {
-      const int d = Hamming256(a, reference + 4 * static_cast<size_t>(r));
-      if (d >= distance[k - 1]) continue;
-      int j = k - 1;
-      for (; j > 0 && d < distance[j - 1]; --j) {
-        distance[j] = distance[j - 1];
-        index[j] = index[j - 1];
-      }
-      distance[j] = d;
-      index[j] = r;
+      OfferNearest(r, Hamming256(a, reference + 4 * static_cast<size_t>(r)), k, index, distance);
     }
   }
-}
-
-// Keeps `d` (of reference `r`) among a query's k nearest, nearest first, by insertion: strict
-// comparisons keep the first of equal distances first, as cv::BFMatcher::knnMatch does.
-inline void OfferNearest(int r, int d, int k, int* index, int* distance) {
-  if (d >= distance[k - 1]) return;
-  int j = k - 1;
-  for (; j > 0 && d < distance[j - 1]; --j) {
-    distance[j] = distance[j - 1];
-    index[j] = index[j - 1];
-  }
-  distance[j] = d;
-  index[j] = r;
 }
 
 // KNearest with AVX-512's vector popcount, on CPUs that have it (checked at run time): the
