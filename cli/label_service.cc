@@ -151,14 +151,8 @@ std::string LabelService::KeyframeJpeg(int64_t keyframe, int max_side) const {
   const store::Model model = OpenForReading();
   FindKeyframe(model, keyframe);
   cv::Mat image = model.LoadColor(KeyframeId(keyframe));
-  const int longer = std::max(image.cols, image.rows);
-  if (max_side > 0 && longer > max_side) {
-    const double scale = static_cast<double>(max_side) / longer;
-    cv::resize(image, image,
-               cv::Size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
-                        std::max(1, static_cast<int>(std::lround(image.rows * scale)))),
-               0.0, 0.0, cv::INTER_AREA);
-  }
+  const cv::Size size = SizeAtMostOfSide(image.size(), max_side);
+  if (size != image.size()) cv::resize(image, image, size, 0.0, 0.0, cv::INTER_AREA);
   std::vector<uint8_t> bytes;
   cv::imencode(".jpg", image, bytes, {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality});
   return std::string(bytes.begin(), bytes.end());

@@ -90,4 +90,12 @@ bool Intrinsics::Check(std::string* error) const {
   return true;
 }
 
+cv::Size SizeAtMostOfSide(const cv::Size& size, int max_side) {
+  const int longer = std::max(size.width, size.height);
+  if (max_side <= 0 || longer <= max_side) return size;
+  const double scale = static_cast<double>(max_side) / longer;
+  return cv::Size(std::max(1, static_cast<int>(std::lround(size.width * scale))),
+                  std::max(1, static_cast<int>(std::lround(size.height * scale))));
+}
+
 }  // namespace sightmap

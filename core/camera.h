@@ -4,6 +4,7 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <opencv2/core/types.hpp>
 
 namespace sightmap {
 
@@ -38,5 +39,9 @@ struct Intrinsics {
 
   bool Check(std::string* error) const;
 };
+
+// `size` scaled, aspect kept and each side at least 1 px, so that its longer side is at most
+// `max_side` [px]; `size` itself when it already is (or when max_side is not positive).
+cv::Size SizeAtMostOfSide(const cv::Size& size, int max_side);
 
 }  // namespace sightmap

@@ -10,6 +10,17 @@
 namespace sightmap {
 namespace {
 
+// The longer side brought to the limit, the aspect kept, no side below a pixel; a size within it
+// (or no limit) unchanged.
+TEST(SizeAtMostOfSide, ScalesTheLongerSideDownToTheLimit) {
+  EXPECT_EQ(SizeAtMostOfSide(cv::Size(1280, 960), 640), cv::Size(640, 480));
+  EXPECT_EQ(SizeAtMostOfSide(cv::Size(960, 1280), 640), cv::Size(480, 640));
+  EXPECT_EQ(SizeAtMostOfSide(cv::Size(1001, 333), 100), cv::Size(100, 33));
+  EXPECT_EQ(SizeAtMostOfSide(cv::Size(20000, 1), 640), cv::Size(640, 1));
+  EXPECT_EQ(SizeAtMostOfSide(cv::Size(640, 480), 640), cv::Size(640, 480));
+  EXPECT_EQ(SizeAtMostOfSide(cv::Size(640, 480), 0), cv::Size(640, 480));
+}
+
 TEST(Intrinsics, FromFieldOfViewMatchesPinholeFormula) {
   const Intrinsics k = Intrinsics::FromFieldOfView(640, 480, 1.0145, 0.7898);
   EXPECT_NEAR(k.fx, 640.0 / (2.0 * std::tan(1.0145 / 2.0)), 1e-9);

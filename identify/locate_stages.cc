@@ -358,14 +358,10 @@ cv::Mat GreyAtMostOfSide(const cv::Mat& image, int max_side) {
     cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
   else
     grey = image;
-  const int longer = std::max(image.cols, image.rows);
-  if (longer <= max_side) return grey;
-  const double scale = static_cast<double>(max_side) / longer;
+  const cv::Size size = SizeAtMostOfSide(image.size(), max_side);
+  if (size == image.size()) return grey;
   cv::Mat scaled;
-  cv::resize(grey, scaled,
-             cv::Size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
-                      std::max(1, static_cast<int>(std::lround(image.rows * scale)))),
-             0.0, 0.0, cv::INTER_AREA);
+  cv::resize(grey, scaled, size, 0.0, 0.0, cv::INTER_AREA);
   return scaled;
 }
 

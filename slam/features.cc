@@ -169,11 +169,8 @@ Features ExtractFeaturesAtMostOfSide(const cv::Mat& image, const cv::Mat& depth_
                                      const Intrinsics& camera, int max_side_px,
                                      const FeatureOptions& options) {
   SIGHTMAP_CHECK(max_side_px > 0, "features need a positive image side, not " << max_side_px);
-  const int longer = std::max(image.cols, image.rows);
-  if (longer <= max_side_px) return ExtractFeatures(image, depth_mm, camera, options);
-  const double scale = static_cast<double>(max_side_px) / longer;
-  const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
-                      std::max(1, static_cast<int>(std::lround(image.rows * scale))));
+  const cv::Size size = SizeAtMostOfSide(image.size(), max_side_px);
+  if (size == image.size()) return ExtractFeatures(image, depth_mm, camera, options);
   cv::Mat small_image;
   cv::resize(image, small_image, size, 0.0, 0.0, cv::INTER_AREA);
   cv::Mat small_depth;
