@@ -34,4 +34,10 @@ void FloorAxes(const Eigen::Vector3d& up, Eigen::Vector3d* e1, Eigen::Vector3d* 
   *e2 = up.cross(*e1);
 }
 
+double FloorBearingDeg(const Eigen::Vector3d& offset, const Eigen::Vector3d& e1,
+                       const Eigen::Vector3d& e2) {
+  const double deg = std::atan2(offset.dot(e2), offset.dot(e1)) * 180.0 / M_PI;
+  return deg < 0.0 ? deg + 360.0 : deg;
+}
+
 }  // namespace sightmap

@@ -28,4 +28,9 @@ Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose);
 // up), e2 = up x e1. What floor plans (the preview's top-down view, `sightmap coverage`) draw on.
 void FloorAxes(const Eigen::Vector3d& up, Eigen::Vector3d* e1, Eigen::Vector3d* e2);
 
+// The bearing of `offset` in the floor plane of axes e1, e2 (FloorAxes), in [0, 360) degrees from
+// e1 towards e2; its height along up plays no part.
+double FloorBearingDeg(const Eigen::Vector3d& offset, const Eigen::Vector3d& e1,
+                       const Eigen::Vector3d& e2);
+
 }  // namespace sightmap

@@ -128,17 +128,9 @@ void Carve(const store::KeyframeInfo& keyframe, const cv::Mat& depth_mm,
   }
 }
 
-Eigen::Vector3d Centre(const store::LabelRecord& label) {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const store::LabelPoint& point : label.points) sum += point.world;
-  return label.points.empty() ? sum : Eigen::Vector3d(sum / label.points.size());
-}
-
 // Bearing [deg, 0-360) of `offset` in the floor plane.
 double BearingDeg(const Eigen::Vector3d& offset, const ModelCoverage& coverage) {
-  const double deg =
-      std::atan2(offset.dot(coverage.floor_y), offset.dot(coverage.floor_x)) * kDegPerRad;
-  return deg < 0.0 ? deg + 360.0 : deg;
+  return FloorBearingDeg(offset, coverage.floor_x, coverage.floor_y);
 }
 
 // Whether a person standing `distance_m` from the label towards `bearing_deg`, at eye height,
@@ -270,7 +262,7 @@ ModelCoverage ComputeCoverage(const store::Model& model, const CoverageOptions& 
     label.id = record.id;
     label.name = record.name;
     label.type = record.type;
-    label.centre = Centre(record);
+    label.centre = LabelCentre(record);
     for (int s = 0; s < options.sectors; ++s) {
       SectorCoverage sector;
       sector.from_deg = s * sector_deg;

@@ -315,6 +315,12 @@ std::optional<std::pair<Eigen::Vector2d, double>> ProjectIntoKeyframe(
 
 }  // namespace
 
+Eigen::Vector3d LabelCentre(const store::LabelRecord& label) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const store::LabelPoint& point : label.points) sum += point.world;
+  return label.points.empty() ? sum : Eigen::Vector3d(sum / label.points.size());
+}
+
 std::vector<LabelInKeyframe> LabelsInKeyframe(const store::Model& model, KeyframeId keyframe,
                                               const std::vector<store::LabelRecord>& labels,
                                               const LabelViewOptions& options) {

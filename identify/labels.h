@@ -73,6 +73,9 @@ struct LabelViewOptions {
 void to_json(nlohmann::json& json, const LabelViewOptions& options);
 void from_json(const nlohmann::json& json, LabelViewOptions& options);
 
+// The mean of a label's points (the origin `coverage` counts directions from); zero for none.
+Eigen::Vector3d LabelCentre(const store::LabelRecord& label);
+
 // The labels with a point in `keyframe`'s image, in front of it and within max_distance_m, with
 // those points' pixels; hidden ones marked through the keyframe's depth image (one read).
 std::vector<LabelInKeyframe> LabelsInKeyframe(const store::Model& model, KeyframeId keyframe,

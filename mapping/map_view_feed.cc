@@ -99,9 +99,7 @@ void MapViewFeed::SetLabels(const std::vector<store::LabelRecord>& labels) {
   std::vector<render::ApplianceLabel> appliances;
   for (const store::LabelRecord& label : labels) {
     if (label.points.empty()) continue;
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (const store::LabelPoint& point : label.points) centre += point.world;
-    appliances.push_back({label.name, centre / static_cast<double>(label.points.size())});
+    appliances.push_back({label.name, identify::LabelCentre(label)});
     impl_->labels.push_back(label);
   }
   render::MapUpdate update;

@@ -364,25 +364,24 @@ struct MapRenderer::Impl {
   // Sectors around an appliance at screen (x, y): seen ones green, the others red, each a band
   // between two radii [px] drawn as a few quads (the floor plan's screen may mirror the floor, so
   // each edge's screen direction is projected).
+  // `pixel` is where the view projects `centre` (ViewCamera::ProjectOnPlan).
   void CoverageRing(const MapScene& scene, const ViewCamera& view, const Eigen::Vector3d& centre,
-                    uint64_t seen, float x, float y) {
+                    const Eigen::Vector2d& pixel, uint64_t seen) {
     const int sectors = options.coverage.sectors;
     constexpr int kStepsPerSector = 4;
     const float inner = kRingInner * static_cast<float>(options.text_scale);
     const float outer = kRingOuter * static_cast<float>(options.text_scale);
-    const std::optional<Eigen::Vector2d> origin = view.ProjectOnPlan(centre);
-    if (!origin) return;
     auto edge = [&](int step) {  // the screen direction of a bearing step
       const double bearing = 360.0 * step / (sectors * kStepsPerSector);
       const std::optional<Eigen::Vector2d> tip =
           view.ProjectOnPlan(centre + scene.FloorDirection(bearing));
-      Eigen::Vector2d d = tip ? Eigen::Vector2d(*tip - *origin) : Eigen::Vector2d::UnitX();
+      Eigen::Vector2d d = tip ? Eigen::Vector2d(*tip - pixel) : Eigen::Vector2d::UnitX();
       if (d.norm() < 1e-9) d = Eigen::Vector2d::UnitX();
       return Eigen::Vector2f(d.normalized().cast<float>());
     };
     std::vector<Eigen::Vector2f> green;
     std::vector<Eigen::Vector2f> red;
-    const Eigen::Vector2f c(x, y);
+    const Eigen::Vector2f c = (pixel.array() + 0.5).matrix().cast<float>();
     for (int s = 0; s < sectors; ++s) {
       std::vector<Eigen::Vector2f>& out = (seen >> s) & 1 ? green : red;
       for (int k = 0; k < kStepsPerSector; ++k) {
@@ -662,14 +661,14 @@ void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const V
   const float clear = rings ? Impl::kRingOuter * static_cast<float>(scale) : r;
   const std::vector<uint64_t> seen =
       rings ? scene.SeenSectors(options.coverage) : std::vector<uint64_t>();
-  std::vector<std::pair<size_t, Eigen::Vector2f>> placed;
+  std::vector<std::pair<size_t, Eigen::Vector2d>> placed;  // appliance, pixel
   for (size_t a = 0; a < scene.appliances().size(); ++a) {
     const ApplianceLabel& label = scene.appliances()[a];
     const std::optional<Eigen::Vector2d> pixel = view.ProjectOnPlan(label.world_point);
     if (!pixel) continue;
     const float x = static_cast<float>(pixel->x()) + 0.5f;
     const float y = static_cast<float>(pixel->y()) + 0.5f;
-    placed.emplace_back(a, Eigen::Vector2f(x, y));
+    placed.emplace_back(a, *pixel);
     // Right of the marker (and its ring), or left of it when the name would leave the viewport.
     float text_x = x + clear + scale;
     if (text_x + TextWidthPx(label.name, scale) > viewport.width) {
@@ -677,10 +676,10 @@ void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const V
     }
     impl.Text2D(label.name, text_x, y - 3.5f * scale, scale, Eigen::Vector3f(1.0f, 0.95f, 0.6f));
   }
-  for (const auto& [a, xy] : placed) {
-    const float x = xy.x();
-    const float y = xy.y();
-    if (rings) impl.CoverageRing(scene, view, scene.appliances()[a].world_point, seen[a], x, y);
+  for (const auto& [a, pixel] : placed) {
+    const float x = static_cast<float>(pixel.x()) + 0.5f;
+    const float y = static_cast<float>(pixel.y()) + 0.5f;
+    if (rings) impl.CoverageRing(scene, view, scene.appliances()[a].world_point, pixel, seen[a]);
     std::vector<Eigen::Vector2f> marker = {{x, y - r}, {x + r, y}, {x, y + r},
                                            {x, y - r}, {x, y + r}, {x - r, y}};
     impl.Triangles2D(marker, Eigen::Vector4f(1.0f, 0.9f, 0.1f, 1.0f));

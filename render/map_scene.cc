@@ -5,6 +5,7 @@
 #include <unordered_map>
 
 #include "core/check.h"
+#include "core/rotation.h"
 
 namespace sightmap::render {
 
@@ -118,12 +119,7 @@ bool MapUpdate::empty() const {
 MapScene::MapScene(const Eigen::Vector3d& world_up) : world_up_(world_up) {
   SIGHTMAP_CHECK(world_up.norm() > 0.5, "world_up must be a non-zero direction");
   world_up_.normalize();
-  // The world axis least along up, made level.
-  Eigen::Index least = 0;
-  world_up_.cwiseAbs().minCoeff(&least);
-  const Eigen::Vector3d axis = Eigen::Vector3d::Unit(least);
-  floor_x_ = (axis - axis.dot(world_up_) * world_up_).normalized();
-  floor_y_ = world_up_.cross(floor_x_);
+  FloorAxes(world_up_, &floor_x_, &floor_y_);
 }
 
 bool SectorOptions::Check(std::string* error) const {
@@ -154,11 +150,9 @@ std::vector<uint64_t> MapScene::SeenSectors(const SectorOptions& options) const 
     }
     const Eigen::Vector3d offset = keyframe->second.world_from_cam.translation() -
                                    appliances_[static_cast<size_t>(sighting.appliance)].world_point;
-    const Eigen::Vector3d level = offset - offset.dot(world_up_) * world_up_;
     const double distance = offset.norm();
     if (distance < options.min_distance_m || distance > options.max_distance_m) continue;
-    double bearing = std::atan2(level.dot(floor_y_), level.dot(floor_x_)) * 180.0 / M_PI;
-    if (bearing < 0.0) bearing += 360.0;
+    const double bearing = FloorBearingDeg(offset, floor_x_, floor_y_);
     const int sector =
         std::min(options.sectors - 1, static_cast<int>(bearing * options.sectors / 360.0));
     seen[static_cast<size_t>(sighting.appliance)] |= uint64_t{1} << sector;

@@ -71,9 +71,9 @@ struct LabelSighting {
 };
 
 // Directions around an appliance in the floor plane: `sectors` equal sectors, bearing 0 along the
-// floor's first axis (FloorAxes), counted towards its second. A sighting counts for the sector its
-// keyframe stands in when min_distance_m to max_distance_m from the appliance (as
-// identify::CoverageOptions counts them) [m].
+// floor's first axis (core's FloorAxes of the scene's world_up), counted towards its second. A
+// sighting counts for the sector its keyframe stands in when min_distance_m to max_distance_m from
+// the appliance (as identify::CoverageOptions counts them) [m].
 struct SectorOptions {
   int sectors = 12;
   double min_distance_m = 1.0;
