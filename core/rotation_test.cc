@@ -42,6 +42,16 @@ TEST(MotionWithin, BoundsTheMoveAndTheTurnBothInclusive) {
   EXPECT_FALSE(MotionWithin(motion, 1e9, 180.0));
 }
 
+// Bearings run from e1 towards e2 in [0, 360); the height along up plays no part.
+TEST(FloorBearingDeg, FromTheFirstAxisTowardsTheSecond) {
+  Eigen::Vector3d e1, e2;
+  FloorAxes(Eigen::Vector3d::UnitZ(), &e1, &e2);
+  EXPECT_NEAR(FloorBearingDeg(Eigen::Vector3d(2, 0, 5), e1, e2), 0.0, 1e-12);
+  EXPECT_NEAR(FloorBearingDeg(Eigen::Vector3d(0, 1, -3), e1, e2), 90.0, 1e-12);
+  EXPECT_NEAR(FloorBearingDeg(Eigen::Vector3d(-1, -1, 0), e1, e2), 225.0, 1e-12);
+  EXPECT_NEAR(FloorBearingDeg(Eigen::Vector3d(1, -1e-9, 0), e1, e2), 360.0, 1e-6);
+}
+
 TEST(FloorAxes, WorldXOnTheFloorOrWorldYWhenXIsUp) {
   Eigen::Vector3d e1, e2;
   FloorAxes(Eigen::Vector3d::UnitZ(), &e1, &e2);
