@@ -484,13 +484,18 @@ PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>
   return prepared;
 }
 
+PreparedPhoto RootSiftSeed(const PreparedPhoto& orb) {
+  PreparedPhoto seed;
+  seed.full_candidates = orb.full_candidates;
+  seed.intrinsics_given = orb.intrinsics_given;
+  seed.detail_cells = orb.detail_cells;
+  seed.retrieval_descriptors = orb.retrieval_descriptors;
+  return seed;
+}
+
 PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
                             const LocatorOptions& options) {
-  PreparedPhoto prepared;
-  prepared.full_candidates = orb.full_candidates;
-  prepared.intrinsics_given = orb.intrinsics_given;
-  prepared.detail_cells = orb.detail_cells;
-  prepared.retrieval_descriptors = orb.retrieval_descriptors;
+  PreparedPhoto prepared = RootSiftSeed(orb);
   const cv::Mat grey = GreyAtMostOfSide(photo, options.sift_image_side_px);
   if (!UseFeatureImage(grey, &prepared)) return prepared;
   prepared.features = slam::ExtractFeatures(grey, cv::Mat(), prepared.feature_candidates.front(),

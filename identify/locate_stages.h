@@ -95,6 +95,11 @@ struct PreparedPhoto {
 // when unusable) and scaled to the photo when made for another size.
 PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                            const LocatorOptions& options);
+// What RootSiftPhoto takes from the ORB-prepared photo: its intrinsics candidates, detail cells
+// and ORB retrieval descriptors (a header sharing their data), without its features. Small
+// enough to hand another thread while the ORB search goes on with `orb`.
+PreparedPhoto RootSiftSeed(const PreparedPhoto& orb);
+
 // Stage 1 for the RootSIFT matcher: the same photo (`orb` is its PreparePhoto) matched with
 // RootSIFT at sift_image_side_px; intrinsics, detail cells and the ORB retrieval descriptors are
 // orb's.

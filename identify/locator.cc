@@ -377,17 +377,6 @@ Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeIn
                                            options.sift_image_side_px, options.sift_features);
 }
 
-// What RootSiftPhoto reads of the ORB-prepared photo, copied so that another thread can extract
-// while the ORB search goes on with the original.
-PreparedPhoto RootSiftSeed(const PreparedPhoto& orb) {
-  PreparedPhoto seed;
-  seed.full_candidates = orb.full_candidates;
-  seed.intrinsics_given = orb.intrinsics_given;
-  seed.detail_cells = orb.detail_cells;
-  seed.retrieval_descriptors = orb.retrieval_descriptors.clone();
-  return seed;
-}
-
 struct TimedSiftPhoto {
   PreparedPhoto photo;
   double ms = 0.0;  // the extraction's own time, on whichever thread ran it
