@@ -17,7 +17,7 @@ WriteStage::WriteStage(store::Model* model, MapViewFeed* view, int session_numbe
       tasks_(queue_capacity) {
   SIGHTMAP_CHECK(model_ != nullptr, "the write stage needs a model");
   SIGHTMAP_CHECK(session_number_ >= 1, "session numbers start at 1, not " << session_number_);
-  if (photo_features_) SIGHTMAP_CHECK_OPTIONS(photo_features_->features);
+  if (photo_features_) SIGHTMAP_CHECK_OPTIONS(*photo_features_);
   thread_ = std::thread([this] { Run(); });
 }
 

@@ -258,6 +258,19 @@ void InsertFeatures(sqlite3* db, const std::string& table, KeyframeId id,
   insert.Run();
 }
 
+// One keyframe's row of `table` ("features" or "photo_features"), when it has one; `what` names
+// it in errors.
+std::optional<Features> SelectFeatures(sqlite3* db, const std::string& table, KeyframeId id,
+                                       const std::string& what) {
+  Statement query(db,
+                  "SELECT count, keypoints, descriptor_type, descriptor_rows, descriptor_cols, "
+                  "descriptors, cam_points FROM " +
+                      table + " WHERE keyframe_id = ?");
+  query.Bind(1, id.value());
+  if (!query.Step()) return std::nullopt;
+  return ColumnFeatures(query, 0, what);
+}
+
 std::string FileDescription(const std::string& path) { return "'" + path + "'"; }
 
 bool IsMemoryPath(const std::string& path) { return path == ":memory:" || path.empty(); }
@@ -836,22 +849,16 @@ cv::Mat Model::LoadDepth(KeyframeId id) const {
 }
 
 Features Model::LoadFeatures(KeyframeId id) const {
-  Statement query(impl_->db,
-                  "SELECT count, keypoints, descriptor_type, descriptor_rows, descriptor_cols, "
-                  "descriptors, cam_points FROM features WHERE keyframe_id = ?");
-  query.Bind(1, id.value());
-  SIGHTMAP_CHECK(query.Step(), "keyframe " << id.value() << " has no features in model "
-                                           << FileDescription(impl_->path));
-  return ColumnFeatures(query, 0, "keyframe " + std::to_string(id.value()));
+  std::optional<Features> features =
+      SelectFeatures(impl_->db, "features", id, "keyframe " + std::to_string(id.value()));
+  SIGHTMAP_CHECK(features, "keyframe " << id.value() << " has no features in model "
+                                       << FileDescription(impl_->path));
+  return std::move(*features);
 }
 
 std::optional<Features> Model::LoadPhotoFeatures(KeyframeId id) const {
-  Statement query(impl_->db,
-                  "SELECT count, keypoints, descriptor_type, descriptor_rows, descriptor_cols, "
-                  "descriptors, cam_points FROM photo_features WHERE keyframe_id = ?");
-  query.Bind(1, id.value());
-  if (!query.Step()) return std::nullopt;
-  return ColumnFeatures(query, 0, "keyframe " + std::to_string(id.value()) + "'s photo features");
+  return SelectFeatures(impl_->db, "photo_features", id,
+                        "keyframe " + std::to_string(id.value()) + "'s photo features");
 }
 
 void Model::SetPhotoFeatures(KeyframeId id, const Features& features) {
