@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <queue>
 #include <unordered_map>
 #include <unordered_set>
 #include <utility>
@@ -269,6 +270,76 @@ void PoseGraph::SetEdgeActive(size_t index, bool active) {
 bool PoseGraph::EdgeActive(size_t index) const {
   SIGHTMAP_CHECK(index < edges_.size(), "edge index " << index << " is out of range");
   return active_[index];
+}
+
+std::optional<Matrix6d> PoseGraph::PathCovariance(
+    int64_t from, int64_t to, const std::function<Matrix6d(size_t edge)>& edge_covariance,
+    double lever_m) const {
+  SIGHTMAP_CHECK(HasPose(from) && HasPose(to),
+                 "PathCovariance between unknown poses " << from << " and " << to);
+  SIGHTMAP_CHECK(lever_m >= 0.0, "PathCovariance needs a lever >= 0, got " << lever_m);
+  if (from == to) return Matrix6d::Zero();
+  std::unordered_map<int64_t, std::vector<size_t>> adjacent;
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    if (!active_[e]) continue;
+    adjacent[edges_[e].from].push_back(e);
+    adjacent[edges_[e].to].push_back(e);
+  }
+  // Dijkstra on a scalar size of each edge's covariance; `via` is the edge a pose was reached by.
+  std::unordered_map<int64_t, Matrix6d> covariances;
+  std::unordered_map<int64_t, double> cost{{from, 0.0}};
+  std::unordered_map<int64_t, size_t> via;
+  using Entry = std::pair<double, int64_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
+  open.emplace(0.0, from);
+  while (!open.empty()) {
+    const auto [reached_cost, id] = open.top();
+    open.pop();
+    if (reached_cost > cost[id]) continue;
+    if (id == to) break;
+    for (const size_t e : adjacent[id]) {
+      const PoseGraphEdge& edge = edges_[e];
+      const int64_t next = edge.from == id ? edge.to : edge.from;
+      auto [it, inserted] = covariances.try_emplace(e);
+      if (inserted) it->second = edge_covariance(e);
+      const Matrix6d& covariance = it->second;
+      const double step = covariance.topLeftCorner<3, 3>().trace() +
+                          lever_m * lever_m * covariance.bottomRightCorner<3, 3>().trace();
+      const auto known = cost.find(next);
+      if (known != cost.end() && known->second <= reached_cost + step) continue;
+      cost[next] = reached_cost + step;
+      via[next] = e;
+      open.emplace(reached_cost + step, next);
+    }
+  }
+  if (!via.count(to)) return std::nullopt;
+  // Chained from `from` outwards: T_from_to = T_from_a T_a_b ...; an edge error r_ab in a's frame
+  // reaches `from`'s frame through the adjoint of T_from_a (translation first):
+  // [[R, [p]x R], [0, R]].
+  std::vector<size_t> path;
+  for (int64_t id = to; id != from;) {
+    const PoseGraphEdge& edge = edges_[via.at(id)];
+    path.push_back(via.at(id));
+    id = edge.from == id ? edge.to : edge.from;
+  }
+  std::reverse(path.begin(), path.end());
+  const Eigen::Isometry3d from_world = Pose(from).inverse();
+  Matrix6d total = Matrix6d::Zero();
+  for (const size_t e : path) {
+    const PoseGraphEdge& edge = edges_[e];
+    // The edge's error lives in its `from` pose's frame, whichever way the path runs through it.
+    const Eigen::Isometry3d from_edge = from_world * Pose(edge.from);
+    const Eigen::Matrix3d rotation = from_edge.linear();
+    const Eigen::Vector3d p = from_edge.translation();
+    Eigen::Matrix3d skew;
+    skew << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
+    Matrix6d adjoint = Matrix6d::Zero();
+    adjoint.topLeftCorner<3, 3>() = rotation;
+    adjoint.topRightCorner<3, 3>() = skew * rotation;
+    adjoint.bottomRightCorner<3, 3>() = rotation;
+    total += adjoint * covariances.at(e) * adjoint.transpose();
+  }
+  return 0.5 * (total + total.transpose());
 }
 
 const Eigen::Isometry3d& PoseGraph::Pose(int64_t id) const {

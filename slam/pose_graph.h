@@ -24,6 +24,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -155,6 +156,19 @@ class PoseGraph {
   bool EdgeActive(size_t index) const;  // throws when the index is out of range
   // r^T W r of an edge at the current poses, whether active or not.
   double EdgeChi2(size_t index) const;
+
+  // How well the graph knows pose `to` relative to pose `from`: the covariance of that relative
+  // pose (in an edge's parameterisation, r in `from`'s frame) chained along the path of active
+  // edges between them whose summed covariance is smallest, each edge's covariance being
+  // `edge_covariance(index)`; rotations are carried through the current poses, so a rotation's
+  // uncertainty far back becomes translation uncertainty at `to`. The path's choice weighs an
+  // edge's rotation variance by lever_m^2 against its translation variance. One path's covariance
+  // bounds the graph's marginal one from above (other paths only tighten it), at the cost of a
+  // Dijkstra search instead of a factorisation. nullopt when no active path joins them.
+  std::optional<Eigen::Matrix<double, 6, 6>> PathCovariance(
+      int64_t from, int64_t to,
+      const std::function<Eigen::Matrix<double, 6, 6>(size_t edge)>& edge_covariance,
+      double lever_m) const;
 
  private:
   struct Node {

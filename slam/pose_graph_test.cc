@@ -551,6 +551,75 @@ TEST(PoseGraph, InvalidInputThrows) {
   EXPECT_THROW(graph.Optimize(options), InvalidArgument);
 }
 
+// Covariance of the position of `to` (its origin moved by the relative pose's error r = (t, w)
+// applied on the left: t + w x p) from PathCovariance's covariance of r.
+Eigen::Matrix3d PositionCovariance(const Matrix6d& covariance, const Eigen::Vector3d& p) {
+  Eigen::Matrix<double, 3, 6> jacobian;
+  Eigen::Matrix3d skew;
+  skew << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
+  jacobian << Eigen::Matrix3d::Identity(), -skew;
+  return jacobian * covariance * jacobian.transpose();
+}
+
+Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad) {
+  Vector6d variances;
+  variances << Vector6d::Constant(sigma_m * sigma_m).head<3>(),
+      Vector6d::Constant(sigma_rad * sigma_rad).tail<3>();
+  return variances.asDiagonal();
+}
+
+// Five poses 1 m apart along x, joined by four odometry edges of sigma 0.1 m / 0.01 rad. An
+// edge's rotation error turns about the edge's `from` pose and swings the far end sideways by its
+// distance from there: the end's y and z variance is 4 x 0.1^2 + 0.01^2 x (4^2 + 3^2 + 2^2 + 1^2),
+// along the chain 4 x 0.1^2 only. Seen from the other end the levers are 3, 2, 1 and 0 m.
+TEST(PoseGraph, PathCovarianceChainsTheEdgesWithTheirLevers) {
+  PoseGraph graph;
+  for (int i = 0; i < 5; ++i) graph.AddPose(i, Translation(i));
+  for (int i = 0; i < 4; ++i)
+    graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), Matrix6d::Identity()));
+  const auto covariance = [](size_t) { return DiagonalCovariance(0.1, 0.01); };
+  const std::optional<Matrix6d> forward = graph.PathCovariance(0, 4, covariance, 1.0);
+  ASSERT_TRUE(forward);
+  const Eigen::Matrix3d end = PositionCovariance(*forward, Eigen::Vector3d(4.0, 0.0, 0.0));
+  EXPECT_NEAR(end(0, 0), 0.04, 1e-12);
+  EXPECT_NEAR(end(1, 1), 0.043, 1e-12);
+  EXPECT_NEAR(end(2, 2), 0.043, 1e-12);
+  EXPECT_NEAR((forward->bottomRightCorner<3, 3>().trace()), 3 * 4 * 1e-4, 1e-12);
+  const std::optional<Matrix6d> backward = graph.PathCovariance(4, 0, covariance, 1.0);
+  ASSERT_TRUE(backward);
+  const Eigen::Matrix3d start = PositionCovariance(*backward, Eigen::Vector3d(-4.0, 0.0, 0.0));
+  EXPECT_NEAR(start(0, 0), 0.04, 1e-12);
+  EXPECT_NEAR(start(1, 1), 0.0414, 1e-12);
+  EXPECT_NEAR(graph.PathCovariance(2, 2, covariance, 1.0)->norm(), 0.0, 0.0);
+}
+
+// A firm loop edge from 0 to 4 is the path taken; switched off, the chain again; a pose no
+// active edge reaches has no path.
+TEST(PoseGraph, PathCovarianceTakesTheFirmestActivePath) {
+  PoseGraph graph;
+  for (int i = 0; i < 6; ++i) graph.AddPose(i, Translation(i));
+  for (int i = 0; i < 4; ++i)
+    graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), Matrix6d::Identity()));
+  const size_t loop =
+      graph.AddEdge(MakeEdge(0, 4, Translation(4.0), Matrix6d::Identity(), LinkType::kLoopClosure));
+  const auto covariance = [&](size_t edge) {
+    return edge == loop ? DiagonalCovariance(0.01, 0.001) : DiagonalCovariance(0.1, 0.01);
+  };
+  EXPECT_NEAR(graph.PathCovariance(0, 4, covariance, 1.0)->trace(), 3e-4 + 3e-6, 1e-12);
+  // Through the loop and back one edge: 4 -> 3 costs one chain edge, not three.
+  const Eigen::Matrix3d three =
+      PositionCovariance(*graph.PathCovariance(0, 3, covariance, 1.0), Eigen::Vector3d(3, 0, 0));
+  EXPECT_NEAR(three(0, 0), 1e-4 + 1e-2, 1e-12);
+  graph.SetEdgeActive(loop, false);
+  EXPECT_NEAR(PositionCovariance(*graph.PathCovariance(0, 4, covariance, 1.0),
+                                 Eigen::Vector3d(4.0, 0.0, 0.0))
+                  .trace(),
+              3 * 0.04 + 2 * 0.003, 1e-12);
+  EXPECT_FALSE(graph.PathCovariance(0, 5, covariance, 1.0));
+  EXPECT_THROW(graph.PathCovariance(0, 9, covariance, 1.0), Error);
+  EXPECT_THROW(graph.PathCovariance(0, 4, covariance, -1.0), Error);
+}
+
 // 2,000 poses (4 laps of 500 around a 4 m circle) with 20 loops and a false one: the figures
 // for the issue (pose_graph_benchmark has the steadier ones). The time is printed, not asserted.
 TEST(PoseGraph, LargeGraphFigures) {
