@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
@@ -24,6 +25,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "core/check.h"
 #include "core/rotation.h"
@@ -452,14 +454,28 @@ void PrintFalseLoop(const RunResult& clean, const RunResult& injected, int at) {
       injected.largest_error.ate_rmse_m, clean.largest_error.ate_rmse_m);
 }
 
+// The options `sightmap map --config` reads, as far as SLAM goes: its "mapper" block and its
+// "tracking" block's "tracker".
+void ReadConfig(const std::string& path, MapperOptions* mapper, TrackerOptions* tracker) {
+  std::ifstream file(path);
+  SIGHTMAP_CHECK(file, "cannot read the config " << path);
+  nlohmann::json json;
+  try {
+    json = nlohmann::json::parse(file);
+    if (json.contains("mapper")) *mapper = json.at("mapper").get<MapperOptions>();
+    if (json.contains("tracking") && json.at("tracking").contains("tracker")) {
+      *tracker = json.at("tracking").at("tracker").get<TrackerOptions>();
+    }
+  } catch (const nlohmann::json::exception& error) {
+    SIGHTMAP_THROW(InvalidArgument, "the config " << path << " is not valid: " << error.what());
+  }
+}
+
 // --track: the walk tracked frame by frame, as `sightmap map` does (on one thread here, so the
 // times are the tracker's and the mapper's alone).
 int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOptions& options,
-                        bool false_loop, const std::string& trajectory_out) {
-  TrackerOptions tracker;
-  tracker.features = options.features;
-  tracker.registration = options.registration;
-  tracker.depth_downscale = options.depth_downscale;
+                        const TrackerOptions& tracker, bool false_loop,
+                        const std::string& trajectory_out) {
   sim::Simulator simulator(sim_options);
   std::printf("simulator office, %s, session %d, seed %llu, %lld frames at %g Hz, tracked\n",
               sim::ToString(sim_options.trajectory), sim_options.session,
@@ -512,7 +528,7 @@ int Main(int argc, char** argv) {
   bool overlap = false;
   double fps = 1.0;
   bool no_walk_check = false;
-  int local_loop_hops = MapperOptions().local_loop_hops;
+  int local_loop_hops = -1;
   int laps = 1;
   bool track = false;
   std::string trajectory_out;
@@ -542,6 +558,12 @@ int Main(int argc, char** argv) {
                "track every frame of the walk at --fps (rendered as it goes, not kept) and map the "
                "keyframes the tracker emits at 1 Hz and where the overlap runs out, as `sightmap "
                "map` does");
+  std::string config_path;
+  app.add_option("--config", config_path,
+                 "read the mapper's and the tracker's options from this JSON (`sightmap map "
+                 "--print-config`'s blocks \"mapper\" and \"tracking\".\"tracker\"; either may be "
+                 "missing)")
+      ->check(CLI::ExistingFile);
   app.add_option("--trajectory-out", trajectory_out,
                  "write the keyframes' final poses to FILE and their true poses to FILE.gt (TUM)");
   CLI11_PARSE(app, argc, argv);
@@ -555,9 +577,16 @@ int Main(int argc, char** argv) {
   sim::Simulator simulator(sim_options);
   const Intrinsics camera = simulator.options().camera;
   MapperOptions options;
+  TrackerOptions tracker;
+  tracker.features = options.features;
+  tracker.registration = options.registration;
+  tracker.depth_downscale = options.depth_downscale;
+  if (!config_path.empty()) ReadConfig(config_path, &options, &tracker);
   if (no_walk_check) options.walk_max_gap_s = 0.0;
-  options.local_loop_hops = local_loop_hops;
-  if (track) return RunTrackedBenchmark(sim_options, options, false_loop, trajectory_out);
+  if (local_loop_hops >= 0) options.local_loop_hops = local_loop_hops;
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK_OPTIONS(tracker);
+  if (track) return RunTrackedBenchmark(sim_options, options, tracker, false_loop, trajectory_out);
   std::vector<Frame> frames;
   const auto render_start = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < simulator.num_frames(); ++i) {
