@@ -250,6 +250,49 @@ DenseAlignment DenseAligner::Align(Frame& source, Frame& target,
   return result;
 }
 
+DenseFit DenseAligner::Fit(Frame& source, Frame& target,
+                           const Eigen::Isometry3d& target_from_source) const {
+  const Intrinsics& small = impl_->small;
+  const cv::rgbd::OdometryFrame& source_frame = *source.get();
+  const cv::rgbd::OdometryFrame& target_frame = *target.get();
+  DenseFit fit;
+  int landed = 0;
+  double squared = 0.0;
+  double intensity_squared = 0.0;
+  const int stride = options_.information_stride_px;
+  for (int row = 0; row < source_frame.depth.rows; row += stride) {
+    for (int col = 0; col < source_frame.depth.cols; col += stride) {
+      const float z = source_frame.depth.at<float>(row, col);
+      if (!std::isfinite(z)) continue;
+      const Eigen::Vector3d moved = target_from_source * small.Unproject(col, row, z);
+      if (!(moved.z() > 0.0)) continue;
+      const Eigen::Vector2d pixel = small.Project(moved);
+      const int u = static_cast<int>(std::lround(pixel.x()));
+      const int v = static_cast<int>(std::lround(pixel.y()));
+      if (u < 0 || v < 0 || u >= target_frame.depth.cols || v >= target_frame.depth.rows) continue;
+      ++landed;
+      const float target_z = target_frame.depth.at<float>(v, u);
+      if (!std::isfinite(target_z)) continue;
+      const Eigen::Vector3d offset = moved - small.Unproject(u, v, target_z);
+      if (offset.norm() > options_.max_pair_distance_m) continue;
+      const double sigma = options_.depth_noise_coeff * target_z * target_z;
+      // Along the line of sight: the target's normal is not needed to compare two poses.
+      const double residual = offset.dot(moved.normalized()) / sigma;
+      squared += residual * residual;
+      const double difference = static_cast<double>(source_frame.image.at<uint8_t>(row, col)) -
+                                static_cast<double>(target_frame.image.at<uint8_t>(v, u));
+      intensity_squared += difference * difference;
+      ++fit.pairs;
+    }
+  }
+  fit.pair_fraction = landed > 0 ? static_cast<double>(fit.pairs) / landed : 0.0;
+  if (fit.pairs > 0) {
+    fit.normalised_rms = std::sqrt(squared / fit.pairs);
+    fit.intensity_rms = std::sqrt(intensity_squared / fit.pairs);
+  }
+  return fit;
+}
+
 SIGHTMAP_OPTIONS_JSON(DenseAlignmentOptions, downscale, iterations_per_level, min_depth_m,
                       max_depth_m, information_stride_px, max_pair_distance_m, depth_noise_coeff,
                       min_pairs)

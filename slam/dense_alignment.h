@@ -103,6 +103,17 @@ struct DenseAlignment {
   double normalised_rms = 0.0;
 };
 
+// How well two frames agree at a given pose, over the source pixels (every
+// information_stride_px-th) that land within max_pair_distance_m of the target's surface.
+struct DenseFit {
+  int pairs = 0;
+  double pair_fraction = 0.0;   // as DenseAlignment's
+  double normalised_rms = 0.0;  // as DenseAlignment's
+  // RMS difference of the paired pixels' grey levels [8-bit levels]: what tells a pose that slid
+  // along a textured surface from the right one, which point-to-plane distances cannot.
+  double intensity_rms = 0.0;
+};
+
 // Aligns frames of one camera. Holds OpenCV's odometry object, whose normal estimator costs more
 // to set up for an image size than an alignment does, so one aligner serves a whole map. Not
 // thread-safe (OpenCV caches the estimator inside): one aligner per thread.
@@ -126,6 +137,9 @@ class DenseAligner {
   DenseAlignment Align(const DenseImage& source, const DenseImage& target,
                        const Eigen::Isometry3d& initial) const;
   DenseAlignment Align(Frame& source, Frame& target, const Eigen::Isometry3d& initial) const;
+
+  // The agreement of `source` and `target` at `target_from_source`, without moving it.
+  DenseFit Fit(Frame& source, Frame& target, const Eigen::Isometry3d& target_from_source) const;
 
   const DenseAlignmentOptions& options() const { return options_; }
 

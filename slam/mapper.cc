@@ -61,6 +61,21 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
   return FlooredInformation(information, options.link_min_sigma_m, options.link_min_sigma_rad);
 }
 
+Eigen::Matrix<double, 6, 6> Diagonal6(double sigma_m, double sigma_rad) {
+  Eigen::Matrix<double, 6, 1> variances;
+  variances.head<3>().setConstant(sigma_m * sigma_m);
+  variances.tail<3>().setConstant(sigma_rad * sigma_rad);
+  return variances.asDiagonal();
+}
+
+// A link's covariance from its information (singular directions lifted by a tiny ridge, which
+// leaves them free for all practical purposes).
+Eigen::Matrix<double, 6, 6> CovarianceOf(const Eigen::Matrix<double, 6, 6>& information) {
+  const Eigen::Matrix<double, 6, 6> covariance =
+      (information + 1e-9 * Eigen::Matrix<double, 6, 6>::Identity()).inverse();
+  return 0.5 * (covariance + covariance.transpose());
+}
+
 // Features handed in (restored or tracked) must be one consistent set.
 void CheckFeatures(const Features& features, const char* what) {
   // The mapper registers by points: every keypoint has its slot, even where there is no depth.
@@ -98,6 +113,13 @@ bool MapperOptions::Check(std::string* error) const {
   if (loop_min_inliers < 0) return fail("loop_min_inliers must not be negative");
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
+  if (!(loop_max_graph_chi2 >= 0.0) || !(loop_check_link_sigma_m >= 0.0) ||
+      !(loop_check_link_sigma_rad >= 0.0) || !(loop_check_lever_m >= 0.0) ||
+      !(loop_check_slack_m >= 0.0) || !(loop_check_slack_rad >= 0.0)) {
+    return fail(
+        "loop_max_graph_chi2 and the loop_check_* sigmas, lever and slacks must not be "
+        "negative");
+  }
   if (proximity_candidates < 0 || proximity_min_inliers < 0) {
     return fail("proximity_candidates and proximity_min_inliers must not be negative");
   }
@@ -124,6 +146,12 @@ bool MapperOptions::Check(std::string* error) const {
   if (!dense.Check(error)) return false;
   if (!(dense_max_correction_m > 0.0) || !(dense_max_correction_deg > 0.0)) {
     return fail("dense_max_correction_m and dense_max_correction_deg must be positive");
+  }
+  if (!(dense_fit_max_correction_m >= 0.0) || !(dense_fit_max_correction_deg >= 0.0) ||
+      !(dense_fit_max_rms_ratio > 0.0) || !(dense_fit_max_intensity_ratio > 0.0)) {
+    return fail(
+        "dense_fit_max_correction_* must not be negative and the dense_fit_*_ratio "
+        "must be positive");
   }
   if (!(dense_link_min_sigma_m > 0.0) || !(dense_link_min_sigma_rad > 0.0)) {
     return fail("dense_link_min_sigma_m and dense_link_min_sigma_rad must be positive");
@@ -229,7 +257,8 @@ RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& targ
   if (!result.success) return result;
   result.information = FlooredInformation(result.information, options_);
   const bool refined =
-      RefineDensely(source, target, &result.target_from_source, &result.information, times);
+      RefineDensely(source, target, &result.target_from_source, &result.information, times,
+                    /*odometry=*/!require_dense);
   if (require_dense && !refined && source.HasDense() && target.HasDense()) {
     result.success = false;
     result.failure = "dense alignment does not confirm the features' pose";
@@ -268,23 +297,36 @@ void Mapper::PackOldDenseImages() {
 
 bool Mapper::RefineDensely(const Keyframe& source, const Keyframe& target,
                            Eigen::Isometry3d* target_from_source,
-                           Eigen::Matrix<double, 6, 6>* information,
-                           MapperStageTimes* times) const {
+                           Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times,
+                           bool odometry) const {
   if (!aligner_ || !source.HasDense() || !target.HasDense()) return false;
   const Clock::time_point start = Clock::now();
-  const DenseAlignment aligned =
-      aligner_->Align(*Prepared(source), *Prepared(target), *target_from_source);
-  times->dense_s += SecondsSince(start);
-  if (!aligned.success) return false;
-  const Eigen::Isometry3d correction = target_from_source->inverse() * aligned.target_from_source;
-  if (!MotionWithin(correction, options_.dense_max_correction_m,
-                    options_.dense_max_correction_deg)) {
-    return false;
+  const std::shared_ptr<DenseAligner::Frame> source_frame = Prepared(source);
+  const std::shared_ptr<DenseAligner::Frame> target_frame = Prepared(target);
+  const DenseAlignment aligned = aligner_->Align(*source_frame, *target_frame, *target_from_source);
+  bool accepted = false;
+  if (aligned.success) {
+    const Eigen::Isometry3d correction = target_from_source->inverse() * aligned.target_from_source;
+    accepted = MotionWithin(correction, options_.dense_max_correction_m,
+                            options_.dense_max_correction_deg) ||
+               (odometry &&
+                MotionWithin(correction, options_.dense_fit_max_correction_m,
+                             options_.dense_fit_max_correction_deg) &&
+                FitsBetter(aligner_->Fit(*source_frame, *target_frame, aligned.target_from_source),
+                           aligner_->Fit(*source_frame, *target_frame, *target_from_source)));
   }
+  times->dense_s += SecondsSince(start);
+  if (!accepted) return false;
   *target_from_source = aligned.target_from_source;
   *information = FlooredInformation(aligned.information, options_.dense_link_min_sigma_m,
                                     options_.dense_link_min_sigma_rad);
   return true;
+}
+
+bool Mapper::FitsBetter(const DenseFit& refined, const DenseFit& start) const {
+  return refined.pair_fraction >= start.pair_fraction &&
+         refined.normalised_rms <= options_.dense_fit_max_rms_ratio * start.normalised_rms &&
+         refined.intensity_rms <= options_.dense_fit_max_intensity_ratio * start.intensity_rms;
 }
 
 void Mapper::AddLink(const MapperLink& link, KeyframeReport* report) {
@@ -437,7 +479,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
     if (tracked_motion->source == MotionSource::kRegistered && !keyframes_.empty()) {
       motion_refined =
           RefineDensely(keyframe, keyframes_.back(), &refined_motion->previous_from_cam,
-                        &refined_motion->information, &report->times);
+                        &refined_motion->information, &report->times, /*odometry=*/true);
     }
   }
   const KeyframeMotion* motion = refined_motion ? &*refined_motion : nullptr;
@@ -642,6 +684,32 @@ void Mapper::IndexKeyframe(Keyframe& keyframe) {
   keyframe.indexed = true;
 }
 
+double Mapper::LoopChi2(const MapperLink& loop) const {
+  const Eigen::Matrix<double, 6, 6> floor =
+      Diagonal6(options_.loop_check_link_sigma_m, options_.loop_check_link_sigma_rad);
+  const std::optional<Eigen::Matrix<double, 6, 6>> path = graph_.PathCovariance(
+      loop.from, loop.to,
+      [&](size_t edge) { return CovarianceOf(graph_.Edges()[edge].information) + floor; },
+      options_.loop_check_lever_m);
+  if (!path) return 0.0;  // nothing ties them: the graph has no opinion
+  // The loop's pose against the graph's, as a left error in `from`'s frame (an edge's r).
+  const Eigen::Isometry3d graph_to_in_from =
+      graph_.Pose(loop.from).inverse() * graph_.Pose(loop.to);
+  const Eigen::Isometry3d delta = loop.to_in_from * graph_to_in_from.inverse();
+  const Eigen::AngleAxisd turn(delta.linear());
+  Eigen::Matrix<double, 6, 1> error;
+  error.head<3>() = delta.translation();
+  error.tail<3>() = turn.angle() * turn.axis();
+  const Eigen::Matrix<double, 6, 6> covariance =
+      *path + CovarianceOf(loop.information) +
+      Diagonal6(options_.loop_check_slack_m, options_.loop_check_slack_rad);
+  return error.dot(covariance.ldlt().solve(error));
+}
+
+bool Mapper::LoopFitsTheGraph(const MapperLink& loop) const {
+  return !(options_.loop_max_graph_chi2 > 0.0) || LoopChi2(loop) <= options_.loop_max_graph_chi2;
+}
+
 bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
   Clock::time_point start = Clock::now();
   keyframe.bow = vocabulary_->Transform(keyframe.features.descriptors);
@@ -676,6 +744,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
     if (!result.success || result.inliers < options_.loop_min_inliers) continue;
     MapperLink link = RegisteredLink(target.id, keyframe.id, result, LinkType::kLoopClosure);
     const int target_root = Root(target.segment);
+    if (target_root == root && !LoopFitsTheGraph(link)) continue;
     if (target_root != root) {
       link.type = LinkType::kRelocalisation;
       // The older segment keeps its frame; the newer one moves into it.
@@ -848,19 +917,20 @@ void Mapper::TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* r
   report->optimised = true;
 }
 
-SIGHTMAP_OPTIONS_JSON(MapperOptions, features, registration, odometry_window, extra_odometry_links,
-                      extra_link_max_disagreement_m, extra_link_max_disagreement_deg,
-                      blind_link_max_deviation_mps, blind_link_max_deviation_dps,
-                      blind_link_slack_m, blind_link_slack_deg, depth_downscale, vocabulary,
-                      vocabulary_training_keyframes, loop_exclude_recent, loop_candidates,
-                      loop_min_relative_score, loop_min_inliers, loop_min_spacing,
-                      proximity_candidates, proximity_radius_m, proximity_max_angle_deg,
-                      proximity_min_inliers, proximity_max_disagreement_m,
-                      proximity_max_disagreement_deg, local_loop_hops,
-                      local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m,
-                      join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
-                      walk_slack_m, walk_slack_deg, walk_max_gap_s, link_min_sigma_m,
-                      link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m,
-                      dense_max_correction_deg, dense_link_min_sigma_m, dense_link_min_sigma_rad)
+SIGHTMAP_OPTIONS_JSON(
+    MapperOptions, features, registration, odometry_window, extra_odometry_links,
+    extra_link_max_disagreement_m, extra_link_max_disagreement_deg, blind_link_max_deviation_mps,
+    blind_link_max_deviation_dps, blind_link_slack_m, blind_link_slack_deg, depth_downscale,
+    vocabulary, vocabulary_training_keyframes, loop_exclude_recent, loop_candidates,
+    loop_min_relative_score, loop_min_inliers, loop_min_spacing, proximity_candidates,
+    proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
+    proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
+    local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m, join_max_disagreement_rad,
+    walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s,
+    loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m,
+    loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad,
+    dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
+    dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
+    dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
 
 }  // namespace sightmap::slam

@@ -131,6 +131,21 @@ struct MapperOptions {
   double walk_slack_m = 0.5;             // added to the bound whatever the gap [m]
   double walk_slack_deg = 20.0;          // [deg]
   double walk_max_gap_s = 10.0;          // [s]
+  // A loop within one part must agree with where the pose graph puts its keyframe, within the
+  // graph's own uncertainty between the two keyframes: the chi-square of the disagreement (6 dof)
+  // against the covariance chained along the firmest path of links between them (PoseGraph::
+  // PathCovariance; each link's covariance plus loop_check_link_sigma_*, since registered links
+  // claim millimetres and their errors are not independent) plus the loop's own and the slack,
+  // at most loop_max_graph_chi2. Without it, loops onto an identical room 10-23 m away passed
+  // graphs held loosely by motion-model links (1 Hz walks, seeds 1 and 5, chi-square 60 and 94
+  // here), while right loops that turn a keyframe back by 150 degrees after a blind stretch score
+  // up to 120: the limit trades some of those for the look-alikes. 0: no check [m], [rad], [m].
+  double loop_max_graph_chi2 = 50.0;
+  double loop_check_link_sigma_m = 0.02;
+  double loop_check_link_sigma_rad = 0.01;
+  double loop_check_lever_m = 3.0;  // weighs rotation against translation in the path's choice
+  double loop_check_slack_m = 0.25;
+  double loop_check_slack_rad = 0.0;
   // Registration's information matrix assumes independent depth errors and so claims sub-millimetre
   // precision from a few hundred inliers; systematic errors (depth bias, calibration) do not shrink
   // with the inlier count. This floor is added to every link's covariance so the pose graph weighs
@@ -149,6 +164,19 @@ struct MapperOptions {
   DenseAlignmentOptions dense;
   double dense_max_correction_m = 0.05;
   double dense_max_correction_deg = 2.0;
+  // An odometry link's refinement may move it up to dense_fit_max_correction_* when the frames
+  // agree better there than at the features' pose (DenseAligner::Fit): at least the share of
+  // paired pixels, depth residuals (RMS, in units of the depth noise) at most
+  // dense_fit_max_rms_ratio x those at the start, and grey levels differing by at most
+  // dense_fit_max_intensity_ratio x as much. Repeated texture (radiator fins, tiled plant boxes,
+  // window grids) puts features 5-14 cm and 1-3 degrees off where dense alignment finds the right
+  // pose (robot walk, seed 11: the depth residuals fall to 0.73-0.87 x those at the features'
+  // pose); a slide along a bare wall fits no better and is still refused. Places keep the plain
+  // bound [m], [deg].
+  double dense_fit_max_correction_m = 0.15;
+  double dense_fit_max_correction_deg = 4.0;
+  double dense_fit_max_rms_ratio = 0.9;
+  double dense_fit_max_intensity_ratio = 1.1;
   // The floor of a refined link's covariance, as link_min_sigma_* for the features' links: refined
   // links err by about 2 mm against the simulator's ground truth [m], [rad].
   double dense_link_min_sigma_m = 0.003;
@@ -278,6 +306,11 @@ class Mapper {
   Eigen::Isometry3d WorldFromCam(int64_t id) const;
   int SegmentOf(int64_t id) const;
   const std::vector<MapperLink>& Links() const { return links_; }
+  // The chi-square of a loop's disagreement with where the graph puts its `to` keyframe relative
+  // to its `from` (both of one part), against the graph's uncertainty between them
+  // (MapperOptions::loop_max_graph_chi2 says how it is made); 0 when no link joins them. Throws
+  // when either keyframe is unknown.
+  double LoopChi2(const MapperLink& loop) const;
   const Features& FeaturesOf(int64_t id) const;
 
  private:
@@ -332,11 +365,18 @@ class Mapper {
   // Refines `target_from_source` and replaces `information` (floored) by dense alignment from
   // it; false, leaving both as they were, when either keyframe has no dense image or the
   // alignment failed or moved the pose beyond dense_max_correction_*.
+  // With `odometry`, a larger correction the frames fit better at is taken too
+  // (MapperOptions::dense_fit_*).
   bool RefineDensely(const Keyframe& source, const Keyframe& target,
                      Eigen::Isometry3d* target_from_source,
-                     Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times) const;
+                     Eigen::Matrix<double, 6, 6>* information, MapperStageTimes* times,
+                     bool odometry) const;
+  // Whether the frames agree better at the refined pose than at the start (dense_fit_*).
+  bool FitsBetter(const DenseFit& refined, const DenseFit& start) const;
   void TrainVocabulary(MapperStageTimes* times);
   void IndexKeyframe(Keyframe& keyframe);
+  // Whether a loop's disagreement with the graph is within MapperOptions::loop_max_graph_chi2.
+  bool LoopFitsTheGraph(const MapperLink& loop) const;
   // Looks up `keyframe` for loop closures (same segment) or relocalisation (other segments);
   // true when it joined two segments.
   bool SearchPlaces(Keyframe& keyframe, KeyframeReport* report);

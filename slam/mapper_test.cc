@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,7 @@
 #include "core/statistics.h"
 #include "sim/simulator.h"
 #include "slam/sim_walk_testing.h"
+#include "slam/tracker.h"
 #include "slam/trajectory_eval.h"
 
 namespace sightmap::slam {
@@ -183,14 +186,12 @@ double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
 // it on its motion model 0.2 s blind, with a prediction `prediction_error_m` off sideways. The
 // mapper still registers it to keyframe 10; returns whether that link was kept, and the error of
 // the keyframe's pose relative to keyframe 11 [m].
-bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
+// Frames 0-12 of the walk as the tracker emits them, every frame a keyframe.
+std::vector<TrackedKeyframe> TrackedKeyframes0To12() {
   const Walk& walk = HandheldWalk();
   TrackerOptions tracker_options;
   tracker_options.keyframe_rate_hz = 0.0;  // every frame a keyframe
   Tracker tracker(walk.camera, tracker_options);
-  MapperOptions options = SmallVocabulary();
-  options.vocabulary_training_keyframes = 1000;  // links only
-  Mapper mapper(walk.camera, options);
   std::vector<TrackedKeyframe> keyframes;
   for (size_t i = 0; i <= 12; ++i) {
     for (TrackedKeyframe& keyframe : tracker.Track(walk.frames[i]).keyframes) {
@@ -198,6 +199,15 @@ bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
     }
   }
   SIGHTMAP_CHECK(keyframes.size() == 13, "the tracker makes every frame a keyframe");
+  return keyframes;
+}
+
+bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
+  const Walk& walk = HandheldWalk();
+  MapperOptions options = SmallVocabulary();
+  options.vocabulary_training_keyframes = 1000;  // links only
+  Mapper mapper(walk.camera, options);
+  std::vector<TrackedKeyframe> keyframes = TrackedKeyframes0To12();
   const Eigen::Isometry3d true_11_from_12 =
       walk.frames[11].world_from_cam_gt->inverse() * *walk.frames[12].world_from_cam_gt;
   KeyframeMotion& motion = *keyframes[12].motion;
@@ -223,6 +233,113 @@ TEST(Mapper, ABlindKeyframeKeepsOnlyLinksAWalkerCouldMake) {
   double far_error_m = 0.0;
   EXPECT_FALSE(KeepsABlindKeyframesLink(0.6, &far_error_m));
   EXPECT_NEAR(far_error_m, 0.6, 0.03);
+}
+
+// Keyframes 0-12 of the walk as the tracker emits them, keyframe 12's registered motion put
+// `offset` off (as repeated texture puts features: a radiator's fins, a tiled box). Returns the
+// error of the mapper's link 11 -> 12 against the truth [m].
+double ErrorOfAMotionPutOff(const Eigen::Isometry3d& offset, const MapperOptions& options) {
+  const Walk& walk = HandheldWalk();
+  Mapper mapper(walk.camera, options);
+  std::vector<TrackedKeyframe> keyframes = TrackedKeyframes0To12();
+  const Eigen::Isometry3d true_11_from_12 =
+      walk.frames[11].world_from_cam_gt->inverse() * *walk.frames[12].world_from_cam_gt;
+  KeyframeMotion& motion = *keyframes[12].motion;
+  SIGHTMAP_CHECK(motion.source == MotionSource::kRegistered, "keyframe 12 registers");
+  motion.previous_from_cam = offset * true_11_from_12;
+  for (TrackedKeyframe& keyframe : keyframes) mapper.AddTrackedKeyframe(std::move(keyframe));
+  for (const MapperLink& link : mapper.Links()) {
+    if (link.from == 11 && link.to == 12) {
+      return (true_11_from_12.inverse() * link.to_in_from).translation().norm();
+    }
+  }
+  ADD_FAILURE() << "no link 11 -> 12";
+  return 1.0;
+}
+
+TEST(Mapper, ARefinementTheFramesFitBetterCorrectsAMotionCentimetresOff) {
+  // 8 cm sideways and 1.5 degrees: beyond the plain bound (5 cm), within the fit's (15 cm).
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.linear() = Eigen::AngleAxisd(1.5 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  offset.translation() = Eigen::Vector3d(0.08, 0.0, 0.0);
+  MapperOptions options = SmallVocabulary();
+  options.vocabulary_training_keyframes = 1000;  // links only
+  const double fitted_m = ErrorOfAMotionPutOff(offset, options);
+  options.dense_fit_max_correction_m = 0.0;  // the plain bound alone
+  const double bounded_m = ErrorOfAMotionPutOff(offset, options);
+  std::printf("link 11 -> 12 put 8 cm off: %.4f m with the fit, %.4f m with the plain bound\n",
+              fitted_m, bounded_m);
+  EXPECT_LT(fitted_m, 0.01);
+  EXPECT_GT(bounded_m, 0.07);
+}
+
+// The walk's keyframes as the tracker emits them (every frame), linked by their motions only;
+// with `blind`, keyframes 10-29 as if the motion model had placed each after a second blind.
+std::unique_ptr<Mapper> ChainedWalk(bool blind) {
+  const Walk& walk = HandheldWalk();
+  TrackerOptions tracker_options;
+  tracker_options.keyframe_rate_hz = 0.0;
+  Tracker tracker(walk.camera, tracker_options);
+  MapperOptions options = SmallVocabulary();
+  options.vocabulary_training_keyframes = 1000;  // no loops of its own
+  options.odometry_window = 1;                   // the motion the only link
+  auto mapper = std::make_unique<Mapper>(walk.camera, options);
+  for (const RgbdFrame& frame : walk.frames) {
+    for (TrackedKeyframe& keyframe : tracker.Track(frame).keyframes) {
+      const auto id = static_cast<int64_t>(mapper->NumKeyframes());
+      if (blind && keyframe.motion && id >= 10 && id < 30) {
+        keyframe.motion->source = MotionSource::kPrior;
+        keyframe.motion->blind_s = 1.0;
+        // The tracker's prior after a blind second: 0.32 m and 0.62 rad (TrackerOptions::prior_*).
+        Eigen::Matrix<double, 6, 1> variances;
+        variances << Eigen::Vector3d::Constant(0.32 * 0.32), Eigen::Vector3d::Constant(0.62 * 0.62);
+        keyframe.motion->information = variances.cwiseInverse().asDiagonal();
+      }
+      mapper->AddTrackedKeyframe(std::move(keyframe));
+    }
+  }
+  return mapper;
+}
+
+// A loop from keyframe 0 to keyframe 40 (`offset` from where the graph has it, in keyframe 0's
+// frame), measured to a centimetre.
+MapperLink LoopOffTheGraph(const Mapper& mapper, const Eigen::Vector3d& offset) {
+  MapperLink loop;
+  loop.from = 0;
+  loop.to = 40;
+  loop.type = LinkType::kLoopClosure;
+  loop.to_in_from =
+      Eigen::Translation3d(offset) * (mapper.WorldFromCam(0).inverse() * mapper.WorldFromCam(40));
+  loop.information = 1e4 * Eigen::Matrix<double, 6, 6>::Identity();
+  return loop;
+}
+
+// A graph of registered links knows keyframe 40 relative to 0 to a few centimetres: a loop 3 or
+// 10 m off matched a look-alike place, one 10 cm off is drift. The same walk hung on motion-model
+// links for 20 seconds knows it only to metres, and a loop that far off may be the revisit.
+TEST(Mapper, ALoopIsCheckedAgainstHowWellTheGraphKnowsItsEnds) {
+  const std::unique_ptr<Mapper> registered_walk = ChainedWalk(false);
+  const Mapper& registered = *registered_walk;
+  ASSERT_GE(registered.NumKeyframes(), 41u);
+  EXPECT_EQ(registered.NumPriorLinks(), 0);
+  const double agrees = registered.LoopChi2(LoopOffTheGraph(registered, Eigen::Vector3d::Zero()));
+  const double drift = registered.LoopChi2(LoopOffTheGraph(registered, {0.1, 0.0, 0.0}));
+  const double far = registered.LoopChi2(LoopOffTheGraph(registered, {3.0, 0.0, 0.0}));
+  const double next_room = registered.LoopChi2(LoopOffTheGraph(registered, {10.0, 0.0, 0.0}));
+  const std::unique_ptr<Mapper> blind_walk = ChainedWalk(true);
+  const Mapper& blind = *blind_walk;
+  EXPECT_EQ(blind.NumPriorLinks(), 20);
+  const double far_blind = blind.LoopChi2(LoopOffTheGraph(blind, {3.0, 0.0, 0.0}));
+  std::printf(
+      "loop 0 -> 40 chi-square: on the graph %.2f, 10 cm off %.2f, 3 m off %.1f, 10 m off "
+      "%.0f; 3 m off after 20 blind seconds %.2f\n",
+      agrees, drift, far, next_room, far_blind);
+  const double limit = MapperOptions().loop_max_graph_chi2;
+  EXPECT_LT(agrees, 1e-6);
+  EXPECT_LT(drift, 1.0);
+  EXPECT_GT(far, limit);
+  EXPECT_GT(next_room, 10.0 * limit);
+  EXPECT_LT(far_blind, 0.2 * limit);
 }
 
 TEST(Mapper, DenseRefinementMakesTheOdometryLinksMillimetreAccurate) {
