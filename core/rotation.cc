@@ -20,6 +20,12 @@ bool MotionWithin(const Eigen::Isometry3d& motion, double max_m, double max_deg)
   return motion.translation().norm() <= max_m && RotationAngleDeg(motion) <= max_deg;
 }
 
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
 Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
   Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
   rigid.linear() = Eigen::Quaterniond(pose.linear()).normalized().toRotationMatrix();

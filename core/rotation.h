@@ -14,6 +14,9 @@ double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 // The angle of a rigid motion's rotation [deg, 0-180].
 double RotationAngleDeg(const Eigen::Isometry3d& motion);
 
+// The cross-product matrix [v]x, for which [v]x w = v x w.
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v);
+
 // Whether a rigid motion (a step, or the difference between two poses) moves at most max_m and
 // turns at most max_deg: the bound every motion and disagreement check applies, usually a rate
 // times a time plus a slack. False for a motion that is not finite.

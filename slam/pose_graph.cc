@@ -19,6 +19,7 @@
 #include "core/check.h"
 #include "core/link_type.h"
 #include "core/options_json.h"
+#include "core/rotation.h"
 
 namespace sightmap::slam {
 
@@ -330,12 +331,9 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     // The edge's error lives in its `from` pose's frame, whichever way the path runs through it.
     const Eigen::Isometry3d from_edge = from_world * Pose(edge.from);
     const Eigen::Matrix3d rotation = from_edge.linear();
-    const Eigen::Vector3d p = from_edge.translation();
-    Eigen::Matrix3d skew;
-    skew << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
     Matrix6d adjoint = Matrix6d::Zero();
     adjoint.topLeftCorner<3, 3>() = rotation;
-    adjoint.topRightCorner<3, 3>() = skew * rotation;
+    adjoint.topRightCorner<3, 3>() = Skew(from_edge.translation()) * rotation;
     adjoint.bottomRightCorner<3, 3>() = rotation;
     total += adjoint * covariances.at(e) * adjoint.transpose();
   }

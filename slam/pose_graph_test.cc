@@ -10,6 +10,7 @@
 
 #include "core/check.h"
 #include "core/link_type.h"
+#include "core/rotation.h"
 #include "slam/synthetic_pose_graph.h"
 
 namespace sightmap::slam {
@@ -555,9 +556,7 @@ TEST(PoseGraph, InvalidInputThrows) {
 // applied on the left: t + w x p) from PathCovariance's covariance of r.
 Eigen::Matrix3d PositionCovariance(const Matrix6d& covariance, const Eigen::Vector3d& p) {
   Eigen::Matrix<double, 3, 6> jacobian;
-  Eigen::Matrix3d skew;
-  skew << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
-  jacobian << Eigen::Matrix3d::Identity(), -skew;
+  jacobian << Eigen::Matrix3d::Identity(), -Skew(p);
   return jacobian * covariance * jacobian.transpose();
 }
 

@@ -8,6 +8,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/rotation.h"
 #include "slam/hamming.h"
 #include "slam/rigid_alignment.h"
 
@@ -148,12 +149,6 @@ DenseAgreement CompareDepth(const cv::Mat& from_depth, const cv::Mat& to_depth,
     }
   }
   return agreement;
-}
-
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-  return m;
 }
 
 Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta) {
