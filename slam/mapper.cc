@@ -30,15 +30,12 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
 // Adds the floor to the covariance of a registration's information matrix.
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                double min_sigma_m, double min_sigma_rad) {
-  Eigen::Matrix<double, 6, 1> floor;
-  floor.head<3>().setConstant(min_sigma_m * min_sigma_m);
-  floor.tail<3>().setConstant(min_sigma_rad * min_sigma_rad);
   // A singular information (degenerate geometry) is lifted by a tiny ridge before inverting: the
   // floor then dominates those directions.
   const Eigen::Matrix<double, 6, 6> lifted =
       information + 1e-9 * Eigen::Matrix<double, 6, 6>::Identity();
   Eigen::Matrix<double, 6, 6> covariance = lifted.inverse();
-  covariance += floor.asDiagonal();
+  covariance += DiagonalCovariance(min_sigma_m, min_sigma_rad);
   Eigen::Matrix<double, 6, 6> floored = covariance.inverse();
   return 0.5 * (floored + floored.transpose());
 }
@@ -59,13 +56,6 @@ MapperLink RegisteredLink(int64_t from, int64_t to, const RegistrationResult& re
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                const MapperOptions& options) {
   return FlooredInformation(information, options.link_min_sigma_m, options.link_min_sigma_rad);
-}
-
-Eigen::Matrix<double, 6, 6> Diagonal6(double sigma_m, double sigma_rad) {
-  Eigen::Matrix<double, 6, 1> variances;
-  variances.head<3>().setConstant(sigma_m * sigma_m);
-  variances.tail<3>().setConstant(sigma_rad * sigma_rad);
-  return variances.asDiagonal();
 }
 
 // A link's covariance from its information (singular directions lifted by a tiny ridge, which
@@ -686,7 +676,7 @@ void Mapper::IndexKeyframe(Keyframe& keyframe) {
 
 double Mapper::LoopChi2(const MapperLink& loop) const {
   const Eigen::Matrix<double, 6, 6> floor =
-      Diagonal6(options_.loop_check_link_sigma_m, options_.loop_check_link_sigma_rad);
+      DiagonalCovariance(options_.loop_check_link_sigma_m, options_.loop_check_link_sigma_rad);
   const std::optional<Eigen::Matrix<double, 6, 6>> path = graph_.PathCovariance(
       loop.from, loop.to,
       [&](size_t edge) { return CovarianceOf(graph_.Edges()[edge].information) + floor; },
@@ -702,7 +692,7 @@ double Mapper::LoopChi2(const MapperLink& loop) const {
   error.tail<3>() = turn.angle() * turn.axis();
   const Eigen::Matrix<double, 6, 6> covariance =
       *path + CovarianceOf(loop.information) +
-      Diagonal6(options_.loop_check_slack_m, options_.loop_check_slack_rad);
+      DiagonalCovariance(options_.loop_check_slack_m, options_.loop_check_slack_rad);
   return error.dot(covariance.ldlt().solve(error));
 }
 

@@ -291,9 +291,7 @@ std::unique_ptr<Mapper> ChainedWalk(bool blind) {
         keyframe.motion->source = MotionSource::kPrior;
         keyframe.motion->blind_s = 1.0;
         // The tracker's prior after a blind second: 0.32 m and 0.62 rad (TrackerOptions::prior_*).
-        Eigen::Matrix<double, 6, 1> variances;
-        variances << Eigen::Vector3d::Constant(0.32 * 0.32), Eigen::Vector3d::Constant(0.62 * 0.62);
-        keyframe.motion->information = variances.cwiseInverse().asDiagonal();
+        keyframe.motion->information = DiagonalCovariance(0.32, 0.62).inverse();
       }
       mapper->AddTrackedKeyframe(std::move(keyframe));
     }

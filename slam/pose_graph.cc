@@ -273,6 +273,13 @@ bool PoseGraph::EdgeActive(size_t index) const {
   return active_[index];
 }
 
+Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad) {
+  Vector6d variances;
+  variances.head<3>().setConstant(sigma_m * sigma_m);
+  variances.tail<3>().setConstant(sigma_rad * sigma_rad);
+  return variances.asDiagonal();
+}
+
 std::optional<Matrix6d> PoseGraph::PathCovariance(
     int64_t from, int64_t to, const std::function<Matrix6d(size_t edge)>& edge_covariance,
     double lever_m) const {

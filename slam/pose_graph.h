@@ -114,6 +114,10 @@ struct PoseGraphSummary {
   std::vector<double> edge_chi2;
 };
 
+// The covariance of an edge's error r with standard deviation sigma_m on each translation and
+// sigma_rad on each rotation, uncorrelated [m], [rad].
+Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad);
+
 class PoseGraph {
  public:
   // Throws sightmap::Error on a duplicate id or a pose that is not a finite rigid transform.

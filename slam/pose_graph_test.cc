@@ -560,13 +560,6 @@ Eigen::Matrix3d PositionCovariance(const Matrix6d& covariance, const Eigen::Vect
   return jacobian * covariance * jacobian.transpose();
 }
 
-Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad) {
-  Vector6d variances;
-  variances << Vector6d::Constant(sigma_m * sigma_m).head<3>(),
-      Vector6d::Constant(sigma_rad * sigma_rad).tail<3>();
-  return variances.asDiagonal();
-}
-
 // Five poses 1 m apart along x, joined by four odometry edges of sigma 0.1 m / 0.01 rad. An
 // edge's rotation error turns about the edge's `from` pose and swings the far end sideways by its
 // distance from there: the end's y and z variance is 4 x 0.1^2 + 0.01^2 x (4^2 + 3^2 + 2^2 + 1^2),

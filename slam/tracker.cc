@@ -10,6 +10,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 #include "core/rotation.h"
+#include "slam/pose_graph.h"
 
 namespace sightmap::slam {
 namespace {
@@ -19,13 +20,6 @@ using Matrix6 = Eigen::Matrix<double, 6, 6>;
 
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-Matrix6 Diagonal(double sigma_m, double sigma_rad) {
-  Eigen::Matrix<double, 6, 1> variances;
-  variances.head<3>().setConstant(sigma_m * sigma_m);
-  variances.tail<3>().setConstant(sigma_rad * sigma_rad);
-  return variances.asDiagonal();
 }
 
 // Registration's information can be singular along a degenerate direction: a tiny ridge keeps the
@@ -241,8 +235,8 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
     return false;
   }
   frame.reference_from_cam = Orthonormalised(last_->reference_from_cam * step);
-  frame.covariance =
-      last_->covariance + Diagonal(options_.dense_step_sigma_m, options_.dense_step_sigma_rad);
+  frame.covariance = last_->covariance +
+                     DiagonalCovariance(options_.dense_step_sigma_m, options_.dense_step_sigma_rad);
   frame.source = Worse(last_->source, MotionSource::kChained);
   frame.blind_s = last_->blind_s;
   frame.blind_start_covariance = last_->blind_start_covariance;
@@ -257,8 +251,8 @@ void Tracker::PlaceBlind(Placed& frame, const Eigen::Isometry3d& predicted, doub
       last_->blind_s > 0.0 ? last_->blind_start_covariance : last_->covariance;
   frame.covariance =
       frame.blind_start_covariance +
-      Diagonal(options_.prior_sigma_m + options_.prior_sigma_mps * frame.blind_s,
-               options_.prior_sigma_rad + options_.prior_sigma_radps * frame.blind_s);
+      DiagonalCovariance(options_.prior_sigma_m + options_.prior_sigma_mps * frame.blind_s,
+                         options_.prior_sigma_rad + options_.prior_sigma_radps * frame.blind_s);
 }
 
 void Tracker::Emit(Placed& frame, bool early, TrackResult* result) {
