@@ -51,46 +51,77 @@ Eigen::Vector3f PixelVector(const cv::Mat& image, int row, int col) {
   return {v[0], v[1], v[2]};
 }
 
-// Sum of J^T J / sigma^2 over the point-to-plane residuals r = n . (T p - q) of source pixels
-// that land on the target's surface, with J = [n^T, ((T p) x n)^T] for a perturbation applied on
-// the left of T.
-void PointToPlaneInformation(const cv::Mat& source_depth_m, const cv::Mat& target_depth_m,
-                             const cv::Mat& target_normals, const Intrinsics& camera,
-                             const DenseAlignmentOptions& options, DenseAlignment* result) {
-  const Eigen::Isometry3d& target_from_source = result->target_from_source;
-  Matrix6 information = Matrix6::Zero();
-  int pairs = 0;
+// A source pixel on the target's surface: its point moved into the target camera, the target
+// pixel it lands on, the offset from the target's point there and that point's depth noise.
+struct PixelPair {
+  int row = 0;
+  int col = 0;
+  int u = 0;
+  int v = 0;
+  Eigen::Vector3d moved;
+  Eigen::Vector3d offset;
+  double sigma = 0.0;
+};
+
+// Calls visit(pair) for every information_stride_px-th source pixel with depth that lands inside
+// the target image on a measured depth within max_pair_distance_m of its point. Returns how many
+// source pixels landed inside the target image (the denominator of a pair fraction).
+template <typename Visit>
+int ForEachPair(const cv::Mat& source_depth_m, const cv::Mat& target_depth_m,
+                const Intrinsics& camera, const Eigen::Isometry3d& target_from_source,
+                const DenseAlignmentOptions& options, Visit&& visit) {
   int landed = 0;
-  double squared = 0.0;
   const int stride = options.information_stride_px;
   for (int row = 0; row < source_depth_m.rows; row += stride) {
     for (int col = 0; col < source_depth_m.cols; col += stride) {
       const float z = source_depth_m.at<float>(row, col);
       if (!std::isfinite(z)) continue;
-      const Eigen::Vector3d moved = target_from_source * camera.Unproject(col, row, z);
-      if (!(moved.z() > 0.0)) continue;
-      const Eigen::Vector2d pixel = camera.Project(moved);
-      const int u = static_cast<int>(std::lround(pixel.x()));
-      const int v = static_cast<int>(std::lround(pixel.y()));
-      if (u < 0 || v < 0 || u >= target_depth_m.cols || v >= target_depth_m.rows) continue;
+      PixelPair pair;
+      pair.row = row;
+      pair.col = col;
+      pair.moved = target_from_source * camera.Unproject(col, row, z);
+      if (!(pair.moved.z() > 0.0)) continue;
+      const Eigen::Vector2d pixel = camera.Project(pair.moved);
+      pair.u = static_cast<int>(std::lround(pixel.x()));
+      pair.v = static_cast<int>(std::lround(pixel.y()));
+      if (pair.u < 0 || pair.v < 0 || pair.u >= target_depth_m.cols ||
+          pair.v >= target_depth_m.rows) {
+        continue;
+      }
       ++landed;
-      const float target_z = target_depth_m.at<float>(v, u);
+      const float target_z = target_depth_m.at<float>(pair.v, pair.u);
       if (!std::isfinite(target_z)) continue;
-      const Eigen::Vector3d normal = PixelVector(target_normals, v, u).cast<double>();
-      if (!normal.allFinite() || normal.squaredNorm() < 0.25) continue;
-      const Eigen::Vector3d target_point = camera.Unproject(u, v, target_z);
-      const Eigen::Vector3d offset = moved - target_point;
-      if (offset.norm() > options.max_pair_distance_m) continue;
-      const double sigma = options.depth_noise_coeff * target_z * target_z;
-      Eigen::Matrix<double, 1, 6> jacobian;
-      jacobian.leftCols<3>() = normal.transpose();
-      jacobian.rightCols<3>() = moved.cross(normal).transpose();
-      information += jacobian.transpose() * jacobian / (sigma * sigma);
-      const double residual = normal.dot(offset) / sigma;
-      squared += residual * residual;
-      ++pairs;
+      pair.offset = pair.moved - camera.Unproject(pair.u, pair.v, target_z);
+      if (pair.offset.norm() > options.max_pair_distance_m) continue;
+      pair.sigma = options.depth_noise_coeff * target_z * target_z;
+      visit(pair);
     }
   }
+  return landed;
+}
+
+// Sum of J^T J / sigma^2 over the point-to-plane residuals r = n . (T p - q) of source pixels
+// that land on the target's surface where it has a normal, with J = [n^T, ((T p) x n)^T] for a
+// perturbation applied on the left of T.
+void PointToPlaneInformation(const cv::Mat& source_depth_m, const cv::Mat& target_depth_m,
+                             const cv::Mat& target_normals, const Intrinsics& camera,
+                             const DenseAlignmentOptions& options, DenseAlignment* result) {
+  Matrix6 information = Matrix6::Zero();
+  int pairs = 0;
+  double squared = 0.0;
+  const int landed = ForEachPair(
+      source_depth_m, target_depth_m, camera, result->target_from_source, options,
+      [&](const PixelPair& pair) {
+        const Eigen::Vector3d normal = PixelVector(target_normals, pair.v, pair.u).cast<double>();
+        if (!normal.allFinite() || normal.squaredNorm() < 0.25) return;
+        Eigen::Matrix<double, 1, 6> jacobian;
+        jacobian.leftCols<3>() = normal.transpose();
+        jacobian.rightCols<3>() = pair.moved.cross(normal).transpose();
+        information += jacobian.transpose() * jacobian / (pair.sigma * pair.sigma);
+        const double residual = normal.dot(pair.offset) / pair.sigma;
+        squared += residual * residual;
+        ++pairs;
+      });
   result->information = information;
   result->pairs = pairs;
   result->pair_fraction = landed > 0 ? static_cast<double>(pairs) / landed : 0.0;
@@ -252,39 +283,24 @@ DenseAlignment DenseAligner::Align(Frame& source, Frame& target,
 
 DenseFit DenseAligner::Fit(Frame& source, Frame& target,
                            const Eigen::Isometry3d& target_from_source) const {
-  const Intrinsics& small = impl_->small;
   const cv::rgbd::OdometryFrame& source_frame = *source.get();
   const cv::rgbd::OdometryFrame& target_frame = *target.get();
   DenseFit fit;
-  int landed = 0;
   double squared = 0.0;
   double intensity_squared = 0.0;
-  const int stride = options_.information_stride_px;
-  for (int row = 0; row < source_frame.depth.rows; row += stride) {
-    for (int col = 0; col < source_frame.depth.cols; col += stride) {
-      const float z = source_frame.depth.at<float>(row, col);
-      if (!std::isfinite(z)) continue;
-      const Eigen::Vector3d moved = target_from_source * small.Unproject(col, row, z);
-      if (!(moved.z() > 0.0)) continue;
-      const Eigen::Vector2d pixel = small.Project(moved);
-      const int u = static_cast<int>(std::lround(pixel.x()));
-      const int v = static_cast<int>(std::lround(pixel.y()));
-      if (u < 0 || v < 0 || u >= target_frame.depth.cols || v >= target_frame.depth.rows) continue;
-      ++landed;
-      const float target_z = target_frame.depth.at<float>(v, u);
-      if (!std::isfinite(target_z)) continue;
-      const Eigen::Vector3d offset = moved - small.Unproject(u, v, target_z);
-      if (offset.norm() > options_.max_pair_distance_m) continue;
-      const double sigma = options_.depth_noise_coeff * target_z * target_z;
-      // Along the line of sight: the target's normal is not needed to compare two poses.
-      const double residual = offset.dot(moved.normalized()) / sigma;
-      squared += residual * residual;
-      const double difference = static_cast<double>(source_frame.image.at<uint8_t>(row, col)) -
-                                static_cast<double>(target_frame.image.at<uint8_t>(v, u));
-      intensity_squared += difference * difference;
-      ++fit.pairs;
-    }
-  }
+  const int landed =
+      ForEachPair(source_frame.depth, target_frame.depth, impl_->small, target_from_source,
+                  options_, [&](const PixelPair& pair) {
+                    // Along the line of sight: the target's normal is not needed to compare two
+                    // poses.
+                    const double residual = pair.offset.dot(pair.moved.normalized()) / pair.sigma;
+                    squared += residual * residual;
+                    const double difference =
+                        static_cast<double>(source_frame.image.at<uint8_t>(pair.row, pair.col)) -
+                        static_cast<double>(target_frame.image.at<uint8_t>(pair.v, pair.u));
+                    intensity_squared += difference * difference;
+                    ++fit.pairs;
+                  });
   fit.pair_fraction = landed > 0 ? static_cast<double>(fit.pairs) / landed : 0.0;
   if (fit.pairs > 0) {
     fit.normalised_rms = std::sqrt(squared / fit.pairs);
