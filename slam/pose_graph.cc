@@ -294,7 +294,7 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     adjacent[edges_[e].to].push_back(e);
   }
   // Dijkstra on a scalar size of each edge's covariance; `via` is the edge a pose was reached by.
-  std::unordered_map<int64_t, Matrix6d> covariances;
+  std::unordered_map<size_t, Matrix6d> covariances;  // by edge index, computed once each
   std::unordered_map<int64_t, double> cost{{from, 0.0}};
   std::unordered_map<int64_t, size_t> via;
   using Entry = std::pair<double, int64_t>;
