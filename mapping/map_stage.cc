@@ -110,6 +110,18 @@ WriteTask MapStage::AllPoses() const {
   return poses;
 }
 
+WriteTask MapStage::Finish() {
+  std::vector<slam::MapperLink> deactivated;
+  if (!options_.ground_truth_poses && mapper_->NumKeyframes() > 0) {
+    const slam::KeyframeReport report = mapper_->OptimiseWhole();
+    for (size_t index : report.rejected_links) deactivated.push_back(mapper_->Links()[index]);
+    links_rejected_after_commit_ += static_cast<int64_t>(deactivated.size());
+  }
+  WriteTask poses = AllPoses();
+  poses.deactivated = std::move(deactivated);
+  return poses;
+}
+
 WriteTask MapStage::PosesOf(const std::vector<int64_t>& ids) const {
   WriteTask poses;
   poses.kind = WriteTask::Kind::kPoses;

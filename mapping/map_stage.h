@@ -42,8 +42,12 @@ class MapStage {
   // Maps one keyframe and returns its write tasks (the keyframe's first). Throws what the mapper
   // throws, and NoGroundTruthError for a keyframe without ground truth when ground_truth_poses.
   std::vector<WriteTask> Map(KeyframeItem item);
-  // Every pose as the mapper has it now: the session's last write.
+  // Every pose as the mapper has it now.
   WriteTask AllPoses() const;
+  // The session's last write: every part of the map optimised over all its links
+  // (Mapper::OptimiseWhole), then every pose, with the stored links that optimisation switched
+  // off. Keyframes mapped at their true poses (ground_truth_poses) are not moved.
+  WriteTask Finish();
 
   int64_t keyframes() const { return static_cast<int64_t>(session_ids_.size()); }
   // A resumed session's keyframes reached a part of the stored map.

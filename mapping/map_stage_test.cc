@@ -88,6 +88,14 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
   const WriteTask all = stage.AllPoses();
   EXPECT_EQ(all.kind, WriteTask::Kind::kPoses);
   EXPECT_EQ(all.poses.size(), 34u);
+  // The last write: every pose after the whole map was optimised once more.
+  const WriteTask last = stage.Finish();
+  EXPECT_EQ(last.kind, WriteTask::Kind::kPoses);
+  ASSERT_EQ(last.poses.size(), 34u);
+  for (const auto& [id, pose] : last.poses) {
+    EXPECT_TRUE(pose.isApprox(mapper.WorldFromCam(id), 0.0)) << id;
+  }
+  EXPECT_TRUE(last.deactivated.empty()) << "no loop of this walk is switched off";
 }
 
 TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {

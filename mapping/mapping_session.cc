@@ -351,16 +351,20 @@ void MappingSession::MapKeyframes(const Pipeline& pipeline) {
 }
 
 std::exception_ptr MappingSession::DrainStages(const Pipeline& pipeline) {
-  // Stop capturing (frames still queued are not mapped) and tracking, then every pose as the
-  // mapper has it now, and the writer drains and ends.
+  // Stop capturing (frames still queued are not mapped) and tracking, then the whole map is
+  // optimised once more and every pose written, and the writer drains and ends.
   pipeline.capture.Stop();
   pipeline.capture.Join();
   pipeline.keyframes.Close();
   pipeline.keyframes.Clear();
   pipeline.track.Join();
-  const std::exception_ptr error = pipeline.track.error();
+  std::exception_ptr error = pipeline.track.error();
   if (!error && !pipeline.writer.failed() && pipeline.map.keyframes() > 0) {
-    pipeline.writer.Push(pipeline.map.AllPoses());
+    try {
+      pipeline.writer.Push(pipeline.map.Finish());
+    } catch (...) {
+      error = std::current_exception();  // the poses written with each keyframe stand
+    }
   }
   pipeline.writer.Finish();
   return error;

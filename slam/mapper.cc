@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <set>
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
@@ -648,6 +649,21 @@ KeyframeReport Mapper::AddExternalLink(const MapperLink& link) {
   report.segment = SegmentOf(link.to);
   report.state = state_;
   report.world_from_cam = graph_.Pose(link.to);
+  return report;
+}
+
+KeyframeReport Mapper::OptimiseWhole() {
+  KeyframeReport report;
+  if (keyframes_.empty()) return report;
+  std::set<int> roots;
+  for (const Keyframe& keyframe : keyframes_) {
+    if (roots.insert(Root(keyframe.segment)).second) Optimise(keyframe.id, &report);
+  }
+  const Keyframe& newest = keyframes_.back();
+  report.id = newest.id;
+  report.segment = SegmentOf(newest.id);
+  report.state = state_;
+  report.world_from_cam = graph_.Pose(newest.id);
   return report;
 }
 

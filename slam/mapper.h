@@ -267,6 +267,12 @@ class Mapper {
   // keyframes of one segment and optimises; returns what the optimisation did.
   KeyframeReport AddExternalLink(const MapperLink& link);
 
+  // Optimises every part of the map over all its links, as the end of a capture: a loop that fit
+  // a window of its ends moved only that window (local_loop_hops), and what the windows left
+  // between them is settled here. Returns what the optimisations did (world_from_cam and id of
+  // the newest keyframe; every pose may have moved).
+  KeyframeReport OptimiseWhole();
+
   // Resuming a stored map (before the new session's first AddKeyframe): each stored keyframe with
   // its features, depth (full size or already 1/depth_downscale) and optimised pose, in id order
   // from 0, then the stored links. Restored keyframes are not registered again; each link joins

@@ -77,6 +77,7 @@ struct RunResult {
   double mapping_s = 0.0;
   int optimisations = 0;                  // over the whole part of the map
   int local_optimisations = 0;            // near a loop that agreed with the map
+  double final_optimisation_s = 0.0;      // every part over all its links, at the end
   std::vector<StampedPose> estimate;      // the keyframes' poses at the end
   std::vector<StampedPose> ground_truth;  // and their true poses
 };
@@ -208,6 +209,10 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
                    injected.links_rejected > 0 ? "rejected" : "kept");
     }
   }
+  // As `sightmap map` ends a capture.
+  const KeyframeReport whole = mapper.OptimiseWhole();
+  run.loops_rejected += whole.links_rejected;
+  run.final_optimisation_s = whole.times.optimisation_s;
   run.keyframes = static_cast<int>(mapper.NumKeyframes());
   run.segments = mapper.NumSegments();
 
@@ -320,8 +325,10 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
           mean(100, 200, registrations), mean(n - 100, n, registrations), mean(100, 200, points),
           mean(n - 100, n, points));
     }
-    std::printf("optimisations       %d over the whole part, %d near a loop that agreed\n",
-                run.optimisations, run.local_optimisations);
+    std::printf(
+        "optimisations       %d over the whole part, %d near a loop that agreed, the final one "
+        "%.0f ms\n",
+        run.optimisations, run.local_optimisations, 1e3 * run.final_optimisation_s);
     std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
     std::printf("segments            %d\n", run.segments);
     std::printf(
