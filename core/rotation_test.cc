@@ -42,7 +42,6 @@ TEST(MotionWithin, BoundsTheMoveAndTheTurnBothInclusive) {
   EXPECT_FALSE(MotionWithin(motion, 1e9, 180.0));
 }
 
-// Bearings run from e1 towards e2 in [0, 360); the height along up plays no part.
 TEST(Skew, IsTheCrossProduct) {
   const Eigen::Vector3d v(0.3, -1.2, 2.0);
   const Eigen::Vector3d w(-0.7, 0.4, 1.1);
@@ -50,6 +49,7 @@ TEST(Skew, IsTheCrossProduct) {
   EXPECT_LT((Skew(v) + Skew(v).transpose()).norm(), 1e-15);
 }
 
+// Bearings run from e1 towards e2 in [0, 360); the height along up plays no part.
 TEST(FloorBearingDeg, FromTheFirstAxisTowardsTheSecond) {
   Eigen::Vector3d e1, e2;
   FloorAxes(Eigen::Vector3d::UnitZ(), &e1, &e2);

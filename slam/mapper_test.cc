@@ -86,6 +86,17 @@ struct MappedWalk {
   double settled_again_m = 0.0;
 };
 
+// The furthest any keyframe lies from where it lies in the other trajectory (same keyframes) [m].
+double LargestMoveM(const std::vector<StampedPose>& a, const std::vector<StampedPose>& b) {
+  EXPECT_EQ(a.size(), b.size());
+  double largest = 0.0;
+  for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+    largest = std::max(
+        largest, (a[i].world_from_cam.translation() - b[i].world_from_cam.translation()).norm());
+  }
+  return largest;
+}
+
 // The walk there and back again (the way back closes loops with the way there), checking that
 // an optimisation kept local moved only the keyframes it reports.
 MappedWalk ThereAndBack(const Walk& walk, const MapperOptions& options) {
@@ -123,13 +134,7 @@ MappedWalk ThereAndBack(const Walk& walk, const MapperOptions& options) {
   EXPECT_EQ(whole.id, static_cast<int64_t>(frames.size()) - 1);
   mapped.settled = mapper.Trajectory();
   mapper.OptimiseWhole();
-  const std::vector<StampedPose> again = mapper.Trajectory();
-  for (size_t i = 0; i < again.size(); ++i) {
-    mapped.settled_again_m = std::max(
-        mapped.settled_again_m,
-        (again[i].world_from_cam.translation() - mapped.settled[i].world_from_cam.translation())
-            .norm());
-  }
+  mapped.settled_again_m = LargestMoveM(mapper.Trajectory(), mapped.settled);
   for (const MapperLink& link : mapper.Links()) {
     if (!link.active || link.type != LinkType::kLoopClosure) continue;
     const Eigen::Isometry3d truth =
@@ -160,12 +165,7 @@ TEST(Mapper, LoopsThatFitTheMapMoveOnlyTheKeyframesNearThem) {
   // it moves the map (the local loops did leave something), lands within a millimetre of where
   // optimising every loop over the whole part did, and a second call finds nothing to move.
   const double settled_m = EvaluateTrajectory(local.ground_truth, local.settled).ate_rmse_m;
-  double moved_m = 0.0;
-  for (size_t i = 0; i < local.settled.size(); ++i) {
-    moved_m = std::max(moved_m, (local.settled[i].world_from_cam.translation() -
-                                 local.trajectory[i].world_from_cam.translation())
-                                    .norm());
-  }
+  const double moved_m = LargestMoveM(local.settled, local.trajectory);
   std::printf("settled at the end: ATE %.4f m, keyframes moved up to %.4f m, then %.6f m\n",
               settled_m, moved_m, local.settled_again_m);
   EXPECT_GT(moved_m, 1e-4);
