@@ -5,6 +5,7 @@
 #include <limits>
 #include <utility>
 
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd.hpp>
@@ -17,6 +18,7 @@ namespace sightmap::slam {
 namespace {
 
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
+using Vector6 = Eigen::Matrix<double, 6, 1>;
 
 // The camera of the reduced images; throws InvalidArgument when the downscale does not divide
 // its size.
@@ -312,5 +314,38 @@ DenseFit DenseAligner::Fit(Frame& source, Frame& target,
 SIGHTMAP_OPTIONS_JSON(DenseAlignmentOptions, downscale, iterations_per_level, min_depth_m,
                       max_depth_m, information_stride_px, max_pair_distance_m, depth_noise_coeff,
                       min_pairs)
+
+Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Matrix6& information,
+                                     const Eigen::Isometry3d& prior, double min_eigen_ratio,
+                                     double lever_m) {
+  SIGHTMAP_CHECK(min_eigen_ratio >= 0.0 && lever_m > 0.0,
+                 "KeepPriorWhereWeak needs a ratio >= 0 and a positive lever");
+  if (min_eigen_ratio == 0.0) return aligned;
+  // The information is on a perturbation applied on the left: aligned = [R(w) | t] prior.
+  const Eigen::Isometry3d difference = aligned * prior.inverse();
+  const Eigen::AngleAxisd turn(difference.linear());
+  Vector6 scale;
+  scale << 1.0, 1.0, 1.0, lever_m, lever_m, lever_m;
+  Vector6 scaled;
+  scaled << difference.translation(), lever_m * turn.angle() * turn.axis();
+  const Matrix6 scaled_information =
+      scale.cwiseInverse().asDiagonal() * information * scale.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eigen(scaled_information);
+  const double strongest = eigen.eigenvalues()(5);
+  Vector6 kept = Vector6::Zero();
+  for (int k = 0; k < 6; ++k) {
+    if (!(eigen.eigenvalues()(k) >= min_eigen_ratio * strongest)) continue;
+    const Vector6 direction = eigen.eigenvectors().col(k);
+    kept += direction * direction.dot(scaled);
+  }
+  kept = kept.cwiseQuotient(scale);
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d rotation = kept.tail<3>();
+  if (rotation.norm() > 0.0) {
+    step.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
+  }
+  step.translation() = kept.head<3>();
+  return Orthonormalised(step * prior);
+}
 
 }  // namespace sightmap::slam

@@ -150,4 +150,16 @@ class DenseAligner {
   std::unique_ptr<Impl> impl_;
 };
 
+// `aligned` (target_from_source) in the directions its point-to-plane information fixes and
+// `prior` in those it leaves nearly free: the eigen-directions of the information, rotations
+// scaled by lever_m so that both count metres at that distance, weaker than min_eigen_ratio of
+// the strongest. Why: before a single wall the geometry fixes its normal and two tilts, and ICP
+// slides along the wall by whatever the faint texture and the depth noise pull it to (1-3 cm a
+// 4 cm step on the robot walk, started at the true pose, while the information claims 0.1 mm).
+// A ratio of 0 returns `aligned`.
+Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned,
+                                     const Eigen::Matrix<double, 6, 6>& information,
+                                     const Eigen::Isometry3d& prior, double min_eigen_ratio,
+                                     double lever_m);
+
 }  // namespace sightmap::slam

@@ -120,12 +120,16 @@ DenseImage Wall(const Intrinsics& camera, const DenseAlignmentOptions& options) 
   return MakeDenseImage(color, depth, camera, options);
 }
 
-TEST(DenseAlignment, ABareWallFixesOnlyItsDepthAndTilt) {
+// The wall aligned to itself from the identity, with default options.
+DenseAlignment WallOnItself() {
   const Intrinsics camera = RoomWalk().camera;
   const DenseAlignmentOptions options;
   const DenseImage wall = Wall(camera, options);
-  const DenseAlignment aligned =
-      DenseAligner(camera, options).Align(wall, wall, Eigen::Isometry3d::Identity());
+  return DenseAligner(camera, options).Align(wall, wall, Eigen::Isometry3d::Identity());
+}
+
+TEST(DenseAlignment, ABareWallFixesOnlyItsDepthAndTilt) {
+  const DenseAlignment aligned = WallOnItself();
   ASSERT_TRUE(aligned.success) << aligned.failure;
   // Point-to-plane residuals against a plane z = 2 constrain z and the tilts about x and y;
   // sliding along the wall and turning about its normal change no residual.
@@ -136,6 +140,44 @@ TEST(DenseAlignment, ABareWallFixesOnlyItsDepthAndTilt) {
   EXPECT_LT(information(0, 0), 1e-6 * information(2, 2));
   EXPECT_LT(information(1, 1), 1e-6 * information(2, 2));
   EXPECT_LT(information(5, 5), 1e-6 * information(2, 2));
+}
+
+// Before a bare wall the result keeps the prior's slide along the wall and turn about its normal
+// and the alignment's depth and tilts, whatever the two say.
+TEST(DenseAlignment, KeepPriorWhereWeakTakesOnlyWhatTheWallLeavesFree) {
+  const DenseAlignment aligned = WallOnItself();
+  ASSERT_TRUE(aligned.success) << aligned.failure;
+  Eigen::Isometry3d prior = Eigen::Isometry3d::Identity();
+  prior.translation() = Eigen::Vector3d(0.04, 0.01, 0.0);
+  prior.linear() = Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitZ()).matrix();
+  // The alignment off the prior along every axis: 3 and 2 cm along the wall, 1 cm into it, a
+  // degree about its normal and half a degree about x.
+  Eigen::Isometry3d off = Eigen::Isometry3d::Identity();
+  off.translation() = Eigen::Vector3d(0.03, -0.02, 0.01);
+  off.linear() = (Eigen::AngleAxisd(0.0175, Eigen::Vector3d::UnitZ()) *
+                  Eigen::AngleAxisd(0.0087, Eigen::Vector3d::UnitX()))
+                     .matrix();
+  const Eigen::Isometry3d slid = off * prior;
+
+  const Eigen::Isometry3d kept = KeepPriorWhereWeak(slid, aligned.information, prior, 0.01, 1.5);
+  const Eigen::Isometry3d difference = kept * prior.inverse();
+  const Eigen::AngleAxisd turn(difference.linear());
+  const Eigen::Vector3d rotation = turn.angle() * turn.axis();
+  EXPECT_NEAR(difference.translation().x(), 0.0, 1e-4);
+  EXPECT_NEAR(difference.translation().y(), 0.0, 1e-4);
+  EXPECT_NEAR(rotation.z(), 0.0, 1e-4);
+  // The depth is the alignment's, and the tilt about x with the lever's share of translation it
+  // implies at the wall's distance.
+  EXPECT_NEAR(difference.translation().z(), 0.01, 1e-3);
+  EXPECT_NEAR(rotation.x(), 0.0087, 1e-3);
+  EXPECT_NEAR(rotation.y(), 0.0, 1e-3);
+
+  // A ratio of 0 keeps the alignment; a ratio of 1 keeps only the strongest direction.
+  EXPECT_TRUE(KeepPriorWhereWeak(slid, aligned.information, prior, 0.0, 1.5).isApprox(slid));
+  const Eigen::Isometry3d strongest =
+      KeepPriorWhereWeak(slid, aligned.information, prior, 1.0, 1.5) * prior.inverse();
+  EXPECT_LT(strongest.translation().head<2>().norm(), 1e-4);
+  EXPECT_THROW(KeepPriorWhereWeak(slid, aligned.information, prior, -0.1, 1.5), Error);
 }
 
 // What the mapper weighs a large refinement by: at the true pose the room's frames agree better

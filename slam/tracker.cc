@@ -29,6 +29,9 @@ Matrix6 Inverse(const Matrix6& m) {
   return 0.5 * (inverse + inverse.transpose());
 }
 
+// SmoothedVelocity weighs the newest registered frame by this: about the last five count.
+constexpr double kVelocityWeight = 0.2;
+
 // The motion `step` repeated `scale` times (its rotation angle and translation scaled).
 Eigen::Isometry3d Scaled(const Eigen::Isometry3d& step, double scale) {
   if (scale == 1.0) return step;
@@ -70,6 +73,25 @@ const char* ToString(FrameTracking tracking) {
   return "unknown";
 }
 
+void SmoothedVelocity::Add(const Eigen::Isometry3d& step, double dt_s) {
+  SIGHTMAP_CHECK(dt_s > 0.0, "a velocity needs a positive time step");
+  const Eigen::AngleAxisd turn(step.linear());
+  Eigen::Matrix<double, 6, 1> velocity;
+  velocity << step.translation() / dt_s, turn.angle() * turn.axis() / dt_s;
+  velocity_ = has_velocity_ ? velocity_ + kVelocityWeight * (velocity - velocity_) : velocity;
+  has_velocity_ = true;
+}
+
+Eigen::Isometry3d SmoothedVelocity::Step(double dt_s) const {
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d rotation = velocity_.tail<3>() * dt_s;
+  if (rotation.norm() > 0.0) {
+    step.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
+  }
+  step.translation() = velocity_.head<3>() * dt_s;
+  return step;
+}
+
 bool TrackerOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
     if (error) *error = what;
@@ -101,6 +123,10 @@ bool TrackerOptions::Check(std::string* error) const {
   if (!(dense_step_sigma_m > 0.0) || !(dense_step_sigma_rad > 0.0) || !(prior_sigma_m > 0.0) ||
       !(prior_sigma_mps >= 0.0) || !(prior_sigma_rad > 0.0) || !(prior_sigma_radps >= 0.0)) {
     return fail("the dense step and prior sigmas must be positive");
+  }
+  if (!(dense_weak_eigen_ratio >= 0.0 && dense_weak_eigen_ratio <= 1.0) ||
+      !(dense_weak_lever_m > 0.0)) {
+    return fail("dense_weak_eigen_ratio must be in [0, 1] and dense_weak_lever_m positive");
   }
   if (!(blind_keyframe_after_s >= 0.0)) return fail("blind_keyframe_after_s must be >= 0");
   if (!(blind_velocity_decay >= 0.0 && blind_velocity_decay <= 1.0)) {
@@ -226,7 +252,12 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   result->dense_s = SecondsSince(start);
   last_dense_ = std::make_unique<DenseFrame>(std::move(current));
   if (!aligned.success) return false;
-  const Eigen::Isometry3d& step = aligned.target_from_source;
+  const Eigen::Isometry3d step =
+      !registered_velocity_.empty()
+          ? KeepPriorWhereWeak(aligned.target_from_source, aligned.information,
+                               registered_velocity_.Step(dt_s), options_.dense_weak_eigen_ratio,
+                               options_.dense_weak_lever_m)
+          : aligned.target_from_source;
   const Eigen::Isometry3d deviation = step_guess.inverse() * step;
   if (!MotionWithin(deviation, options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m,
                     options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) ||
@@ -303,7 +334,9 @@ FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
     registered = RegisterToReference(frame, predicted, dt_s, result);
   }
   FrameTracking tracking = FrameTracking::kRegistered;
-  if (!registered) {
+  if (registered) {
+    registered_velocity_.Add(last_->reference_from_cam.inverse() * frame.reference_from_cam, dt_s);
+  } else {
     const bool dense = options_.dense_fallback && dt_s <= options_.dense_max_interval_s &&
                        RegisterDensely(frame, predicted, dt_s, result);
     tracking = dense ? FrameTracking::kDense : FrameTracking::kBlind;
@@ -446,8 +479,9 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       deviation_slack_deg, dense_fallback, dense_max_interval_s, dense,
                       dense_max_deviation_mps, dense_max_deviation_dps, dense_slack_m,
                       dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
-                      dense_step_sigma_m, dense_step_sigma_rad, prior_sigma_m, prior_sigma_mps,
-                      prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
-                      blind_keyframe_after_s, min_reference_points, start_max_wait_s)
+                      dense_step_sigma_m, dense_step_sigma_rad, dense_weak_eigen_ratio,
+                      dense_weak_lever_m, prior_sigma_m, prior_sigma_mps, prior_sigma_rad,
+                      prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
+                      min_reference_points, start_max_wait_s)
 
 }  // namespace sightmap::slam

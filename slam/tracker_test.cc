@@ -2,10 +2,12 @@
 // simulator's ground truth.
 #include "slam/tracker.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -197,6 +199,83 @@ TEST(Tracker, DenseAlignmentRefusesAStepFasterThanTheWalkerGoes) {
   options.dense_max_turn_rate_dps = 0.0;
   std::string error;
   EXPECT_FALSE(options.Check(&error));
+}
+
+// Registrations err by their own few millimetres each, so consecutive steps err in turn by
+// +-6 mm here; the smoothed velocity keeps the 4 cm a frame within a millimetre.
+TEST(SmoothedVelocity, AveragesTheRegistrationsNoiseAway) {
+  SmoothedVelocity velocity;
+  EXPECT_TRUE(velocity.empty());
+  EXPECT_TRUE(velocity.Step(0.1).isApprox(Eigen::Isometry3d::Identity()));
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  step.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  for (int k = 0; k < 30; ++k) {
+    step.translation() = Eigen::Vector3d(k % 2 == 0 ? 0.046 : 0.034, 0.0, 0.0);
+    velocity.Add(step, 0.1);
+  }
+  EXPECT_FALSE(velocity.empty());
+  const Eigen::Isometry3d smoothed = velocity.Step(0.1);
+  EXPECT_NEAR(smoothed.translation().x(), 0.04, 1e-3);
+  EXPECT_NEAR(RotationAngleDeg(smoothed), 2.0, 1e-6);
+  // The velocity is per second: twice the interval, twice the step.
+  EXPECT_NEAR(velocity.Step(0.2).translation().x(), 2.0 * smoothed.translation().x(), 1e-9);
+  EXPECT_NEAR(RotationAngleDeg(velocity.Step(0.2)), 4.0, 1e-6);
+  EXPECT_THROW(velocity.Add(step, 0.0), Error);
+}
+
+// 8 s of the robot walk (seed 11) from 224 s: it drives at 0.4 m/s a metre from a wall with a
+// television, panning, and from frame 2291 on features fail for 26 frames in a row.
+const Walk& RobotAlongAWall() {
+  static const Walk* walk = [] {
+    sim::SimulatorOptions options;
+    options.trajectory = sim::TrajectoryKind::kRobot;
+    options.fps = 10.0;
+    options.frames = 2320;
+    options.seed = 11;
+    return new Walk(testing::RenderSimWalk(options, 2240));
+  }();
+  return *walk;
+}
+
+// The worst link between consecutive keyframes of a tracked walk (its motion against the true
+// one) [m], and how many frames dense alignment placed.
+std::pair<double, int64_t> WorstLink(const Walk& walk, const TrackerOptions& options) {
+  Tracker tracker(walk.camera, options);
+  const int64_t first_index = walk.frames.front().index;
+  const Eigen::Isometry3d* previous_gt = nullptr;
+  double worst_m = 0.0;
+  for (const RgbdFrame& frame : walk.frames) {
+    for (const TrackedKeyframe& keyframe : tracker.Track(frame).keyframes) {
+      const RgbdFrame& source =
+          walk.frames[static_cast<size_t>(keyframe.frame.index - first_index)];
+      if (keyframe.motion) {
+        const Eigen::Isometry3d truth = previous_gt->inverse() * *source.world_from_cam_gt;
+        const Eigen::Isometry3d error = truth.inverse() * keyframe.motion->previous_from_cam;
+        worst_m = std::max(worst_m, error.translation().norm());
+      }
+      previous_gt = &*source.world_from_cam_gt;
+    }
+  }
+  return {worst_m, tracker.counters().dense};
+}
+
+// Before a single wall ICP keeps the start it is given along the wall and adds its own slide;
+// starting each dense step from the last one's velocity, the chain sped up frame by frame. The
+// registered frames' velocity along the wall holds it near the robot's pace.
+TEST(Tracker, ADenseChainAlongABareWallKeepsTheRegisteredVelocity) {
+  const Walk& walk = RobotAlongAWall();
+  TrackerOptions options;
+  const auto [with_m, with_dense] = WorstLink(walk, options);
+  options.dense_weak_eigen_ratio = 0.0;
+  const auto [without_m, without_dense] = WorstLink(walk, options);
+  std::printf(
+      "worst link %.3f m with the registered velocity (%lld dense frames), %.3f m "
+      "without (%lld)\n",
+      with_m, static_cast<long long>(with_dense), without_m, static_cast<long long>(without_dense));
+  EXPECT_GE(with_dense, 15) << "the walk's frames along the wall are placed densely";
+  // Measured: 0.19 m with it, 0.66 m without (the keyframe 0.52 m off in the mapped walk).
+  EXPECT_LT(with_m, 0.25);
+  EXPECT_GT(without_m, 0.5);
 }
 
 TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
