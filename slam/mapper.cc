@@ -17,6 +17,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// What a link's information gets on its diagonal before it is inverted: a covariance of 1e9 along
+// a direction the link does not fix.
+constexpr double kRidge = 1e-9;
+
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -31,14 +35,10 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
 // Adds the floor to the covariance of a registration's information matrix.
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                double min_sigma_m, double min_sigma_rad) {
-  // A singular information (degenerate geometry) is lifted by a tiny ridge before inverting: the
+  // A singular information (degenerate geometry) is lifted by the ridge before inverting: the
   // floor then dominates those directions.
-  const Eigen::Matrix<double, 6, 6> lifted =
-      information + 1e-9 * Eigen::Matrix<double, 6, 6>::Identity();
-  Eigen::Matrix<double, 6, 6> covariance = lifted.inverse();
-  covariance += DiagonalCovariance(min_sigma_m, min_sigma_rad);
-  Eigen::Matrix<double, 6, 6> floored = covariance.inverse();
-  return 0.5 * (floored + floored.transpose());
+  return RidgedInverse(
+      RidgedInverse(information, kRidge) + DiagonalCovariance(min_sigma_m, min_sigma_rad), 0.0);
 }
 
 // The link a registration of keyframe `to` (the source) against keyframe `from` (the target) makes.
@@ -62,9 +62,7 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
 // A link's covariance from its information (singular directions lifted by a tiny ridge, which
 // leaves them free for all practical purposes).
 Eigen::Matrix<double, 6, 6> CovarianceOf(const Eigen::Matrix<double, 6, 6>& information) {
-  const Eigen::Matrix<double, 6, 6> covariance =
-      (information + 1e-9 * Eigen::Matrix<double, 6, 6>::Identity()).inverse();
-  return 0.5 * (covariance + covariance.transpose());
+  return RidgedInverse(information, kRidge);
 }
 
 // Features handed in (restored or tracked) must be one consistent set.

@@ -280,6 +280,11 @@ Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad) {
   return variances.asDiagonal();
 }
 
+Matrix6d RidgedInverse(const Matrix6d& matrix, double ridge) {
+  const Matrix6d inverse = (matrix + ridge * Matrix6d::Identity()).inverse();
+  return 0.5 * (inverse + inverse.transpose());
+}
+
 std::optional<Matrix6d> PoseGraph::PathCovariance(
     int64_t from, int64_t to, const std::function<Matrix6d(size_t edge)>& edge_covariance,
     double lever_m) const {

@@ -118,6 +118,11 @@ struct PoseGraphSummary {
 // sigma_rad on each rotation, uncorrelated [m], [rad].
 Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad);
 
+// The inverse of a covariance or an information matrix, symmetrised, with `ridge` added to the
+// diagonal first: an information singular along a degenerate direction (a bare wall) then gives
+// a covariance of 1/ridge there, free for all practical purposes, instead of infinities.
+Matrix6d RidgedInverse(const Matrix6d& matrix, double ridge);
+
 class PoseGraph {
  public:
   // Throws sightmap::Error on a duplicate id or a pose that is not a finite rigid transform.

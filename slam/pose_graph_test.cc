@@ -614,6 +614,26 @@ TEST(PoseGraph, PathCovarianceTakesTheFirmestActivePath) {
 
 // 2,000 poses (4 laps of 500 around a 4 m circle) with 20 loops and a false one: the figures
 // for the issue (pose_graph_benchmark has the steadier ones). The time is printed, not asserted.
+// A bare wall's information fixes z and the two tilts only: its inverse leaves the other three
+// directions free (1/ridge) and the fixed ones as they were; a full-rank matrix inverts exactly.
+TEST(PoseGraph, RidgedInverseLeavesSingularDirectionsFree) {
+  Matrix6d wall = Matrix6d::Zero();
+  wall(2, 2) = 1e6;
+  wall(3, 3) = 2e5;
+  wall(4, 4) = 3e5;
+  wall(2, 3) = wall(3, 2) = 1e4;
+  const Matrix6d covariance = RidgedInverse(wall, 1e-9);
+  ASSERT_TRUE(covariance.allFinite());
+  EXPECT_TRUE(covariance.isApprox(covariance.transpose()));
+  for (const int free : {0, 1, 5}) EXPECT_NEAR(covariance(free, free), 1e9, 1.0);
+  const Eigen::Matrix3d fixed = wall.block<3, 3>(2, 2);
+  const Eigen::Matrix3d fixed_covariance = covariance.block<3, 3>(2, 2);
+  EXPECT_TRUE(fixed_covariance.isApprox(fixed.inverse(), 1e-9));
+
+  const Matrix6d full = DiagonalCovariance(0.02, 0.01) + 1e-5 * Matrix6d::Ones();
+  EXPECT_TRUE((RidgedInverse(full, 0.0) * full).isApprox(Matrix6d::Identity(), 1e-9));
+}
+
 TEST(PoseGraph, LargeGraphFigures) {
   const synthetic::CircleOptions options = synthetic::LargeCircleOptions();
   synthetic::Scene scene = synthetic::MakeCircleScene(options);

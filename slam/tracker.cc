@@ -24,10 +24,7 @@ double SecondsSince(Clock::time_point start) {
 
 // Registration's information can be singular along a degenerate direction: a tiny ridge keeps the
 // inverse finite, and the mapper's floor decides how much such a link is trusted.
-Matrix6 Inverse(const Matrix6& m) {
-  const Matrix6 inverse = (m + 1e-12 * Matrix6::Identity()).inverse();
-  return 0.5 * (inverse + inverse.transpose());
-}
+Matrix6 Inverse(const Matrix6& m) { return RidgedInverse(m, 1e-12); }
 
 // SmoothedVelocity weighs the newest registered frame by this: about the last five count.
 constexpr double kVelocityWeight = 0.2;
