@@ -26,6 +26,23 @@ Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
   return m;
 }
 
+Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta) {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d rotation = delta.tail<3>();
+  if (rotation.norm() > 0.0) {
+    motion.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
+  }
+  motion.translation() = delta.head<3>();
+  return motion;
+}
+
+Eigen::Matrix<double, 6, 1> LogSe3(const Eigen::Isometry3d& motion) {
+  const Eigen::AngleAxisd turn(motion.linear());
+  Eigen::Matrix<double, 6, 1> delta;
+  delta << motion.translation(), turn.angle() * turn.axis();
+  return delta;
+}
+
 Eigen::Isometry3d Orthonormalised(const Eigen::Isometry3d& pose) {
   Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
   rigid.linear() = Eigen::Quaterniond(pose.linear()).normalized().toRotationMatrix();

@@ -17,6 +17,13 @@ double RotationAngleDeg(const Eigen::Isometry3d& motion);
 // The cross-product matrix [v]x, for which [v]x w = v x w.
 Eigen::Matrix3d Skew(const Eigen::Vector3d& v);
 
+// [R(w) | t] for delta = (t, w), a translation and a rotation vector (angle |w| about w / |w|):
+// the small motion that the pose graph's edge errors, registration's and dense alignment's
+// information, and the tracker's velocity are expressed in.
+Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta);
+// The (t, w) of a rigid motion: ExpSe3's inverse for rotations below 180 degrees.
+Eigen::Matrix<double, 6, 1> LogSe3(const Eigen::Isometry3d& motion);
+
 // Whether a rigid motion (a step, or the difference between two poses) moves at most max_m and
 // turns at most max_deg: the bound every motion and disagreement check applies, usually a rate
 // times a time plus a slack. False for a motion that is not finite.

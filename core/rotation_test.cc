@@ -49,6 +49,18 @@ TEST(Skew, IsTheCrossProduct) {
   EXPECT_LT((Skew(v) + Skew(v).transpose()).norm(), 1e-15);
 }
 
+// ExpSe3 is [R(w) | t], not the screw exponential: the translation is t whatever the turn.
+TEST(ExpSe3, IsTheTranslationAndTheRotationVectorAndLogSe3UndoesIt) {
+  Eigen::Matrix<double, 6, 1> delta;
+  delta << 0.3, -0.2, 0.1, 0.0, 0.0, 0.5 * M_PI;
+  const Eigen::Isometry3d motion = ExpSe3(delta);
+  EXPECT_TRUE(motion.translation().isApprox(Eigen::Vector3d(0.3, -0.2, 0.1)));
+  EXPECT_TRUE((motion.linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY()));
+  EXPECT_TRUE(LogSe3(motion).isApprox(delta, 1e-12));
+  EXPECT_TRUE(ExpSe3(Eigen::Matrix<double, 6, 1>::Zero()).isApprox(Eigen::Isometry3d::Identity()));
+  EXPECT_LT(LogSe3(Eigen::Isometry3d::Identity()).norm(), 1e-15);
+}
+
 // Bearings run from e1 towards e2 in [0, 360); the height along up plays no part.
 TEST(FloorBearingDeg, FromTheFirstAxisTowardsTheSecond) {
   Eigen::Vector3d e1, e2;

@@ -322,12 +322,9 @@ Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Mat
                  "KeepPriorWhereWeak needs a ratio >= 0 and a positive lever");
   if (min_eigen_ratio == 0.0) return aligned;
   // The information is on a perturbation applied on the left: aligned = [R(w) | t] prior.
-  const Eigen::Isometry3d difference = aligned * prior.inverse();
-  const Eigen::AngleAxisd turn(difference.linear());
   Vector6 scale;
   scale << 1.0, 1.0, 1.0, lever_m, lever_m, lever_m;
-  Vector6 scaled;
-  scaled << difference.translation(), lever_m * turn.angle() * turn.axis();
+  const Vector6 scaled = LogSe3(aligned * prior.inverse()).cwiseProduct(scale);
   const Matrix6 scaled_information =
       scale.cwiseInverse().asDiagonal() * information * scale.cwiseInverse().asDiagonal();
   const Eigen::SelfAdjointEigenSolver<Matrix6> eigen(scaled_information);
@@ -338,14 +335,7 @@ Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Mat
     const Vector6 direction = eigen.eigenvectors().col(k);
     kept += direction * direction.dot(scaled);
   }
-  kept = kept.cwiseQuotient(scale);
-  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
-  const Eigen::Vector3d rotation = kept.tail<3>();
-  if (rotation.norm() > 0.0) {
-    step.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
-  }
-  step.translation() = kept.head<3>();
-  return Orthonormalised(step * prior);
+  return Orthonormalised(ExpSe3(kept.cwiseQuotient(scale)) * prior);
 }
 
 }  // namespace sightmap::slam

@@ -5,6 +5,7 @@
 // is the one to quote on a shared machine.
 #include <benchmark/benchmark.h>
 
+#include "core/rotation.h"
 #include "slam/pose_graph.h"
 #include "slam/synthetic_pose_graph.h"
 
@@ -19,8 +20,8 @@ synthetic::Scene MakeScene(bool with_false_loop) {
     edge.to = 350;
     // Place recognition confuses pose 350 (on the far side of the circle) with a view 30 cm in
     // front of pose 100.
-    edge.to_in_from = synthetic::ExpSe3(
-        (Eigen::Matrix<double, 6, 1>() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished());
+    edge.to_in_from =
+        ExpSe3((Eigen::Matrix<double, 6, 1>() << 0.05, 0.0, 0.3, 0.0, 0.09, 0.0).finished());
     const synthetic::CircleOptions options = synthetic::LargeCircleOptions();
     edge.information = synthetic::Information(options.loop_sigma_m, options.loop_sigma_rad);
     edge.type = LinkType::kLoopClosure;

@@ -17,7 +17,6 @@ namespace sightmap::slam {
 namespace {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
-using synthetic::ExpSe3;
 using synthetic::Information;
 using synthetic::PositionRmse;
 

@@ -151,16 +151,6 @@ DenseAgreement CompareDepth(const cv::Mat& from_depth, const cv::Mat& to_depth,
   return agreement;
 }
 
-Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta) {
-  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
-  const Eigen::Vector3d rotation = delta.tail<3>();
-  if (rotation.norm() > 0.0) {
-    motion.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
-  }
-  motion.translation() = delta.head<3>();
-  return motion;
-}
-
 // Refines target_from_source by Gauss-Newton on the symmetric reprojection error of the inliers
 // (each 3D point projected into the other image, Huber-weighted). Keypoint positions are good to
 // a pixel while depth errs by centimetres at a few metres, so this is what makes the pose

@@ -11,21 +11,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "core/rotation.h"
 #include "slam/pose_graph.h"
 
 namespace sightmap::slam {
 namespace synthetic {
-
-// [R(w) | t] for delta = (t, w): the perturbation PoseGraphEdge::information is defined on.
-inline Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta) {
-  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
-  const Eigen::Vector3d rotation = delta.tail<3>();
-  if (rotation.norm() > 0.0) {
-    motion.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
-  }
-  motion.translation() = delta.head<3>();
-  return motion;
-}
 
 inline Eigen::Matrix<double, 6, 6> Information(double sigma_m, double sigma_rad) {
   Eigen::Matrix<double, 6, 1> diagonal;

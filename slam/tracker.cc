@@ -72,22 +72,12 @@ const char* ToString(FrameTracking tracking) {
 
 void SmoothedVelocity::Add(const Eigen::Isometry3d& step, double dt_s) {
   SIGHTMAP_CHECK(dt_s > 0.0, "a velocity needs a positive time step");
-  const Eigen::AngleAxisd turn(step.linear());
-  Eigen::Matrix<double, 6, 1> velocity;
-  velocity << step.translation() / dt_s, turn.angle() * turn.axis() / dt_s;
+  const Eigen::Matrix<double, 6, 1> velocity = LogSe3(step) / dt_s;
   velocity_ = has_velocity_ ? velocity_ + kVelocityWeight * (velocity - velocity_) : velocity;
   has_velocity_ = true;
 }
 
-Eigen::Isometry3d SmoothedVelocity::Step(double dt_s) const {
-  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
-  const Eigen::Vector3d rotation = velocity_.tail<3>() * dt_s;
-  if (rotation.norm() > 0.0) {
-    step.linear() = Eigen::AngleAxisd(rotation.norm(), rotation.normalized()).matrix();
-  }
-  step.translation() = velocity_.head<3>() * dt_s;
-  return step;
-}
+Eigen::Isometry3d SmoothedVelocity::Step(double dt_s) const { return ExpSe3(velocity_ * dt_s); }
 
 bool TrackerOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
