@@ -703,11 +703,7 @@ double Mapper::LoopChi2(const MapperLink& loop) const {
   // form).
   const Eigen::Isometry3d graph_to_in_from =
       graph_.Pose(loop.from).inverse() * graph_.Pose(loop.to);
-  const Eigen::Isometry3d delta = loop.to_in_from * graph_to_in_from.inverse();
-  const Eigen::AngleAxisd turn(delta.linear());
-  Eigen::Matrix<double, 6, 1> error;
-  error.head<3>() = delta.translation();
-  error.tail<3>() = turn.angle() * turn.axis();
+  const Eigen::Matrix<double, 6, 1> error = LogSe3(loop.to_in_from * graph_to_in_from.inverse());
   const Eigen::Matrix<double, 6, 6> covariance =
       *path + CovarianceOf(loop.information) +
       DiagonalCovariance(options_.loop_check_slack_m, options_.loop_check_slack_rad);

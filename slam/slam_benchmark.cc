@@ -80,7 +80,57 @@ struct RunResult {
   double final_optimisation_s = 0.0;      // every part over all its links, at the end
   std::vector<StampedPose> estimate;      // the keyframes' poses at the end
   std::vector<StampedPose> ground_truth;  // and their true poses
+  std::vector<MapperLink> links;          // every link the mapper made, at the end
 };
+
+// One link against ground truth: the pose graph's edge error r (E = Exp(r) M, E the true
+// relative pose) and its chi-square r^T W r under the information the link claims.
+struct LinkError {
+  double error_m = 0.0;
+  double error_deg = 0.0;
+  double chi2 = 0.0;
+};
+
+Eigen::Isometry3d TruthOf(const MapperLink& link, const std::vector<StampedPose>& truths) {
+  return truths[static_cast<size_t>(link.from)].world_from_cam.inverse() *
+         truths[static_cast<size_t>(link.to)].world_from_cam;
+}
+
+LinkError ErrorOf(const MapperLink& link, const std::vector<StampedPose>& truths) {
+  const Eigen::Isometry3d truth = TruthOf(link, truths);
+  const Eigen::Matrix<double, 6, 1> r = LogSe3(truth * link.to_in_from.inverse());
+  return {r.head<3>().norm(), r.tail<3>().norm() * 180.0 / M_PI, r.dot(link.information * r)};
+}
+
+// The kinds of link a walk makes, each with its own source of error.
+const char* LinkKind(const MapperLink& link) {
+  if (link.type == LinkType::kOdometry) return link.to == link.from + 1 ? "odometry" : "extra";
+  return LinkTypeName(link.type);
+}
+
+// How far each kind of link is off by ground truth and how far its information says it is:
+// for an honest information the chi-square of a 6-dof error has median 5.35, so "x N" says the
+// link claims N times the precision it has (in squared sigmas).
+void PrintLinkCalibration(const RunResult& run) {
+  std::map<std::string, std::vector<LinkError>> kinds;
+  for (const MapperLink& link : run.links) {
+    if (!link.active) continue;
+    kinds[LinkKind(link)].push_back(ErrorOf(link, run.ground_truth));
+  }
+  for (const auto& [kind, errors] : kinds) {
+    std::vector<double> metres, degrees, chi2;
+    for (const LinkError& error : errors) {
+      metres.push_back(1e3 * error.error_m);
+      degrees.push_back(error.error_deg);
+      chi2.push_back(error.chi2);
+    }
+    std::printf(
+        "links %-13s %5zu: error p50 %.1f mm %.2f deg, p90 %.1f mm %.2f deg; chi2 p50 %.1f "
+        "(x%.1f), p90 %.1f\n",
+        kind.c_str(), errors.size(), Median(metres), Median(degrees), Percentile(metres, 0.9),
+        Percentile(degrees, 0.9), Median(chi2), Median(chi2) / 5.35, Percentile(chi2, 0.9));
+  }
+}
 
 // --trajectory-out: the estimate to FILE and the ground truth to FILE.gt, both TUM, to study
 // where the error lies.
@@ -88,6 +138,18 @@ void WriteTrajectories(const RunResult& run, const std::string& path) {
   if (path.empty()) return;
   WriteTumTrajectory(path, run.estimate, "slam_benchmark estimate");
   WriteTumTrajectory(path + ".gt", run.ground_truth, "slam_benchmark ground truth");
+  // Every link with its error by ground truth, for studying the links' weights.
+  std::ofstream links(path + ".links");
+  links << "# from to kind inliers active error_m error_deg chi2 true_t(3) est_t(3) r(6)\n";
+  for (const MapperLink& link : run.links) {
+    const LinkError error = ErrorOf(link, run.ground_truth);
+    links << link.from << ' ' << link.to << ' ' << LinkKind(link) << ' ' << link.inliers << ' '
+          << link.active << ' ' << error.error_m << ' ' << error.error_deg << ' ' << error.chi2
+          << ' ' << TruthOf(link, run.ground_truth).translation().transpose() << ' '
+          << link.to_in_from.translation().transpose() << ' '
+          << LogSe3(TruthOf(link, run.ground_truth) * link.to_in_from.inverse()).transpose()
+          << '\n';
+  }
 }
 
 // Gives the mapper its next keyframe (and that keyframe's true pose); nullopt at the end.
@@ -245,6 +307,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   run.error = EvaluateTrajectory(ground_truth, trajectory);
   run.estimate = trajectory;
   run.ground_truth = ground_truth;
+  run.links = mapper.Links();
   std::map<int, std::vector<StampedPose>> parts;
   const std::vector<StampedPose> estimate = mapper.Trajectory();
   for (size_t i = 0; i < estimate.size(); ++i) {
@@ -354,6 +417,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
                 run.error.rpe_rot_deg_per_m);
     std::printf("largest part        %d keyframes, ATE rmse %.4f m, max %.4f aligned on its own\n",
                 run.largest_keyframes, run.largest_error.ate_rmse_m, run.largest_error.ate_max_m);
+    PrintLinkCalibration(run);
   }
   return run;
 }

@@ -32,11 +32,7 @@ constexpr double kVelocityWeight = 0.2;
 // The motion `step` repeated `scale` times (its rotation angle and translation scaled).
 Eigen::Isometry3d Scaled(const Eigen::Isometry3d& step, double scale) {
   if (scale == 1.0) return step;
-  const Eigen::AngleAxisd turn(step.linear());
-  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
-  scaled.linear() = Eigen::AngleAxisd(turn.angle() * scale, turn.axis()).toRotationMatrix();
-  scaled.translation() = step.translation() * scale;
-  return scaled;
+  return ExpSe3(scale * LogSe3(step));
 }
 
 // The precedence of how a frame was placed along a chain from the reference.
