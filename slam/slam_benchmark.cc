@@ -142,14 +142,15 @@ void WriteTrajectories(const RunResult& run, const std::string& path) {
   std::ofstream links(path + ".links");
   links << "# from to kind inliers active error_m error_deg chi2 true_t(3) est_t(3) r(6)\n";
   for (const MapperLink& link : run.links) {
+    const Eigen::Isometry3d truth = TruthOf(link, run.ground_truth);
     const LinkError error = ErrorOf(link, run.ground_truth);
     links << link.from << ' ' << link.to << ' ' << LinkKind(link) << ' ' << link.inliers << ' '
           << link.active << ' ' << error.error_m << ' ' << error.error_deg << ' ' << error.chi2
-          << ' ' << TruthOf(link, run.ground_truth).translation().transpose() << ' '
+          << ' ' << truth.translation().transpose() << ' '
           << link.to_in_from.translation().transpose() << ' '
-          << LogSe3(TruthOf(link, run.ground_truth) * link.to_in_from.inverse()).transpose()
-          << '\n';
+          << LogSe3(truth * link.to_in_from.inverse()).transpose() << '\n';
   }
+  SIGHTMAP_CHECK(links, "cannot write " << path << ".links");
 }
 
 // Gives the mapper its next keyframe (and that keyframe's true pose); nullopt at the end.
@@ -635,8 +636,10 @@ int Main(int argc, char** argv) {
                  "--print-config`'s blocks \"mapper\" and \"tracking\".\"tracker\"; either may be "
                  "missing)")
       ->check(CLI::ExistingFile);
-  app.add_option("--trajectory-out", trajectory_out,
-                 "write the keyframes' final poses to FILE and their true poses to FILE.gt (TUM)");
+  app.add_option(
+      "--trajectory-out", trajectory_out,
+      "write the keyframes' final poses to FILE and their true poses to FILE.gt (TUM), and "
+      "every link against ground truth to FILE.links");
   CLI11_PARSE(app, argc, argv);
 
   sim::SimulatorOptions sim_options;
