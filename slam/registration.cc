@@ -321,6 +321,7 @@ bool RegistrationOptions::Check(std::string* error) const {
     return fail("inlier distances and noise must be positive");
   }
   if (min_inliers < 3) return fail("min_inliers must be at least 3");
+  if (!(near_depth_m > 0.0)) return fail("near_depth_m must be positive");
   if (guided_radius_px < 0.0 || guided_max_hamming < 0 || guided_min_seed_inliers < 3) {
     return fail("guided matching needs a radius >= 0, a distance >= 0 and a seed of >= 3 inliers");
   }
@@ -430,6 +431,9 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
     result.information += pair.weight * jacobian.transpose() * jacobian;
   }
   result.rmse_m = std::sqrt(squared / best_inliers.size());
+  for (size_t i : best_inliers) {
+    if (pairs[i].target.z() <= options.near_depth_m) ++result.near_inliers;
+  }
   result.times.ransac_s = seconds_since(stage_start);
 
   if (result.inliers < options.min_inliers) {
@@ -491,8 +495,8 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
 SIGHTMAP_OPTIONS_JSON(RegistrationOptions, matching, ransac_max_iterations, ransac_confidence,
                       ransac_seed, min_inlier_distance_m, inlier_sigmas, depth_noise_coeff,
                       min_sample_spread_m, refine_iterations, huber_px, guided_radius_px,
-                      guided_max_hamming, guided_min_seed_inliers, min_inliers, min_inlier_ratio,
-                      verify_stride_px, verify_min_tolerance_m, min_consistent_fraction,
-                      max_violation_fraction, min_overlap_samples)
+                      guided_max_hamming, guided_min_seed_inliers, min_inliers, near_depth_m,
+                      min_inlier_ratio, verify_stride_px, verify_min_tolerance_m,
+                      min_consistent_fraction, max_violation_fraction, min_overlap_samples)
 
 }  // namespace sightmap::slam

@@ -56,6 +56,7 @@ struct RegistrationOptions {
   // sparsely textured views have 12-20 (the simulator's walk: 58 segments in 200 keyframes at 12,
   // 66 at 20).
   int min_inliers = 12;
+  double near_depth_m = 4.0;  // what RegistrationResult::near_inliers counts [m]
   // Inliers / correspondences with 3D points on both sides.
   double min_inlier_ratio = 0.15;
 
@@ -91,6 +92,9 @@ struct RegistrationResult {
   int matches = 0;          // descriptor matches among keypoints with 3D points
   int correspondences = 0;  // matches with 3D points on both sides
   int inliers = 0;
+  // Inliers whose target point lies within RegistrationOptions::near_depth_m: far points alone
+  // cannot tell a sideways step from a turn.
+  int near_inliers = 0;
   double rmse_m = 0.0;  // of the inliers after refinement
   // Dense verification, the worse of both directions (0 when skipped).
   double consistent_fraction = 0.0;

@@ -70,6 +70,31 @@ TEST(Registration, RecoversAKnownMotionAmongFortyPercentOutliers) {
   EXPECT_GT(eigen.eigenvalues().minCoeff(), 0.0);
 }
 
+// The tracker keeps a keyframe while enough inliers lie near: far points alone cannot tell a
+// sideways step from a turn.
+TEST(Registration, CountsTheInliersThatLieNear) {
+  const Eigen::Isometry3d truth = Motion(0.1, {0.2, 0.0, 0.1});
+  Features source;
+  Features target;
+  SyntheticPair(truth, 300, 0, 0.003, &source, &target);
+  int near_points = 0;  // target points within 2.5 m (depths 1-4 m, so about half)
+  for (const Eigen::Vector3d& point : target.points_cam) near_points += point.z() <= 2.5 ? 1 : 0;
+  const auto near_inliers = [&](double near_depth_m) {
+    RegistrationOptions options;
+    options.near_depth_m = near_depth_m;
+    const RegistrationResult result =
+        RegisterRgbd(source, target, cv::Mat(), cv::Mat(), Intrinsics(), options);
+    EXPECT_TRUE(result.success) << result.failure;
+    EXPECT_GE(result.inliers, 297);
+    return result.near_inliers;
+  };
+  EXPECT_NEAR(near_inliers(2.5), near_points, 3);
+  EXPECT_GT(near_points, 90);
+  EXPECT_LT(near_points, 210);
+  EXPECT_GE(near_inliers(100.0), 297);
+  EXPECT_EQ(near_inliers(0.5), 0);
+}
+
 TEST(Registration, RefusesWhenOutliersDominate) {
   Features source;
   Features target;

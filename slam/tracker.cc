@@ -130,6 +130,7 @@ struct Tracker::Placed {
   Matrix6 covariance = Matrix6::Zero();
   MotionSource source = MotionSource::kRegistered;
   int inliers = 0;
+  int near_inliers = 0;  // of `inliers`, within RegistrationOptions::near_depth_m
   double blind_s = 0.0;
   Matrix6 blind_start_covariance = Matrix6::Zero();  // the covariance when the blind time began
 };
@@ -196,10 +197,12 @@ bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predic
   // The prediction is good to the time since the last frame registration or ICP placed.
   if (!Believable(registration, predicted, dt_s + last_->blind_s)) return false;
   reference_best_inliers_ = std::max(reference_best_inliers_, registration.inliers);
+  reference_best_near_inliers_ = std::max(reference_best_near_inliers_, registration.near_inliers);
   frame.reference_from_cam = registration.target_from_source;
   frame.covariance = Inverse(registration.information);
   frame.source = MotionSource::kRegistered;
   frame.inliers = registration.inliers;
+  frame.near_inliers = registration.near_inliers;
   frame.blind_s = 0.0;
   result->inliers = registration.inliers;
   return true;
@@ -296,6 +299,7 @@ void Tracker::Emit(Placed& frame, bool early, TrackResult* result) {
   frame.blind_start_covariance = Matrix6::Zero();
   reference_ = std::make_unique<Placed>(frame);
   reference_best_inliers_ = 0;
+  reference_best_near_inliers_ = 0;
 }
 
 FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
@@ -353,6 +357,8 @@ bool Tracker::WantsEarlyKeyframe(const Placed& frame, FrameTracking tracking) co
   switch (tracking) {
     case FrameTracking::kRegistered:
       return (frame.inliers < options_.min_reference_inlier_ratio * reference_best_inliers_ ||
+              frame.near_inliers <
+                  options_.min_reference_inlier_ratio * reference_best_near_inliers_ ||
               frame.points > options_.richer_reference_ratio * reference_->points) &&
              may_add_early;
     case FrameTracking::kDense:

@@ -50,7 +50,10 @@ struct TrackerOptions {
   // A frame registered to the reference with fewer inliers than this share of the most any frame
   // had against it is losing the overlap: it becomes a keyframe early so that the next frames
   // register to it. Relative, because a bare room never has many inliers: there a keyframe comes
-  // only when registration fails (the last placed frame is taken then).
+  // only when registration fails (the last placed frame is taken then). The same share applies to
+  // the inliers within registration.near_depth_m: far points alone cannot tell a sideways step
+  // from a turn (the robot's head panning from a room's far wall onto a desk kept 156 inliers,
+  // all 5-8 m away, and that keyframe's link erred 8 cm).
   double min_reference_inlier_ratio = 0.35;
   // A frame with this many times the reference's 3D keypoints becomes a keyframe early: a view
   // turning away from a bare wall is a better reference than the wall (registration to the wall's
@@ -270,9 +273,10 @@ class Tracker {
 
   Intrinsics camera_;
   TrackerOptions options_;
-  std::unique_ptr<Placed> reference_;  // the newest keyframe
-  std::unique_ptr<Placed> last_;       // the newest frame placed (may be the reference)
-  int reference_best_inliers_ = 0;     // the most inliers a frame had against the reference
+  std::unique_ptr<Placed> reference_;    // the newest keyframe
+  std::unique_ptr<Placed> last_;         // the newest frame placed (may be the reference)
+  int reference_best_inliers_ = 0;       // the most inliers a frame had against the reference
+  int reference_best_near_inliers_ = 0;  // and the most of them within near_depth_m
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();  // last step: previous_from_last
   double velocity_dt_s_ = 0.0;
   SmoothedVelocity registered_velocity_;
