@@ -96,8 +96,7 @@ Eigen::Isometry3d TruthOf(const MapperLink& link, const std::vector<StampedPose>
          truths[static_cast<size_t>(link.to)].world_from_cam;
 }
 
-LinkError ErrorOf(const MapperLink& link, const std::vector<StampedPose>& truths) {
-  const Eigen::Isometry3d truth = TruthOf(link, truths);
+LinkError ErrorOf(const MapperLink& link, const Eigen::Isometry3d& truth) {
   const Eigen::Matrix<double, 6, 1> r = LogSe3(truth * link.to_in_from.inverse());
   return {r.head<3>().norm(), r.tail<3>().norm() * 180.0 / M_PI, r.dot(link.information * r)};
 }
@@ -115,7 +114,7 @@ void PrintLinkCalibration(const RunResult& run) {
   std::map<std::string, std::vector<LinkError>> kinds;
   for (const MapperLink& link : run.links) {
     if (!link.active) continue;
-    kinds[LinkKind(link)].push_back(ErrorOf(link, run.ground_truth));
+    kinds[LinkKind(link)].push_back(ErrorOf(link, TruthOf(link, run.ground_truth)));
   }
   for (const auto& [kind, errors] : kinds) {
     std::vector<double> metres, degrees, chi2;
@@ -143,7 +142,7 @@ void WriteTrajectories(const RunResult& run, const std::string& path) {
   links << "# from to kind inliers active error_m error_deg chi2 true_t(3) est_t(3) r(6)\n";
   for (const MapperLink& link : run.links) {
     const Eigen::Isometry3d truth = TruthOf(link, run.ground_truth);
-    const LinkError error = ErrorOf(link, run.ground_truth);
+    const LinkError error = ErrorOf(link, truth);
     links << link.from << ' ' << link.to << ' ' << LinkKind(link) << ' ' << link.inliers << ' '
           << link.active << ' ' << error.error_m << ' ' << error.error_deg << ' ' << error.chi2
           << ' ' << truth.translation().transpose() << ' '
