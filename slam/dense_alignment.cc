@@ -145,6 +145,11 @@ bool DenseAlignmentOptions::Check(std::string* error) const {
       *std::min_element(iterations_per_level.begin(), iterations_per_level.end()) < 1) {
     return fail("iterations_per_level needs at least one level, each with at least 1 iteration");
   }
+  if (min_gradient_per_level.size() != iterations_per_level.size() ||
+      !std::all_of(min_gradient_per_level.begin(), min_gradient_per_level.end(),
+                   [](double gradient) { return gradient >= 0.0; })) {
+    return fail("min_gradient_per_level needs one value >= 0 per level of iterations_per_level");
+  }
   if (information_stride_px < 1) return fail("information_stride_px must be at least 1");
   if (!(max_pair_distance_m > 0.0)) return fail("max_pair_distance_m must be positive");
   if (!(depth_noise_coeff > 0.0)) return fail("depth_noise_coeff must be positive");
@@ -211,7 +216,8 @@ DenseAligner::DenseAligner(const Intrinsics& camera, const DenseAlignmentOptions
       cv::Mat(camera_matrix), static_cast<float>(options_.min_depth_m),
       static_cast<float>(options_.max_depth_m), cv::rgbd::Odometry::DEFAULT_MAX_DEPTH_DIFF(),
       cv::rgbd::Odometry::DEFAULT_MAX_POINTS_PART(), options_.iterations_per_level,
-      std::vector<float>(options_.iterations_per_level.size(), 10.0f));
+      std::vector<float>(options_.min_gradient_per_level.begin(),
+                         options_.min_gradient_per_level.end()));
 }
 
 DenseAligner::~DenseAligner() = default;
@@ -312,8 +318,8 @@ DenseFit DenseAligner::Fit(Frame& source, Frame& target,
 }
 
 SIGHTMAP_OPTIONS_JSON(DenseAlignmentOptions, downscale, iterations_per_level, min_depth_m,
-                      max_depth_m, information_stride_px, max_pair_distance_m, depth_noise_coeff,
-                      min_pairs)
+                      max_depth_m, min_gradient_per_level, information_stride_px,
+                      max_pair_distance_m, depth_noise_coeff, min_pairs)
 
 Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Matrix6& information,
                                      const Eigen::Isometry3d& prior, double min_eigen_ratio,

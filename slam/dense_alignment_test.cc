@@ -106,6 +106,48 @@ TEST(DenseAlignment, StaysAtTheTruePoseBeforeAWallWithAWindow) {
   EXPECT_LT(worst_deg, 0.6);
 }
 
+// Frames 1850-1860 of the robot walk (seed 11): the pan-tilt head faces a wall 1.2 m away whose
+// print (a plant, pale on pale) is the only thing that fixes a slide along it. Each frame is
+// aligned to the one before from the identity (a 4 cm step); returns the worst error [m].
+double WorstStepBeforeAFaintPrint(const DenseAlignmentOptions& options) {
+  sim::SimulatorOptions walk_options;
+  walk_options.trajectory = sim::TrajectoryKind::kRobot;
+  walk_options.fps = 10.0;
+  walk_options.frames = 1861;
+  walk_options.seed = 11;
+  static const testing::SimWalk* walk =
+      new testing::SimWalk(testing::RenderSimWalk(walk_options, 1850));
+  const DenseAligner aligner(walk->camera, options);
+  double worst_m = 0.0;
+  for (size_t i = 0; i + 1 < walk->frames.size(); ++i) {
+    const RgbdFrame& target = walk->frames[i];
+    const RgbdFrame& source = walk->frames[i + 1];
+    const DenseAlignment aligned =
+        aligner.Align(MakeDenseImage(source.color, source.depth, walk->camera, options),
+                      MakeDenseImage(target.color, target.depth, walk->camera, options),
+                      Eigen::Isometry3d::Identity());
+    if (!aligned.success) return 1.0;
+    const Eigen::Isometry3d error =
+        TrueTargetFromSource(source, target).inverse() * aligned.target_from_source;
+    worst_m = std::max(worst_m, error.translation().norm());
+  }
+  return worst_m;
+}
+
+// The print's gradients lie mostly below OpenCV's default threshold (10): counting them is what
+// holds the slide.
+TEST(DenseAlignment, AFaintPrintHoldsASlideAlongAWallWhenItsGradientsCount) {
+  DenseAlignmentOptions options;
+  const double with_faint = WorstStepBeforeAFaintPrint(options);
+  options.min_gradient_per_level = {10.0, 10.0};
+  const double without_faint = WorstStepBeforeAFaintPrint(options);
+  std::printf("worst step: %.1f mm counting gradients from %.0f, %.1f mm from 10\n",
+              1e3 * with_faint, DenseAlignmentOptions().min_gradient_per_level[0],
+              1e3 * without_faint);
+  EXPECT_LT(with_faint, 0.003);     // 1.4 mm when written
+  EXPECT_GT(without_faint, 0.005);  // 7.5 mm
+}
+
 // A textured wall filling the view at 2 m, facing the camera.
 DenseImage Wall(const Intrinsics& camera, const DenseAlignmentOptions& options) {
   cv::Mat color(camera.height, camera.width, CV_8UC3);
@@ -265,6 +307,12 @@ TEST(DenseAlignment, ChecksItsOptionsAndImages) {
   EXPECT_FALSE(options.Check(&error));
   options = DenseAlignmentOptions();
   options.max_depth_m = options.min_depth_m;
+  EXPECT_FALSE(options.Check(&error));
+  options = DenseAlignmentOptions();
+  options.min_gradient_per_level = {3.0, -1.0};
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_EQ(error, "min_gradient_per_level needs one value >= 0 per level of iterations_per_level");
+  options.min_gradient_per_level = {3.0};
   EXPECT_FALSE(options.Check(&error));
   options = DenseAlignmentOptions();
   options.downscale = 7;  // does not divide 640x480
