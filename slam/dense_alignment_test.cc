@@ -109,14 +109,7 @@ TEST(DenseAlignment, StaysAtTheTruePoseBeforeAWallWithAWindow) {
 // Frames 1850-1860 of the robot walk (seed 11): the pan-tilt head faces a wall 1.2 m away whose
 // print (a plant, pale on pale) is the only thing that fixes a slide along it.
 const testing::SimWalk& RobotBeforeAPalePrint() {
-  static const testing::SimWalk* walk = [] {
-    sim::SimulatorOptions options;
-    options.trajectory = sim::TrajectoryKind::kRobot;
-    options.fps = 10.0;
-    options.frames = 1861;
-    options.seed = 11;
-    return new testing::SimWalk(testing::RenderSimWalk(options, 1850));
-  }();
+  static const testing::SimWalk* walk = new testing::SimWalk(testing::RenderRobotWalk(1850, 1861));
   return *walk;
 }
 

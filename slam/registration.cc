@@ -423,6 +423,7 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
   double squared = 0.0;
   for (size_t i : best_inliers) {
     const Correspondence& pair = pairs[i];
+    if (pair.target.z() <= options.near_depth_m) ++result.near_inliers;
     const Eigen::Vector3d moved = best * pair.source;
     squared += (moved - pair.target).squaredNorm();
     Eigen::Matrix<double, 3, 6> jacobian;
@@ -431,9 +432,6 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
     result.information += pair.weight * jacobian.transpose() * jacobian;
   }
   result.rmse_m = std::sqrt(squared / best_inliers.size());
-  for (size_t i : best_inliers) {
-    if (pairs[i].target.z() <= options.near_depth_m) ++result.near_inliers;
-  }
   result.times.ransac_s = seconds_since(stage_start);
 
   if (result.inliers < options.min_inliers) {

@@ -27,4 +27,15 @@ inline SimWalk RenderSimWalk(const sim::SimulatorOptions& options, int64_t first
   return walk;
 }
 
+// Frames [first, end) of the robot walk, seed 11, at 10 Hz: the stretches the tracker and dense
+// alignment tests pick out of it.
+inline SimWalk RenderRobotWalk(int64_t first, int64_t end) {
+  sim::SimulatorOptions options;
+  options.trajectory = sim::TrajectoryKind::kRobot;
+  options.fps = 10.0;
+  options.frames = end;
+  options.seed = 11;
+  return RenderSimWalk(options, first);
+}
+
 }  // namespace sightmap::testing

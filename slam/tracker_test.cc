@@ -223,20 +223,10 @@ TEST(SmoothedVelocity, AveragesTheRegistrationsNoiseAway) {
   EXPECT_THROW(velocity.Add(step, 0.0), Error);
 }
 
-// Frames [first, end) of the robot walk, seed 11, at 10 Hz.
-Walk RobotWalkFrames(int64_t first, int64_t end) {
-  sim::SimulatorOptions options;
-  options.trajectory = sim::TrajectoryKind::kRobot;
-  options.fps = 10.0;
-  options.frames = end;
-  options.seed = 11;
-  return testing::RenderSimWalk(options, first);
-}
-
 // 8 s of the robot walk (seed 11) from 224 s: it drives at 0.4 m/s a metre from a wall with a
 // television, panning, and from frame 2291 on features fail for 26 frames in a row.
 const Walk& RobotAlongAWall() {
-  static const Walk* walk = new Walk(RobotWalkFrames(2240, 2320));
+  static const Walk* walk = new Walk(testing::RenderRobotWalk(2240, 2320));
   return *walk;
 }
 
@@ -291,7 +281,7 @@ TEST(Tracker, ADenseChainAlongABareWallKeepsTheRegisteredVelocity) {
 // wall 7 m away, then the pan-tilt head turns onto a desk 1.3 m away; by frame 3697 the view
 // shares only that far wall with frame 3690.
 const Walk& RobotPanningOffAFarWall() {
-  static const Walk* walk = new Walk(RobotWalkFrames(3680, 3700));
+  static const Walk* walk = new Walk(testing::RenderRobotWalk(3680, 3700));
   return *walk;
 }
 
