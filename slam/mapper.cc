@@ -41,6 +41,13 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
       RidgedInverse(information, kRidge) + DiagonalCovariance(min_sigma_m, min_sigma_rad), 0.0);
 }
 
+// How far a relative pose turns the camera's down axis (image y): about gravity a walker turns
+// freely, away from it barely [deg].
+double DownAxisTurnDeg(const Eigen::Isometry3d& target_from_source) {
+  const double cosine = target_from_source.linear().col(1).y();
+  return std::acos(std::clamp(cosine, -1.0, 1.0)) * 180.0 / M_PI;
+}
+
 // The link a registration of keyframe `to` (the source) against keyframe `from` (the target) makes.
 MapperLink RegisteredLink(int64_t from, int64_t to, const RegistrationResult& result,
                           LinkType type) {
@@ -128,6 +135,9 @@ bool MapperOptions::Check(std::string* error) const {
     return fail(
         "walk_max_speed_mps and walk_max_turn_rate_dps must be positive, the slacks and "
         "walk_max_gap_s not negative");
+  }
+  if (!(walk_max_tilt_deg > 0.0) || walk_max_tilt_deg > 180.0) {
+    return fail("walk_max_tilt_deg must be in (0, 180]");
   }
   if (!(link_min_sigma_m > 0.0) || !(link_min_sigma_rad > 0.0)) {
     return fail("link_min_sigma_m and link_min_sigma_rad must be positive");
@@ -244,6 +254,14 @@ RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& targ
                    camera_, options_.registration, prior);
   AddRegistrationTimes(result.times, times);
   if (!result.success) return result;
+  const double tilt_deg = DownAxisTurnDeg(result.target_from_source);
+  if (tilt_deg > options_.walk_max_tilt_deg) {
+    result.success = false;
+    result.failure = "turns the camera's down axis by " +
+                     std::to_string(static_cast<int>(std::lround(tilt_deg))) +
+                     " deg: a walker holds the camera upright";
+    return result;
+  }
   result.information = FlooredInformation(result.information, options_);
   const bool refined =
       RefineDensely(source, target, &result.target_from_source, &result.information, times,
@@ -931,9 +949,9 @@ SIGHTMAP_OPTIONS_JSON(
     proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
     local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m, join_max_disagreement_rad,
     walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s,
-    loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m,
-    loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad,
-    dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
+    walk_max_tilt_deg, loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad,
+    loop_check_lever_m, loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m,
+    link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
     dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
     dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
 

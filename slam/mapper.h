@@ -131,6 +131,13 @@ struct MapperOptions {
   double walk_slack_m = 0.5;             // added to the bound whatever the gap [m]
   double walk_slack_deg = 20.0;          // [deg]
   double walk_max_gap_s = 10.0;          // [s]
+  // A walker holds the camera upright: between any two of its keyframes the camera's down axis
+  // (image y) turns at most this far, whatever the gap (the hand-held walk at most 31 degrees,
+  // the survey walk, which looks up at ceiling lights, 59; the real lounge frames 14). A
+  // registration that turns it further matched a pattern symmetric under a half turn (a row of
+  // locker doors, vents and labels read upside down: a 1 Hz loop 180 degrees off) and is refused
+  // for every link, loop or relocalisation [deg].
+  double walk_max_tilt_deg = 90.0;
   // A loop within one part must agree with where the pose graph puts its keyframe, within the
   // graph's own uncertainty between the two keyframes: the chi-square of the disagreement (6 dof)
   // against the covariance chained along the firmest path of links between them (PoseGraph::

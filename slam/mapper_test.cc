@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 #include "core/check.h"
 #include "core/rotation.h"
@@ -525,6 +526,44 @@ TEST(Mapper, OptionsRefuseAnImpossibleWalkBound) {
   negative_gap.walk_max_gap_s = -1.0;
   EXPECT_FALSE(negative_gap.Check(&error));
   EXPECT_THROW(Mapper(HandheldWalk().camera, still), Error);
+}
+
+// A keyframe, then the same view upside down (the camera rolled half a turn where it stood):
+// registration matches it, as it matched a row of locker doors read upside down at 1 Hz. Returns
+// the second keyframe's report and the mapper's segments.
+std::pair<KeyframeReport, int> AddAViewAndItUpsideDown(const MapperOptions& options) {
+  const RgbdFrame& frame = HandheldWalk().frames[20];
+  Mapper mapper(HandheldWalk().camera, options);
+  mapper.AddKeyframe(0, frame.color, frame.depth);
+  cv::Mat color;
+  cv::Mat depth;
+  cv::rotate(frame.color, color, cv::ROTATE_180);
+  cv::rotate(frame.depth, depth, cv::ROTATE_180);
+  KeyframeReport report = mapper.AddKeyframe(1'000'000'000, color, depth);
+  return {report, mapper.NumSegments()};
+}
+
+TEST(Mapper, ARegistrationThatTurnsTheCameraUpsideDownIsRefused) {
+  MapperOptions any_tilt = SmallVocabulary();
+  any_tilt.walk_max_tilt_deg = 180.0;
+  const auto [linked, linked_segments] = AddAViewAndItUpsideDown(any_tilt);
+  ASSERT_EQ(linked_segments, 1) << "registration must match the view upside down: "
+                                << linked.odometry_failure;
+  // The registered roll is the half turn (the principal point sits half a pixel off centre).
+  const Eigen::Isometry3d first_from_second = linked.world_from_cam;
+  EXPECT_LT(first_from_second.linear().col(1).y(), -0.99);
+
+  const auto [refused, refused_segments] = AddAViewAndItUpsideDown(SmallVocabulary());
+  EXPECT_EQ(refused_segments, 2);
+  EXPECT_NE(refused.odometry_failure.find("down axis"), std::string::npos)
+      << refused.odometry_failure;
+  std::printf("upside down: %s\n", refused.odometry_failure.c_str());
+
+  MapperOptions none;
+  none.walk_max_tilt_deg = 0.0;
+  std::string error;
+  EXPECT_FALSE(none.Check(&error));
+  EXPECT_NE(error.find("walk_max_tilt_deg"), std::string::npos) << error;
 }
 
 TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {

@@ -308,7 +308,7 @@ FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
   // 50 degrees, where standing still is off by the turn the walker really made.
   double scale = velocity_dt_s_ > 0.0 ? std::min(dt_s / velocity_dt_s_, 3.0) : 1.0;
   if (last_->source == MotionSource::kPrior) scale *= options_.blind_velocity_decay;
-  const Eigen::Isometry3d velocity = Scaled(velocity_, scale);
+  Eigen::Isometry3d velocity = Scaled(velocity_, scale);
   Eigen::Isometry3d predicted = last_->reference_from_cam * velocity;
 
   bool registered = RegisterToReference(frame, predicted, dt_s, result);
@@ -319,6 +319,11 @@ FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
     Emit(*last_, true, result);
     predicted = velocity;
     registered = RegisterToReference(frame, predicted, dt_s, result);
+  }
+  if (!registered && options_.fallback_on_smoothed_velocity && !registered_velocity_.empty() &&
+      last_->source == MotionSource::kRegistered && dt_s <= options_.dense_max_interval_s) {
+    velocity = registered_velocity_.Step(dt_s);
+    predicted = last_->reference_from_cam * velocity;
   }
   FrameTracking tracking = FrameTracking::kRegistered;
   if (registered) {
@@ -469,8 +474,8 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       dense_max_deviation_mps, dense_max_deviation_dps, dense_slack_m,
                       dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
                       dense_step_sigma_m, dense_step_sigma_rad, dense_weak_eigen_ratio,
-                      dense_weak_lever_m, prior_sigma_m, prior_sigma_mps, prior_sigma_rad,
-                      prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
-                      min_reference_points, start_max_wait_s)
+                      dense_weak_lever_m, fallback_on_smoothed_velocity, prior_sigma_m,
+                      prior_sigma_mps, prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
+                      blind_keyframe_after_s, min_reference_points, start_max_wait_s)
 
 }  // namespace sightmap::slam
