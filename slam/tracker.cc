@@ -320,6 +320,8 @@ FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
     predicted = velocity;
     registered = RegisterToReference(frame, predicted, dt_s, result);
   }
+  // The last step may come from a registration that matched a repeated texture: the fallbacks
+  // start from the registered frames' smoothed velocity instead (fallback_on_smoothed_velocity).
   if (!registered && options_.fallback_on_smoothed_velocity && !registered_velocity_.empty() &&
       last_->source == MotionSource::kRegistered && dt_s <= options_.dense_max_interval_s) {
     velocity = registered_velocity_.Step(dt_s);
