@@ -21,12 +21,18 @@ KeyframeSampler::KeyframeSampler(const KeyframeSamplerOptions& options) {
       options.rate_hz > 0.0 ? static_cast<int64_t>(std::llround(1e9 / options.rate_hz)) : 0;
 }
 
+TimestampNs KeyframeSampler::NextGridPoint(TimestampNs timestamp_ns) const {
+  // Floor division, for clocks that start below zero.
+  const int64_t periods = timestamp_ns / period_ns_ - (timestamp_ns % period_ns_ < 0 ? 1 : 0);
+  return (periods + 1) * period_ns_;
+}
+
 bool KeyframeSampler::Accept(TimestampNs timestamp_ns) {
   if (period_ns_ == 0) return true;
   const bool first = !next_due_ns_;
   const bool went_back = next_due_ns_ && timestamp_ns < *next_due_ns_ - period_ns_;
   if (first || went_back) {
-    next_due_ns_ = timestamp_ns + period_ns_;
+    next_due_ns_ = NextGridPoint(timestamp_ns);
     return true;
   }
   if (timestamp_ns < *next_due_ns_) return false;

@@ -25,11 +25,16 @@ class KeyframeSampler {
   explicit KeyframeSampler(const KeyframeSamplerOptions& options = KeyframeSamplerOptions());
 
   // True when the frame at `timestamp_ns` should become a keyframe. The first frame always does;
-  // then one per period on a grid anchored at the first frame, so jitter does not add up to drift.
-  // A timestamp that goes backwards (a restarted device) re-anchors the grid.
+  // then the first frame at or after each whole period of the source's clock (a grid that does
+  // not depend on where the stream starts: a replay resumed after any stored frame keeps the
+  // keyframes the uninterrupted replay kept), so jitter does not add up to drift. A timestamp that
+  // goes backwards (a restarted device) starts again as a first frame.
   bool Accept(TimestampNs timestamp_ns);
 
  private:
+  // The first multiple of the period after `timestamp_ns`.
+  TimestampNs NextGridPoint(TimestampNs timestamp_ns) const;
+
   int64_t period_ns_;
   std::optional<TimestampNs> next_due_ns_;
 };

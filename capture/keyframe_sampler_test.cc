@@ -45,6 +45,33 @@ TEST(KeyframeSampler, GapSkipsMissedSlotsAndBackwardsTimeReanchors) {
             (std::vector<int64_t>{0, 1000, 4200, 5000, 100, 1100}));
 }
 
+// A replay resumed after a stored keyframe taken off the grid (early, where tracking was about to
+// lose its overlap) accepts that keyframe first: it must keep the whole replay's grid after it,
+// not start one of its own half a second off.
+TEST(KeyframeSampler, AStreamResumedOffTheGridKeepsTheWholeStreamsGrid) {
+  std::vector<int64_t> times;
+  for (int i = 0; i < 100; ++i) times.push_back(i * 100);  // ten seconds at 10 Hz
+  KeyframeSampler whole;
+  std::vector<int64_t> whole_kept;
+  for (int64_t t : SampleMs(whole, times)) {
+    if (t > 4500) whole_kept.push_back(t);
+  }
+  KeyframeSampler resumed;
+  std::vector<int64_t> resumed_times;
+  for (int64_t t : times) {
+    if (t >= 4500) resumed_times.push_back(t);
+  }
+  std::vector<int64_t> resumed_kept = SampleMs(resumed, resumed_times);
+  ASSERT_EQ(resumed_kept.front(), 4500);  // the stored keyframe
+  resumed_kept.erase(resumed_kept.begin());
+  EXPECT_EQ(resumed_kept, whole_kept);
+  EXPECT_EQ(resumed_kept.front(), 5000);
+  // Clocks that start below zero keep whole periods too.
+  KeyframeSampler negative;
+  EXPECT_EQ(SampleMs(negative, {-1500, -1200, -1000, -100, 0, 700, 1000}),
+            (std::vector<int64_t>{-1500, -1000, 0, 1000}));
+}
+
 TEST(KeyframeSampler, ZeroRateKeepsEverythingAndOptionsAreChecked) {
   KeyframeSamplerOptions options;
   options.rate_hz = 0.0;

@@ -441,7 +441,7 @@ void Tracker::ContinueFrom(const RgbdFrame& keyframe) {
                  "a tracker continues a walk only before its first frame");
   TrackResult ignored;
   Placed frame = Prepare(keyframe, &ignored);
-  rate_.Accept(keyframe.timestamp_ns);  // the rate's clock runs from the stored keyframe
+  rate_.Accept(keyframe.timestamp_ns);  // the grid goes on after the stored keyframe
   reference_ = std::make_unique<Placed>(frame);
   last_ = std::make_unique<Placed>(std::move(frame));
 }

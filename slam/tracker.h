@@ -44,7 +44,7 @@ namespace sightmap::slam {
 struct TrackerOptions {
   FeatureOptions features;
   RegistrationOptions registration;
-  // Keyframes per second of source time, on a grid anchored at the first frame [Hz]; 0 makes
+  // Keyframes per second of source time, on the whole periods of its clock [Hz]; 0 makes
   // every placed frame a keyframe.
   double keyframe_rate_hz = 1.0;
   // A frame registered to the reference with fewer inliers than this share of the most any frame
