@@ -235,6 +235,15 @@ const Walk& RobotAlongAWall() {
 struct TrackedLinks {
   std::vector<std::pair<MotionSource, double>> errors_m;
   TrackerCounters counters;
+
+  // The worst error [m] of the links found by `only` (all links without it); 0 with none.
+  double WorstM(std::optional<MotionSource> only = std::nullopt) const {
+    double worst_m = 0.0;
+    for (const auto& [source, error_m] : errors_m) {
+      if (!only || source == *only) worst_m = std::max(worst_m, error_m);
+    }
+    return worst_m;
+  }
 };
 
 TrackedLinks TrackLinks(const Walk& walk, const TrackerOptions& options) {
@@ -262,9 +271,7 @@ TrackedLinks TrackLinks(const Walk& walk, const TrackerOptions& options) {
 // alignment placed.
 std::pair<double, int64_t> WorstLink(const Walk& walk, const TrackerOptions& options) {
   const TrackedLinks links = TrackLinks(walk, options);
-  double worst_m = 0.0;
-  for (const auto& [source, error_m] : links.errors_m) worst_m = std::max(worst_m, error_m);
-  return {worst_m, links.counters.dense};
+  return {links.WorstM(), links.counters.dense};
 }
 
 // Before a single wall ICP keeps the start it is given along the wall and adds its own slide;
@@ -305,11 +312,7 @@ const Walk& RobotAtTheWindowWall() {
 // were.
 std::pair<double, int64_t> WorstPriorLink(const Walk& walk, const TrackerOptions& options) {
   const TrackedLinks links = TrackLinks(walk, options);
-  double worst_m = 0.0;
-  for (const auto& [source, error_m] : links.errors_m) {
-    if (source == MotionSource::kPrior) worst_m = std::max(worst_m, error_m);
-  }
-  return {worst_m, links.counters.prior_keyframes};
+  return {links.WorstM(MotionSource::kPrior), links.counters.prior_keyframes};
 }
 
 // Repeated texture lets a few wrong matches agree with each other: registrations with 13-21
