@@ -755,46 +755,53 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
   verdict.rotation_deg = RotationAngleDeg(keyframes[verdict.verified_slot].world_from_cam.linear(),
                                           found.world_from_cam.linear());
   verdict.cells = CoveredCells(*image, found.inliers, photo.size.width, photo.size.height);
-  // With the right pose a good share of the place's points that land in the photo find their
-  // keypoint; a pose fitted to a texture that repeats elsewhere finds few beyond it.
-  const bool low_share =
-      verdict.projected > 0 && verdict.inliers < options.min_inlier_share * verdict.projected;
   verdict.accepted = verdict.inliers >= options.min_inliers &&
                      verdict.rotation_deg <= options.max_rotation_from_keyframe_deg &&
-                     verdict.cells >= options.min_inlier_cells && !low_share;
+                     verdict.cells >= options.min_inlier_cells &&
+                     !HasLowInlierShare(verdict, options);
   verdict.pose = std::move(found);
   return verdict;
 }
 
+bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& options) {
+  // With the right pose a good share of the place's points that land in the photo find their
+  // keypoint; a pose fitted to a texture that repeats elsewhere finds few beyond it.
+  return verdict.projected > 0 && verdict.inliers < options.min_inlier_share * verdict.projected;
+}
+
 namespace {
 
-// Why nothing was matched, from the refused verdict with most inliers.
+// Why nothing was matched, from the refused verdict with most inliers: the check it failed, in
+// VerifyPlace's order.
 Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options) {
-  int most_inliers = 0;
-  double rotation_deg = 0.0;  // of that verdict, when the 90 deg check refused it
-  int cells = -1;
+  const PlaceVerdict* best = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
-    if (!verdict.pose.valid || verdict.inliers <= most_inliers) continue;
-    most_inliers = verdict.inliers;
-    rotation_deg = verdict.inliers >= options.min_inliers &&
-                           verdict.rotation_deg > options.max_rotation_from_keyframe_deg
-                       ? verdict.rotation_deg
-                       : 0.0;
-    cells = verdict.cells;
+    if (verdict.pose.valid && verdict.inliers > (best ? best->inliers : 0)) best = &verdict;
   }
   std::ostringstream why;
-  if (rotation_deg > 0.0) {
-    why << "the best pose (" << most_inliers << " inliers) turns " << std::lround(rotation_deg)
-        << " deg from its keyframe (at most " << options.max_rotation_from_keyframe_deg
-        << " allowed).";
+  const int most_inliers = best ? best->inliers : 0;
+  if (best && most_inliers >= options.min_inliers &&
+      best->rotation_deg > options.max_rotation_from_keyframe_deg) {
+    why << "the best pose (" << most_inliers << " inliers) turns "
+        << std::lround(best->rotation_deg) << " deg from its keyframe (at most "
+        << options.max_rotation_from_keyframe_deg << " allowed).";
     return Refusal{UnmatchedReason::kUnseenView, why.str()};
   }
   why << "none of " << verdicts.size() << " retrieved places gave a pose: " << most_inliers
       << " PnP inliers at best";
-  if (cells >= 0 && most_inliers >= options.min_inliers) {
-    why << " but in " << cells << " cells of the photo (" << options.min_inlier_cells
-        << " needed).";
-    return Refusal{UnmatchedReason::kMatchesInOneCorner, why.str()};
+  if (best && most_inliers >= options.min_inliers) {
+    if (best->cells < options.min_inlier_cells) {
+      why << " but in " << best->cells << " cells of the photo (" << options.min_inlier_cells
+          << " needed).";
+      return Refusal{UnmatchedReason::kMatchesInOneCorner, why.str()};
+    }
+    if (HasLowInlierShare(*best, options)) {
+      why << ", only " << std::fixed << std::setprecision(1)
+          << 100.0 * most_inliers / best->projected << "% of the " << best->projected
+          << " model points its pose puts in the photo (" << 100.0 * options.min_inlier_share
+          << "% needed).";
+      return Refusal{UnmatchedReason::kFewMatches, why.str()};
+    }
   }
   why << ", " << options.min_inliers << " needed.";
   return Refusal{UnmatchedReason::kFewMatches, why.str()};

@@ -179,6 +179,9 @@ struct PlaceVerdict {
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);
+// Whether a verdict's inliers are fewer than min_inlier_share of the place's points its pose
+// projects into the photo (one of VerifyPlace's checks).
+bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& options);
 
 // Stage 5b: places that may be the winner's twin. The model repeats itself (identical desks, the
 // same box in two rooms), and a photo of one copy verifies against the other; the search stops at
