@@ -111,8 +111,8 @@ bool QueryOptions::Check(std::string* error) const {
     return false;
   }
   if (occluder_share < 0.0 || occluder_share > 1.0 || max_roll_deg < 0.0 ||
-      max_yaw_jitter_deg < 0.0 || max_pitch_jitter_deg < 0.0) {
-    *error = "occluder_share must be in [0, 1] and jitters >= 0";
+      max_yaw_jitter_deg < 0.0 || max_pitch_jitter_deg < 0.0 || max_hidden_target_redraws < 0) {
+    *error = "occluder_share must be in [0, 1], jitters and max_hidden_target_redraws >= 0";
     return false;
   }
   if (!(overhead_max_elevation_deg > 0.0 && overhead_max_elevation_deg <= 90.0) ||
@@ -251,11 +251,82 @@ QueryPhoto Simulator::RenderQuery(const Intrinsics& intrinsics,
   return photo;
 }
 
+namespace {
+
+// Where a photo of `target` is taken from and how the phone is held: a free spot in the target's
+// room at the wanted distance and height (rejection sampling), with furniture on the line of
+// sight for options.occluder_share of the draws, aimed with a person's jitter. All draws from
+// `rng`, in a fixed order.
+struct QueryAim {
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  bool occluded = false;  // furniture on the line of sight to the target
+};
+
+QueryAim DrawQueryAim(const Scene& scene, const Appliance& target, const QueryOptions& options,
+                      std::mt19937_64& rng) {
+  const Eigen::Vector3d aim = target.points.front();
+  const bool overhead = aim.z() > options.overhead_min_height_m;
+  const Room* room = scene.RoomAt(aim.head<2>());
+  const bool want_occluder = UniformReal(rng, 0.0, 1.0) < options.occluder_share;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  bool found = false;
+  bool occluded = false;
+  for (int attempt = 0; attempt < 1500 && !found; ++attempt) {
+    const double angle = UniformReal(rng, -kPi, kPi);
+    const double distance = UniformReal(rng, options.min_distance_m, options.max_distance_m);
+    const double height = UniformReal(rng, options.min_height_m, options.max_height_m);
+    const Eigen::Vector3d p(aim.x() + distance * std::cos(angle),
+                            aim.y() + distance * std::sin(angle), height);
+    if (room != nullptr && !room->Contains(p.head<2>(), 0.3)) continue;
+    if (overhead && std::atan2(aim.z() - p.z(), (aim - p).head<2>().norm()) >
+                        options.overhead_max_elevation_deg * kPi / 180.0) {
+      continue;
+    }
+    if (!scene.IsFree(p, 0.25)) continue;
+    const Eigen::Vector3d ray = aim - p;
+    const auto hit = scene.Raycast(p, ray.normalized(), ray.norm() - 0.05, target.id);
+    const bool blocked = hit.has_value();
+    const bool by_wall = blocked && hit->second.rfind("wall", 0) == 0;
+    if (by_wall) continue;  // a photo through a wall is not a photo of the appliance
+    if (want_occluder && attempt < 1200 && !blocked) continue;
+    if (!want_occluder && blocked) continue;
+    position = p;
+    occluded = blocked;
+    found = true;
+  }
+  SIGHTMAP_CHECK(found, "found no place to photograph appliance "
+                            << target.name << " from; check the scene's rooms and boxes");
+  const Eigen::Vector3d to = aim - position;
+  const double yaw = std::atan2(to.y(), to.x()) +
+                     UniformReal(rng, -1.0, 1.0) * options.max_yaw_jitter_deg * kPi / 180.0;
+  const double frame_offset = overhead ? options.overhead_frame_offset_deg * kPi / 180.0 : 0.0;
+  const double pitch = std::atan2(to.z(), to.head<2>().norm()) - frame_offset +
+                       UniformReal(rng, -1.0, 1.0) * options.max_pitch_jitter_deg * kPi / 180.0;
+  const double roll = UniformReal(rng, -1.0, 1.0) * options.max_roll_deg * kPi / 180.0;
+  QueryAim result;
+  result.world_from_cam.linear() = WorldFromCamRotation(yaw, pitch, roll);
+  result.world_from_cam.translation() = position;
+  result.occluded = occluded;
+  return result;
+}
+
+bool ShowsAppliance(const QueryPhoto& photo, int appliance_id) {
+  for (const ApplianceVisibility& visibility : photo.visibility) {
+    if (visibility.appliance_id != appliance_id) continue;
+    return visibility.type == VisibilityType::kVisible ||
+           visibility.type == VisibilityType::kPartiallyVisible;
+  }
+  return false;
+}
+
+}  // namespace
+
 std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   SIGHTMAP_CHECK(!scene_.appliances.empty(), "the scene has no appliances to photograph");
   const Intrinsics phone = options.PhoneIntrinsics();
-  std::mt19937_64 rng(MixSeed(SessionSeed(options_.seed, options_.session), 77));
+  const uint64_t seed = MixSeed(SessionSeed(options_.seed, options_.session), 77);
+  std::mt19937_64 rng(seed);
   // Appliances in a shuffled order (Fisher-Yates with our own uniform draws), cycled.
   std::vector<size_t> order(scene_.appliances.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -266,54 +337,22 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
   std::vector<QueryPhoto> photos;
   for (int q = 0; q < count; ++q) {
     const Appliance& target = scene_.appliances[order[static_cast<size_t>(q) % order.size()]];
-    const Eigen::Vector3d aim = target.points.front();
-    const bool overhead = aim.z() > options.overhead_min_height_m;
-    const Room* room = scene_.RoomAt(aim.head<2>());
-    const bool want_occluder = UniformReal(rng, 0.0, 1.0) < options.occluder_share;
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();
-    bool found = false;
-    bool occluded = false;
-    // Rejection sampling: a free spot in the appliance's room with the wanted line of sight.
-    for (int attempt = 0; attempt < 1500 && !found; ++attempt) {
-      const double angle = UniformReal(rng, -kPi, kPi);
-      const double distance = UniformReal(rng, options.min_distance_m, options.max_distance_m);
-      const double height = UniformReal(rng, options.min_height_m, options.max_height_m);
-      const Eigen::Vector3d p(aim.x() + distance * std::cos(angle),
-                              aim.y() + distance * std::sin(angle), height);
-      if (room != nullptr && !room->Contains(p.head<2>(), 0.3)) continue;
-      if (overhead && std::atan2(aim.z() - p.z(), (aim - p).head<2>().norm()) >
-                          options.overhead_max_elevation_deg * kPi / 180.0) {
-        continue;
-      }
-      if (!scene_.IsFree(p, 0.25)) continue;
-      const Eigen::Vector3d ray = aim - p;
-      const auto hit = scene_.Raycast(p, ray.normalized(), ray.norm() - 0.05, target.id);
-      const bool blocked = hit.has_value();
-      const bool by_wall = blocked && hit->second.rfind("wall", 0) == 0;
-      if (by_wall) continue;  // a photo through a wall is not a photo of the appliance
-      if (want_occluder && attempt < 1200 && !blocked) continue;
-      if (!want_occluder && blocked) continue;
-      position = p;
-      occluded = blocked;
-      found = true;
+    QueryAim aim = DrawQueryAim(scene_, target, options, rng);
+    QueryPhoto photo = RenderQuery(phone, aim.world_from_cam, options.thresholds, rng());
+    // A person photographs an appliance they can see. Furniture on the line of sight to its
+    // centre may still hide all of it; such a photo is drawn again, from a stream of its own so
+    // that the other photos stay as they are.
+    for (int redraw = 1;
+         redraw <= options.max_hidden_target_redraws && !ShowsAppliance(photo, target.id);
+         ++redraw) {
+      std::mt19937_64 again(
+          MixSeed(seed, (static_cast<uint64_t>(q) << 8) + static_cast<uint64_t>(redraw)));
+      aim = DrawQueryAim(scene_, target, options, again);
+      photo = RenderQuery(phone, aim.world_from_cam, options.thresholds, again());
     }
-    SIGHTMAP_CHECK(found, "found no place to photograph appliance " << target.name
-                                                                    << " from; check the scene's "
-                                                                       "rooms and boxes");
-    const Eigen::Vector3d to = aim - position;
-    const double yaw = std::atan2(to.y(), to.x()) +
-                       UniformReal(rng, -1.0, 1.0) * options.max_yaw_jitter_deg * kPi / 180.0;
-    const double frame_offset = overhead ? options.overhead_frame_offset_deg * kPi / 180.0 : 0.0;
-    const double pitch = std::atan2(to.z(), to.head<2>().norm()) - frame_offset +
-                         UniformReal(rng, -1.0, 1.0) * options.max_pitch_jitter_deg * kPi / 180.0;
-    const double roll = UniformReal(rng, -1.0, 1.0) * options.max_roll_deg * kPi / 180.0;
-    Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
-    world_from_cam.linear() = WorldFromCamRotation(yaw, pitch, roll);
-    world_from_cam.translation() = position;
-    QueryPhoto photo = RenderQuery(phone, world_from_cam, options.thresholds, rng());
     photo.index = q;
     photo.target_appliance = target.id;
-    photo.with_occluder = occluded;
+    photo.with_occluder = aim.occluded;
     photos.push_back(std::move(photo));
   }
   return photos;
