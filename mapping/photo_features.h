@@ -19,8 +19,9 @@ namespace sightmap::mapping {
 
 struct PhotoFeatureExtraction {
   slam::FeatureOptions features = slam::RootSiftForPhotos();
-  int max_side_px = 640;  // keyframes larger than this are downscaled first: the photo matcher's
-                          // scale [px]
+  // Keyframes larger than this are downscaled first (MappingOptions::photo_feature_side_px says
+  // why 480) [px].
+  int max_side_px = 480;
 
   bool Check(std::string* error) const;
 };
