@@ -111,8 +111,11 @@ bool QueryOptions::Check(std::string* error) const {
     return false;
   }
   if (occluder_share < 0.0 || occluder_share > 1.0 || max_roll_deg < 0.0 ||
-      max_yaw_jitter_deg < 0.0 || max_pitch_jitter_deg < 0.0 || max_hidden_target_redraws < 0) {
-    *error = "occluder_share must be in [0, 1], jitters and max_hidden_target_redraws >= 0";
+      max_yaw_jitter_deg < 0.0 || max_pitch_jitter_deg < 0.0 || max_hidden_target_redraws < 0 ||
+      max_hidden_target_redraws > 255) {
+    // A photo's redraws take the streams (index << 8) + 1..255: more would share the next one's.
+    *error =
+        "occluder_share must be in [0, 1], jitters >= 0 and max_hidden_target_redraws in [0, 255]";
     return false;
   }
   if (!(overhead_max_elevation_deg > 0.0 && overhead_max_elevation_deg <= 90.0) ||

@@ -84,7 +84,7 @@ struct QueryOptions {
   // A photo whose target the furniture hides entirely (or that shows it too small to count, see
   // VisibilityThresholds) is drawn again, up to this many times: a person photographs what they
   // can see. Without it 18 of 200 session-2 photos (seed 7) showed none of their target, e.g. a
-  // monitor behind a plant box filling half of the frame.
+  // monitor behind a plant box filling half of the frame. At most 255.
   int max_hidden_target_redraws = 20;
   // A person photographing something overhead (a ceiling light) holds the phone level-ish: they
   // step back until it is at most overhead_max_elevation_deg above the horizon, and aim

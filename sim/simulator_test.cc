@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -259,6 +261,9 @@ TEST(Simulator, APhotoThatHidesItsTargetIsDrawnAgainAndLeavesTheOthersAlone) {
               21 - ShownTargets(redrawn));
   ASSERT_GE(hidden, 1) << "the test needs a photo whose target the furniture hides";
   EXPECT_EQ(ShownTargets(redrawn), 21);
+  std::string error;
+  options.max_hidden_target_redraws = 256;  // would take the next photo's streams
+  EXPECT_FALSE(options.Check(&error));
   for (size_t i = 0; i < as_drawn.size(); ++i) {
     const VisibilityType type =
         as_drawn[i].visibility[static_cast<size_t>(as_drawn[i].target_appliance - 1)].type;
