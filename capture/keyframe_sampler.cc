@@ -31,14 +31,9 @@ bool KeyframeSampler::Accept(TimestampNs timestamp_ns) {
   if (period_ns_ == 0) return true;
   const bool first = !next_due_ns_;
   const bool went_back = next_due_ns_ && timestamp_ns < *next_due_ns_ - period_ns_;
-  if (first || went_back) {
-    next_due_ns_ = NextGridPoint(timestamp_ns);
-    return true;
-  }
-  if (timestamp_ns < *next_due_ns_) return false;
-  // Skip the grid points a gap in the stream jumped over.
-  const int64_t periods_late = (timestamp_ns - *next_due_ns_) / period_ns_;
-  *next_due_ns_ += (periods_late + 1) * period_ns_;
+  if (!first && !went_back && timestamp_ns < *next_due_ns_) return false;
+  // The next grid point after this frame: past any a gap in the stream jumped over.
+  next_due_ns_ = NextGridPoint(timestamp_ns);
   return true;
 }
 
