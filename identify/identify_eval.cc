@@ -149,6 +149,7 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.runner_up_inliers = result.runner_up_inliers;
   answer.projected_points = result.projected_points;
   answer.inlier_cells = result.inlier_cells;
+  answer.view_agreement = result.view_agreement;
   answer.world_from_cam = result.world_from_cam;
   answer.inliers = result.inliers;
   if (result.keyframe.valid()) answer.keyframe = result.keyframe.value();
@@ -222,6 +223,13 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
     row["reason"] = answer.matched ? nlohmann::json() : nlohmann::json(answer.reason);
     row["inliers"] = answer.matched ? nlohmann::json(answer.inliers) : nlohmann::json();
     row["keyframe"] = answer.keyframe ? nlohmann::json(*answer.keyframe) : nlohmann::json();
+    row["world_from_cam"] = nlohmann::json();
+    if (answer.matched && answer.world_from_cam) {
+      const Eigen::Vector3d t = answer.world_from_cam->translation();
+      const Eigen::Quaterniond q(answer.world_from_cam->linear());
+      row["world_from_cam"] = {{"position", {t.x(), t.y(), t.z()}},
+                               {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+    }
     row["position_error_m"] = nlohmann::json();
     row["rotation_error_deg"] = nlohmann::json();
     row["wrong_pose"] = nlohmann::json();
@@ -239,6 +247,8 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
     row["runner_up_inliers"] = if_matched(answer.runner_up_inliers);
     row["projected_points"] = if_matched(answer.projected_points);
     row["inlier_cells"] = if_matched(answer.inlier_cells);
+    row["view_agreement"] =
+        answer.view_agreement ? nlohmann::json(*answer.view_agreement) : nlohmann::json();
     row["photo_detail_cells"] = answer.photo_detail_cells;
     row["second_look"] = answer.second_look;
     const LocateTimings& t = answer.timings;

@@ -80,7 +80,8 @@ struct PhotoAnswer {
   int projected_points = 0;
   int inlier_cells = 0;
   int photo_detail_cells = 0;
-  bool second_look = false;  // LocateResult's
+  bool second_look = false;              // LocateResult's
+  std::optional<double> view_agreement;  // LocateResult's
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
 

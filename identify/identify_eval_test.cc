@@ -299,6 +299,7 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   answers[0].inlier_cells = 9;
   answers[0].runner_up_inliers = 31;
   answers[0].photo_detail_cells = 12;
+  answers[0].view_agreement = 0.62;
   answers.push_back(Answer(false, {}, 10));
   answers[1].photo_detail_cells = 2;
   answers[1].inlier_cells = 5;  // not matched: not reported
@@ -323,10 +324,15 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   EXPECT_NEAR(rows[0]["position_error_m"].get<double>(), 0.7, 1e-12);
   EXPECT_NEAR(rows[0]["rotation_error_deg"].get<double>(), 0.0, 1e-9);
   EXPECT_EQ(rows[0]["wrong_pose"], true);
+  EXPECT_NEAR(rows[0]["world_from_cam"]["position"][0].get<double>(), 1.7, 1e-12);
+  EXPECT_NEAR(rows[0]["world_from_cam"]["quaternion_xyzw"][3].get<double>(), 1.0, 1e-12);
+  EXPECT_TRUE(rows[1]["world_from_cam"].is_null());
   EXPECT_EQ(rows[0]["identified"], nlohmann::json::array({"lamp"}));
   EXPECT_EQ(rows[0]["inlier_cells"], 9);
   EXPECT_EQ(rows[0]["runner_up_inliers"], 31);
   EXPECT_EQ(rows[0]["photo_detail_cells"], 12);
+  EXPECT_DOUBLE_EQ(rows[0]["view_agreement"].get<double>(), 0.62);
+  EXPECT_TRUE(rows[1]["view_agreement"].is_null());
   EXPECT_TRUE(rows[1]["inlier_cells"].is_null());
   EXPECT_EQ(rows[1]["photo_detail_cells"], 2);
   EXPECT_EQ(rows[0]["second_look"], false);

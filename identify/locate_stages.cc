@@ -481,6 +481,9 @@ PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>
   prepared.detail_cells = DetailCells(prepared.features, grey.size());
   prepared.retrieval_descriptors = prepared.features.descriptors;
   RefuseFewFeaturesOrIndex(options, &prepared);
+  if (options.min_view_agreement > 0.0 && !prepared.refusal) {
+    prepared.agreement_image = AgreementImage(grey, options.view_agreement);
+  }
   return prepared;
 }
 
@@ -490,6 +493,7 @@ PreparedPhoto RootSiftSeed(const PreparedPhoto& orb) {
   seed.intrinsics_given = orb.intrinsics_given;
   seed.detail_cells = orb.detail_cells;
   seed.retrieval_descriptors = orb.retrieval_descriptors;
+  seed.agreement_image = orb.agreement_image;
   return seed;
 }
 
@@ -760,6 +764,18 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                      verdict.cells >= options.min_inlier_cells &&
                      !HasLowInlierShare(verdict, options);
   verdict.pose = std::move(found);
+  // Last, and only for a pose the cheaper checks accepted: the keyframe's pixels must line up with
+  // the photo's.
+  const LocatorKeyframe& verified = keyframes[verdict.verified_slot];
+  if (verdict.accepted && options.min_view_agreement > 0.0 && verified.thumbnail &&
+      !photo.agreement_image.empty()) {
+    verdict.agreement = MeasureViewAgreement(photo.agreement_image, verdict.pose.intrinsics,
+                                             verdict.pose.world_from_cam, *verified.thumbnail,
+                                             verified.world_from_cam, options.view_agreement);
+    verdict.looks_different =
+        verdict.agreement.judged && verdict.agreement.Score() < options.min_view_agreement;
+    verdict.accepted = !verdict.looks_different;
+  }
   return verdict;
 }
 
@@ -802,6 +818,14 @@ Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
           << "% needed).";
       return Refusal{UnmatchedReason::kFewMatches, why.str()};
     }
+    if (best->looks_different) {
+      std::ostringstream different;
+      different << std::fixed << std::setprecision(2) << "the best pose (" << most_inliers
+                << " inliers) fits details that repeat elsewhere: the model seen from it is "
+                   "unlike the photo (agreement "
+                << best->agreement.Score() << ", " << options.min_view_agreement << " needed).";
+      return Refusal{UnmatchedReason::kLooksDifferent, different.str()};
+    }
   }
   why << ", " << options.min_inliers << " needed.";
   return Refusal{UnmatchedReason::kFewMatches, why.str()};
@@ -830,10 +854,14 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   const PlaceVerdict& best = verdicts[static_cast<size_t>(decision.winner)];
   // The strongest pose elsewhere, accepted or not: a pose the checks refused still fits the photo,
   // and when it has the inliers the view is as ambiguous as with an accepted one (measured on 200
-  // photos: one wrong pose fewer, the same right ones).
+  // photos: one wrong pose fewer, the same right ones). Not one whose view is unlike the photo:
+  // that one fits only the repeated details.
   const PlaceVerdict* runner_up = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
-    if (&verdict == &best || !verdict.pose.valid || verdict.inliers < options.min_inliers) continue;
+    if (&verdict == &best || !verdict.pose.valid || verdict.inliers < options.min_inliers ||
+        verdict.looks_different) {
+      continue;
+    }
     if (!disagree(best.pose.world_from_cam, verdict.pose.world_from_cam)) continue;
     if (runner_up == nullptr || verdict.inliers > runner_up->inliers) runner_up = &verdict;
   }

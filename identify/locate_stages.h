@@ -5,6 +5,7 @@
 // keyframes, places and matches by hand.
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,6 +39,9 @@ struct LocatorKeyframe {
   std::vector<cv::Point3f> world_points;
   std::vector<int> nodes;  // per descriptor: its vocabulary node at match_node_level (> 0 only)
   std::vector<size_t> neighbours;  // slots, nearest first
+  // For the view check (LocatorOptions::min_view_agreement); null for a synthetic view or a
+  // keyframe without depth. Shared by the ORB and RootSIFT slots of the same keyframe.
+  std::shared_ptr<const KeyframeThumbnail> thumbnail;
 };
 
 // For each keyframe, up to max_neighbours others within neighbour_radius_m looking within
@@ -87,6 +91,8 @@ struct PreparedPhoto {
   std::vector<cv::Point2f> points;  // keypoint positions, at the feature image's scale
   std::vector<int> nodes;           // per descriptor, for matching bounded by vocabulary nodes
   PhotoGrid grid;                   // cells of guided_radius_px
+  // The photo as the view check compares it (AgreementImage); empty with the check off.
+  cv::Mat agreement_image;
   // Cells of a 4x4 grid holding at least 20 features: a bare ceiling or wall fills one or two.
   int detail_cells = 0;
   std::optional<Refusal> refusal;  // kFewFeatures: too small, or too few features to match
@@ -171,11 +177,15 @@ struct PlaceVerdict {
   size_t verified_slot = 0;   // the place's keyframe holding most inliers
   double rotation_deg = 0.0;  // from the verified keyframe's view
   int cells = 0;              // of a 4x4 grid holding an inlier
-  bool accepted = false;      // valid and every check passed
+  // The view check, made only on a pose every other check accepted.
+  ViewAgreement agreement;
+  bool looks_different = false;  // judged, and scored below min_view_agreement
+  bool accepted = false;         // valid and every check passed
 };
 // PnP RANSAC for each intrinsics candidate (with the focal refined when estimated), the best
 // grown by guided matching, then the checks: min_inliers, the paper's 90 deg from the keyframe
-// the inliers came from, min_inlier_cells, min_inlier_share of the projected points.
+// the inliers came from, min_inlier_cells, min_inlier_share of the projected points, and last
+// min_view_agreement against that keyframe's thumbnail (when it has one).
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);
@@ -209,7 +219,8 @@ double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
 
 // Stage 6: the answer from the verdicts, in the order the places were tried. The accepted
 // verdict with most inliers wins unless the disagreeing pose with most inliers (more than
-// same_pose_m or same_pose_deg away, accepted or refused with min_inliers) has more than
+// same_pose_m or same_pose_deg away, accepted or refused with min_inliers, but not one whose view
+// looked different from the photo) has more than
 // 1 / min_inlier_ratio_over_runner_up of its inliers, or explains nearly the same part of the
 // photo with other things (less than min_unique_inlier_share of the winner's inliers lie in cells
 // of the 8x8 grid the runner-up's leave empty, and the two inlier centroids lie more than

@@ -9,16 +9,12 @@
 
 #include "core/check.h"
 #include "core/rotation.h"
+#include "identify/view_agreement_testing.h"
 
 namespace sightmap::identify {
 namespace {
 
-Eigen::Isometry3d PoseAt(const Eigen::Vector3d& position, double yaw_deg) {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
-  pose.translation() = position;
-  return pose;
-}
+using testing::PoseAt;
 
 LocatorKeyframe KeyframeAt(const Eigen::Vector3d& position, double yaw_deg, int points = 1) {
   LocatorKeyframe keyframe;
@@ -342,6 +338,48 @@ TEST_F(VerifyPlaceTest, InliersInOneCornerAreRefused) {
   EXPECT_TRUE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
 }
 
+TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
+  LocatorOptions options;
+  // The keyframe and the photo see a textured wall 3 m ahead; the matched points float in front
+  // of it, as a repeated poster's would.
+  const Eigen::Isometry3d world_from_photo = photo_from_world_.inverse();
+  const testing::TexturedWall wall;
+  cv::Mat grey;
+  cv::Mat depth;
+  wall.Render(keyframes_[0].world_from_cam, intrinsics_, &grey, &depth);
+  keyframes_[0].thumbnail = std::make_shared<const KeyframeThumbnail>(
+      MakeThumbnail(grey, depth, intrinsics_, options.view_agreement));
+  cv::Mat photo_grey;
+  wall.Render(world_from_photo, intrinsics_, &photo_grey, &depth);
+  photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
+  const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_TRUE(verdict.accepted);
+  EXPECT_TRUE(verdict.agreement.judged);
+  EXPECT_GT(verdict.agreement.Score(), 0.9);
+  EXPECT_FALSE(verdict.looks_different);
+
+  // The same features in a photo of another wall: every other check passes, this one refuses.
+  const testing::TexturedWall other_wall(3.0, /*seed=*/9);
+  other_wall.Render(world_from_photo, intrinsics_, &photo_grey, &depth);
+  photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
+  verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_TRUE(verdict.pose.valid);
+  EXPECT_EQ(verdict.cells, 16);
+  EXPECT_TRUE(verdict.agreement.judged);
+  EXPECT_LT(verdict.agreement.Score(), options.min_view_agreement);
+  EXPECT_TRUE(verdict.looks_different);
+  EXPECT_FALSE(verdict.accepted);
+  // Off, or without a thumbnail (a synthetic view), the check is not made.
+  options.min_view_agreement = 0.0;
+  verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_TRUE(verdict.accepted);
+  EXPECT_FALSE(verdict.agreement.judged);
+  options.min_view_agreement = LocatorOptions().min_view_agreement;
+  keyframes_[0].thumbnail.reset();
+  EXPECT_TRUE(VerifyPlace(photo_, place_, matches, keyframes_, options).accepted);
+}
+
 TEST_F(VerifyPlaceTest, RandomMatchesGiveNoAcceptedPose) {
   LocatorOptions options;
   PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
@@ -414,6 +452,31 @@ PlaceVerdict VerdictIn(int per_cell, const std::vector<int>& fine_cells,
   }
   verdict.inlier_centroid = position + Eigen::Vector3d(0, 0, 2);
   return verdict;
+}
+
+TEST(DecideTest, APoseWhoseViewWasUnlikeThePhotoIsNoRival) {
+  const LocatorOptions options;
+  // 90 inliers on the repeated poster in the other room, its view unlike the photo: the 100 of
+  // the right place stand.
+  PlaceVerdict other_room = Verdict(90, {3, 0, 0}, false);
+  other_room.looks_different = true;
+  Decision decision = Decide({Verdict(100, {0, 0, 0}, true), other_room}, options);
+  EXPECT_EQ(decision.winner, 0);
+  EXPECT_EQ(decision.runner_up_inliers, 0);
+  EXPECT_FALSE(decision.refusal.has_value());
+  // Alone, it is why the photo is not matched.
+  other_room.agreement.judged = true;
+  other_room.agreement.global_ncc = 0.6;
+  other_room.agreement.cell_median_ncc = 0.12;
+  decision = Decide({other_room, Verdict(20, {1, 0, 0}, false)}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kLooksDifferent);
+  EXPECT_NE(decision.refusal->reason.find("(90 inliers) fits details that repeat elsewhere"),
+            std::string::npos)
+      << decision.refusal->reason;
+  EXPECT_NE(decision.refusal->reason.find("agreement 0.12, 0.35 needed"), std::string::npos)
+      << decision.refusal->reason;
 }
 
 TEST(DecideTest, MoreInliersOnTheSamePartOfThePhotoAsTheRunnerUpAreAmbiguous) {

@@ -85,6 +85,10 @@ bool LocatorOptions::Check(std::string* error) const {
            "occlusion_max_depth_m must be positive";
   else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0)
     why << "occlusion margins must not be negative";
+  else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0))
+    why << "min_view_agreement must be in [0, 1]";
+  else if (!view_agreement.Check(error))
+    return false;
   else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
            !(min_unoccluded_share > 0.0 && min_unoccluded_share <= 1.0))
     why << "min_in_view_share and min_unoccluded_share must be in (0, 1]";
@@ -102,6 +106,25 @@ using Clock = std::chrono::steady_clock;
 
 double MsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// The keyframe as the view check compares it, from its grey image decoded at the smallest scale
+// at least as wide as the thumbnail; null with the check off or without a colour image and depth
+// of the keyframe's size.
+std::shared_ptr<const KeyframeThumbnail> LoadThumbnail(const store::Model& model,
+                                                       const store::KeyframeInfo& info,
+                                                       const cv::Mat& depth,
+                                                       const LocatorOptions& options) {
+  if (!(options.min_view_agreement > 0.0) || info.color_bytes <= 0 || depth.empty() ||
+      depth.cols != info.intrinsics.width || depth.rows != info.intrinsics.height) {
+    return nullptr;
+  }
+  int reduction = 8;
+  while (reduction > 1 && depth.cols / reduction < options.view_agreement.thumbnail_width_px) {
+    reduction /= 2;
+  }
+  return std::make_shared<const KeyframeThumbnail>(MakeThumbnail(
+      model.LoadGrey(info.id, reduction), depth, info.intrinsics, options.view_agreement));
 }
 
 VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
@@ -415,11 +438,13 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     impl_->keyframes.push_back(
         MakeLocatorKeyframe(info.id, info.world_from_cam, features, impl_->vocabulary, options));
     const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
+    impl_->keyframes.back().thumbnail = LoadThumbnail(model, info, depth, options);
     if (with_sift) {
       impl_->sift_keyframes.push_back(
           MakeLocatorKeyframe(info.id, info.world_from_cam,
                               KeyframeSiftFeatures(model, info, depth, options, &sift_extracted),
                               impl_->vocabulary, options));
+      impl_->sift_keyframes.back().thumbnail = impl_->keyframes.back().thumbnail;
     }
     if (!depth.empty()) {
       cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
@@ -497,7 +522,8 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     const UnmatchedReason code = refusal.code;
     const bool matching_failed =
         code == UnmatchedReason::kUnknownPlace || code == UnmatchedReason::kUnseenView ||
-        code == UnmatchedReason::kFewMatches || code == UnmatchedReason::kMatchesInOneCorner;
+        code == UnmatchedReason::kFewMatches || code == UnmatchedReason::kMatchesInOneCorner ||
+        code == UnmatchedReason::kLooksDifferent;
     if (matching_failed && result.photo_detail_cells <= options.bare_view_max_detail_cells) {
       refusal.reason = "the photo shows little detail (its features fill " +
                        std::to_string(result.photo_detail_cells) + " of 16 parts of it); " +
@@ -583,6 +609,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   result.matches = best.matches;
   result.projected_points = best.projected;
   result.inlier_cells = best.cells;
+  if (best.agreement.judged) result.view_agreement = best.agreement.Score();
   result.keyframe = (*matched)[best.verified_slot].id;
   result.synthetic_view = (*matched)[best.verified_slot].synthetic_view;
   result.intrinsics = best.pose.intrinsics.Scaled(photo.cols, photo.rows);
@@ -617,6 +644,8 @@ const char* ToString(UnmatchedReason reason) {
       return "matches_in_one_corner";
     case UnmatchedReason::kBareView:
       return "bare_view";
+    case UnmatchedReason::kLooksDifferent:
+      return "looks_different";
   }
   return "unknown";
 }
@@ -646,6 +675,9 @@ const char* Advice(UnmatchedReason reason) {
              "the picture.";
     case UnmatchedReason::kBareView:
       return "Too little detail: include a wall or furniture in the photo.";
+    case UnmatchedReason::kLooksDifferent:
+      return "What matched repeats elsewhere in the building (a poster, tiles, furniture): include "
+             "more of the room, such as a door, a window or a corner.";
   }
   return "";
 }
@@ -735,10 +767,10 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_ima
                       guided_rounds, min_inlier_cells, bare_view_max_detail_cells, min_inlier_share,
                       same_pose_m, same_pose_deg, min_inlier_ratio_over_runner_up,
                       min_unique_inlier_share, twin_places, twin_max_shared_share,
-                      confident_inliers, max_rotation_from_keyframe_deg, focal_candidates_35mm,
-                      refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
-                      occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
-                      occlusion_margin_ratio, min_in_view_share, min_unoccluded_share,
-                      use_synthetic_views)
+                      confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement,
+                      view_agreement, focal_candidates_35mm, refine_estimated_focal,
+                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
+                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
+                      min_in_view_share, min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

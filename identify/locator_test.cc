@@ -102,6 +102,7 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
   std::vector<double> rotation_errors;
   int matched = 0;
   int accurate = 0;  // within 5 cm and 2 deg
+  int judged = 0;    // matched photos the view check could judge
   for (const sim::QueryPhoto& photo : *seen_photos_) {
     const LocateResult result = locator_->Locate(photo.image, photo.intrinsics);
     if (!result.matched) {
@@ -110,6 +111,11 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
     }
     ++matched;
     EXPECT_EQ(result.intrinsics_source, IntrinsicsSource::kGiven);
+    // A right pose lines up the keyframe's pixels with the photo's.
+    if (result.view_agreement) {
+      ++judged;
+      EXPECT_GE(*result.view_agreement, locator_->options().min_view_agreement);
+    }
     position_errors.push_back(PositionError(result.world_from_cam, photo.world_from_cam));
     rotation_errors.push_back(
         RotationAngleDeg(result.world_from_cam.linear(), photo.world_from_cam.linear()));
@@ -134,6 +140,8 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
   }
   EXPECT_LE(Median(position_errors), 0.01);
   EXPECT_LE(Median(rotation_errors), 0.3);
+  // The view check ran on the keyframes' thumbnails: most matched photos overlap their keyframe.
+  EXPECT_GE(judged, matched * 3 / 4) << judged << " of " << matched << " judged";
 }
 
 TEST_F(LocatorTest, MatchingBoundedByVocabularyNodesStillMatchesMostSeenPhotos) {

@@ -839,6 +839,32 @@ cv::Mat Model::LoadColor(KeyframeId id) const {
   return color;
 }
 
+cv::Mat Model::LoadGrey(KeyframeId id, int reduction) const {
+  int flag = cv::IMREAD_GRAYSCALE;
+  switch (reduction) {
+    case 1:
+      break;
+    case 2:
+      flag = cv::IMREAD_REDUCED_GRAYSCALE_2;
+      break;
+    case 4:
+      flag = cv::IMREAD_REDUCED_GRAYSCALE_4;
+      break;
+    case 8:
+      flag = cv::IMREAD_REDUCED_GRAYSCALE_8;
+      break;
+    default:
+      SIGHTMAP_THROW(InvalidArgument,
+                     "LoadGrey: reduction must be 1, 2, 4 or 8, not " << reduction);
+  }
+  const std::vector<uint8_t> jpeg = impl_->LoadImageBlob(id, "color_jpeg");
+  cv::Mat grey = cv::imdecode(jpeg, flag);
+  SIGHTMAP_CHECK(!grey.empty(), "keyframe " << id.value() << "'s colour image in model "
+                                            << FileDescription(impl_->path)
+                                            << " does not decode: restore it from a backup");
+  return grey;
+}
+
 cv::Mat Model::LoadDepth(KeyframeId id) const {
   const std::vector<uint8_t> png = impl_->LoadImageBlob(id, "depth_png");
   cv::Mat depth = cv::imdecode(png, cv::IMREAD_UNCHANGED);

@@ -232,6 +232,9 @@ class Model {
   KeyframeInfo Keyframe(KeyframeId id) const;
   int64_t NumKeyframes() const;
   cv::Mat LoadColor(KeyframeId id) const;  // CV_8UC3 BGR
+  // Grey (CV_8UC1), decoded at 1 / `reduction` of its size (1, 2, 4 or 8: the JPEG decoder scales
+  // as it decodes, faster than decoding whole).
+  cv::Mat LoadGrey(KeyframeId id, int reduction = 1) const;
   cv::Mat LoadDepth(KeyframeId id) const;  // CV_16UC1 [mm]
   Features LoadFeatures(KeyframeId id) const;
   // A keyframe's features for matching photos, when it has them; SetPhotoFeatures adds or

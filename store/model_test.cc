@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "store/schema.h"
 #include "store/store_test_util.h"
@@ -84,6 +85,16 @@ TEST(Model, KeyframeRoundTripWithFeaturesAndLinks) {
   const cv::Mat color = model.LoadColor(b);
   ASSERT_EQ(color.size(), second.color.size());
   EXPECT_LT(cv::norm(color, second.color, cv::NORM_L1) / color.total() / 3, 6.0);
+  // Grey at a quarter of the size, decoded scaled: the colour image's grey, area-averaged.
+  const cv::Mat grey = model.LoadGrey(b, 4);
+  ASSERT_EQ(grey.type(), CV_8UC1);
+  ASSERT_EQ(grey.size(), cv::Size(second.color.cols / 4, second.color.rows / 4));
+  cv::Mat expected_grey;
+  cv::cvtColor(second.color, expected_grey, cv::COLOR_BGR2GRAY);
+  cv::resize(expected_grey, expected_grey, grey.size(), 0, 0, cv::INTER_AREA);
+  EXPECT_LT(cv::norm(grey, expected_grey, cv::NORM_L1) / grey.total(), 6.0);
+  EXPECT_EQ(model.LoadGrey(b).size(), second.color.size());
+  EXPECT_THROW(model.LoadGrey(b, 3), InvalidArgument);
 
   const Features features = model.LoadFeatures(b);
   ASSERT_EQ(features.keypoints.size(), 50u);
