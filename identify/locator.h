@@ -158,8 +158,8 @@ struct LocatorOptions {
   // repeats elsewhere (the same poster in two rooms, a ceiling's tile grid). 0 turns it off. On
   // 200 session-2 photos, of the poses all other checks accepted, the right ones (within 0.5 m and
   // 10 deg) scored at least 0.45 against the survey walk's SLAM model and 0.41 against the
-  // hand-held walk's, while 7 of 10 and 4 of 6 wrong ones scored below 0.35 (one tile off on the
-  // ceiling, another room's poster, the twin desk seen past its monitor).
+  // hand-held walk's, while 7 of 10 and 4 of 6 wrong ones scored below 0.35 (a ceiling light one
+  // tile off, photos matched 2-10 m away on a repeated texture, one of two identical desks).
   double min_view_agreement = 0.35;
   ViewAgreementOptions view_agreement;
   // With no intrinsics known, these 35 mm-equivalent focal lengths are tried and the one with most
