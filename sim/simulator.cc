@@ -313,6 +313,8 @@ QueryAim DrawQueryAim(const Scene& scene, const Appliance& target, const QueryOp
   return result;
 }
 
+}  // namespace
+
 bool ShowsAppliance(const QueryPhoto& photo, int appliance_id) {
   for (const ApplianceVisibility& visibility : photo.visibility) {
     if (visibility.appliance_id != appliance_id) continue;
@@ -321,8 +323,6 @@ bool ShowsAppliance(const QueryPhoto& photo, int appliance_id) {
   }
   return false;
 }
-
-}  // namespace
 
 std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);

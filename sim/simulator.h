@@ -110,6 +110,9 @@ struct QueryPhoto {
   cv::Mat image;                                // BGR
   std::vector<ApplianceVisibility> visibility;  // one per appliance, in scene order
 };
+// Whether the photo shows the appliance `appliance_id`, wholly or in part (a person photographs
+// an appliance they can see).
+bool ShowsAppliance(const QueryPhoto& photo, int appliance_id);
 
 class Simulator {
  public:

@@ -205,13 +205,26 @@ TEST(Simulator, QueryTypesOnHandBuiltCases) {
 }
 
 // Photos whose target shows (visible or partly).
+TEST(Simulator, APhotoShowsAnApplianceVisibleOrPartlyVisibleNotOneHiddenOrOutOfView) {
+  QueryPhoto photo;
+  const VisibilityType types[] = {VisibilityType::kVisible, VisibilityType::kPartiallyVisible,
+                                  VisibilityType::kOccluded, VisibilityType::kNotVisible};
+  for (int id = 1; id <= 4; ++id) {
+    ApplianceVisibility visibility;
+    visibility.appliance_id = id;
+    visibility.type = types[id - 1];
+    photo.visibility.push_back(visibility);
+  }
+  EXPECT_TRUE(ShowsAppliance(photo, 1));
+  EXPECT_TRUE(ShowsAppliance(photo, 2));
+  EXPECT_FALSE(ShowsAppliance(photo, 3));
+  EXPECT_FALSE(ShowsAppliance(photo, 4));
+  EXPECT_FALSE(ShowsAppliance(photo, 5));  // not in the scene
+}
+
 int ShownTargets(const std::vector<QueryPhoto>& photos) {
   int shown = 0;
-  for (const QueryPhoto& photo : photos) {
-    const VisibilityType type =
-        photo.visibility[static_cast<size_t>(photo.target_appliance - 1)].type;
-    shown += type == VisibilityType::kVisible || type == VisibilityType::kPartiallyVisible;
-  }
+  for (const QueryPhoto& photo : photos) shown += ShowsAppliance(photo, photo.target_appliance);
   return shown;
 }
 
