@@ -278,6 +278,16 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   run.keyframes = static_cast<int>(mapper.NumKeyframes());
   run.segments = mapper.NumSegments();
 
+  std::vector<StampedPose> ground_truth;
+  const std::vector<StampedPose> trajectory = mapper.Trajectory();
+  for (size_t i = 0; i < truths.size(); ++i) {
+    ground_truth.push_back({trajectory[i].timestamp_ns, truths[i]});
+  }
+  run.error = EvaluateTrajectory(ground_truth, trajectory);
+  run.estimate = trajectory;
+  run.ground_truth = ground_truth;
+  run.links = mapper.Links();
+
   // Every accepted loop against ground truth.
   for (const MapperLink& link : mapper.Links()) {
     // Priors are the motion model's guesses, not place recognition's claims.
@@ -286,8 +296,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
     }
     if (link.from == false_from && link.to == false_to) continue;
     ++run.loops;
-    const Eigen::Isometry3d link_truth =
-        truths[static_cast<size_t>(link.from)].inverse() * truths[static_cast<size_t>(link.to)];
+    const Eigen::Isometry3d link_truth = TruthOf(link, run.ground_truth);
     const Eigen::Isometry3d error = link_truth.inverse() * link.to_in_from;
     const double error_m = error.translation().norm();
     const double error_deg = RotationAngleDeg(error);
@@ -298,16 +307,6 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
                    error_deg);
     }
   }
-
-  std::vector<StampedPose> ground_truth;
-  const std::vector<StampedPose> trajectory = mapper.Trajectory();
-  for (size_t i = 0; i < truths.size(); ++i) {
-    ground_truth.push_back({trajectory[i].timestamp_ns, truths[i]});
-  }
-  run.error = EvaluateTrajectory(ground_truth, trajectory);
-  run.estimate = trajectory;
-  run.ground_truth = ground_truth;
-  run.links = mapper.Links();
   std::map<int, std::vector<StampedPose>> parts;
   const std::vector<StampedPose> estimate = mapper.Trajectory();
   for (size_t i = 0; i < estimate.size(); ++i) {
