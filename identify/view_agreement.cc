@@ -11,6 +11,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/statistics.h"
 
 namespace sightmap::identify {
 
@@ -212,16 +213,7 @@ ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intri
   }
   agreement.judged = true;
   agreement.global_ncc = global.Ncc();
-  const size_t mid = cell_nccs.size() / 2;
-  std::nth_element(cell_nccs.begin(), cell_nccs.begin() + static_cast<std::ptrdiff_t>(mid),
-                   cell_nccs.end());
-  double median = cell_nccs[mid];
-  if (cell_nccs.size() % 2 == 0) {
-    median =
-        0.5 * (median + *std::max_element(cell_nccs.begin(),
-                                          cell_nccs.begin() + static_cast<std::ptrdiff_t>(mid)));
-  }
-  agreement.cell_median_ncc = median;
+  agreement.cell_median_ncc = Percentile(cell_nccs, 0.5);
   return agreement;
 }
 

@@ -204,7 +204,6 @@ TEST(Simulator, QueryTypesOnHandBuiltCases) {
   EXPECT_EQ(photo.image.cols, 640);
 }
 
-// Photos whose target shows (visible or partly).
 TEST(Simulator, APhotoShowsAnApplianceVisibleOrPartlyVisibleNotOneHiddenOrOutOfView) {
   QueryPhoto photo;
   const VisibilityType types[] = {VisibilityType::kVisible, VisibilityType::kPartiallyVisible,
@@ -222,6 +221,7 @@ TEST(Simulator, APhotoShowsAnApplianceVisibleOrPartlyVisibleNotOneHiddenOrOutOfV
   EXPECT_FALSE(ShowsAppliance(photo, 5));  // not in the scene
 }
 
+// Photos whose target shows (visible or partly).
 int ShownTargets(const std::vector<QueryPhoto>& photos) {
   int shown = 0;
   for (const QueryPhoto& photo : photos) shown += ShowsAppliance(photo, photo.target_appliance);
