@@ -241,6 +241,14 @@ std::vector<ApplianceVisibility> Simulator::ClassifyAppliances(
 QueryPhoto Simulator::RenderQuery(const Intrinsics& intrinsics,
                                   const Eigen::Isometry3d& world_from_cam,
                                   const VisibilityThresholds& thresholds, uint64_t noise_seed) {
+  QueryPhoto photo = RenderQueryImage(intrinsics, world_from_cam, noise_seed);
+  photo.visibility = ClassifyAppliances(intrinsics, world_from_cam, thresholds);
+  return photo;
+}
+
+QueryPhoto Simulator::RenderQueryImage(const Intrinsics& intrinsics,
+                                       const Eigen::Isometry3d& world_from_cam,
+                                       uint64_t noise_seed) {
   QueryPhoto photo;
   photo.intrinsics = intrinsics;
   photo.world_from_cam = world_from_cam;
@@ -250,7 +258,6 @@ QueryPhoto Simulator::RenderQuery(const Intrinsics& intrinsics,
   phone.read_noise = 1.0;
   phone.shot_noise = 0.15;
   photo.image = SimulateColor(view.color, 1.0, Eigen::Vector2d::Zero(), phone, noise_seed);
-  photo.visibility = ClassifyAppliances(intrinsics, world_from_cam, thresholds);
   return photo;
 }
 
@@ -315,11 +322,10 @@ QueryAim DrawQueryAim(const Scene& scene, const Appliance& target, const QueryOp
 
 }  // namespace
 
-bool ShowsAppliance(const QueryPhoto& photo, int appliance_id) {
-  for (const ApplianceVisibility& visibility : photo.visibility) {
-    if (visibility.appliance_id != appliance_id) continue;
-    return visibility.type == VisibilityType::kVisible ||
-           visibility.type == VisibilityType::kPartiallyVisible;
+bool ShowsAppliance(const std::vector<ApplianceVisibility>& visibility, int appliance_id) {
+  for (const ApplianceVisibility& v : visibility) {
+    if (v.appliance_id != appliance_id) continue;
+    return v.type == VisibilityType::kVisible || v.type == VisibilityType::kPartiallyVisible;
   }
   return false;
 }
@@ -341,18 +347,23 @@ std::vector<QueryPhoto> Simulator::MakeQueries(int count, const QueryOptions& op
   for (int q = 0; q < count; ++q) {
     const Appliance& target = scene_.appliances[order[static_cast<size_t>(q) % order.size()]];
     QueryAim aim = DrawQueryAim(scene_, target, options, rng);
-    QueryPhoto photo = RenderQuery(phone, aim.world_from_cam, options.thresholds, rng());
+    uint64_t noise_seed = rng();
+    std::vector<ApplianceVisibility> visibility =
+        ClassifyAppliances(phone, aim.world_from_cam, options.thresholds);
     // A person photographs an appliance they can see. Furniture on the line of sight to its
     // centre may still hide all of it; such a photo is drawn again, from a stream of its own so
-    // that the other photos stay as they are.
+    // that the other photos stay as they are. Only the draw kept is rendered.
     for (int redraw = 1;
-         redraw <= options.max_hidden_target_redraws && !ShowsAppliance(photo, target.id);
+         redraw <= options.max_hidden_target_redraws && !ShowsAppliance(visibility, target.id);
          ++redraw) {
       std::mt19937_64 again(
           MixSeed(seed, (static_cast<uint64_t>(q) << 8) + static_cast<uint64_t>(redraw)));
       aim = DrawQueryAim(scene_, target, options, again);
-      photo = RenderQuery(phone, aim.world_from_cam, options.thresholds, again());
+      noise_seed = again();
+      visibility = ClassifyAppliances(phone, aim.world_from_cam, options.thresholds);
     }
+    QueryPhoto photo = RenderQueryImage(phone, aim.world_from_cam, noise_seed);
+    photo.visibility = std::move(visibility);
     photo.index = q;
     photo.target_appliance = target.id;
     photo.with_occluder = aim.occluded;

@@ -110,9 +110,9 @@ struct QueryPhoto {
   cv::Mat image;                                // BGR
   std::vector<ApplianceVisibility> visibility;  // one per appliance, in scene order
 };
-// Whether the photo shows the appliance `appliance_id`, wholly or in part (a person photographs
-// an appliance they can see).
-bool ShowsAppliance(const QueryPhoto& photo, int appliance_id);
+// Whether a photo with this visibility (QueryPhoto::visibility) shows the appliance
+// `appliance_id`, wholly or in part (a person photographs an appliance they can see).
+bool ShowsAppliance(const std::vector<ApplianceVisibility>& visibility, int appliance_id);
 
 class Simulator {
  public:
@@ -144,6 +144,10 @@ class Simulator {
   render::MeshRenderer& renderer() { return *renderer_; }
 
  private:
+  // RenderQuery's photo without its visibility: MakeQueries classifies a draw before it renders
+  // it, and renders only the draw it keeps.
+  QueryPhoto RenderQueryImage(const Intrinsics& intrinsics, const Eigen::Isometry3d& world_from_cam,
+                              uint64_t noise_seed);
   SimulatorOptions options_;
   Scene scene_;
   std::unique_ptr<Trajectory> trajectory_;

@@ -214,17 +214,18 @@ TEST(Simulator, APhotoShowsAnApplianceVisibleOrPartlyVisibleNotOneHiddenOrOutOfV
     visibility.type = types[id - 1];
     photo.visibility.push_back(visibility);
   }
-  EXPECT_TRUE(ShowsAppliance(photo, 1));
-  EXPECT_TRUE(ShowsAppliance(photo, 2));
-  EXPECT_FALSE(ShowsAppliance(photo, 3));
-  EXPECT_FALSE(ShowsAppliance(photo, 4));
-  EXPECT_FALSE(ShowsAppliance(photo, 5));  // not in the scene
+  EXPECT_TRUE(ShowsAppliance(photo.visibility, 1));
+  EXPECT_TRUE(ShowsAppliance(photo.visibility, 2));
+  EXPECT_FALSE(ShowsAppliance(photo.visibility, 3));
+  EXPECT_FALSE(ShowsAppliance(photo.visibility, 4));
+  EXPECT_FALSE(ShowsAppliance(photo.visibility, 5));  // not in the scene
 }
 
 // Photos whose target shows (visible or partly).
 int ShownTargets(const std::vector<QueryPhoto>& photos) {
   int shown = 0;
-  for (const QueryPhoto& photo : photos) shown += ShowsAppliance(photo, photo.target_appliance);
+  for (const QueryPhoto& photo : photos)
+    shown += ShowsAppliance(photo.visibility, photo.target_appliance);
   return shown;
 }
 
