@@ -508,14 +508,24 @@ PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
   return prepared;
 }
 
-std::vector<slam::PlaceCandidate> RetrieveCandidates(const cv::Mat& descriptors,
-                                                     const slam::Vocabulary& vocabulary,
-                                                     const slam::PlaceIndex& index,
-                                                     const std::vector<LocatorKeyframe>& keyframes,
-                                                     const LocatorOptions& options) {
+std::vector<slam::PlaceCandidate> RetrieveCandidates(
+    const cv::Mat& descriptors, LocatorOptions::Retrieval method,
+    const slam::Vocabulary& vocabulary, const slam::PlaceIndex& index, const slam::VoteIndex& votes,
+    const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options) {
   std::vector<slam::PlaceCandidate> candidates;
   if (!vocabulary.empty()) {
-    candidates = index.Query(vocabulary.Transform(descriptors), options.retrieval_candidates);
+    std::vector<int> words;
+    const slam::BowVector bow = vocabulary.Transform(descriptors, &words);
+    if (method == LocatorOptions::Retrieval::kVotes) {
+      std::vector<int64_t> shortlist;
+      for (const slam::PlaceCandidate& c :
+           index.Query(bow, std::max(options.vote_shortlist, options.retrieval_candidates))) {
+        shortlist.push_back(c.id);
+      }
+      candidates = votes.Rank(descriptors, words, shortlist, options.retrieval_candidates);
+    } else {
+      candidates = index.Query(bow, options.retrieval_candidates);
+    }
   }
   // Without a vocabulary (a model with one keyframe of features) there is nothing to rank by.
   if (vocabulary.empty() || keyframes.size() <= static_cast<size_t>(options.retrieval_candidates)) {

@@ -18,6 +18,7 @@
 #include "identify/locator.h"
 #include "slam/place_index.h"
 #include "slam/vocabulary.h"
+#include "slam/vote_index.h"
 
 namespace sightmap::identify {
 
@@ -112,15 +113,15 @@ PreparedPhoto RootSiftSeed(const PreparedPhoto& orb);
 PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
                             const LocatorOptions& options);
 
-// Stage 2: retrieval. The inverted index's best candidates for the photo's descriptors, best
-// first; in a model of no more keyframes than retrieval_candidates, or without a vocabulary,
-// every keyframe holding 3D points is a candidate too (a few keyframes are cheaper to verify than
-// to rank, and a vocabulary trained on them ranks poorly).
-std::vector<slam::PlaceCandidate> RetrieveCandidates(const cv::Mat& descriptors,
-                                                     const slam::Vocabulary& vocabulary,
-                                                     const slam::PlaceIndex& index,
-                                                     const std::vector<LocatorKeyframe>& keyframes,
-                                                     const LocatorOptions& options);
+// Stage 2: retrieval. The best candidates for the photo's descriptors by the method named: the
+// bag-of-words `index`'s, or its best vote_shortlist re-ranked by `votes`; best first. In a model
+// of no more keyframes than retrieval_candidates, or without a vocabulary, every keyframe holding
+// 3D points is a candidate too (a few keyframes are cheaper to verify than to rank, and a
+// vocabulary trained on them ranks poorly).
+std::vector<slam::PlaceCandidate> RetrieveCandidates(
+    const cv::Mat& descriptors, LocatorOptions::Retrieval method,
+    const slam::Vocabulary& vocabulary, const slam::PlaceIndex& index, const slam::VoteIndex& votes,
+    const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options);
 
 // Stage 3: candidates grouped into places. A candidate within place_radius_m of an earlier
 // place's head and looking within place_max_angle_deg of it joins that place (same part of the

@@ -19,6 +19,7 @@
 #include "identify/visibility.h"
 #include "slam/place_index.h"
 #include "slam/vocabulary.h"
+#include "slam/vote_index.h"
 
 namespace sightmap::identify {
 
@@ -40,6 +41,8 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "place_threads must not be negative";
   else if (retrieval_candidates < 1)
     why << "retrieval_candidates must be at least 1";
+  else if (vote_shortlist < 1 || vote_max_hamming < 0 || vote_max_hamming > 256)
+    why << "vote_shortlist must be positive, vote_max_hamming in [0, 256]";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
     why << "neighbour_radius_m and max_neighbours must not be negative";
   else if (match_node_level < 0)
@@ -146,7 +149,10 @@ struct Locator::Impl {
   // matcher.
   std::vector<LocatorKeyframe> sift_keyframes;
   slam::Vocabulary vocabulary;
-  slam::PlaceIndex index;          // ids are slots into `keyframes`
+  // Ids are slots into `keyframes`: every keyframe's bag of words (photos' retrieval with
+  // LocatorOptions::Retrieval::kBagOfWords, and the twin check's) and descriptors (with kVotes).
+  slam::PlaceIndex index;
+  slam::VoteIndex votes;
   size_t num_synthetic_views = 0;  // the last ones of `keyframes`
   size_t num_sift_extracted = 0;
   OcclusionCloud cloud;
@@ -258,11 +264,16 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
                                                      const std::vector<LocatorKeyframe>& matched,
                                                      LocateTimings* timings) const {
   Clock::time_point stage = Clock::now();
-  // The vocabulary is ORB's: RootSIFT inliers ask with their keyframe's ORB features.
+  // The vocabulary is ORB's: RootSIFT inliers ask with their keyframe's ORB features. Ranked by
+  // bag of words whatever options.retrieval: the query is the model's own descriptors, not a
+  // photo's, and on 200 session-2 photos votes found fewer twins (every keyframe ranked by votes
+  // for the photos; hand-held seed 11 model: 107 matched, 4 wrong with votes here, 106 and 3 with
+  // bag of words; survey 136 and 3, 137 and 3).
   const cv::Mat& query = &matched == &keyframes ? winner.inlier_descriptors
                                                 : keyframes[winner.verified_slot].descriptors;
   const std::vector<Place> twins =
-      TwinPlaces(RetrieveCandidates(query, vocabulary, index, keyframes, options),
+      TwinPlaces(RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords, vocabulary,
+                                    index, votes, keyframes, options),
                  winner.verified_slot, tried, matched, options);
   timings->retrieval_ms += MsSince(stage);
   if (twins.empty()) return {};
@@ -370,13 +381,19 @@ LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& worl
   return keyframe;
 }
 
-// Every ORB descriptor of a keyframe (with or without a point) votes in retrieval: added to
-// `index` under `slot`. Not without a vocabulary: a model with one keyframe of features has none
-// to index by.
+// Every ORB descriptor of a keyframe (with or without a point) counts in retrieval: added under
+// `slot` to the bag-of-words index (the twin check's) and, with options.retrieval kVotes, to the
+// vote index. Not without a vocabulary: a model with one keyframe of features has none to index
+// by.
 void IndexKeyframe(const Features& orb, size_t slot, const slam::Vocabulary& vocabulary,
-                   slam::PlaceIndex* index) {
+                   const LocatorOptions& options, slam::PlaceIndex* index, slam::VoteIndex* votes) {
   if (vocabulary.empty() || !IsOrbDescriptors(orb.descriptors)) return;
-  index->Add(static_cast<int64_t>(slot), vocabulary.Transform(orb.descriptors));
+  std::vector<int> words;
+  slam::BowVector bow = vocabulary.Transform(orb.descriptors, &words);
+  if (options.retrieval == LocatorOptions::Retrieval::kVotes) {
+    votes->Add(static_cast<int64_t>(slot), orb.descriptors, words);
+  }
+  index->Add(static_cast<int64_t>(slot), std::move(bow));
 }
 
 // A keyframe's RootSIFT features with their 3D points: those the model stores (`sightmap map`
@@ -419,6 +436,7 @@ TimedSiftPhoto ExtractRootSiftTimed(const cv::Mat& photo, const PreparedPhoto& s
 Locator::Locator(const store::Model& model, const LocatorOptions& options)
     : impl_(std::make_unique<Impl>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
+  impl_->votes = slam::VoteIndex(options.vote_max_hamming);
   impl_->options = options;
   const std::vector<store::KeyframeInfo> infos = model.Keyframes();
   SIGHTMAP_CHECK(!infos.empty(), "the model " << model.path()
@@ -434,7 +452,8 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   for (const store::KeyframeInfo& info : infos) {
     const Features features = model.LoadFeatures(info.id);
     any_orb_features = any_orb_features || IsOrbDescriptors(features.descriptors);
-    IndexKeyframe(features, impl_->keyframes.size(), impl_->vocabulary, &impl_->index);
+    IndexKeyframe(features, impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index,
+                  &impl_->votes);
     impl_->keyframes.push_back(
         MakeLocatorKeyframe(info.id, info.world_from_cam, features, impl_->vocabulary, options));
     const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
@@ -459,7 +478,8 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   if (options.use_synthetic_views) {
     for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
       if (!IsOrbDescriptors(view.features.descriptors)) continue;
-      IndexKeyframe(view.features, impl_->keyframes.size(), impl_->vocabulary, &impl_->index);
+      IndexKeyframe(view.features, impl_->keyframes.size(), impl_->vocabulary, options,
+                    &impl_->index, &impl_->votes);
       LocatorKeyframe keyframe = MakeLocatorKeyframe(view.source, view.world_from_cam,
                                                      view.features, impl_->vocabulary, options);
       keyframe.synthetic_view = view.id;
@@ -549,8 +569,9 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   if (prepared.refusal) return finish(*prepared.refusal);
 
   stage = Clock::now();
-  const std::vector<slam::PlaceCandidate> candidates = RetrieveCandidates(
-      prepared.retrieval_descriptors, impl_->vocabulary, impl_->index, impl_->keyframes, options);
+  const std::vector<slam::PlaceCandidate> candidates =
+      RetrieveCandidates(prepared.retrieval_descriptors, options.retrieval, impl_->vocabulary,
+                         impl_->index, impl_->votes, impl_->keyframes, options);
   result.timings.retrieval_ms = MsSince(stage);
   if (candidates.empty()) {
     return finish({UnmatchedReason::kUnknownPlace,
@@ -748,7 +769,17 @@ const std::pair<LocatorOptions::Matcher, const char*> kMatcherNames[] = {
     {LocatorOptions::Matcher::kOrb, "orb"},
     {LocatorOptions::Matcher::kRootSift, "rootsift"},
     {LocatorOptions::Matcher::kOrbThenRootSift, "orb_then_rootsift"}};
+const std::pair<LocatorOptions::Retrieval, const char*> kRetrievalNames[] = {
+    {LocatorOptions::Retrieval::kVotes, "votes"},
+    {LocatorOptions::Retrieval::kBagOfWords, "bag_of_words"}};
 }  // namespace
+
+void to_json(nlohmann::json& json, const LocatorOptions::Retrieval& retrieval) {
+  options_json::WriteEnum(json, retrieval, kRetrievalNames);
+}
+void from_json(const nlohmann::json& json, LocatorOptions::Retrieval& retrieval) {
+  options_json::ReadEnum(json, retrieval, kRetrievalNames);
+}
 
 void to_json(nlohmann::json& json, const LocatorOptions::Matcher& matcher) {
   options_json::WriteEnum(json, matcher, kMatcherNames);
@@ -760,17 +791,18 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
 SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
                       sift_max_distance, sift_guided_max_distance, second_look_max_places,
                       place_threads, extract_sift_ahead, max_image_side_px, retrieval_candidates,
-                      place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
-                      neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
-                      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
-                      min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
-                      guided_rounds, min_inlier_cells, bare_view_max_detail_cells, min_inlier_share,
-                      same_pose_m, same_pose_deg, min_inlier_ratio_over_runner_up,
-                      min_unique_inlier_share, twin_places, twin_max_shared_share,
-                      confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement,
-                      view_agreement, focal_candidates_35mm, refine_estimated_focal,
-                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
-                      min_in_view_share, min_unoccluded_share, use_synthetic_views)
+                      retrieval, vote_shortlist, vote_max_hamming, place_radius_m,
+                      place_max_angle_deg, max_places, neighbour_radius_m, neighbour_max_angle_deg,
+                      max_neighbours, match_node_level, match_ratio, same_point_m,
+                      max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
+                      min_ransac_inliers, guided_radius_px, guided_max_distance, guided_rounds,
+                      min_inlier_cells, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
+                      same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share,
+                      twin_places, twin_max_shared_share, confident_inliers,
+                      max_rotation_from_keyframe_deg, min_view_agreement, view_agreement,
+                      focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
+                      occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
+                      occlusion_margin_m, occlusion_margin_ratio, min_in_view_share,
+                      min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

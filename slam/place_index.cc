@@ -7,6 +7,15 @@
 
 namespace sightmap::slam {
 
+void KeepBestCandidates(int max_results, std::vector<PlaceCandidate>* candidates) {
+  auto better = [](const PlaceCandidate& a, const PlaceCandidate& b) {
+    return a.score > b.score || (a.score == b.score && a.id < b.id);
+  };
+  const size_t keep = std::min(candidates->size(), static_cast<size_t>(std::max(max_results, 0)));
+  std::partial_sort(candidates->begin(), candidates->begin() + keep, candidates->end(), better);
+  candidates->resize(keep);
+}
+
 void PlaceIndex::Add(int64_t id, BowVector bow) {
   if (Contains(id)) SIGHTMAP_THROW(InvalidArgument, "PlaceIndex already holds keyframe " << id);
   for (size_t i = 0; i < bow.size(); ++i) {
@@ -47,12 +56,7 @@ std::vector<PlaceCandidate> PlaceIndex::Query(const BowVector& bow, int max_resu
     if (accept && !accept(ids_[slot])) continue;
     candidates.push_back({ids_[slot], std::min(score[slot], 1.0)});
   }
-  auto better = [](const PlaceCandidate& a, const PlaceCandidate& b) {
-    return a.score > b.score || (a.score == b.score && a.id < b.id);
-  };
-  const size_t keep = std::min(candidates.size(), static_cast<size_t>(max_results));
-  std::partial_sort(candidates.begin(), candidates.begin() + keep, candidates.end(), better);
-  candidates.resize(keep);
+  KeepBestCandidates(max_results, &candidates);
   return candidates;
 }
 

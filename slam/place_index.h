@@ -16,6 +16,10 @@ struct PlaceCandidate {
   double score = 0.0;  // Vocabulary::Score of the query and the keyframe, in (0, 1]
 };
 
+// Sorts `candidates` best first (higher score, ties by smaller id) and keeps the first
+// max_results.
+void KeepBestCandidates(int max_results, std::vector<PlaceCandidate>* candidates);
+
 // Keyframes' BowVectors under an inverted index (word -> keyframes with their weights). A query
 // walks only the postings of its own words, so it costs O(query words x postings per word) plus
 // clearing one number per keyframe, not a Score with every keyframe. Not thread-safe for Add;
