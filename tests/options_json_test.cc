@@ -17,8 +17,10 @@ namespace sightmap {
 namespace {
 
 // The names enums are changed to, by key (every other leaf is changed by its type).
-const std::map<std::string, std::string> kOtherEnumName = {
-    {"type", "sift"}, {"choice", "headless"}, {"matcher", "rootsift"}};
+const std::map<std::string, std::string> kOtherEnumName = {{"type", "sift"},
+                                                           {"choice", "headless"},
+                                                           {"matcher", "rootsift"},
+                                                           {"retrieval", "bag_of_words"}};
 
 // `json` with every leaf changed: whole numbers + 1, other numbers x 1.5 + 0.25, flags flipped,
 // strings extended, enums to another name.
