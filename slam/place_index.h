@@ -12,8 +12,10 @@
 namespace sightmap::slam {
 
 struct PlaceCandidate {
-  int64_t id = -1;     // the keyframe's id as given to PlaceIndex::Add
-  double score = 0.0;  // Vocabulary::Score of the query and the keyframe, in (0, 1]
+  int64_t id = -1;  // the keyframe's id as given to the index's Add
+  // Vocabulary::Score of the query and the keyframe (PlaceIndex), or the share of the query's
+  // descriptors that voted for it (VoteIndex); in (0, 1].
+  double score = 0.0;
 };
 
 // Sorts `candidates` best first (higher score, ties by smaller id) and keeps the first
