@@ -568,10 +568,10 @@ TEST(DecideTest, NothingAcceptedSaysWhyFromTheBestRefusedPose) {
 
   // Enough inliers over enough of the photo, but few of the points the pose projects into it.
   PlaceVerdict few_of_the_projected = Verdict(147, {0, 0, 0}, false, 10.0, 8);
-  few_of_the_projected.projected = 9000;
+  few_of_the_projected.projected = 18000;
   decision = Decide({few_of_the_projected}, options);
   EXPECT_EQ(decision.refusal->code, UnmatchedReason::kFewMatches);
-  EXPECT_NE(decision.refusal->reason.find("147 PnP inliers at best, only 1.6% of the 9000"),
+  EXPECT_NE(decision.refusal->reason.find("147 PnP inliers at best, only 0.8% of the 18000"),
             std::string::npos)
       << decision.refusal->reason;
   EXPECT_EQ(decision.refusal->reason.find("cells"), std::string::npos) << decision.refusal->reason;
