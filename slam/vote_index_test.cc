@@ -101,7 +101,7 @@ TEST(VoteIndex, EmptyQueriesAndIndexesGiveNothing) {
   EXPECT_EQ(index.Rank(query, SameWord(3), {1, 2}, 5).size(), 1u);
 }
 
-TEST(VoteIndex, BadInputThrowsWithOneLine) {
+TEST(VoteIndex, BadInputThrowsInvalidArgument) {
   std::mt19937 rng(6);
   const cv::Mat descriptors = RandomDescriptors(3, &rng);
   EXPECT_THROW(VoteIndex(-1), InvalidArgument);
