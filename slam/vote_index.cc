@@ -4,14 +4,10 @@
 #include <cstring>
 
 #include "core/check.h"
+#include "slam/hamming.h"
 
 namespace sightmap::slam {
 namespace {
-
-int Hamming(const std::array<uint64_t, 4>& a, const std::array<uint64_t, 4>& b) {
-  return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
-         __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]);
-}
 
 void CheckRows(const cv::Mat& descriptors, const std::vector<int>& words, const char* what) {
   if (descriptors.empty() && words.empty()) return;
@@ -65,7 +61,7 @@ int VoteIndex::Votes(const std::vector<Entry>& query, const std::vector<Entry>& 
       // repeated texture) lie within reach.
       for (; q < query.size() && query[q].word == word; ++q) {
         for (size_t j = k; j < k_end; ++j) {
-          if (Hamming(query[q].bits, keyframe[j].bits) <= max_hamming_) {
+          if (Hamming256(query[q].bits.data(), keyframe[j].bits.data()) <= max_hamming_) {
             ++votes;
             break;
           }
