@@ -784,7 +784,9 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                                              verified.world_from_cam, options.view_agreement);
     verdict.looks_different =
         verdict.agreement.judged && verdict.agreement.Score() < options.min_view_agreement;
-    verdict.accepted = !verdict.looks_different;
+    verdict.unconfirmed =
+        !verdict.agreement.judged && verdict.inliers < options.min_inliers_unchecked;
+    verdict.accepted = !verdict.looks_different && !verdict.unconfirmed;
   }
   return verdict;
 }
@@ -826,6 +828,14 @@ Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
           << 100.0 * most_inliers / best->projected << "% of the " << best->projected
           << " model points its pose puts in the photo (" << 100.0 * options.min_inlier_share
           << "% needed).";
+      return Refusal{UnmatchedReason::kFewMatches, why.str()};
+    }
+    if (best->unconfirmed) {
+      why.str("");
+      why << "the best pose (" << most_inliers
+          << " inliers) could not be checked: too little of the model seen from it lands in the "
+             "photo, and a pose with fewer than "
+          << options.min_inliers_unchecked << " inliers needs the check.";
       return Refusal{UnmatchedReason::kFewMatches, why.str()};
     }
     if (best->looks_different) {

@@ -181,12 +181,15 @@ struct PlaceVerdict {
   // The view check, made only on a pose every other check accepted.
   ViewAgreement agreement;
   bool looks_different = false;  // judged, and scored below min_view_agreement
-  bool accepted = false;         // valid and every check passed
+  // Made, not judged, and fewer inliers than min_inliers_unchecked: a weak pose nothing confirms.
+  bool unconfirmed = false;
+  bool accepted = false;  // valid and every check passed
 };
 // PnP RANSAC for each intrinsics candidate (with the focal refined when estimated), the best
 // grown by guided matching, then the checks: min_inliers, the paper's 90 deg from the keyframe
 // the inliers came from, min_inlier_cells, min_inlier_share of the projected points, and last
-// min_view_agreement against that keyframe's thumbnail (when it has one).
+// min_view_agreement against that keyframe's thumbnail (when it has one; a pose under
+// min_inliers_unchecked inliers the check cannot judge is refused).
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);

@@ -425,6 +425,42 @@ TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
   EXPECT_TRUE(VerifyPlace(photo_, place_, matches, keyframes_, options).accepted);
 }
 
+TEST_F(VerifyPlaceTest, AWeakPoseTheViewCheckCannotJudgeIsRefused) {
+  LocatorOptions options;
+  // The keyframe's depth lies beyond what the check uses (a wall 8 m away): nothing to compare.
+  const testing::TexturedWall far_wall(8.0);
+  cv::Mat grey;
+  cv::Mat depth;
+  far_wall.Render(keyframes_[0].world_from_cam, intrinsics_, &grey, &depth);
+  keyframes_[0].thumbnail = std::make_shared<const KeyframeThumbnail>(
+      MakeThumbnail(grey, depth, intrinsics_, options.view_agreement));
+  cv::Mat photo_grey;
+  far_wall.Render(photo_from_world_.inverse(), intrinsics_, &photo_grey, &depth);
+  photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
+  const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  options.min_inliers_unchecked = 0;
+  PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  ASSERT_TRUE(verdict.accepted);
+  EXPECT_FALSE(verdict.agreement.judged);
+  EXPECT_FALSE(verdict.unconfirmed);
+
+  options.min_inliers_unchecked = verdict.inliers + 1;
+  verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_TRUE(verdict.unconfirmed);
+  EXPECT_FALSE(verdict.looks_different);
+  EXPECT_FALSE(verdict.accepted);
+  const Decision decision = Decide({verdict}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kFewMatches);
+  EXPECT_NE(decision.refusal->reason.find("could not be checked"), std::string::npos)
+      << decision.refusal->reason;
+
+  // As many inliers as needed without the check: accepted unjudged.
+  options.min_inliers_unchecked = verdict.inliers;
+  EXPECT_TRUE(VerifyPlace(photo_, place_, matches, keyframes_, options).accepted);
+}
+
 TEST_F(VerifyPlaceTest, RandomMatchesGiveNoAcceptedPose) {
   LocatorOptions options;
   PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);

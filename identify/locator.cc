@@ -88,8 +88,8 @@ bool LocatorOptions::Check(std::string* error) const {
            "occlusion_max_depth_m must be positive";
   else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0)
     why << "occlusion margins must not be negative";
-  else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0))
-    why << "min_view_agreement must be in [0, 1]";
+  else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0) || min_inliers_unchecked < 0)
+    why << "min_view_agreement must be in [0, 1], min_inliers_unchecked not negative";
   else if (!view_agreement.Check(error))
     return false;
   else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
@@ -799,10 +799,10 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_ima
                       min_inlier_cells, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
                       same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share,
                       twin_places, twin_max_shared_share, confident_inliers,
-                      max_rotation_from_keyframe_deg, min_view_agreement, view_agreement,
-                      focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
-                      occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
-                      occlusion_margin_m, occlusion_margin_ratio, min_in_view_share,
-                      min_unoccluded_share, use_synthetic_views)
+                      max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
+                      view_agreement, focal_candidates_35mm, refine_estimated_focal,
+                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
+                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
+                      min_in_view_share, min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify
