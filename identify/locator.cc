@@ -351,12 +351,10 @@ slam::Vocabulary LoadOrTrainVocabulary(const store::Model& model,
 }
 
 // A keyframe, real or synthetic, as the locator matches it: its features (ORB or RootSIFT) that
-// have a 3D point, in the world. With `all_rows`, every descriptor is kept in it, those with a
-// point first, and the keyframe's descriptors are the first rows of it (the same data): retrieval
-// by votes indexes every row and shares them rather than holding a second copy.
+// have a 3D point, in the world.
 LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& world_from_cam,
                                     const Features& features, const slam::Vocabulary& vocabulary,
-                                    const LocatorOptions& options, cv::Mat* all_rows = nullptr) {
+                                    const LocatorOptions& options) {
   LocatorKeyframe keyframe;
   keyframe.id = id;
   keyframe.world_from_cam = world_from_cam;
@@ -372,54 +370,30 @@ LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& worl
     keyframe.world_points.emplace_back(static_cast<float>(world.x()), static_cast<float>(world.y()),
                                        static_cast<float>(world.z()));
   }
-  const int with_points = static_cast<int>(rows.size());
-  if (all_rows != nullptr) {
-    for (int i = 0; i < features.descriptors.rows; ++i) {
-      if (static_cast<size_t>(i) >= features.has_point.size() ||
-          !features.has_point[static_cast<size_t>(i)]) {
-        rows.push_back(i);
-      }
-    }
-  }
-  cv::Mat ordered(static_cast<int>(rows.size()), features.descriptors.cols, CV_8U);
+  keyframe.descriptors.create(static_cast<int>(rows.size()), features.descriptors.cols, CV_8U);
   for (size_t r = 0; r < rows.size(); ++r) {
-    features.descriptors.row(rows[r]).copyTo(ordered.row(static_cast<int>(r)));
-  }
-  keyframe.descriptors = ordered.rowRange(0, with_points);
-  if (all_rows != nullptr) *all_rows = ordered;
-  for (int r = 0; r < with_points && by_nodes; ++r) {
-    keyframe.nodes.push_back(
-        vocabulary.NodeOf(keyframe.descriptors.ptr<uint8_t>(r), options.match_node_level));
+    features.descriptors.row(rows[r]).copyTo(keyframe.descriptors.row(static_cast<int>(r)));
+    if (by_nodes) {
+      keyframe.nodes.push_back(vocabulary.NodeOf(
+          keyframe.descriptors.ptr<uint8_t>(static_cast<int>(r)), options.match_node_level));
+    }
   }
   return keyframe;
 }
 
 // Every ORB descriptor of a keyframe (with or without a point) counts in retrieval: added under
 // `slot` to the bag-of-words index (the twin check's) and, with options.retrieval kVotes, to the
-// vote index, which shares their data. Not without a vocabulary: a model with one keyframe of
-// features has none to index by.
-void IndexKeyframe(const cv::Mat& orb_descriptors, size_t slot, const slam::Vocabulary& vocabulary,
+// vote index. Not without a vocabulary: a model with one keyframe of features has none to index
+// by.
+void IndexKeyframe(const Features& orb, size_t slot, const slam::Vocabulary& vocabulary,
                    const LocatorOptions& options, slam::PlaceIndex* index, slam::VoteIndex* votes) {
-  if (vocabulary.empty() || !IsOrbDescriptors(orb_descriptors)) return;
+  if (vocabulary.empty() || !IsOrbDescriptors(orb.descriptors)) return;
   std::vector<int> words;
-  slam::BowVector bow = vocabulary.Transform(orb_descriptors, &words);
+  slam::BowVector bow = vocabulary.Transform(orb.descriptors, &words);
   if (options.retrieval == LocatorOptions::Retrieval::kVotes) {
-    votes->Add(static_cast<int64_t>(slot), orb_descriptors, words);
+    votes->Add(static_cast<int64_t>(slot), orb.descriptors, words);
   }
   index->Add(static_cast<int64_t>(slot), std::move(bow));
-}
-
-// A keyframe's ORB features as the locator holds them, indexed for retrieval under the next slot.
-LocatorKeyframe AddOrbKeyframe(KeyframeId id, const Eigen::Isometry3d& world_from_cam,
-                               const Features& features, const slam::Vocabulary& vocabulary,
-                               const LocatorOptions& options, size_t slot, slam::PlaceIndex* index,
-                               slam::VoteIndex* votes) {
-  const bool share = options.retrieval == LocatorOptions::Retrieval::kVotes;
-  cv::Mat all_rows;
-  LocatorKeyframe keyframe = MakeLocatorKeyframe(id, world_from_cam, features, vocabulary, options,
-                                                 share ? &all_rows : nullptr);
-  IndexKeyframe(share ? all_rows : features.descriptors, slot, vocabulary, options, index, votes);
-  return keyframe;
 }
 
 // A keyframe's RootSIFT features with their 3D points: those the model stores (`sightmap map`
@@ -478,9 +452,10 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   for (const store::KeyframeInfo& info : infos) {
     const Features features = model.LoadFeatures(info.id);
     any_orb_features = any_orb_features || IsOrbDescriptors(features.descriptors);
-    impl_->keyframes.push_back(AddOrbKeyframe(info.id, info.world_from_cam, features,
-                                              impl_->vocabulary, options, impl_->keyframes.size(),
-                                              &impl_->index, &impl_->votes));
+    IndexKeyframe(features, impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index,
+                  &impl_->votes);
+    impl_->keyframes.push_back(
+        MakeLocatorKeyframe(info.id, info.world_from_cam, features, impl_->vocabulary, options));
     const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
     impl_->keyframes.back().thumbnail = LoadThumbnail(model, info, depth, options);
     if (with_sift) {
@@ -503,9 +478,10 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   if (options.use_synthetic_views) {
     for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
       if (!IsOrbDescriptors(view.features.descriptors)) continue;
-      LocatorKeyframe keyframe =
-          AddOrbKeyframe(view.source, view.world_from_cam, view.features, impl_->vocabulary,
-                         options, impl_->keyframes.size(), &impl_->index, &impl_->votes);
+      IndexKeyframe(view.features, impl_->keyframes.size(), impl_->vocabulary, options,
+                    &impl_->index, &impl_->votes);
+      LocatorKeyframe keyframe = MakeLocatorKeyframe(view.source, view.world_from_cam,
+                                                     view.features, impl_->vocabulary, options);
       keyframe.synthetic_view = view.id;
       if (with_sift) {
         LocatorKeyframe without_points = MakeLocatorKeyframe(

@@ -1,6 +1,7 @@
 #include "slam/vote_index.h"
 
 #include <algorithm>
+#include <cstring>
 
 #include "core/check.h"
 #include "slam/hamming.h"
@@ -29,41 +30,38 @@ VoteIndex::VoteIndex(int max_hamming) : max_hamming_(max_hamming) {
   }
 }
 
-std::vector<VoteIndex::Entry> VoteIndex::SortedEntries(const std::vector<int>& words) {
-  std::vector<Entry> entries(words.size());
-  for (size_t r = 0; r < words.size(); ++r) entries[r] = {words[r], static_cast<int>(r)};
-  std::stable_sort(entries.begin(), entries.end(),
-                   [](const Entry& a, const Entry& b) { return a.word < b.word; });
-  return entries;
-}
-
 void VoteIndex::Add(int64_t id, const cv::Mat& descriptors, const std::vector<int>& words) {
   if (Contains(id)) SIGHTMAP_THROW(InvalidArgument, "VoteIndex already holds keyframe " << id);
   CheckRows(descriptors, words, "a keyframe's");
-  keyframes_.emplace(id, Keyframe{descriptors, SortedEntries(words)});
+  std::vector<Entry> entries(static_cast<size_t>(descriptors.rows));
+  for (int r = 0; r < descriptors.rows; ++r) {
+    Entry& entry = entries[static_cast<size_t>(r)];
+    entry.word = words[static_cast<size_t>(r)];
+    std::memcpy(entry.bits.data(), descriptors.ptr<uint8_t>(r), 32);
+  }
+  std::stable_sort(entries.begin(), entries.end(),
+                   [](const Entry& a, const Entry& b) { return a.word < b.word; });
+  keyframes_.emplace(id, std::move(entries));
 }
 
-int VoteIndex::Votes(const cv::Mat& query, const std::vector<Entry>& query_entries,
-                     const Keyframe& keyframe) const {
-  const std::vector<Entry>& entries = keyframe.entries;
+int VoteIndex::Votes(const std::vector<Entry>& query, const std::vector<Entry>& keyframe) const {
   int votes = 0;
   size_t q = 0;
   size_t k = 0;
-  while (q < query_entries.size() && k < entries.size()) {
-    if (query_entries[q].word < entries[k].word) {
+  while (q < query.size() && k < keyframe.size()) {
+    if (query[q].word < keyframe[k].word) {
       ++q;
-    } else if (entries[k].word < query_entries[q].word) {
+    } else if (keyframe[k].word < query[q].word) {
       ++k;
     } else {
-      const int word = query_entries[q].word;
+      const int word = query[q].word;
       size_t k_end = k;
-      while (k_end < entries.size() && entries[k_end].word == word) ++k_end;
+      while (k_end < keyframe.size() && keyframe[k_end].word == word) ++k_end;
       // Each query row of the word votes once, however many of the keyframe's descriptors (a
       // repeated texture) lie within reach.
-      for (; q < query_entries.size() && query_entries[q].word == word; ++q) {
-        const uint8_t* bits = query.ptr<uint8_t>(query_entries[q].row);
+      for (; q < query.size() && query[q].word == word; ++q) {
         for (size_t j = k; j < k_end; ++j) {
-          if (Hamming256(bits, keyframe.descriptors.ptr<uint8_t>(entries[j].row)) <= max_hamming_) {
+          if (Hamming256(query[q].bits.data(), keyframe[j].bits.data()) <= max_hamming_) {
             ++votes;
             break;
           }
@@ -80,7 +78,7 @@ std::vector<PlaceCandidate> VoteIndex::Rank(const cv::Mat& descriptors,
                                             const std::vector<int64_t>& shortlist,
                                             int max_results) const {
   CheckRows(descriptors, words, "the query");
-  std::vector<const Keyframe*> listed;
+  std::vector<const std::vector<Entry>*> listed;
   for (int64_t id : shortlist) {
     const auto found = keyframes_.find(id);
     if (found == keyframes_.end())
@@ -89,9 +87,15 @@ std::vector<PlaceCandidate> VoteIndex::Rank(const cv::Mat& descriptors,
   }
   std::vector<PlaceCandidate> candidates;
   if (max_results <= 0 || descriptors.rows == 0) return candidates;
-  const std::vector<Entry> query = SortedEntries(words);
+  std::vector<Entry> query(static_cast<size_t>(descriptors.rows));
+  for (int r = 0; r < descriptors.rows; ++r) {
+    query[static_cast<size_t>(r)].word = words[static_cast<size_t>(r)];
+    std::memcpy(query[static_cast<size_t>(r)].bits.data(), descriptors.ptr<uint8_t>(r), 32);
+  }
+  std::sort(query.begin(), query.end(),
+            [](const Entry& a, const Entry& b) { return a.word < b.word; });
   for (size_t i = 0; i < shortlist.size(); ++i) {
-    const int votes = Votes(descriptors, query, *listed[i]);
+    const int votes = Votes(query, *listed[i]);
     if (votes > 0) {
       candidates.push_back({shortlist[i], static_cast<double>(votes) / descriptors.rows});
     }

@@ -12,6 +12,7 @@
 // every keyframe: its cost per query is then the shortlist's, whatever the model's size.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <unordered_map>
 #include <vector>
@@ -28,10 +29,8 @@ class VoteIndex {
   explicit VoteIndex(int max_hamming = 30);
 
   // Adds a keyframe's descriptors (CV_8U, 32 columns, one row each) with each row's visual word
-  // (Vocabulary::Transform's word_of_row). The index shares the descriptors' data (a cv::Mat
-  // header, no copy: the caller's matcher may hold the same rows) and must not see them written
-  // to afterwards. Throws InvalidArgument on a duplicate id, descriptors that are not ORB's, or a
-  // word list of another length.
+  // (Vocabulary::Transform's word_of_row). Throws InvalidArgument on a duplicate id, descriptors
+  // that are not ORB's, or a word list of another length.
   void Add(int64_t id, const cv::Mat& descriptors, const std::vector<int>& words);
 
   bool Contains(int64_t id) const { return keyframes_.count(id) != 0; }
@@ -47,22 +46,15 @@ class VoteIndex {
                                    const std::vector<int64_t>& shortlist, int max_results) const;
 
  private:
-  // A descriptor row and its word.
   struct Entry {
     int word;
-    int row;
+    std::array<uint64_t, 4> bits;
   };
-  struct Keyframe {
-    cv::Mat descriptors;         // shared with the caller
-    std::vector<Entry> entries;  // sorted by word
-  };
-  static std::vector<Entry> SortedEntries(const std::vector<int>& words);
-  // Votes for one keyframe from the query's entries (rows of `query`); both sorted by word.
-  int Votes(const cv::Mat& query, const std::vector<Entry>& query_entries,
-            const Keyframe& keyframe) const;
+  // Votes for one keyframe from the query's entries; both sorted by word.
+  int Votes(const std::vector<Entry>& query, const std::vector<Entry>& keyframe) const;
 
   int max_hamming_;
-  std::unordered_map<int64_t, Keyframe> keyframes_;
+  std::unordered_map<int64_t, std::vector<Entry>> keyframes_;  // sorted by word
 };
 
 }  // namespace sightmap::slam
