@@ -354,7 +354,11 @@ int Run(int argc, char** argv) {
     const auto mean = [](const std::vector<double>& ms) {
       return std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
     };
-    std::printf("\nretrieval (bag of words + inverted index), %zu photos:\n", queries.size());
+    std::printf("\nretrieval (%s), %zu photos:\n",
+                locator_options.retrieval == LocatorOptions::Retrieval::kVotes
+                    ? "bag-of-words shortlist re-ranked by votes"
+                    : "bag of words + inverted index",
+                queries.size());
     for (const auto& [keyframe_count, ms] : {std::pair(locator.NumKeyframes(), small_retrieval),
                                              std::pair(large.NumKeyframes(), large_retrieval)}) {
       std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n", keyframe_count,
