@@ -308,6 +308,17 @@ class VerifyPlaceTest : public ::testing::Test {
     place_.slots = {0};
   }
 
+  // The keyframe's thumbnail and the photo as the view check compares them, both of `wall`.
+  void SeeWall(const testing::TexturedWall& wall, const ViewAgreementOptions& options) {
+    cv::Mat grey;
+    cv::Mat depth;
+    wall.Render(keyframes_[0].world_from_cam, intrinsics_, &grey, &depth);
+    keyframes_[0].thumbnail =
+        std::make_shared<const KeyframeThumbnail>(MakeThumbnail(grey, depth, intrinsics_, options));
+    wall.Render(photo_from_world_.inverse(), intrinsics_, &grey, &depth);
+    photo_.agreement_image = AgreementImage(grey, options);
+  }
+
   Intrinsics intrinsics_;
   Eigen::Isometry3d photo_from_world_;
   PreparedPhoto photo_;
@@ -387,16 +398,7 @@ TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
   LocatorOptions options;
   // The keyframe and the photo see a textured wall 3 m ahead; the matched points float in front
   // of it, as a repeated poster's would.
-  const Eigen::Isometry3d world_from_photo = photo_from_world_.inverse();
-  const testing::TexturedWall wall;
-  cv::Mat grey;
-  cv::Mat depth;
-  wall.Render(keyframes_[0].world_from_cam, intrinsics_, &grey, &depth);
-  keyframes_[0].thumbnail = std::make_shared<const KeyframeThumbnail>(
-      MakeThumbnail(grey, depth, intrinsics_, options.view_agreement));
-  cv::Mat photo_grey;
-  wall.Render(world_from_photo, intrinsics_, &photo_grey, &depth);
-  photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
+  SeeWall(testing::TexturedWall(), options.view_agreement);
   const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
   PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
   EXPECT_TRUE(verdict.accepted);
@@ -406,7 +408,9 @@ TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
 
   // The same features in a photo of another wall: every other check passes, this one refuses.
   const testing::TexturedWall other_wall(3.0, /*seed=*/9);
-  other_wall.Render(world_from_photo, intrinsics_, &photo_grey, &depth);
+  cv::Mat photo_grey;
+  cv::Mat depth;
+  other_wall.Render(photo_from_world_.inverse(), intrinsics_, &photo_grey, &depth);
   photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
   verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
   EXPECT_TRUE(verdict.pose.valid);
@@ -428,15 +432,7 @@ TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
 TEST_F(VerifyPlaceTest, AWeakPoseTheViewCheckCannotJudgeIsRefused) {
   LocatorOptions options;
   // The keyframe's depth lies beyond what the check uses (a wall 8 m away): nothing to compare.
-  const testing::TexturedWall far_wall(8.0);
-  cv::Mat grey;
-  cv::Mat depth;
-  far_wall.Render(keyframes_[0].world_from_cam, intrinsics_, &grey, &depth);
-  keyframes_[0].thumbnail = std::make_shared<const KeyframeThumbnail>(
-      MakeThumbnail(grey, depth, intrinsics_, options.view_agreement));
-  cv::Mat photo_grey;
-  far_wall.Render(photo_from_world_.inverse(), intrinsics_, &photo_grey, &depth);
-  photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
+  SeeWall(testing::TexturedWall(8.0), options.view_agreement);
   const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
   options.min_inliers_unchecked = 0;
   PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
