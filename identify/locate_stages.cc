@@ -503,7 +503,7 @@ PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
   const cv::Mat grey = GreyAtMostOfSide(photo, options.sift_image_side_px);
   if (!UseFeatureImage(grey, &prepared)) return prepared;
   prepared.features = slam::ExtractFeatures(grey, cv::Mat(), prepared.feature_candidates.front(),
-                                            options.sift_features);
+                                            options.sift_photo_features);
   RefuseFewFeaturesOrIndex(options, &prepared);
   return prepared;
 }

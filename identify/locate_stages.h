@@ -108,8 +108,8 @@ PreparedPhoto PreparePhoto(const cv::Mat& photo, const std::optional<Intrinsics>
 PreparedPhoto RootSiftSeed(const PreparedPhoto& orb);
 
 // Stage 1 for the RootSIFT matcher: the same photo (`orb` is its PreparePhoto) matched with
-// RootSIFT at sift_image_side_px; intrinsics, detail cells and the ORB retrieval descriptors are
-// orb's.
+// RootSIFT (sift_photo_features) at sift_image_side_px; intrinsics, detail cells and
+// the ORB retrieval descriptors are orb's.
 PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
                             const LocatorOptions& options);
 

@@ -647,6 +647,30 @@ TEST(PreparePhotoTest, ALargePhotoIsDownscaledAndEveryFocalCandidateScaledWithIt
 // RootSIFT's photo: matched at sift_image_side_px with 128-byte rows, while retrieval keeps the
 // ORB descriptors and the detail cells of PreparePhoto; a blank photo is refused, a narrow one
 // too short to hold features.
+// A photo in dim light: its RootSIFT keypoints are found down to sift_photo_features' contrast
+// threshold, whatever the keyframes' (sift_features) is.
+TEST(PreparePhotoTest, APalePhotosRootSiftUsesThePhotoContrastThreshold) {
+  cv::Mat pale;
+  TexturedPhoto(1280, 960).convertTo(pale, CV_8UC3, 0.2, 102.0);  // grey levels 102-153
+  const auto count = [&pale](double keyframe_threshold, double photo_threshold) {
+    LocatorOptions options;
+    options.sift_features.sift_contrast_threshold = keyframe_threshold;
+    options.sift_photo_features.sift_contrast_threshold = photo_threshold;
+    options.sift_photo_features.max_features = 1000;
+    const PreparedPhoto sift =
+        RootSiftPhoto(pale, PreparePhoto(pale, std::nullopt, options), options);
+    return sift.refusal ? size_t{0} : sift.features.size();
+  };
+  const size_t at_default =
+      count(0.04, LocatorOptions().sift_photo_features.sift_contrast_threshold);
+  const size_t at_keyframes = count(0.04, 0.04);
+  std::printf("pale photo RootSIFT keypoints: %zu at the photo default, %zu at 0.04\n", at_default,
+              at_keyframes);
+  EXPECT_GT(at_default, 2 * at_keyframes);
+  EXPECT_GT(at_keyframes, 0u);
+  EXPECT_EQ(count(0.08, 0.04), at_keyframes);
+}
+
 TEST(PreparePhotoTest, TheRootSiftPhotoIsMatchedAtItsOwnScaleAndRetrievedByOrb) {
   LocatorOptions options;
   const cv::Mat photo = TexturedPhoto(2560, 1920);
@@ -658,7 +682,7 @@ TEST(PreparePhotoTest, TheRootSiftPhotoIsMatchedAtItsOwnScaleAndRetrievedByOrb) 
   EXPECT_NEAR(sift.feature_candidates[0].fx, orb.full_candidates[0].fx * 640 / 2560, 1e-6);
   EXPECT_EQ(sift.features.descriptors.cols, 128);
   EXPECT_GT(sift.features.size(), 300u);
-  EXPECT_LE(sift.features.size(), static_cast<size_t>(options.sift_features.max_features));
+  EXPECT_LE(sift.features.size(), static_cast<size_t>(options.sift_photo_features.max_features));
   EXPECT_EQ(sift.points.size(), sift.features.size());
   for (const cv::Point2f& p : sift.points) EXPECT_LT(p.x, 640.0f);
   EXPECT_EQ(sift.retrieval_descriptors.cols, 32);

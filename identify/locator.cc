@@ -26,11 +26,12 @@ namespace sightmap::identify {
 bool LocatorOptions::Check(std::string* error) const {
   std::ostringstream why;
   if (!slam::CheckOrbFeatures(features, error)) return false;
-  if (!sift_features.Check(error)) return false;
+  if (!sift_features.Check(error) || !sift_photo_features.Check(error)) return false;
   if (max_image_side_px < 320)
     why << "max_image_side_px must be at least 320";
-  else if (sift_features.type != slam::FeatureOptions::Type::kSift)
-    why << "sift_features must be of type \"sift\"";
+  else if (sift_features.type != slam::FeatureOptions::Type::kSift ||
+           sift_photo_features.type != slam::FeatureOptions::Type::kSift)
+    why << "sift_features and sift_photo_features must be of type \"sift\"";
   else if (sift_image_side_px < 320)
     why << "sift_image_side_px must be at least 320";
   else if (!(sift_max_distance > 0.0) || !(sift_guided_max_distance > 0.0))
@@ -788,21 +789,19 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
   options_json::ReadEnum(json, matcher, kMatcherNames);
 }
 
-SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
-                      sift_max_distance, sift_guided_max_distance, second_look_max_places,
-                      place_threads, extract_sift_ahead, max_image_side_px, retrieval_candidates,
-                      retrieval, vote_shortlist, vote_max_hamming, place_radius_m,
-                      place_max_angle_deg, max_places, neighbour_radius_m, neighbour_max_angle_deg,
-                      max_neighbours, match_node_level, match_ratio, same_point_m,
-                      max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
-                      min_ransac_inliers, guided_radius_px, guided_max_distance, guided_rounds,
-                      min_inlier_cells, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
-                      same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share,
-                      twin_places, twin_max_shared_share, confident_inliers,
-                      max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
-                      view_agreement, focal_candidates_35mm, refine_estimated_focal,
-                      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-                      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
-                      min_in_view_share, min_unoccluded_share, use_synthetic_views)
+SIGHTMAP_OPTIONS_JSON(
+    LocatorOptions, features, matcher, sift_features, sift_image_side_px, sift_photo_features,
+    sift_max_distance, sift_guided_max_distance, second_look_max_places, place_threads,
+    extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval, vote_shortlist,
+    vote_max_hamming, place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
+    neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio, same_point_m,
+    max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
+    guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
+    bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
+    min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places, twin_max_shared_share,
+    confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
+    view_agreement, focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
+    occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
+    occlusion_margin_ratio, min_in_view_share, min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

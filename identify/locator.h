@@ -29,8 +29,8 @@ struct LocatorOptions {
     f.max_features = 3000;
     return f;
   }();
-  // What photos are matched with: the ORB features above; RootSIFT (sift_features), which holds
-  // up better across the viewpoint and scale changes between a person's photo and the walk's
+  // What photos are matched with: the ORB features above; RootSIFT (sift_photo_features), which
+  // holds up better across the viewpoint and scale changes between a person's photo and the walk's
   // keyframes; or ORB first and RootSIFT for a photo ORB could not place. ORB ranks the
   // keyframes in every case (the vocabulary is ORB's). Keyframes' RootSIFT features are those the
   // model stores, else extracted from their stored images when the model is loaded.
@@ -39,7 +39,23 @@ struct LocatorOptions {
   // RootSIFT alone placed as many as ORB (115, 2 wrong) at twice the median time.
   enum class Matcher { kOrb, kRootSift, kOrbThenRootSift };
   Matcher matcher = Matcher::kOrbThenRootSift;
+  // The keyframes' RootSIFT, for a model that does not store it (as `map` stores it).
   slam::FeatureOptions sift_features = slam::RootSiftForPhotos();
+  // The photo's RootSIFT: down to a lower contrast than the keyframes'. A person's photo is taken
+  // in other light and downscaled from a larger image, and a lower threshold finds keypoints on
+  // the pale walls and ceilings round a thermostat or a light that the keyframes do hold. On 200
+  // session-2 photos, 0.04 -> 0.02 placed 3 more against the survey walk's SLAM model (136 -> 139
+  // right, wrong 6 -> 6) and 2 more against the hand-held walk's (110 -> 112, wrong 4 -> 3);
+  // 0.01-0.03 placed as many. It also finds more keypoints on textured photos, and matching them
+  // took the second look's median 192-202 -> 255-285 ms at 1,000 features; 700 placed the same
+  // photos at 241 ms (500: one right answer fewer, one wrong more). The keyframes' RootSIFT at
+  // 0.02 too placed 3 more again on each model but gave the hand-held one 3 more wrong poses.
+  slam::FeatureOptions sift_photo_features = [] {
+    slam::FeatureOptions f = slam::RootSiftForPhotos();
+    f.sift_contrast_threshold = 0.02;
+    f.max_features = 700;
+    return f;
+  }();
   // RootSIFT on photos and keyframes alike at this longer side: a keyframe's 640x480 [px].
   int sift_image_side_px = 640;
   // RootSIFT matches farther than this (unit-norm descriptors: 0 same, 1.41 opposite) are dropped

@@ -328,6 +328,7 @@ TEST_F(LocatorTest, ABareViewIsAnsweredInWords) {
 TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
   int tried = 0;
   int ambiguous = 0;
+  int bare = 0;
   std::vector<double> focal_errors;
   for (const sim::QueryPhoto& photo : *seen_photos_) {
     if (tried == 4) break;
@@ -336,8 +337,16 @@ TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
     const LocateResult estimated = locator_->Locate(photo.image, std::nullopt);
     // A free focal length lets a pose slide along the view: photo 33 fits 0.9 m away as well
     // with another focal (19% off, 1.2 m from the truth), and is refused as ambiguous rather
-    // than answered there. Any other refusal is a failure.
+    // than answered there. A bare photo (photo 17: a ceiling light, ORB features in 2 of 16
+    // cells) that RootSIFT places with the true focal may fall short of the inlier cells with a
+    // guessed one, and is then answered as bare. Any other refusal is a failure.
     if (!estimated.matched) {
+      if (estimated.reason_code == UnmatchedReason::kBareView) {
+        EXPECT_LE(given.photo_detail_cells, LocatorOptions().bare_view_max_detail_cells)
+            << "photo " << photo.index << ": " << estimated.reason;
+        ++bare;
+        continue;
+      }
       EXPECT_EQ(estimated.reason_code, UnmatchedReason::kAmbiguous)
           << "photo " << photo.index << ": " << estimated.reason;
       ++ambiguous;
@@ -354,6 +363,7 @@ TEST_F(LocatorTest, EstimatedIntrinsicsLandNearTheTrueFocal) {
   }
   EXPECT_EQ(tried, 4);
   EXPECT_LE(ambiguous, 1);
+  EXPECT_LE(bare, 1);
   // Measured with the defaults (960 px, 1500 features): 0.5%, 3.5%, 13.5% and 30% (a shallow view
   // where 35 mm fits as well as the true 27 mm); with 1280 px and 2000 features 1.7-4.0%. Only
   // half of them are held to 5% until the focal search is made robust.
