@@ -644,9 +644,6 @@ TEST(PreparePhotoTest, ALargePhotoIsDownscaledAndEveryFocalCandidateScaledWithIt
   EXPECT_EQ(prepared.detail_cells, 16);
 }
 
-// RootSIFT's photo: matched at sift_image_side_px with 128-byte rows, while retrieval keeps the
-// ORB descriptors and the detail cells of PreparePhoto; a blank photo is refused, a narrow one
-// too short to hold features.
 // A photo in dim light: its RootSIFT keypoints are found down to sift_photo_features' contrast
 // threshold, whatever the keyframes' (sift_features) is.
 TEST(PreparePhotoTest, APalePhotosRootSiftUsesThePhotoContrastThreshold) {
@@ -671,6 +668,9 @@ TEST(PreparePhotoTest, APalePhotosRootSiftUsesThePhotoContrastThreshold) {
   EXPECT_EQ(count(0.08, 0.04), at_keyframes);
 }
 
+// RootSIFT's photo: matched at sift_image_side_px with 128-byte rows, while retrieval keeps the
+// ORB descriptors and the detail cells of PreparePhoto; a blank photo is refused, a narrow one
+// too short to hold features.
 TEST(PreparePhotoTest, TheRootSiftPhotoIsMatchedAtItsOwnScaleAndRetrievedByOrb) {
   LocatorOptions options;
   const cv::Mat photo = TexturedPhoto(2560, 1920);
