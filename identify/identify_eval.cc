@@ -144,7 +144,11 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.timings = result.timings;
   answer.photo_detail_cells = result.photo_detail_cells;
   answer.second_look = result.second_look;
-  if (!result.matched) return answer;
+  if (!result.matched) {
+    answer.refused_world_from_cam = result.refused_world_from_cam;
+    answer.refused_inliers = result.refused_inliers;
+    return answer;
+  }
   answer.matches = result.matches;
   answer.runner_up_inliers = result.runner_up_inliers;
   answer.projected_points = result.projected_points;
@@ -238,6 +242,18 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
       row["position_error_m"] = error.position_m;
       row["rotation_error_deg"] = error.rotation_deg;
       row["wrong_pose"] = IsWrongPose(error, options);
+    }
+    // A refused pose's error tells a right refusal (a wrong pose kept out) from a lost answer.
+    row["refused_inliers"] = nlohmann::json();
+    row["refused_position_error_m"] = nlohmann::json();
+    row["refused_rotation_error_deg"] = nlohmann::json();
+    if (!answer.matched && answer.refused_world_from_cam) {
+      row["refused_inliers"] = answer.refused_inliers;
+      if (truth.world_from_cam) {
+        const PoseError error = ComparePoses(*truth.world_from_cam, *answer.refused_world_from_cam);
+        row["refused_position_error_m"] = error.position_m;
+        row["refused_rotation_error_deg"] = error.rotation_deg;
+      }
     }
     row["identified"] = answer.identified;
     const auto if_matched = [&](int value) {

@@ -173,8 +173,15 @@ TEST(IdentifyEval, ToPhotoAnswerSplitsOccluded) {
   EXPECT_EQ(answer.identified, std::vector<std::string>{"lamp"});
   EXPECT_EQ(answer.reported_occluded, std::vector<std::string>{"tv"});
   EXPECT_EQ(answer.timings.pnp_ms, 5);
-  result.matched = false;  // an unmatched answer identifies nothing
-  EXPECT_TRUE(ToPhotoAnswer(result).identified.empty());
+  EXPECT_FALSE(answer.refused_world_from_cam.has_value());
+  result.matched = false;  // an unmatched answer identifies nothing, and keeps the refused pose
+  result.refused_world_from_cam = Eigen::Isometry3d(Eigen::Translation3d(0, 1, 0));
+  result.refused_inliers = 40;
+  const PhotoAnswer refused = ToPhotoAnswer(result);
+  EXPECT_TRUE(refused.identified.empty());
+  ASSERT_TRUE(refused.refused_world_from_cam.has_value());
+  EXPECT_EQ(refused.refused_world_from_cam->translation().y(), 1.0);
+  EXPECT_EQ(refused.refused_inliers, 40);
 }
 
 TEST(IdentifyEval, ReadsQueriesFromTheDatasetOrQueriesFolder) {
@@ -306,6 +313,8 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   answers[1].second_look = true;
   answers[1].timings.matching_ms = 40.0;
   answers[1].timings.second_look_ms = 25.0;
+  answers[1].refused_world_from_cam = truth_pose * Eigen::Translation3d(0, 0, 0.3);
+  answers[1].refused_inliers = 64;
   answers.push_back(Answer(true, {}, 10));  // right
   answers[2].world_from_cam = truth_pose * Eigen::Translation3d(0, 0.05, 0);
 
@@ -348,6 +357,11 @@ TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   EXPECT_TRUE(rows[1]["inliers"].is_null());
   EXPECT_TRUE(rows[1]["keyframe"].is_null());
   EXPECT_TRUE(rows[1]["wrong_pose"].is_null());
+  EXPECT_EQ(rows[1]["refused_inliers"], 64);
+  EXPECT_NEAR(rows[1]["refused_position_error_m"].get<double>(), 0.3, 1e-12);
+  EXPECT_NEAR(rows[1]["refused_rotation_error_deg"].get<double>(), 0.0, 1e-9);
+  EXPECT_TRUE(rows[0]["refused_inliers"].is_null());  // matched
+  EXPECT_TRUE(rows[2]["refused_position_error_m"].is_null());
 
   EXPECT_TRUE(rows[2]["covered"].is_null());
   EXPECT_EQ(rows[2]["wrong_pose"], false);

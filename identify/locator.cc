@@ -623,7 +623,23 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   const Decision& decision = search.decision;
   result.candidates_tried = static_cast<int>(verdicts.size());
   result.runner_up_inliers = decision.runner_up_inliers;
-  if (decision.refusal) return finish(*decision.refusal);
+  if (decision.refusal) {
+    // The pose the answer would have been: an ambiguous photo's accepted winner, else the
+    // strongest pose the checks refused.
+    const auto better = [](const PlaceVerdict& a, const PlaceVerdict* b) {
+      return b == nullptr || a.accepted > b->accepted ||
+             (a.accepted == b->accepted && a.inliers > b->inliers);
+    };
+    const PlaceVerdict* refused = nullptr;
+    for (const PlaceVerdict& verdict : verdicts) {
+      if (verdict.pose.valid && verdict.inliers > 0 && better(verdict, refused)) refused = &verdict;
+    }
+    if (refused != nullptr) {
+      result.refused_world_from_cam = refused->pose.world_from_cam;
+      result.refused_inliers = refused->inliers;
+    }
+    return finish(*decision.refusal);
+  }
   const PlaceVerdict& best = verdicts[static_cast<size_t>(decision.winner)];
   result.matched = true;
   result.world_from_cam = best.pose.world_from_cam;

@@ -312,6 +312,11 @@ struct LocateResult {
   // answer is the one given.
   bool second_look = false;
   bool answered_by_second_look = false;
+  // When not matched: the pose the answer would have been (an ambiguous photo's winner, else the
+  // pose with most inliers that the checks refused) and its inliers; to tell right refusals from
+  // wrong ones.
+  std::optional<Eigen::Isometry3d> refused_world_from_cam;
+  int refused_inliers = 0;
 };
 
 // The answer's JSON: {"matched", "reason"?, "reason_code"?, "advice"?, "pose": {"world_from_cam":

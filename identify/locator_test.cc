@@ -103,10 +103,18 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
   int matched = 0;
   int accurate = 0;  // within 5 cm and 2 deg
   int judged = 0;    // matched photos the view check could judge
+  int refused = 0;   // not matched, with a pose the checks refused
   for (const sim::QueryPhoto& photo : *seen_photos_) {
     const LocateResult result = locator_->Locate(photo.image, photo.intrinsics);
+    // A refused pose comes with its inliers, and only with a refusal.
+    EXPECT_EQ(result.refused_world_from_cam.has_value(), result.refused_inliers > 0);
     if (!result.matched) {
       std::printf("photo %d not matched: %s\n", photo.index, result.reason.c_str());
+      if (result.refused_world_from_cam) {
+        ++refused;
+        std::printf("  its best refused pose: %d inliers, %.2f m off\n", result.refused_inliers,
+                    PositionError(*result.refused_world_from_cam, photo.world_from_cam));
+      }
       continue;
     }
     ++matched;
@@ -142,6 +150,7 @@ TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
   EXPECT_LE(Median(rotation_errors), 0.3);
   // The view check ran on the keyframes' thumbnails: most matched photos overlap their keyframe.
   EXPECT_GE(judged, matched * 3 / 4) << judged << " of " << matched << " judged";
+  EXPECT_GE(refused, 1);
 }
 
 TEST_F(LocatorTest, MatchingBoundedByVocabularyNodesStillMatchesMostSeenPhotos) {
