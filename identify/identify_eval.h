@@ -82,7 +82,7 @@ struct PhotoAnswer {
   int photo_detail_cells = 0;
   bool second_look = false;              // LocateResult's
   std::optional<double> view_agreement;  // LocateResult's
-  // When not matched: the best pose the checks refused, and its inliers (LocateResult's).
+  // When not matched: the pose the answer would have been, and its inliers (LocateResult's).
   std::optional<Eigen::Isometry3d> refused_world_from_cam;
   int refused_inliers = 0;
 };
@@ -169,8 +169,8 @@ void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<Phot
 // true pose, wrong as EvaluateIdentification counts it), "identified" (names in view and not
 // occluded), and the checks' figures: "matches", "runner_up_inliers", "projected_points",
 // "inlier_cells" (null when not matched) and "photo_detail_cells"; for a photo not matched,
-// "refused_inliers", "refused_position_error_m" and "refused_rotation_error_deg" of the best pose
-// the checks refused (null when there was none, the errors also without a true pose).
+// "refused_inliers", "refused_position_error_m" and "refused_rotation_error_deg" of the pose the
+// answer would have been (null when there was none, the errors also without a true pose).
 std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
                                       const std::vector<PhotoAnswer>& answers,
                                       const IdentifyEvalOptions& options = {});

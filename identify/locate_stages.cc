@@ -913,4 +913,16 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   return decision;
 }
 
+const PlaceVerdict* WouldBeAnswer(const std::vector<PlaceVerdict>& verdicts) {
+  const PlaceVerdict* answer = nullptr;
+  for (const PlaceVerdict& verdict : verdicts) {
+    if (!verdict.pose.valid || verdict.inliers <= 0) continue;
+    if (answer == nullptr || verdict.accepted > answer->accepted ||
+        (verdict.accepted == answer->accepted && verdict.inliers > answer->inliers)) {
+      answer = &verdict;
+    }
+  }
+  return answer;
+}
+
 }  // namespace sightmap::identify

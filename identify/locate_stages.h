@@ -238,4 +238,9 @@ struct Decision {
 };
 Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options);
 
+// For a photo Decide refused: the verdict the answer would have been (an ambiguous photo's
+// accepted winner, else the refused pose with most inliers), to tell right refusals from wrong
+// ones; null when no place gave a pose.
+const PlaceVerdict* WouldBeAnswer(const std::vector<PlaceVerdict>& verdicts);
+
 }  // namespace sightmap::identify

@@ -517,6 +517,19 @@ TEST(DecideTest, ARefusedPoseWithEnoughInliersStillMakesThePhotoAmbiguous) {
   EXPECT_EQ(decision.winner, 0);
 }
 
+TEST(DecideTest, AnAmbiguousPhotosWouldBeAnswerIsItsWinnerElseTheStrongestRefusedPose) {
+  const LocatorOptions options;
+  const std::vector<PlaceVerdict> ambiguous = {Verdict(90, {3, 0, 0}, false, 10.0, 2),
+                                               Verdict(80, {0, 0, 0}, true), PlaceVerdict()};
+  ASSERT_TRUE(Decide(ambiguous, options).refusal.has_value());
+  EXPECT_EQ(WouldBeAnswer(ambiguous), &ambiguous[1]);
+  const std::vector<PlaceVerdict> refused = {Verdict(30, {0, 0, 0}, false),
+                                             Verdict(60, {3, 0, 0}, false), PlaceVerdict()};
+  EXPECT_EQ(WouldBeAnswer(refused), &refused[1]);
+  EXPECT_EQ(WouldBeAnswer({PlaceVerdict(), PlaceVerdict()}), nullptr);
+  EXPECT_EQ(WouldBeAnswer({}), nullptr);
+}
+
 // A verdict whose inliers lie in the given cells of the 8x8 grid, `per_cell` in each.
 PlaceVerdict VerdictIn(int per_cell, const std::vector<int>& fine_cells,
                        const Eigen::Vector3d& position) {

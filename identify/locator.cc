@@ -624,19 +624,9 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   result.candidates_tried = static_cast<int>(verdicts.size());
   result.runner_up_inliers = decision.runner_up_inliers;
   if (decision.refusal) {
-    // The pose the answer would have been: an ambiguous photo's accepted winner, else the
-    // strongest pose the checks refused.
-    const auto better = [](const PlaceVerdict& a, const PlaceVerdict* b) {
-      return b == nullptr || a.accepted > b->accepted ||
-             (a.accepted == b->accepted && a.inliers > b->inliers);
-    };
-    const PlaceVerdict* refused = nullptr;
-    for (const PlaceVerdict& verdict : verdicts) {
-      if (verdict.pose.valid && verdict.inliers > 0 && better(verdict, refused)) refused = &verdict;
-    }
-    if (refused != nullptr) {
-      result.refused_world_from_cam = refused->pose.world_from_cam;
-      result.refused_inliers = refused->inliers;
+    if (const PlaceVerdict* would_be = WouldBeAnswer(verdicts)) {
+      result.refused_world_from_cam = would_be->pose.world_from_cam;
+      result.refused_inliers = would_be->inliers;
     }
     return finish(*decision.refusal);
   }
