@@ -799,13 +799,21 @@ bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& option
 
 namespace {
 
+// The verdict with a pose and most inliers (the first of equals), among the accepted ones only
+// when `accepted_only`; null when there is none.
+const PlaceVerdict* MostInliers(const std::vector<PlaceVerdict>& verdicts, bool accepted_only) {
+  const PlaceVerdict* best = nullptr;
+  for (const PlaceVerdict& verdict : verdicts) {
+    if (accepted_only && !verdict.accepted) continue;
+    if (verdict.pose.valid && verdict.inliers > (best ? best->inliers : 0)) best = &verdict;
+  }
+  return best;
+}
+
 // Why nothing was matched, from the refused verdict with most inliers: the check it failed, in
 // VerifyPlace's order.
 Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options) {
-  const PlaceVerdict* best = nullptr;
-  for (const PlaceVerdict& verdict : verdicts) {
-    if (verdict.pose.valid && verdict.inliers > (best ? best->inliers : 0)) best = &verdict;
-  }
+  const PlaceVerdict* best = MostInliers(verdicts, /*accepted_only=*/false);
   std::ostringstream why;
   const int most_inliers = best ? best->inliers : 0;
   if (best && most_inliers >= options.min_inliers &&
@@ -859,19 +867,13 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
            RotationAngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
   };
   Decision decision;
-  for (size_t v = 0; v < verdicts.size(); ++v) {
-    const PlaceVerdict& verdict = verdicts[v];
-    if (!verdict.accepted) continue;
-    if (decision.winner < 0 ||
-        verdict.inliers > verdicts[static_cast<size_t>(decision.winner)].inliers) {
-      decision.winner = static_cast<int>(v);
-    }
-  }
-  if (decision.winner < 0) {
+  const PlaceVerdict* winner = MostInliers(verdicts, /*accepted_only=*/true);
+  if (winner == nullptr) {
     decision.refusal = WhyNotMatched(verdicts, options);
     return decision;
   }
-  const PlaceVerdict& best = verdicts[static_cast<size_t>(decision.winner)];
+  decision.winner = static_cast<int>(winner - verdicts.data());
+  const PlaceVerdict& best = *winner;
   // The strongest pose elsewhere, accepted or not: a pose the checks refused still fits the photo,
   // and when it has the inliers the view is as ambiguous as with an accepted one (measured on 200
   // photos: one wrong pose fewer, the same right ones). Not one whose view is unlike the photo:
@@ -914,15 +916,8 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
 }
 
 const PlaceVerdict* WouldBeAnswer(const std::vector<PlaceVerdict>& verdicts) {
-  const PlaceVerdict* answer = nullptr;
-  for (const PlaceVerdict& verdict : verdicts) {
-    if (!verdict.pose.valid || verdict.inliers <= 0) continue;
-    if (answer == nullptr || verdict.accepted > answer->accepted ||
-        (verdict.accepted == answer->accepted && verdict.inliers > answer->inliers)) {
-      answer = &verdict;
-    }
-  }
-  return answer;
+  const PlaceVerdict* winner = MostInliers(verdicts, /*accepted_only=*/true);
+  return winner != nullptr ? winner : MostInliers(verdicts, /*accepted_only=*/false);
 }
 
 }  // namespace sightmap::identify

@@ -315,6 +315,12 @@ class VerifyPlaceTest : public ::testing::Test {
     wall.Render(keyframes_[0].world_from_cam, intrinsics_, &grey, &depth);
     keyframes_[0].thumbnail =
         std::make_shared<const KeyframeThumbnail>(MakeThumbnail(grey, depth, intrinsics_, options));
+    PhotographWall(wall, options);
+  }
+  // The photo's image for the view check, of `wall`.
+  void PhotographWall(const testing::TexturedWall& wall, const ViewAgreementOptions& options) {
+    cv::Mat grey;
+    cv::Mat depth;
     wall.Render(photo_from_world_.inverse(), intrinsics_, &grey, &depth);
     photo_.agreement_image = AgreementImage(grey, options);
   }
@@ -407,11 +413,7 @@ TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
   EXPECT_FALSE(verdict.looks_different);
 
   // The same features in a photo of another wall: every other check passes, this one refuses.
-  const testing::TexturedWall other_wall(3.0, /*seed=*/9);
-  cv::Mat photo_grey;
-  cv::Mat depth;
-  other_wall.Render(photo_from_world_.inverse(), intrinsics_, &photo_grey, &depth);
-  photo_.agreement_image = AgreementImage(photo_grey, options.view_agreement);
+  PhotographWall(testing::TexturedWall(3.0, /*seed=*/9), options.view_agreement);
   verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
   EXPECT_TRUE(verdict.pose.valid);
   EXPECT_EQ(verdict.cells, 16);
