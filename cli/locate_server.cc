@@ -688,22 +688,6 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
   Impl& impl = *impl_;
   impl.options = options;
   impl.model_path = model_path;
-  {
-    store::ModelOptions model_options;
-    model_options.read_only = true;
-    const store::Model model = store::Model::Open(model_path, model_options);
-    impl.locator = std::make_unique<identify::Locator>(model, options.locator);
-    if (!impl.locator->LoadWarning().empty()) {
-      std::cerr << "sightmap: " << impl.locator->LoadWarning() << "\n";
-    }
-  }
-  LabelServiceOptions label_options = options.labels;
-  label_options.editable = !options.read_only;
-  label_options.read_only_reason = options.read_only_reason;
-  // An edit answers phones at once, not at the next label refresh.
-  impl.label_service = std::make_unique<LabelService>(
-      model_path, label_options,
-      [&impl](const store::Model& model) { impl.locator->ReloadLabels(model); });
   impl.locate_threads = options.locate_threads > 0 ? options.locate_threads : HardwareThreads();
   impl.locate_slots = std::make_unique<Slots>(impl.locate_threads);
   const int connection_threads = options.connection_threads > 0
@@ -745,7 +729,6 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
     impl.HandleHealth(response);
   });
   impl.AddPageRoutes();
-  impl.AddLabelRoutes();
   // httplib's own refusals (body over the limit, unknown path, wrong method) get a JSON body too.
   server.set_error_handler(httplib::Server::HandlerWithResponse(
       [&impl](const httplib::Request& request, httplib::Response& response) {
@@ -779,6 +762,28 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
 
 LocateServer::~LocateServer() { Stop(); }
 
+void LocateServer::Load() {
+  Impl& impl = *impl_;
+  SIGHTMAP_CHECK(impl.locator == nullptr, "LocateServer::Load called twice");
+  {
+    store::ModelOptions model_options;
+    model_options.read_only = true;
+    const store::Model model = store::Model::Open(impl.model_path, model_options);
+    impl.locator = std::make_unique<identify::Locator>(model, impl.options.locator);
+    if (!impl.locator->LoadWarning().empty()) {
+      std::cerr << "sightmap: " << impl.locator->LoadWarning() << "\n";
+    }
+  }
+  LabelServiceOptions label_options = impl.options.labels;
+  label_options.editable = !impl.options.read_only;
+  label_options.read_only_reason = impl.options.read_only_reason;
+  // An edit answers phones at once, not at the next label refresh.
+  impl.label_service = std::make_unique<LabelService>(
+      impl.model_path, label_options,
+      [&impl](const store::Model& model) { impl.locator->ReloadLabels(model); });
+  impl.AddLabelRoutes();  // they hold the label service
+}
+
 void LocateServer::Bind() {
   Impl& impl = *impl_;
   if (impl.options.port == 0) {
@@ -803,6 +808,7 @@ int LocateServer::port() const { return impl_->port; }
 
 void LocateServer::Run() {
   SIGHTMAP_CHECK(impl_->port > 0, "LocateServer::Run before Bind");
+  SIGHTMAP_CHECK(impl_->locator != nullptr, "LocateServer::Run before Load");
   if (impl_->stop_requested) return;
   // The watcher is woken and joined however listening ends (Stop(), a failed accept, a throw).
   struct Watcher {

@@ -70,8 +70,9 @@ void from_json(const nlohmann::json& json, LocateServerOptions& options);
 
 class LocateServer {
  public:
-  // Loads the model read-only and builds the Locator once (seconds for a large model). Throws
-  // sightmap::Error when the model cannot be used.
+  // Sets up the routes; nothing is read or bound yet. Bind() first, then Load(), then Run(): a
+  // busy port is reported at once, not after seconds of loading a large model (connections made
+  // while it loads wait in the listen queue).
   LocateServer(const std::string& model_path, const LocateServerOptions& options);
   ~LocateServer();
   LocateServer(const LocateServer&) = delete;
@@ -80,13 +81,16 @@ class LocateServer {
   // Binds host:port (port 0: any free port). Throws Error when the address cannot be bound.
   void Bind();
   int port() const;  // the bound port, after Bind()
+  // Loads the model read-only and builds the Locator once (seconds for a large model). Throws
+  // sightmap::Error when the model cannot be used.
+  void Load();
   // Serves until Stop(); returns after the workers have finished their requests. Re-reads the
   // labels every label_refresh_s meanwhile.
   void Run();
   // Thread-safe; makes Run() return. Callable before Run() starts.
   void Stop();
 
-  size_t NumKeyframes() const;
+  size_t NumKeyframes() const;  // after Load()
   size_t NumLabels() const;
 
  private:

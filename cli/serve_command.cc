@@ -118,9 +118,10 @@ int RunServe(int argc, char** argv) {
   StopSignalWatcher watcher(
       "sightmap serve",
       "sightmap serve: stopping (finishing the requests in hand; again to exit at once)\n");
-  std::cerr << "sightmap serve: loading " << model_path << "\n" << std::flush;
   LocateServer server(model_path, options);
   server.Bind();
+  std::cerr << "sightmap serve: loading " << model_path << "\n" << std::flush;
+  server.Load();
   // Declared after the server, so destroyed first however this returns: the watcher never calls
   // Stop() on a server that is gone.
   struct FinishWatcher {

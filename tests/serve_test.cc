@@ -701,6 +701,8 @@ TEST_F(ServeTest, ASecondServerOnTheSamePortFailsAtStart) {
   EXPECT_NE(second.err.find("port " + std::to_string(server_->port()) + " on 127.0.0.1 is in use"),
             std::string::npos)
       << second.err;
+  // Said before the model is read: a large model takes seconds to load.
+  EXPECT_EQ(second.err.find("loading"), std::string::npos) << second.err;
   ExpectStillServing();
 }
 
