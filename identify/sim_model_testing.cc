@@ -17,7 +17,8 @@ bool SimModelOptions::Check(std::string* error) const {
     why = "fps must be positive";
   else if (vocabulary_keyframes < 0)
     why = "vocabulary_keyframes must not be negative";
-  else if (!features.Check(error) || !vocabulary.Check(error))
+  else if (!features.Check(error) || !vocabulary.Check(error) ||
+           (store_photo_features && !photo_features.Check(error)))
     return false;
   if (why == nullptr) return true;
   if (error != nullptr) *error = std::string("SimModelOptions: ") + why;
@@ -64,7 +65,11 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
     keyframe.color = frame.color;
     keyframe.depth = frame.depth;  // the Locator's occlusion cloud
     keyframe.features = features;
-    model.AddKeyframe(keyframe);
+    const KeyframeId id = model.AddKeyframe(keyframe);
+    if (options.store_photo_features) {
+      model.SetPhotoFeatures(id, mapping::ExtractPhotoFeatures(frame.color, frame.depth, camera,
+                                                               options.photo_features));
+    }
     if ((options.vocabulary_keyframes == 0 || i < options.vocabulary_keyframes) &&
         features.descriptors.rows > 0) {
       training.push_back(features.descriptors);

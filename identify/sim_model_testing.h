@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include "mapping/photo_features.h"
 #include "sim/simulator.h"
 #include "slam/features.h"
 #include "slam/vocabulary.h"
@@ -25,6 +26,10 @@ struct SimModelOptions {
   int keyframes = 90;  // frames 0 .. keyframes-1 of the walk
   // Keyframe features as the mapper extracts them.
   slam::FeatureOptions features;
+  // RootSIFT for photos stored per keyframe, as `sightmap map` stores it; false leaves the
+  // Locator to extract it while loading (a model mapped before they were stored).
+  bool store_photo_features = true;
+  mapping::PhotoFeatureExtraction photo_features;
   // The vocabulary is trained from the first vocabulary_keyframes keyframes' descriptors (the
   // mapper trains from its first 30); 0 = all keyframes.
   int vocabulary_keyframes = 30;
