@@ -715,6 +715,12 @@ size_t KeyframeOfMostInliers(const Place& place, const PlaceMatches& matches,
 
 }  // namespace
 
+int RequiredInlierCells(const PreparedPhoto& photo, const LocatorOptions& options) {
+  return std::clamp(photo.detail_cells / 2,
+                    std::min(options.min_inlier_cells_few_detail, options.min_inlier_cells),
+                    options.min_inlier_cells);
+}
+
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options) {
@@ -769,9 +775,10 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
   verdict.rotation_deg = RotationAngleDeg(keyframes[verdict.verified_slot].world_from_cam.linear(),
                                           found.world_from_cam.linear());
   verdict.cells = CoveredCells(*image, found.inliers, photo.size.width, photo.size.height);
+  verdict.required_cells = RequiredInlierCells(photo, options);
   verdict.accepted = verdict.inliers >= options.min_inliers &&
                      verdict.rotation_deg <= options.max_rotation_from_keyframe_deg &&
-                     verdict.cells >= options.min_inlier_cells &&
+                     verdict.cells >= verdict.required_cells &&
                      !HasLowInlierShare(verdict, options);
   verdict.pose = std::move(found);
   // Last, and only for a pose the cheaper checks accepted: the keyframe's pixels must line up with
@@ -826,8 +833,8 @@ Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
   why << "none of " << verdicts.size() << " retrieved places gave a pose: " << most_inliers
       << " PnP inliers at best";
   if (best && most_inliers >= options.min_inliers) {
-    if (best->cells < options.min_inlier_cells) {
-      why << " but in " << best->cells << " cells of the photo (" << options.min_inlier_cells
+    if (best->cells < best->required_cells) {
+      why << " but in " << best->cells << " cells of the photo (" << best->required_cells
           << " needed).";
       return Refusal{UnmatchedReason::kMatchesInOneCorner, why.str()};
     }

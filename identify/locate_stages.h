@@ -178,6 +178,7 @@ struct PlaceVerdict {
   size_t verified_slot = 0;   // the place's keyframe holding most inliers
   double rotation_deg = 0.0;  // from the verified keyframe's view
   int cells = 0;              // of a 4x4 grid holding an inlier
+  int required_cells = 0;     // RequiredInlierCells for the photo
   // The view check, made only on a pose every other check accepted.
   ViewAgreement agreement;
   bool looks_different = false;  // judged, and scored below min_view_agreement
@@ -193,6 +194,9 @@ struct PlaceVerdict {
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);
+// The cells of the 4x4 grid a pose's inliers must cover in this photo: min_inlier_cells, or half
+// the photo's detail cells when that is fewer, but at least min_inlier_cells_few_detail.
+int RequiredInlierCells(const PreparedPhoto& photo, const LocatorOptions& options);
 // Whether a verdict's inliers are fewer than min_inlier_share of the place's points its pose
 // projects into the photo (one of VerifyPlace's checks).
 bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& options);

@@ -289,6 +289,7 @@ class VerifyPlaceTest : public ::testing::Test {
     photo_.size = cv::Size(640, 480);
     photo_.feature_candidates = {intrinsics_};
     photo_.intrinsics_given = true;
+    photo_.detail_cells = 16;  // its features are over the whole view
     for (int i = 0; i < 300; ++i) {
       // Points 2-5 m ahead over the whole view.
       const Eigen::Vector3d cam(1.4 * u(rng), 1.0 * u(rng), 3.5 + 1.5 * u(rng));
@@ -398,6 +399,27 @@ TEST_F(VerifyPlaceTest, InliersInOneCornerAreRefused) {
   EXPECT_FALSE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
   options.min_inlier_cells = verdict.cells;
   EXPECT_TRUE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
+  // A photo that shows little elsewhere needs fewer cells: the same corner is all it has.
+  options.min_inlier_cells = verdict.cells + 1;
+  options.min_inlier_cells_few_detail = verdict.cells;
+  photo_.detail_cells = 2 * verdict.cells + 2;
+  EXPECT_FALSE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
+  photo_.detail_cells = 2 * verdict.cells + 1;
+  EXPECT_TRUE(VerifyPlace(photo_, place_, corner, keyframes_, options).accepted);
+}
+
+TEST(RequiredInlierCellsTest, HalfThePhotosDetailCellsBetweenTheFewDetailFloorAndTheRule) {
+  LocatorOptions options;  // min_inlier_cells 3, min_inlier_cells_few_detail 2
+  PreparedPhoto photo;
+  for (const auto& [detail, required] :
+       std::vector<std::pair<int, int>>{{16, 3}, {6, 3}, {5, 2}, {4, 2}, {1, 2}, {0, 2}}) {
+    photo.detail_cells = detail;
+    EXPECT_EQ(RequiredInlierCells(photo, options), required) << detail << " detail cells";
+  }
+  // The floor never raises the rule.
+  options.min_inlier_cells = 1;
+  photo.detail_cells = 0;
+  EXPECT_EQ(RequiredInlierCells(photo, options), 1);
 }
 
 TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
@@ -478,6 +500,7 @@ PlaceVerdict Verdict(int inliers, const Eigen::Vector3d& position, bool accepted
   verdict.accepted = accepted;
   verdict.rotation_deg = rotation_deg;
   verdict.cells = cells;
+  verdict.required_cells = LocatorOptions().min_inlier_cells;  // a photo with detail everywhere
   return verdict;
 }
 

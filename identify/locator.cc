@@ -70,8 +70,9 @@ bool LocatorOptions::Check(std::string* error) const {
            guided_rounds < 0)
     why << "min_ransac_inliers must be at least 4, guided_radius_px and guided_max_distance "
            "positive, guided_rounds not negative";
-  else if (min_inlier_cells < 0 || min_inlier_cells > 16)
-    why << "min_inlier_cells must be in [0, 16]";
+  else if (min_inlier_cells < 0 || min_inlier_cells > 16 || min_inlier_cells_few_detail < 0 ||
+           min_inlier_cells_few_detail > 16)
+    why << "min_inlier_cells and min_inlier_cells_few_detail must be in [0, 16]";
   else if (bare_view_max_detail_cells < 0 || bare_view_max_detail_cells > 16)
     why << "bare_view_max_detail_cells must be in [0, 16]";
   else if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0))
@@ -795,19 +796,22 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
   options_json::ReadEnum(json, matcher, kMatcherNames);
 }
 
-SIGHTMAP_OPTIONS_JSON(
-    LocatorOptions, features, matcher, sift_features, sift_image_side_px, sift_photo_features,
-    sift_max_distance, sift_guided_max_distance, second_look_max_places, place_threads,
-    extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval, vote_shortlist,
-    vote_max_hamming, place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
-    neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio, same_point_m,
-    max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
-    guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
-    bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
-    min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places, twin_max_shared_share,
-    confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
-    view_agreement, focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
-    occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m,
-    occlusion_margin_ratio, min_in_view_share, min_unoccluded_share, use_synthetic_views)
+SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
+                      sift_photo_features, sift_max_distance, sift_guided_max_distance,
+                      second_look_max_places, place_threads, extract_sift_ahead, max_image_side_px,
+                      retrieval_candidates, retrieval, vote_shortlist, vote_max_hamming,
+                      place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
+                      neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
+                      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
+                      min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
+                      guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
+                      bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
+                      min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
+                      twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,
+                      min_view_agreement, min_inliers_unchecked, view_agreement,
+                      focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
+                      occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
+                      occlusion_margin_m, occlusion_margin_ratio, min_in_view_share,
+                      min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

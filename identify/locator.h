@@ -140,6 +140,10 @@ struct LocatorOptions {
   // the poster change 98 -> 100, 5 -> 5. (Without the twin check, 3 cells let more wrong poses
   // through: 80 matched, 8 wrong against 74 and 6 with 4 cells, before the tiled ceilings.)
   int min_inlier_cells = 3;
+  // A photo that shows little (its features fill few cells: a switch on a bare wall, a light on
+  // the ceiling) has little to spread inliers over: it needs half its detail cells, but at least
+  // this many (DetailInlierCells).
+  int min_inlier_cells_few_detail = 2;
   // A photo not matched whose features fill at most this many cells of that grid (20 features
   // each) shows too little of the room: a bare ceiling round a light, a switch on a bare wall. It
   // is answered as such, so the person includes a wall or furniture. On 200 session-2 photos
