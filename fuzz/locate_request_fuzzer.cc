@@ -174,6 +174,7 @@ extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
   // Never destroyed: it serves until the fuzzer exits.
   auto* server = new sightmap::cli::LocateServer(MakeModel(), options);
   server->Bind();
+  server->Load();
   g_port = server->port();
   std::thread([server] { server->Run(); }).detach();
   return 0;
