@@ -15,6 +15,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -170,6 +171,25 @@ class ServeTest : public ::testing::Test {
       if (entry.path().extension() == ".jpg") photos.push_back(ReadBytes(entry.path()));
     }
     return photos;
+  }
+
+  // Each photo's true intrinsics (queries.json, at 1280x960) scaled to `width` pixels, as a
+  // /locate query string, in queries.json's order.
+  static std::vector<std::string> IntrinsicsQueries(int width) {
+    std::ifstream file(*dir_ / "queries" / "queries" / "queries.json");
+    const nlohmann::json queries = nlohmann::json::parse(file, nullptr, false);
+    std::vector<std::string> out;
+    if (queries.is_discarded()) return out;
+    for (const nlohmann::json& query : queries.at("queries")) {
+      const nlohmann::json& k = query.at("intrinsics");
+      const double scale = static_cast<double>(width) / k.at("width").get<double>();
+      const auto scaled_centre = [scale](double c) { return (c + 0.5) * scale - 0.5; };
+      out.push_back("?fx=" + std::to_string(k.at("fx").get<double>() * scale) +
+                    "&fy=" + std::to_string(k.at("fy").get<double>() * scale) +
+                    "&cx=" + std::to_string(scaled_centre(k.at("cx").get<double>())) +
+                    "&cy=" + std::to_string(scaled_centre(k.at("cy").get<double>())));
+    }
+    return out;
   }
 
   static httplib::Client Client() {
@@ -542,12 +562,17 @@ double ResidentMiB(pid_t pid) {
 // within 10% of what it held after the first 100 (no leak per request).
 TEST_F(ServeTest, AThousandMixedRequestsFromEightClients) {
   ASSERT_GT(server_->port(), 0) << server_->output();
-  const std::vector<std::string> photos = Photos();
-  ASSERT_GE(photos.size(), 4u);
-  // Phone-sized photos at 640x480: the load is on the server's handling, not on feature counts.
+  // The first four photos of queries.json, phone-sized at 640x480: the load is on the server's
+  // handling, not on feature counts. Plain uploads carry their intrinsics (one focal length to
+  // try, not four); multipart ones have theirs estimated.
+  const std::vector<std::string> intrinsics = IntrinsicsQueries(640);
+  ASSERT_GE(intrinsics.size(), 4u);
   std::vector<std::string> small;
   for (size_t i = 0; i < 4; ++i) {
-    const std::vector<uint8_t> bytes(photos[i].begin(), photos[i].end());
+    char name[16];
+    std::snprintf(name, sizeof(name), "%04zu.jpg", i);
+    const std::string photo = ReadBytes(*dir_ / "queries" / "queries" / name);
+    const std::vector<uint8_t> bytes(photo.begin(), photo.end());
     cv::Mat image;
     cv::resize(cv::imdecode(bytes, cv::IMREAD_COLOR), image, cv::Size(640, 480), 0, 0,
                cv::INTER_AREA);
@@ -591,11 +616,12 @@ TEST_F(ServeTest, AThousandMixedRequestsFromEightClients) {
   std::string first_problem;
   const auto send = [&](httplib::Client& client, int index) -> httplib::Result {
     const size_t kind = static_cast<size_t>(index) % kinds.size();
-    const std::string& photo = small[static_cast<size_t>(index / 10) % small.size()];
+    const size_t which = static_cast<size_t>(index / 10) % small.size();
+    const std::string& photo = small[which];
     const std::string& path = kinds[kind].path;
     switch (kind) {
       case 0:
-        return client.Post(path, photo, "image/jpeg");
+        return client.Post(path + intrinsics[which], photo, "image/jpeg");
       case 1:
         return client.Post(
             path, httplib::MultipartFormDataItems{{"photo", photo, "q.jpg", "image/jpeg"}});
