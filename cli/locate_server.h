@@ -90,7 +90,8 @@ class LocateServer {
   // Thread-safe; makes Run() return. Callable before Run() starts.
   void Stop();
 
-  size_t NumKeyframes() const;  // after Load()
+  // The loaded model's, after Load().
+  size_t NumKeyframes() const;
   size_t NumLabels() const;
 
  private:
