@@ -142,7 +142,7 @@ struct LocatorOptions {
   int min_inlier_cells = 3;
   // A photo that shows little (its features fill few cells: a switch on a bare wall, a light on
   // the ceiling) has little to spread inliers over: it needs half its detail cells, but at least
-  // this many (DetailInlierCells).
+  // this many (RequiredInlierCells in locate_stages.h).
   int min_inlier_cells_few_detail = 2;
   // A photo not matched whose features fill at most this many cells of that grid (20 features
   // each) shows too little of the room: a bare ceiling round a light, a switch on a bare wall. It

@@ -15,7 +15,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -29,7 +28,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/camera.h"
 #include "identify/exif_testing.h"
+#include "identify/identify_eval.h"
 #include "identify/sim_model_testing.h"
 #include "tests/command_runner.h"
 #include "tests/test_data.h"
@@ -171,25 +172,6 @@ class ServeTest : public ::testing::Test {
       if (entry.path().extension() == ".jpg") photos.push_back(ReadBytes(entry.path()));
     }
     return photos;
-  }
-
-  // Each photo's true intrinsics (queries.json, at 1280x960) scaled to `width` pixels, as a
-  // /locate query string, in queries.json's order.
-  static std::vector<std::string> IntrinsicsQueries(int width) {
-    std::ifstream file(*dir_ / "queries" / "queries" / "queries.json");
-    const nlohmann::json queries = nlohmann::json::parse(file, nullptr, false);
-    std::vector<std::string> out;
-    if (queries.is_discarded()) return out;
-    for (const nlohmann::json& query : queries.at("queries")) {
-      const nlohmann::json& k = query.at("intrinsics");
-      const double scale = static_cast<double>(width) / k.at("width").get<double>();
-      const auto scaled_centre = [scale](double c) { return (c + 0.5) * scale - 0.5; };
-      out.push_back("?fx=" + std::to_string(k.at("fx").get<double>() * scale) +
-                    "&fy=" + std::to_string(k.at("fy").get<double>() * scale) +
-                    "&cx=" + std::to_string(scaled_centre(k.at("cx").get<double>())) +
-                    "&cy=" + std::to_string(scaled_centre(k.at("cy").get<double>())));
-    }
-    return out;
   }
 
   static httplib::Client Client() {
@@ -563,15 +545,19 @@ double ResidentMiB(pid_t pid) {
 TEST_F(ServeTest, AThousandMixedRequestsFromEightClients) {
   ASSERT_GT(server_->port(), 0) << server_->output();
   // The first four photos of queries.json, phone-sized at 640x480: the load is on the server's
-  // handling, not on feature counts. Plain uploads carry their intrinsics (one focal length to
-  // try, not four); multipart ones have theirs estimated.
-  const std::vector<std::string> intrinsics = IntrinsicsQueries(640);
-  ASSERT_GE(intrinsics.size(), 4u);
+  // handling, not on feature counts. Plain uploads carry their true intrinsics (one focal length
+  // to try, not four); multipart ones have theirs estimated.
+  const std::vector<identify::QueryTruth> truths =
+      identify::ReadQueryTruths((*dir_ / "queries").string());
+  ASSERT_GE(truths.size(), 4u);
   std::vector<std::string> small;
+  std::vector<std::string> intrinsics;  // as /locate's query string
   for (size_t i = 0; i < 4; ++i) {
-    char name[16];
-    std::snprintf(name, sizeof(name), "%04zu.jpg", i);
-    const std::string photo = ReadBytes(*dir_ / "queries" / "queries" / name);
+    ASSERT_TRUE(truths[i].intrinsics.has_value()) << truths[i].image_path;
+    const Intrinsics k = truths[i].intrinsics->Scaled(640, 480);
+    intrinsics.push_back("?fx=" + std::to_string(k.fx) + "&fy=" + std::to_string(k.fy) +
+                         "&cx=" + std::to_string(k.cx) + "&cy=" + std::to_string(k.cy));
+    const std::string photo = ReadBytes(truths[i].image_path);
     const std::vector<uint8_t> bytes(photo.begin(), photo.end());
     cv::Mat image;
     cv::resize(cv::imdecode(bytes, cv::IMREAD_COLOR), image, cv::Size(640, 480), 0, 0,
