@@ -75,6 +75,14 @@ void PrintImportReport(const identify::LabelImportReport& report, const std::str
     std::cout << "  replaced  " << JoinNames(report.replaced)
               << " (existing labels of these names: their points were replaced)\n";
   }
+  if (report.clicked_points > 0 || !report.not_clicked.empty()) {
+    std::cout << "  clicked   " << report.clicked_points << " of " << report.points
+              << " point(s) placed on a keyframe's surface\n";
+  }
+  if (!report.not_clicked.empty()) {
+    std::cout << "  as given  " << JoinNames(report.not_clicked)
+              << " (no keyframe shows their point: kept where the file puts it)\n";
+  }
 }
 
 }  // namespace
@@ -125,6 +133,11 @@ int RunLabel(int argc, char** argv) {
   add_model(import);
   import->add_option("FILE", files, "point-list files (x y z per line)");
   import->add_option("--from-scene", scene_path, "a scene's appliances.json ('sim generate')");
+  bool as_clicked = false;
+  import->add_flag("--as-clicked", as_clicked,
+                   "with --from-scene: place each point where a user would click it, on the "
+                   "surface of the nearest keyframe that shows it (a scene's point may be its "
+                   "appliance's centre, inside it)");
   import->add_option("--type", type,
                      "with FILE...: the labels' type (new labels: 'appliance'; existing keep "
                      "theirs)");
@@ -194,13 +207,20 @@ int RunLabel(int argc, char** argv) {
                  std::string(files.empty() ? "neither" : "both"));
       return kExitUsage;
     }
+    if (as_clicked && scene_path.empty()) {
+      PrintError("--as-clicked applies to --from-scene; point-list files are taken as given");
+      return kExitUsage;
+    }
     if (!scene_path.empty() && type) {
       PrintError("--type applies to point-list files; a scene file gives each appliance's type");
       return kExitUsage;
     }
     store::Model model = OpenExisting(model_path, /*read_only=*/false);
     if (!scene_path.empty()) {
-      PrintImportReport(identify::ImportSceneLabels(model, scene_path), scene_path);
+      const std::optional<identify::ClickOptions> click =
+          as_clicked ? std::optional<identify::ClickOptions>(identify::ClickOptions())
+                     : std::nullopt;
+      PrintImportReport(identify::ImportSceneLabels(model, scene_path, click), scene_path);
     } else {
       PrintImportReport(identify::ImportPointListLabels(model, files, type),
                         std::to_string(files.size()) + " file(s)");

@@ -121,11 +121,28 @@ PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyfra
                           << keyframe.value() << "'s " << k.width << "x" << k.height
                           << " image: pick u in [0, " << k.width - 1 << "], v in [0, "
                           << k.height - 1 << "]");
-  const cv::Mat depth = model.LoadDepth(keyframe);
-  SIGHTMAP_CHECK(depth.cols == k.width && depth.rows == k.height,
-                 "keyframe " << keyframe.value() << "'s depth image is " << depth.cols << "x"
+  const std::optional<PixelLabelPoint> point =
+      LabelPointFromDepth(info, model.LoadDepth(keyframe), pixel, options);
+  SIGHTMAP_CHECK(point, "pixel " << pixel.x() << "," << pixel.y() << " of keyframe "
+                                 << keyframe.value() << " has no depth within "
+                                 << options.max_depth_search_px
+                                 << " px: click on a surface the sensor saw, or type the "
+                                    "point with --point X,Y,Z");
+  return *point;
+}
+
+std::optional<PixelLabelPoint> LabelPointFromDepth(const store::KeyframeInfo& keyframe,
+                                                   const cv::Mat& depth,
+                                                   const Eigen::Vector2d& pixel,
+                                                   const PixelLabelOptions& options) {
+  const Intrinsics& k = keyframe.intrinsics;
+  SIGHTMAP_CHECK(depth.type() == CV_16UC1 && depth.cols == k.width && depth.rows == k.height,
+                 "keyframe " << keyframe.id.value() << "'s depth image is " << depth.cols << "x"
                              << depth.rows << ", its intrinsics " << k.width << "x" << k.height
                              << ": the model is inconsistent, re-map it");
+  const long u0 = std::isfinite(pixel.x()) ? std::lround(pixel.x()) : -1;
+  const long v0 = std::isfinite(pixel.y()) ? std::lround(pixel.y()) : -1;
+  if (u0 < 0 || u0 >= k.width || v0 < 0 || v0 >= k.height) return std::nullopt;
 
   // The nearest pixel with a usable depth, by pixel distance; ties go to the first in scan order,
   // so the answer does not depend on anything but the image.
@@ -146,11 +163,7 @@ PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyfra
       best_distance2 = distance2;
     }
   }
-  SIGHTMAP_CHECK(best_u >= 0, "pixel " << pixel.x() << "," << pixel.y() << " of keyframe "
-                                       << keyframe.value() << " has no depth within "
-                                       << options.max_depth_search_px
-                                       << " px: click on a surface the sensor saw, or type the "
-                                          "point with --point X,Y,Z");
+  if (best_u < 0) return std::nullopt;
 
   PixelLabelPoint result;
   result.depth_pixel = Eigen::Vector2i(best_u, best_v);
@@ -158,10 +171,10 @@ PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyfra
   result.depth_m = depth.at<uint16_t>(best_v, best_u) / 1000.0;  // 16-bit millimetres
   store::LabelPoint& point = result.point;
   point.source = store::LabelPointSource::kKeyframePixel;
-  point.keyframe = keyframe;
+  point.keyframe = keyframe.id;
   point.pixel = pixel;
   point.cam_point = k.Unproject(pixel.x(), pixel.y(), result.depth_m);
-  point.world = info.world_from_cam * point.cam_point;
+  point.world = keyframe.world_from_cam * point.cam_point;
   return result;
 }
 
@@ -197,7 +210,8 @@ store::LabelRecord AddPointsToLabel(store::Model& model, const std::string& name
   return *stored;
 }
 
-LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path) {
+LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path,
+                                    const std::optional<ClickOptions>& as_clicked) {
   std::ifstream in = OpenInputFile(path, "scene file");
   SIGHTMAP_CHECK(in.is_open(), "cannot read scene file " << path << ": check that it exists");
   nlohmann::json scene;
@@ -255,7 +269,31 @@ LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path
     origins.push_back("appliance " + std::to_string(i + 1));
   }
   CheckUniqueNames(labels, origins);
-  return WriteLabels(model, std::move(labels), /*keep_existing_type=*/false);
+  if (!as_clicked) return WriteLabels(model, std::move(labels), /*keep_existing_type=*/false);
+
+  SIGHTMAP_CHECK_OPTIONS(*as_clicked);
+  const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
+  int clicked_points = 0;
+  std::vector<std::string> not_clicked;
+  for (store::LabelRecord& label : labels) {
+    bool all_clicked = true;
+    for (store::LabelPoint& point : label.points) {
+      const std::optional<PixelLabelPoint> clicked =
+          ClickedLabelPoint(model, keyframes, point.world, *as_clicked);
+      if (clicked) {
+        point = clicked->point;
+        ++clicked_points;
+      } else {
+        all_clicked = false;
+      }
+    }
+    if (!all_clicked) not_clicked.push_back(label.name);
+  }
+  LabelImportReport report = WriteLabels(model, std::move(labels), /*keep_existing_type=*/false);
+  report.clicked_points = clicked_points;
+  std::sort(not_clicked.begin(), not_clicked.end());
+  report.not_clicked = std::move(not_clicked);
+  return report;
 }
 
 LabelImportReport ImportPointListLabels(store::Model& model, const std::vector<std::string>& paths,
@@ -387,6 +425,83 @@ std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<store::KeyframeIn
   std::vector<KeyframeId> ids;
   for (size_t i = 0; i < seeing.size() && i < max_count; ++i) ids.push_back(seeing[i].second);
   return ids;
+}
+
+bool ClickOptions::Check(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (max_keyframes < 1) return fail("max_keyframes must be at least 1");
+  if (!(on_surface_m >= 0.0)) return fail("on_surface_m must not be negative");
+  if (!(border_share >= 0.0 && border_share < 0.5)) return fail("border_share must be in [0, 0.5)");
+  if (!(max_in_front_m >= 0.0) || !(max_behind_m >= 0.0)) {
+    return fail("max_in_front_m and max_behind_m must not be negative");
+  }
+  if (!(sighting_depth_m >= 0.0) || !(sighting_max_m > 0.0)) {
+    return fail("sighting_depth_m must not be negative and sighting_max_m must be positive");
+  }
+  return pixel.Check(error) && view.Check(error);
+}
+
+std::optional<PixelLabelPoint> ClickedLabelPoint(const store::Model& model,
+                                                 const std::vector<store::KeyframeInfo>& keyframes,
+                                                 const Eigen::Vector3d& world,
+                                                 const ClickOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  store::LabelRecord probe;
+  probe.points.push_back(LabelPointFromWorld(world));
+  const std::vector<KeyframeId> seeing = KeyframesSeeingLabel(
+      keyframes, probe, static_cast<size_t>(options.max_keyframes), options.view);
+  struct Candidate {
+    PixelLabelPoint clicked;
+    Eigen::Vector3d ray;  // keyframe centre to the point, unit length (world)
+    double gap_m = 0.0;   // how far the surface clicked lies in front of the point
+  };
+  std::vector<Candidate> candidates;
+  // The side the walk saw the point from: the keyframes whose depth there is missing (a screen, a
+  // window) or not nearer than the point by more than sighting_depth_m.
+  Eigen::Vector3d front_ray = Eigen::Vector3d::Zero();
+  for (const KeyframeId id : seeing) {
+    const auto info = std::find_if(keyframes.begin(), keyframes.end(),
+                                   [id](const store::KeyframeInfo& k) { return k.id == id; });
+    const Intrinsics& k = info->intrinsics;
+    const Eigen::Vector3d cam = info->world_from_cam.inverse() * world;
+    const Eigen::Vector2d pixel = k.Project(cam);
+    const double border_u = options.border_share * k.width;
+    const double border_v = options.border_share * k.height;
+    if (pixel.x() < border_u || pixel.x() > k.width - 1 - border_u || pixel.y() < border_v ||
+        pixel.y() > k.height - 1 - border_v) {
+      continue;
+    }
+    const cv::Mat depth = model.LoadDepth(id);
+    const Eigen::Vector3d ray = (world - info->world_from_cam.translation()).normalized();
+    const uint16_t at_mm = depth.at<uint16_t>(static_cast<int>(std::lround(pixel.y())),
+                                              static_cast<int>(std::lround(pixel.x())));
+    const bool clear = at_mm == 0 ? cam.norm() <= options.sighting_max_m
+                                  : at_mm / 1000.0 >= cam.z() - options.sighting_depth_m;
+    if (clear) front_ray += ray;
+    const std::optional<PixelLabelPoint> clicked =
+        LabelPointFromDepth(*info, depth, pixel, options.pixel);
+    if (!clicked) continue;  // no depth there: a user would click in another keyframe
+    const double gap_m = cam.z() - clicked->depth_m;
+    if (gap_m > options.max_in_front_m || gap_m < -options.max_behind_m) continue;
+    candidates.push_back({*clicked, ray, gap_m});
+    if (std::abs(gap_m) <= options.on_surface_m) break;  // on the surface: seen from its side
+  }
+  // A keyframe behind the wall the point hangs on sees the wall's other face a wall's thickness
+  // in front of it: when the walk saw the point from one side, clicks from the other are not
+  // the appliance.
+  std::optional<PixelLabelPoint> best;
+  double best_gap_m = std::numeric_limits<double>::infinity();
+  for (const Candidate& candidate : candidates) {
+    if (candidate.ray.dot(front_ray) < 0.0) continue;
+    if (std::abs(candidate.gap_m) < best_gap_m) {
+      best_gap_m = std::abs(candidate.gap_m);
+      best = candidate.clicked;
+    }
+  }
+  return best;
 }
 
 }  // namespace sightmap::identify

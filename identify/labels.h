@@ -45,6 +45,13 @@ PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyfra
                                     const Eigen::Vector2d& pixel,
                                     const PixelLabelOptions& options = PixelLabelOptions());
 
+// The same for a keyframe whose depth image [mm, its intrinsics' size] the caller has read;
+// nullopt when the pixel is outside it or no depth lies within max_depth_search_px.
+std::optional<PixelLabelPoint> LabelPointFromDepth(const store::KeyframeInfo& keyframe,
+                                                   const cv::Mat& depth,
+                                                   const Eigen::Vector2d& pixel,
+                                                   const PixelLabelOptions& options);
+
 // A point typed in world coordinates [m] (source kTyped).
 store::LabelPoint LabelPointFromWorld(const Eigen::Vector3d& world);
 
@@ -94,6 +101,48 @@ std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<store::KeyframeIn
                                              const store::LabelRecord& label, size_t max_count,
                                              const LabelViewOptions& options = {});
 
+// Where a user labelling an appliance in the model would click: the options of
+// ClickedLabelPoint.
+struct ClickOptions {
+  // Keyframes tried, nearest to the point first (KeyframesSeeingLabel with `view`): the nearest
+  // may all stand on the other side of the wall the appliance hangs on, so many are tried.
+  int max_keyframes = 400;
+  // A keyframe whose depth lies this close to the point shows it on its surface: taken at once
+  // [m].
+  double on_surface_m = 0.03;
+  // A keyframe is clicked in only where the point lies this share of its width and height away
+  // from the image border (a user clicks what the image shows whole) [].
+  double border_share = 0.1;
+  // The keyframe's depth at the point's pixel must show a surface at most this far in front of
+  // the point (a scene's point may be its appliance's centre: a printer's lies 0.24 m behind its
+  // front), else something else hides it there, and at most max_behind_m behind it [m].
+  double max_in_front_m = 0.4;
+  double max_behind_m = 0.1;
+  // The side the walk saw the point from (a wall-mounted point seen from behind its wall must not
+  // be clicked there): keyframes whose depth at the point is missing, with the point within
+  // sighting_max_m, or not nearer than it by more than sighting_depth_m; clicks in keyframes
+  // looking from the other side (rays more than 90 deg from their mean) are dropped [m].
+  double sighting_depth_m = 0.10;
+  double sighting_max_m = 4.5;
+  PixelLabelOptions pixel;
+  LabelViewOptions view;
+
+  bool Check(std::string* error) const;
+};
+
+// The label point a user would make by clicking `world` in a keyframe that shows it
+// (LabelPointFromPixel at its pixel): of the keyframes passing ClickOptions, the one whose depth
+// there lies nearest the point (the first within on_surface_m, else the first of the nearest);
+// on the surface that keyframe's depth shows, stored relative to it, and never from the side
+// opposite the one the walk saw the point from. nullopt when no keyframe passes. A point no
+// keyframe saw clearly (a printer's centre, inside its body) has no side: the nearest surface
+// wins, which for a wall-mounted point the walk saw only from behind would be the wall's other
+// face, so the walk must show the appliance.
+std::optional<PixelLabelPoint> ClickedLabelPoint(const store::Model& model,
+                                                 const std::vector<store::KeyframeInfo>& keyframes,
+                                                 const Eigen::Vector3d& world,
+                                                 const ClickOptions& options = {});
+
 // {"labels": [{"id", "name", "type", "points": [[x, y, z]], "point_sources": [{"source",
 // "keyframe"?, "pixel"?, "file"?}]}]}: `sightmap label list --json` and the server's /api/labels.
 nlohmann::json LabelsToJson(const std::vector<store::LabelRecord>& labels);
@@ -113,6 +162,10 @@ struct LabelImportReport {
   std::vector<std::string> created;
   std::vector<std::string> replaced;  // existing labels whose points (and type) were replaced
   int points = 0;                     // points written in total
+  // As clicked (ImportSceneLabels with ClickOptions): points placed on a keyframe's surface, and
+  // the labels with a point no keyframe showed (kept where the file puts it).
+  int clicked_points = 0;
+  std::vector<std::string> not_clicked;
 };
 
 // Labels every appliance of a simulator scene file ({"scene", "appliances": [{"id", "name",
@@ -123,7 +176,11 @@ struct LabelImportReport {
 // write, so a bad file (unreadable, not JSON, a missing field, a point that is not three finite
 // numbers, a name twice) throws Error and leaves the model unchanged; should a write fail midway,
 // the labels already written are restored.
-LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path);
+// With `as_clicked`, each point is replaced by ClickedLabelPoint's, as a user labelling in the
+// model would place it (a scene's points may lie inside their appliance, where no surface is);
+// a point no keyframe shows keeps the file's position.
+LabelImportReport ImportSceneLabels(store::Model& model, const std::string& path,
+                                    const std::optional<ClickOptions>& as_clicked = std::nullopt);
 
 // CloudCompare point lists (store/label_files.h's ReadPointList), one label per file named after
 // its stem. New labels get `type` (kDefaultLabelType when nullopt or empty); an existing label's

@@ -225,6 +225,129 @@ TEST(Labels, SceneFileImport) {
   EXPECT_EQ(labels[2].type, "monitor");
 }
 
+// A 320x240 keyframe at `world_from_cam` whose depth is `depth_mm` everywhere (0: none, as on a
+// screen or a window).
+KeyframeId AddKeyframeAt(store::Model& model, int index, const Eigen::Isometry3d& world_from_cam,
+                         uint16_t depth_mm) {
+  store::SyntheticKeyframeOptions options;
+  options.width = 320;
+  options.height = 240;
+  options.num_features = 10;
+  store::KeyframeRecord record =
+      store::MakeSyntheticKeyframe(model.BeginSession({}), index, options);
+  record.world_from_cam = world_from_cam;
+  record.odom_world_from_cam = world_from_cam;
+  record.depth.setTo(depth_mm);
+  return model.AddKeyframe(record);
+}
+
+// A camera at `position` looking along world +y (`forward` false: along -y), image y down (-z).
+Eigen::Isometry3d LookingAlongY(const Eigen::Vector3d& position, bool forward) {
+  const double s = forward ? 1.0 : -1.0;
+  Eigen::Matrix3d rotation;
+  rotation.col(0) = Eigen::Vector3d(s, 0, 0);
+  rotation.col(1) = Eigen::Vector3d(0, 0, -1);
+  rotation.col(2) = Eigen::Vector3d(0, s, 0);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = rotation;
+  pose.translation() = position;
+  return pose;
+}
+
+// A scene's point may be its appliance's centre (a printer's lies 0.24 m behind its front): the
+// user's click lands on the surface that keyframe shows nearest the point.
+TEST(ClickedLabelPoint, APointInsideItsApplianceLandsOnTheNearestSurfaceShown) {
+  store::Model model = store::Model::Open(":memory:");
+  const Eigen::Vector3d centre(0.0, 0.0, 1.0);
+  AddKeyframeAt(model, 1, LookingAlongY({0.0, -2.0, 1.0}, true), 1750);  // surface 0.25 m before
+  const KeyframeId nearer_surface =
+      AddKeyframeAt(model, 2, LookingAlongY({0.3, -2.5, 1.0}, true), 2380);  // 0.12 m before
+  AddKeyframeAt(model, 3, LookingAlongY({0.0, -1.0, 1.0}, true), 400);       // 0.6 m before: not it
+  const std::optional<PixelLabelPoint> clicked =
+      ClickedLabelPoint(model, model.Keyframes(), centre);
+  ASSERT_TRUE(clicked);
+  EXPECT_EQ(clicked->point.source, store::LabelPointSource::kKeyframePixel);
+  EXPECT_EQ(clicked->point.keyframe, nearer_surface);
+  EXPECT_DOUBLE_EQ(clicked->depth_m, 2.38);
+  EXPECT_NEAR(clicked->point.world.y(), -0.12, 1e-9);
+  EXPECT_NEAR(clicked->point.world.z(), 1.0, 1e-9);
+
+  // Stored, it follows its keyframe like a clicked point.
+  const store::LabelRecord label = AddPointsToLabel(model, "printer", {clicked->point});
+  EXPECT_EQ(label.points[0].keyframe, nearer_surface);
+  ExpectNear(label.points[0].world, clicked->point.world, 1e-9);
+}
+
+// A switch seen from the room, where the sensor had no depth (or its plate), must not be clicked
+// on the far face of its wall from a keyframe in the next room.
+TEST(ClickedLabelPoint, NeverFromBehindTheWallTheWalkSawThePointThrough) {
+  const Eigen::Vector3d point(0.0, 0.0, 1.0);
+  store::Model model = store::Model::Open(":memory:");
+  AddKeyframeAt(model, 1, LookingAlongY({0.0, -2.0, 1.0}, true), 0);     // the front: no depth
+  AddKeyframeAt(model, 2, LookingAlongY({0.0, 1.5, 1.0}, false), 1300);  // the wall 0.2 m before
+  EXPECT_FALSE(ClickedLabelPoint(model, model.Keyframes(), point));
+
+  // Seen from behind only, the click lands on the wall's far face: the walk must show the
+  // appliance (labels.h).
+  store::Model behind_only = store::Model::Open(":memory:");
+  const KeyframeId behind =
+      AddKeyframeAt(behind_only, 1, LookingAlongY({0.0, 1.5, 1.0}, false), 1300);
+  const std::optional<PixelLabelPoint> clicked =
+      ClickedLabelPoint(behind_only, behind_only.Keyframes(), point);
+  ASSERT_TRUE(clicked);
+  EXPECT_EQ(clicked->point.keyframe, behind);
+  EXPECT_NEAR(clicked->point.world.y(), 0.2, 1e-9);
+}
+
+TEST(ClickedLabelPoint, NotAtTheImageBorderNorWhereNoKeyframeLooks) {
+  store::Model model = store::Model::Open(":memory:");
+  const Eigen::Isometry3d pose = LookingAlongY({0.0, -2.0, 1.0}, true);
+  AddKeyframeAt(model, 1, pose, 2000);
+  const Intrinsics k = model.Keyframes().front().intrinsics;
+  auto world_at = [&](double u, double v) {
+    return Eigen::Vector3d(pose *
+                           Eigen::Vector3d((u - k.cx) / k.fx * 2.0, (v - k.cy) / k.fy * 2.0, 2.0));
+  };
+  EXPECT_TRUE(ClickedLabelPoint(model, model.Keyframes(), world_at(0.5 * k.width, 0.5 * k.height)));
+  EXPECT_FALSE(
+      ClickedLabelPoint(model, model.Keyframes(), world_at(0.05 * k.width, 0.5 * k.height)))
+      << "within 10% of the border";
+  EXPECT_FALSE(ClickedLabelPoint(model, model.Keyframes(), Eigen::Vector3d(0.0, -5.0, 1.0)))
+      << "behind the camera";
+  ClickOptions bad;
+  bad.border_share = 0.5;
+  EXPECT_THROW(ClickedLabelPoint(model, model.Keyframes(), world_at(100, 100), bad),
+               InvalidArgument);
+}
+
+TEST(Labels, SceneFileImportAsClickedReportsThePointsNoKeyframeShows) {
+  const std::string dir = testing::MakeTempDir("labels_scene_clicked");
+  const std::string path = WriteFile(dir + "/appliances.json", R"({"scene": "office",
+    "appliances": [
+      {"id": 1, "name": "printer", "type": "printer", "points": [[0, 0, 1]]},
+      {"id": 2, "name": "unseen", "type": "lamp", "points": [[0, 9, 1]]}]})");
+  store::Model model = store::Model::Open(":memory:");
+  const KeyframeId keyframe = AddKeyframeAt(model, 1, LookingAlongY({0.0, -2.0, 1.0}, true), 1750);
+  const LabelImportReport report = ImportSceneLabels(model, path, ClickOptions());
+  EXPECT_EQ(report.points, 2);
+  EXPECT_EQ(report.clicked_points, 1);
+  EXPECT_EQ(report.not_clicked, std::vector<std::string>{"unseen"});
+  const std::vector<store::LabelRecord> labels = model.Labels();
+  ASSERT_EQ(labels.size(), 2u);
+  EXPECT_EQ(labels[0].name, "printer");
+  EXPECT_EQ(labels[0].points[0].source, store::LabelPointSource::kKeyframePixel);
+  EXPECT_EQ(labels[0].points[0].keyframe, keyframe);
+  ExpectNear(labels[0].points[0].world, {0.0, -0.25, 1.0}, 1e-9);
+  EXPECT_EQ(labels[1].points[0].source, store::LabelPointSource::kImportedFile);
+  ExpectNear(labels[1].points[0].world, {0, 9, 1}, 1e-12);
+
+  // Without it, the file's points as given.
+  const LabelImportReport plain = ImportSceneLabels(model, path);
+  EXPECT_EQ(plain.clicked_points, 0);
+  EXPECT_TRUE(plain.not_clicked.empty());
+  ExpectNear(model.Labels()[0].points[0].world, {0, 0, 1}, 1e-12);
+}
+
 TEST(Labels, ABadSceneFileLeavesTheModelUnchanged) {
   const std::string dir = testing::MakeTempDir("labels_bad_scene");
   store::Model model = store::Model::Open(":memory:");

@@ -118,6 +118,14 @@ TEST(LabelCommand, ImportsASceneFileAndPointLists) {
   EXPECT_NE(run.out.find("replaced  lamp_1, monitor_1"), std::string::npos) << run.out;
   EXPECT_EQ(ListJson(model).at("labels").size(), 2u);
 
+  // As a user would click them (identify::ClickedLabelPoint): the output counts the points placed
+  // on a keyframe's surface and names the labels left where the file puts them.
+  run = Sightmap("label import --model " + model + " --from-scene " + dir +
+                 "/appliances.json --as-clicked");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find(" of 3 point(s) placed on a keyframe's surface"), std::string::npos)
+      << run.out;
+
   std::ofstream(dir + "/printer.txt") << "1 2 3\n4 5 6\n";
   std::ofstream(dir + "/lamp_1.xyz") << "7 8 9\n";
   run = Sightmap("label import --model " + model + " " + dir + "/printer.txt " + dir +
@@ -156,6 +164,8 @@ TEST(LabelCommand, ErrorsAreOneLineWithExitCodes) {
   ExpectOneLineError(Sightmap("label import --model " + model), 2, "neither");
   ExpectOneLineError(Sightmap("label import --model " + model + " a.txt --from-scene b.json"), 2,
                      "both");
+  ExpectOneLineError(Sightmap("label import --model " + model + " a.txt --as-clicked"), 2,
+                     "--as-clicked applies to --from-scene");
   ExpectOneLineError(Sightmap("label import --model " + model + " " + dir + "/none.txt"), 1,
                      "cannot read point list");
   std::ofstream(dir + "/bad.json") << R"({"appliances": [{"name": "lamp", "points": [[1, 2]]}]})";
