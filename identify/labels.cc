@@ -131,15 +131,25 @@ PixelLabelPoint LabelPointFromPixel(const store::Model& model, KeyframeId keyfra
   return *point;
 }
 
-std::optional<PixelLabelPoint> LabelPointFromDepth(const store::KeyframeInfo& keyframe,
-                                                   const cv::Mat& depth,
-                                                   const Eigen::Vector2d& pixel,
-                                                   const PixelLabelOptions& options) {
+namespace {
+
+// A stored depth image that does not fit its keyframe's intrinsics is a damaged model.
+void CheckDepthFits(const store::KeyframeInfo& keyframe, const cv::Mat& depth) {
   const Intrinsics& k = keyframe.intrinsics;
   SIGHTMAP_CHECK(depth.type() == CV_16UC1 && depth.cols == k.width && depth.rows == k.height,
                  "keyframe " << keyframe.id.value() << "'s depth image is " << depth.cols << "x"
                              << depth.rows << ", its intrinsics " << k.width << "x" << k.height
                              << ": the model is inconsistent, re-map it");
+}
+
+}  // namespace
+
+std::optional<PixelLabelPoint> LabelPointFromDepth(const store::KeyframeInfo& keyframe,
+                                                   const cv::Mat& depth,
+                                                   const Eigen::Vector2d& pixel,
+                                                   const PixelLabelOptions& options) {
+  CheckDepthFits(keyframe, depth);
+  const Intrinsics& k = keyframe.intrinsics;
   const long u0 = std::isfinite(pixel.x()) ? std::lround(pixel.x()) : -1;
   const long v0 = std::isfinite(pixel.y()) ? std::lround(pixel.y()) : -1;
   if (u0 < 0 || u0 >= k.width || v0 < 0 || v0 >= k.height) return std::nullopt;
@@ -475,6 +485,7 @@ std::optional<PixelLabelPoint> ClickedLabelPoint(const store::Model& model,
       continue;
     }
     const cv::Mat depth = model.LoadDepth(id);
+    CheckDepthFits(*info, depth);
     const Eigen::Vector3d ray = (world - info->world_from_cam.translation()).normalized();
     const uint16_t at_mm = depth.at<uint16_t>(static_cast<int>(std::lround(pixel.y())),
                                               static_cast<int>(std::lround(pixel.x())));
