@@ -136,8 +136,8 @@ int RunLabel(int argc, char** argv) {
   bool as_clicked = false;
   import->add_flag("--as-clicked", as_clicked,
                    "with --from-scene: place each point where a user would click it, on the "
-                   "surface of the nearest keyframe that shows it (a scene's point may be its "
-                   "appliance's centre, inside it)");
+                   "surface a keyframe shows nearest the point, seen from the side the walk saw "
+                   "it from (a scene's point may be its appliance's centre, inside it)");
   import->add_option("--type", type,
                      "with FILE...: the labels' type (new labels: 'appliance'; existing keep "
                      "theirs)");
