@@ -14,6 +14,7 @@
 #include "core/check.h"
 #include "core/input_file.h"
 #include "core/options_json.h"
+#include "identify/visibility.h"
 #include "store/label_files.h"
 
 namespace sightmap::identify {
@@ -417,23 +418,40 @@ std::vector<LabelInKeyframe> LabelsInKeyframe(const store::KeyframeInfo& keyfram
   return seen;
 }
 
-std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<store::KeyframeInfo>& keyframes,
-                                             const store::LabelRecord& label, size_t max_count,
-                                             const LabelViewOptions& options) {
+namespace {
+
+// KeyframesSeeingLabel's keyframes themselves, in its order.
+std::vector<const store::KeyframeInfo*> NearestKeyframesSeeing(
+    const std::vector<store::KeyframeInfo>& keyframes, const store::LabelRecord& label,
+    size_t max_count, const LabelViewOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  std::vector<std::pair<double, KeyframeId>> seeing;
+  std::vector<std::pair<double, const store::KeyframeInfo*>> seeing;
   for (const store::KeyframeInfo& keyframe : keyframes) {
     double nearest = std::numeric_limits<double>::infinity();
     for (const store::LabelPoint& point : label.points) {
       const auto projected = ProjectIntoKeyframe(keyframe, point.world, options.max_distance_m);
       if (projected) nearest = std::min(nearest, projected->second);
     }
-    if (std::isfinite(nearest)) seeing.emplace_back(nearest, keyframe.id);
+    if (std::isfinite(nearest)) seeing.emplace_back(nearest, &keyframe);
   }
   std::stable_sort(seeing.begin(), seeing.end(),
                    [](const auto& a, const auto& b) { return a.first < b.first; });
+  if (seeing.size() > max_count) seeing.resize(max_count);
+  std::vector<const store::KeyframeInfo*> nearest;
+  for (const auto& [distance, keyframe] : seeing) nearest.push_back(keyframe);
+  return nearest;
+}
+
+}  // namespace
+
+std::vector<KeyframeId> KeyframesSeeingLabel(const std::vector<store::KeyframeInfo>& keyframes,
+                                             const store::LabelRecord& label, size_t max_count,
+                                             const LabelViewOptions& options) {
   std::vector<KeyframeId> ids;
-  for (size_t i = 0; i < seeing.size() && i < max_count; ++i) ids.push_back(seeing[i].second);
+  for (const store::KeyframeInfo* keyframe :
+       NearestKeyframesSeeing(keyframes, label, max_count, options)) {
+    ids.push_back(keyframe->id);
+  }
   return ids;
 }
 
@@ -461,7 +479,7 @@ std::optional<PixelLabelPoint> ClickedLabelPoint(const store::Model& model,
   SIGHTMAP_CHECK_OPTIONS(options);
   store::LabelRecord probe;
   probe.points.push_back(LabelPointFromWorld(world));
-  const std::vector<KeyframeId> seeing = KeyframesSeeingLabel(
+  const std::vector<const store::KeyframeInfo*> seeing = NearestKeyframesSeeing(
       keyframes, probe, static_cast<size_t>(options.max_keyframes), options.view);
   struct Candidate {
     PixelLabelPoint clicked;
@@ -472,9 +490,8 @@ std::optional<PixelLabelPoint> ClickedLabelPoint(const store::Model& model,
   // The side the walk saw the point from: the keyframes whose depth there is missing (a screen, a
   // window) or not nearer than the point by more than sighting_depth_m.
   Eigen::Vector3d front_ray = Eigen::Vector3d::Zero();
-  for (const KeyframeId id : seeing) {
-    const auto info = std::find_if(keyframes.begin(), keyframes.end(),
-                                   [id](const store::KeyframeInfo& k) { return k.id == id; });
+  for (const store::KeyframeInfo* info : seeing) {
+    const KeyframeId id = info->id;
     const Intrinsics& k = info->intrinsics;
     const Eigen::Vector3d cam = info->world_from_cam.inverse() * world;
     const Eigen::Vector2d pixel = k.Project(cam);
@@ -489,9 +506,9 @@ std::optional<PixelLabelPoint> ClickedLabelPoint(const store::Model& model,
     const Eigen::Vector3d ray = (world - info->world_from_cam.translation()).normalized();
     const uint16_t at_mm = depth.at<uint16_t>(static_cast<int>(std::lround(pixel.y())),
                                               static_cast<int>(std::lround(pixel.x())));
-    const bool clear = at_mm == 0 ? cam.norm() <= options.sighting_max_m
-                                  : at_mm / 1000.0 >= cam.z() - options.sighting_depth_m;
-    if (clear) front_ray += ray;
+    if (ClearSighting(at_mm, cam.z(), options.sighting_depth_m, options.sighting_max_m)) {
+      front_ray += ray;
+    }
     const std::optional<PixelLabelPoint> clicked =
         LabelPointFromDepth(*info, depth, pixel, options.pixel);
     if (!clicked) continue;  // no depth there: a user would click in another keyframe

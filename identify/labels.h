@@ -120,8 +120,9 @@ struct ClickOptions {
   double max_behind_m = 0.1;
   // The side the walk saw the point from (a wall-mounted point seen from behind its wall must not
   // be clicked there): keyframes whose depth at the point is missing, with the point within
-  // sighting_max_m, or not nearer than it by more than sighting_depth_m; clicks in keyframes
-  // looking from the other side (rays more than 90 deg from their mean) are dropped [m].
+  // sighting_max_m, or not nearer than it by more than sighting_depth_m (ClearSighting, as the
+  // sightings `locate` tells occlusion with); clicks in keyframes looking from the other side
+  // (rays more than 90 deg from their mean) are dropped [m].
   double sighting_depth_m = 0.10;
   double sighting_max_m = 4.5;
   PixelLabelOptions pixel;

@@ -762,6 +762,16 @@ TEST_F(VisibilityTest, AFarSwitchSeenFromBehindItsWallIsOccludedWhenTheWalkSawIt
   EXPECT_FALSE(seen[0].occluded);
 }
 
+TEST(ClearSightingTest, DepthReachingThePointOrMissingWithinTheSensorsRange) {
+  const double margin_m = 0.10;
+  const double range_m = 4.5;
+  EXPECT_TRUE(ClearSighting(3000, 2.0, margin_m, range_m));   // the surface lies beyond it
+  EXPECT_TRUE(ClearSighting(2000, 2.05, margin_m, range_m));  // on it, within the margin
+  EXPECT_FALSE(ClearSighting(2000, 2.2, margin_m, range_m));  // something 0.2 m in front
+  EXPECT_TRUE(ClearSighting(0, 4.5, margin_m, range_m));      // no depth: a dark screen
+  EXPECT_FALSE(ClearSighting(0, 4.6, margin_m, range_m));     // no depth: out of range
+}
+
 TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
   VisibilityOptions options;
   EXPECT_TRUE(options.Check(nullptr));

@@ -134,6 +134,12 @@ SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrins
   return view;
 }
 
+bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
+                   double sighting_max_m) {
+  if (seen_mm == 0) return point_z_m <= sighting_max_m;
+  return seen_mm * 1e-3 >= point_z_m - sighting_depth_m;
+}
+
 LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
                            const std::vector<SightingView>& views,
                            const VisibilityOptions& options) {
@@ -149,12 +155,10 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
         const int u = static_cast<int>(std::lround(pixel.x()));
         const int v = static_cast<int>(std::lround(pixel.y()));
         if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) continue;
-        // Seen when nothing stands in front of it: the depth reaches it (or beyond), or is
-        // missing within the sensor's range (a dark screen returns no depth).
-        const double seen_m = view.depth_mm.at<uint16_t>(v, u) * 1e-3;
-        const bool clear = seen_m > 0.0 ? seen_m >= cam.z() - options.sighting_depth_m
-                                        : cam.z() <= options.sighting_max_m;
-        if (!clear) continue;
+        if (!ClearSighting(view.depth_mm.at<uint16_t>(v, u), cam.z(), options.sighting_depth_m,
+                           options.sighting_max_m)) {
+          continue;
+        }
         // The ray from the keyframe to the point, in the world frame.
         sighting.mean_ray += view.cam_from_world.linear().transpose() * cam.normalized();
         ++sighting.keyframes;

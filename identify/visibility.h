@@ -102,6 +102,15 @@ struct PointSighting {
 // Per label, per point.
 using LabelSightings = std::vector<std::vector<PointSighting>>;
 
+// Whether a keyframe has a clear line of sight to a point `point_z_m` in front of it, from its
+// depth at the point's pixel (`seen_mm`, 0 when missing): the depth reaches the point, or beyond,
+// within sighting_depth_m, or is missing with the point within the sensor's range sighting_max_m
+// (a dark screen or a window returns no depth) [m]. The one rule for the side the walk saw a
+// point from: the sightings `locate` tells occlusion with, and the clicks of `label import
+// --as-clicked`.
+bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
+                   double sighting_max_m);
+
 // `depth_mm` resized to `width` x `height` (nearest, so no depth is invented at edges).
 SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
                               const Eigen::Isometry3d& world_from_cam, int width, int height);
