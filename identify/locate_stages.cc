@@ -922,6 +922,19 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   return decision;
 }
 
+Refusal ExplainBareView(Refusal refusal, int photo_detail_cells, const LocatorOptions& options) {
+  const UnmatchedReason code = refusal.code;
+  const bool matching_failed =
+      code == UnmatchedReason::kUnknownPlace || code == UnmatchedReason::kUnseenView ||
+      code == UnmatchedReason::kFewMatches || code == UnmatchedReason::kMatchesInOneCorner ||
+      code == UnmatchedReason::kLooksDifferent;
+  if (!matching_failed || photo_detail_cells > options.bare_view_max_detail_cells) return refusal;
+  refusal.reason = "the photo shows little detail (its features fill " +
+                   std::to_string(photo_detail_cells) + " of 16 parts of it); " + refusal.reason;
+  refusal.code = UnmatchedReason::kBareView;
+  return refusal;
+}
+
 const PlaceVerdict* WouldBeAnswer(const std::vector<PlaceVerdict>& verdicts) {
   const PlaceVerdict* winner = MostInliers(verdicts, /*accepted_only=*/true);
   return winner != nullptr ? winner : MostInliers(verdicts, /*accepted_only=*/false);

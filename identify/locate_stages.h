@@ -242,6 +242,13 @@ struct Decision {
 };
 Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options);
 
+// Stage 7 for a photo not matched: when matching failed (an unknown place, an unseen view, few
+// matches, matches in one corner, a view unlike the photo) on a photo whose features fill at most
+// bare_view_max_detail_cells of the 4x4 grid, the answer is that it shows too little (kBareView,
+// the matcher's reason kept after it): what to do is to include more of the room. An ambiguous,
+// empty or featureless photo keeps its reason.
+Refusal ExplainBareView(Refusal refusal, int photo_detail_cells, const LocatorOptions& options);
+
 // For a photo Decide refused: the verdict the answer would have been (an ambiguous photo's
 // accepted winner, else the refused pose with most inliers), to tell right refusals from wrong
 // ones; null when no place gave a pose.

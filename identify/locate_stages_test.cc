@@ -624,6 +624,33 @@ TEST(DecideTest, MoreInliersOnTheSamePartOfThePhotoAsTheRunnerUpAreAmbiguous) {
   EXPECT_EQ(decision.winner, 0);
 }
 
+TEST(ExplainBareViewTest, FailedMatchingOnAPhotoOfFewDetailCellsAsksForMoreOfTheRoom) {
+  LocatorOptions options;
+  options.bare_view_max_detail_cells = 3;
+  const Refusal few{UnmatchedReason::kFewMatches, "12 PnP inliers at best, 25 needed."};
+  const Refusal bare = ExplainBareView(few, 3, options);
+  EXPECT_EQ(bare.code, UnmatchedReason::kBareView);
+  EXPECT_EQ(bare.reason,
+            "the photo shows little detail (its features fill 3 of 16 parts of it); 12 PnP "
+            "inliers at best, 25 needed.");
+  for (const UnmatchedReason code :
+       {UnmatchedReason::kUnknownPlace, UnmatchedReason::kUnseenView,
+        UnmatchedReason::kMatchesInOneCorner, UnmatchedReason::kLooksDifferent}) {
+    EXPECT_EQ(ExplainBareView(Refusal{code, "why"}, 1, options).code, UnmatchedReason::kBareView);
+  }
+  // Detail in more cells: the matcher's own reason stands.
+  const Refusal detailed = ExplainBareView(few, 4, options);
+  EXPECT_EQ(detailed.code, UnmatchedReason::kFewMatches);
+  EXPECT_EQ(detailed.reason, few.reason);
+  // Two places fit, the photo is empty, or it has too few features: not a matter of framing.
+  for (const UnmatchedReason code :
+       {UnmatchedReason::kAmbiguous, UnmatchedReason::kEmptyPhoto, UnmatchedReason::kFewFeatures}) {
+    const Refusal kept = ExplainBareView(Refusal{code, "why"}, 0, options);
+    EXPECT_EQ(kept.code, code);
+    EXPECT_EQ(kept.reason, "why");
+  }
+}
+
 TEST(DecideTest, NothingAcceptedSaysWhyFromTheBestRefusedPose) {
   const LocatorOptions options;
   Decision decision =

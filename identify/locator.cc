@@ -6,6 +6,7 @@
 #include <functional>
 #include <future>
 #include <mutex>
+#include <optional>
 #include <sstream>
 
 #include <opencv2/core/utility.hpp>
@@ -132,6 +133,20 @@ std::shared_ptr<const KeyframeThumbnail> LoadThumbnail(const store::Model& model
       model.LoadGrey(info.id, reduction), depth, info.intrinsics, options.view_agreement));
 }
 
+struct TimedSiftPhoto {
+  PreparedPhoto photo;
+  double ms = 0.0;  // the extraction's own time, on whichever thread ran it
+};
+
+TimedSiftPhoto ExtractRootSiftTimed(const cv::Mat& photo, const PreparedPhoto& seed,
+                                    const LocatorOptions& options) {
+  const Clock::time_point start = Clock::now();
+  TimedSiftPhoto timed;
+  timed.photo = RootSiftPhoto(photo, seed, options);
+  timed.ms = MsSince(start);
+  return timed;
+}
+
 VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
   VisibilityOptions v;
   v.zbuffer_downscale = options.occlusion_downscale;
@@ -191,6 +206,16 @@ struct Locator::Impl {
                       const std::vector<LocatorKeyframe>& matched, int max_places,
                       LocateTimings* timings,
                       const std::function<void()>& first_refused = {}) const;
+
+  // Stage 3-6 again with RootSIFT, for a photo ORB could not place: the photo's RootSIFT (from
+  // `sift_ahead` when it was extracted ahead, else now) matched against sift_keyframes at the
+  // same candidates, at most second_look_max_places. Its search when it placed the photo or found
+  // it ambiguous, else nothing (ORB's refusal stands). Times and the second look's flags go to
+  // `result`.
+  std::optional<Search> SecondLook(const cv::Mat& photo, const PreparedPhoto& prepared,
+                                   const std::vector<slam::PlaceCandidate>& candidates,
+                                   std::future<TimedSiftPhoto>* sift_ahead,
+                                   LocateResult* result) const;
 
   // Stages 3-4 over `places`, place_threads at a time; with `until_certain`, in order until one
   // is certain (accepted with confident_inliers), the first alone. Their verdicts in order, none
@@ -323,6 +348,33 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   return search;
 }
 
+std::optional<Locator::Impl::Search> Locator::Impl::SecondLook(
+    const cv::Mat& photo, const PreparedPhoto& prepared,
+    const std::vector<slam::PlaceCandidate>& candidates, std::future<TimedSiftPhoto>* sift_ahead,
+    LocateResult* result) const {
+  const Clock::time_point start = Clock::now();
+  result->second_look = true;
+  TimedSiftPhoto timed = sift_ahead->valid()
+                             ? sift_ahead->get()
+                             : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
+  PreparedPhoto sift = std::move(timed.photo);
+  result->timings.features_ms += timed.ms;
+  std::optional<Search> answered;
+  if (!sift.refusal) {
+    Search again = SearchPlaces(&sift, candidates, sift_keyframes, options.second_look_max_places,
+                                &result->timings);
+    const Decision& decision = again.decision;
+    if (decision.winner >= 0 ||
+        (decision.refusal && decision.refusal->code == UnmatchedReason::kAmbiguous)) {
+      result->photo_features = static_cast<int>(sift.features.size());
+      result->answered_by_second_look = true;
+      answered = std::move(again);
+    }
+  }
+  result->timings.second_look_ms = MsSince(start);
+  return answered;
+}
+
 namespace {
 
 // Descriptors the vocabulary and the matcher take: 32-byte binary (ORB) rows, at least one.
@@ -417,20 +469,6 @@ Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeIn
   ++*extracted;
   return slam::ExtractFeaturesAtMostOfSide(color, depth, info.intrinsics,
                                            options.sift_image_side_px, options.sift_features);
-}
-
-struct TimedSiftPhoto {
-  PreparedPhoto photo;
-  double ms = 0.0;  // the extraction's own time, on whichever thread ran it
-};
-
-TimedSiftPhoto ExtractRootSiftTimed(const cv::Mat& photo, const PreparedPhoto& seed,
-                                    const LocatorOptions& options) {
-  const Clock::time_point start = Clock::now();
-  TimedSiftPhoto timed;
-  timed.photo = RootSiftPhoto(photo, seed, options);
-  timed.ms = MsSince(start);
-  return timed;
 }
 
 }  // namespace
@@ -538,20 +576,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   LocateResult result;
   result.intrinsics_source = intrinsics ? source : IntrinsicsSource::kEstimated;
   auto finish = [&](Refusal refusal) {
-    // Matching failed on a photo whose detail is in one corner: what to do about it is to include
-    // more of the room, whatever the matcher's own reason was. An ambiguous photo keeps its
-    // answer (two places fit).
-    const UnmatchedReason code = refusal.code;
-    const bool matching_failed =
-        code == UnmatchedReason::kUnknownPlace || code == UnmatchedReason::kUnseenView ||
-        code == UnmatchedReason::kFewMatches || code == UnmatchedReason::kMatchesInOneCorner ||
-        code == UnmatchedReason::kLooksDifferent;
-    if (matching_failed && result.photo_detail_cells <= options.bare_view_max_detail_cells) {
-      refusal.reason = "the photo shows little detail (its features fill " +
-                       std::to_string(result.photo_detail_cells) + " of 16 parts of it); " +
-                       refusal.reason;
-      refusal.code = UnmatchedReason::kBareView;
-    }
+    refusal = ExplainBareView(std::move(refusal), result.photo_detail_cells, options);
     result.matched = false;
     result.reason_code = refusal.code;
     result.reason = std::move(refusal.reason);
@@ -598,27 +623,11 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       search.decision.refusal ? search.decision.refusal->code : UnmatchedReason::kNone;
   if (options.matcher == Matcher::kOrbThenRootSift && search.decision.winner < 0 &&
       retry_code != UnmatchedReason::kAmbiguous) {
-    const Clock::time_point second_look = Clock::now();
-    result.second_look = true;
-    TimedSiftPhoto timed = sift_ahead.valid()
-                               ? sift_ahead.get()
-                               : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
-    PreparedPhoto sift = std::move(timed.photo);
-    result.timings.features_ms += timed.ms;
-    if (!sift.refusal) {
-      Impl::Search again = impl_->SearchPlaces(&sift, candidates, impl_->sift_keyframes,
-                                               options.second_look_max_places, &result.timings);
-      const bool answered =
-          again.decision.winner >= 0 ||
-          (again.decision.refusal && again.decision.refusal->code == UnmatchedReason::kAmbiguous);
-      if (answered) {
-        search = std::move(again);
-        matched = &impl_->sift_keyframes;
-        result.photo_features = static_cast<int>(sift.features.size());
-        result.answered_by_second_look = true;
-      }
+    if (std::optional<Impl::Search> again =
+            impl_->SecondLook(photo, prepared, candidates, &sift_ahead, &result)) {
+      search = std::move(*again);
+      matched = &impl_->sift_keyframes;
     }
-    result.timings.second_look_ms = MsSince(second_look);
   }
   const std::vector<PlaceVerdict>& verdicts = search.verdicts;
   const Decision& decision = search.decision;
