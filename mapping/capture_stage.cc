@@ -1,10 +1,14 @@
 #include "mapping/capture_stage.h"
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <utility>
 
+#include <opencv2/core/utility.hpp>
+
 #include "core/check.h"
+#include "core/thread_priority.h"
 
 namespace sightmap::mapping {
 
@@ -19,6 +23,10 @@ bool CaptureStageOptions::Check(std::string* error) const {
     *error = "take_every must be >= 1";
     return false;
   }
+  if (replay_nice_increment < 0 || replay_nice_increment > 19) {
+    *error = "replay_nice_increment must be in [0, 19]";
+    return false;
+  }
   return sampler.Check(error);
 }
 
@@ -28,6 +36,13 @@ CaptureStage::CaptureStage(capture::RgbdSource* source, const CaptureStageOption
   SIGHTMAP_CHECK_OPTIONS(options_);
   SIGHTMAP_CHECK(source_ != nullptr && frames_ != nullptr,
                  "the capture stage needs a source and a frame queue");
+  if (!options_.live && options_.replay_nice_increment > 0) {
+    // OpenCV starts its worker threads at the first parallel_for_, and they inherit that
+    // caller's priority: were it the lowered replay thread (the simulator renders with
+    // parallel_for_), tracking and mapping would run their parallel work lowered too. Start them
+    // here, at this thread's priority.
+    cv::parallel_for_(cv::Range(0, std::max(2, cv::getNumThreads())), [](const cv::Range&) {});
+  }
   thread_ = std::thread([this] { Run(); });
 }
 
@@ -82,6 +97,8 @@ void CaptureStage::NoteSourceStats() {
 }
 
 void CaptureStage::Run() {
+  // Best effort: refused, the replay competes at normal priority (tracking's latency suffers).
+  if (!options_.live) (void)LowerThisThreadsPriority(options_.replay_nice_increment);
   try {
     SkipCheaply();
     Clock::time_point last_live_image = Clock::now() - std::chrono::seconds(1);

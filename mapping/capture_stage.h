@@ -40,6 +40,13 @@ struct CaptureStageOptions {
   bool sample_keyframes = false;
   capture::KeyframeSamplerOptions sampler;
   int take_every = 1;  // [frames]
+  // A replay (not live) reads, decodes or renders as fast as the stages after it take its frames,
+  // so on a busy machine it competes with tracking and mapping for the cores. Its thread (and the
+  // threads it starts) runs this much lower (Linux nice, per thread, 0-19): the replay then waits
+  // for the stages whose latency the user sees instead of slowing them. A live source keeps its
+  // priority: it must not miss the sensor's frames. Measured: MappingOptions::
+  // replay_nice_increment.
+  int replay_nice_increment = 10;
 
   bool Check(std::string* error) const;
 };

@@ -2,6 +2,8 @@
 // drops and counts, a failing source, and stopping while the stage waits for room.
 #include "mapping/capture_stage.h"
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <vector>
@@ -9,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
+#include "core/thread_priority.h"
 #include "mapping/source_testing.h"
 #include "sim/sim_source.h"
 
@@ -184,6 +187,32 @@ TEST(CaptureStage, ALiveSensorStopsReadingOnceNobodyTakesFrames) {
   EXPECT_EQ(stage.dropped_frames(), 0);
 }
 
+// The simulator's frames, noting the nice value of the thread that reads them.
+class PrioritySource : public testing::ForwardingSource {
+ public:
+  using ForwardingSource::ForwardingSource;
+  std::optional<RgbdFrame> Next() override {
+    nice = ThisThreadsNice();
+    return ForwardingSource::Next();
+  }
+  std::atomic<int> nice{-100};
+};
+
+TEST(CaptureStage, AReplayReadsAtALowerPriorityThanTheStagesItFeedsALiveSensorDoesNot) {
+  const int base = ThisThreadsNice();
+  for (const bool live : {false, true}) {
+    PrioritySource source(Walk(2));
+    BoundedQueue<RgbdFrame> frames(4);
+    CaptureStageOptions options;
+    options.live = live;
+    options.replay_nice_increment = 4;
+    CaptureStage stage(&source, options, &frames);
+    stage.Join();
+    EXPECT_EQ(source.nice.load(), live ? base : std::min(19, base + 4)) << "live " << live;
+  }
+  EXPECT_EQ(ThisThreadsNice(), base);  // the stages' own threads keep theirs
+}
+
 TEST(CaptureStage, BadOptionsAreRefused) {
   const std::unique_ptr<capture::RgbdSource> source = Walk(1);
   BoundedQueue<RgbdFrame> frames(1);
@@ -192,6 +221,11 @@ TEST(CaptureStage, BadOptionsAreRefused) {
   EXPECT_THROW(CaptureStage(source.get(), options, &frames), InvalidArgument);
   options = CaptureStageOptions();
   options.start_frame = -1;
+  EXPECT_THROW(CaptureStage(source.get(), options, &frames), InvalidArgument);
+  options = CaptureStageOptions();
+  options.replay_nice_increment = 20;
+  EXPECT_THROW(CaptureStage(source.get(), options, &frames), InvalidArgument);
+  options.replay_nice_increment = -1;
   EXPECT_THROW(CaptureStage(source.get(), options, &frames), InvalidArgument);
   EXPECT_THROW(CaptureStage(nullptr, CaptureStageOptions(), &frames), Error);
 }

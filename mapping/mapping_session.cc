@@ -79,6 +79,10 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "track_every must be >= 1";
     return false;
   }
+  if (replay_nice_increment < 0 || replay_nice_increment > 19) {
+    *error = "replay_nice_increment must be in [0, 19]";
+    return false;
+  }
   if (frame_queue_capacity < 1 || keyframe_queue_capacity < 1 || write_queue_capacity < 1) {
     *error = "queue capacities must be >= 1";
     return false;
@@ -151,6 +155,7 @@ CaptureStageOptions CaptureOptions(const MappingOptions& options, bool live, boo
   capture.sample_keyframes = !track;
   capture.sampler = options.sampler;
   capture.take_every = options.track_every;
+  capture.replay_nice_increment = options.replay_nice_increment;
   return capture;
 }
 
@@ -511,8 +516,8 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
 SIGHTMAP_OPTIONS_JSON(MappingOptions, source, model_path, ply_path, trajectory_path, start_frame,
                       continue_replay, max_keyframes, live, anchor_to_ground_truth,
                       ground_truth_poses, frame_queue_capacity, keyframe_queue_capacity,
-                      write_queue_capacity, source_options, sampler, tracking, track_every, mapper,
-                      photo_features, photo_feature_options, photo_feature_side_px, model, ply,
-                      view, show_view)
+                      write_queue_capacity, source_options, sampler, tracking, track_every,
+                      replay_nice_increment, mapper, photo_features, photo_feature_options,
+                      photo_feature_side_px, model, ply, view, show_view)
 
 }  // namespace sightmap::mapping

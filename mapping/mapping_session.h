@@ -83,6 +83,15 @@ struct MappingOptions {
   TrackStageOptions tracking;
   // Track every Nth frame of the source (1: all of them) [frames].
   int track_every = 1;
+  // A replay's capture thread (reading, decoding, the simulator's rendering) runs this much lower
+  // (nice, 0-19; CaptureStageOptions::replay_nice_increment): a replay is read as fast as the
+  // stages take its frames, and on two cores it took them from tracking and mapping. The 600 s
+  // hand-held walk (`sim:office?fps=10&frames=6000&seed=11`, headless, alone on this machine,
+  // five runs at 0, three at 10): keyframe p95 121-150 ms (median 136) -> 108-118 (114), keyframe
+  // median 53-59 -> 47 ms, tracking median 13-15 -> 11-12 ms, wall time 171-185 -> 181-192 s
+  // (3.1-3.3x real time), the same map (ATE 0.0116 m); 5 was between (118-133 ms). README:
+  // "Checked on 2026-11-27", the keyframe p95 of `map`.
+  int replay_nice_increment = 10;
   slam::MapperOptions mapper;
   // Each keyframe is stored with RootSIFT features for matching phone photos (`sightmap locate`'s
   // RootSIFT matcher reads them rather than extracting them at load), extracted by the writer

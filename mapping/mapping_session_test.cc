@@ -212,6 +212,9 @@ TEST(MappingSession, BadOptionsAreRefused) {
   options.keyframe_queue_capacity = 2;
   options.track_every = 0;
   EXPECT_THROW(MappingSession{options}, InvalidArgument);
+  options.track_every = 1;
+  options.replay_nice_increment = 20;
+  EXPECT_THROW(MappingSession{options}, InvalidArgument);
 }
 
 }  // namespace

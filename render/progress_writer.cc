@@ -1,14 +1,10 @@
 #include "render/progress_writer.h"
 
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-
-#include <algorithm>
 #include <chrono>
 #include <exception>
 
 #include "core/check.h"
+#include "core/thread_priority.h"
 #include "render/image_file.h"
 #include "render/offscreen_context.h"
 
@@ -101,12 +97,8 @@ void ProgressWriter::RenderAndWrite(MapRenderer* renderer, const MapScene& scene
 }
 
 void ProgressWriter::Run() {
-  if (options_.nice_increment > 0) {
-    // Best effort: a failure only means rendering competes at normal priority.
-    const id_t thread = static_cast<id_t>(syscall(SYS_gettid));
-    const int current = getpriority(PRIO_PROCESS, thread);
-    (void)setpriority(PRIO_PROCESS, thread, std::min(19, current + options_.nice_increment));
-  }
+  // Best effort: a failure only means rendering competes at normal priority.
+  (void)LowerThisThreadsPriority(options_.nice_increment);
   std::unique_ptr<OffscreenContext> context;
   std::unique_ptr<MapRenderer> renderer;
   try {

@@ -1,0 +1,16 @@
+// Thread priorities on Linux, where nice values are per thread: a pipeline stage whose work can
+// wait (off-screen rendering of progress images, a replay's frame decoding) runs at a lower
+// priority than the stages whose latency the user sees.
+#pragma once
+
+namespace sightmap {
+
+// Raises the calling thread's nice value by `increment` (capped at 19), which lowers its share of
+// a busy CPU. Best effort: returns false when the system refused (the thread then competes at its
+// old priority, which only costs latency elsewhere). Threads it starts afterwards inherit it.
+bool LowerThisThreadsPriority(int increment);
+
+// The calling thread's nice value (0 by default, 19 the lowest priority).
+int ThisThreadsNice();
+
+}  // namespace sightmap
