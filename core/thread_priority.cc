@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cerrno>
 
+#include <opencv2/core/utility.hpp>
+
 namespace sightmap {
 namespace {
 
@@ -22,6 +24,8 @@ int ThisThreadsNice() {
 
 bool LowerThisThreadsPriority(int increment) {
   if (increment <= 0) return true;
+  // Started by a lowered thread, the workers would run every stage's parallel work lowered.
+  cv::parallel_for_(cv::Range(0, std::max(2, cv::getNumThreads())), [](const cv::Range&) {});
   const int target = std::min(19, ThisThreadsNice() + increment);
   return setpriority(PRIO_PROCESS, ThisThread(), target) == 0;
 }

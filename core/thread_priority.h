@@ -7,7 +7,9 @@ namespace sightmap {
 
 // Raises the calling thread's nice value by `increment` (capped at 19), which lowers its share of
 // a busy CPU. Best effort: returns false when the system refused (the thread then competes at its
-// old priority, which only costs latency elsewhere). Threads it starts afterwards inherit it.
+// old priority, which only costs latency elsewhere). Threads it starts afterwards inherit it, so
+// OpenCV's worker threads, which the first cv::parallel_for_ of the process starts and every
+// thread's parallel work shares, are started first, at the old priority.
 bool LowerThisThreadsPriority(int increment);
 
 // The calling thread's nice value (0 by default, 19 the lowest priority).

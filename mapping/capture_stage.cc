@@ -1,11 +1,8 @@
 #include "mapping/capture_stage.h"
 
-#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <utility>
-
-#include <opencv2/core/utility.hpp>
 
 #include "core/check.h"
 #include "core/thread_priority.h"
@@ -36,13 +33,6 @@ CaptureStage::CaptureStage(capture::RgbdSource* source, const CaptureStageOption
   SIGHTMAP_CHECK_OPTIONS(options_);
   SIGHTMAP_CHECK(source_ != nullptr && frames_ != nullptr,
                  "the capture stage needs a source and a frame queue");
-  if (!options_.live && options_.replay_nice_increment > 0) {
-    // OpenCV starts its worker threads at the first parallel_for_, and they inherit that
-    // caller's priority: were it the lowered replay thread (the simulator renders with
-    // parallel_for_), tracking and mapping would run their parallel work lowered too. Start them
-    // here, at this thread's priority.
-    cv::parallel_for_(cv::Range(0, std::max(2, cv::getNumThreads())), [](const cv::Range&) {});
-  }
   thread_ = std::thread([this] { Run(); });
 }
 
