@@ -89,6 +89,8 @@ bool LocatorOptions::Check(std::string* error) const {
            !(occlusion_max_depth_m > 0.0))
     why << "occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step and "
            "occlusion_max_depth_m must be positive";
+  else if (occlusion_max_hole_px < 0)
+    why << "occlusion_max_hole_px must not be negative";
   else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0)
     why << "occlusion margins must not be negative";
   else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0) || min_inliers_unchecked < 0)
@@ -152,6 +154,7 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
   v.zbuffer_downscale = options.occlusion_downscale;
   v.margin_m = options.occlusion_margin_m;
   v.margin_ratio = options.occlusion_margin_ratio;
+  v.behind_needs_own_surface = options.occlusion_behind_needs_surface;
   v.min_in_view_share = options.min_in_view_share;
   v.min_unoccluded_share = options.min_unoccluded_share;
   return v;
@@ -507,7 +510,8 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     }
     if (!depth.empty()) {
       cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
-                     options.features.min_depth_m, options.occlusion_max_depth_m);
+                     options.features.min_depth_m, options.occlusion_max_depth_m,
+                     options.occlusion_max_hole_px);
       impl_->sighting_views.push_back(
           MakeSightingView(depth, info.intrinsics, info.world_from_cam, 80, 60));
     }
@@ -539,7 +543,7 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   FindNeighbours(options, &impl_->keyframes);
   if (with_sift) FindNeighbours(options, &impl_->sift_keyframes);
   impl_->num_sift_extracted = static_cast<size_t>(sift_extracted);
-  impl_->cloud = cloud.Build();
+  impl_->cloud = cloud.Build(impl_->sighting_views);
   ReloadLabels(model);
 }
 
@@ -805,22 +809,20 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
   options_json::ReadEnum(json, matcher, kMatcherNames);
 }
 
-SIGHTMAP_OPTIONS_JSON(LocatorOptions, features, matcher, sift_features, sift_image_side_px,
-                      sift_photo_features, sift_max_distance, sift_guided_max_distance,
-                      second_look_max_places, place_threads, extract_sift_ahead, max_image_side_px,
-                      retrieval_candidates, retrieval, vote_shortlist, vote_max_hamming,
-                      place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
-                      neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
-                      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
-                      min_inliers, min_ransac_inliers, guided_radius_px, guided_max_distance,
-                      guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
-                      bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
-                      min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
-                      twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,
-                      min_view_agreement, min_inliers_unchecked, view_agreement,
-                      focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m,
-                      occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
-                      occlusion_margin_m, occlusion_margin_ratio, min_in_view_share,
-                      min_unoccluded_share, use_synthetic_views)
+SIGHTMAP_OPTIONS_JSON(
+    LocatorOptions, features, matcher, sift_features, sift_image_side_px, sift_photo_features,
+    sift_max_distance, sift_guided_max_distance, second_look_max_places, place_threads,
+    extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval, vote_shortlist,
+    vote_max_hamming, place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
+    neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio, same_point_m,
+    max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
+    guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
+    min_inlier_cells_few_detail, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
+    same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
+    twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement,
+    min_inliers_unchecked, view_agreement, focal_candidates_35mm, refine_estimated_focal,
+    occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
+    occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
+    occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

@@ -228,6 +228,13 @@ struct LocatorOptions {
   double occlusion_max_depth_m = 5.0;
   double occlusion_margin_m = 0.15;
   double occlusion_margin_ratio = 0.05;
+  // A keyframe's depth holes (screens and glass return no depth) enclosed by its surfaces within
+  // this many of its sampled pixels are filled with the farthest of them before they go into the
+  // cloud, unless another keyframe saw through them (OcclusionCloudBuilder::AddDepth, Build); and
+  // a point seen from the side opposite the walk's is hidden where the z-buffer reaches past it
+  // (VisibilityOptions::behind_needs_own_surface) [px].
+  int occlusion_max_hole_px = 40;
+  bool occlusion_behind_needs_surface = true;
   // An appliance is in view when at least this share of its points project inside the image in
   // front of the camera, and visible when at least this share of those are not occluded.
   double min_in_view_share = 0.5;

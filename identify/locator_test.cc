@@ -762,6 +762,132 @@ TEST_F(VisibilityTest, AFarSwitchSeenFromBehindItsWallIsOccludedWhenTheWalkSawIt
   EXPECT_FALSE(seen[0].occluded);
 }
 
+TEST_F(VisibilityTest, SeenFromBehindThroughAHoleInItsWallAnApplianceIsHiddenOnItsOwnSurfaceNot) {
+  // A 0.2 m wall (faces z = 3.0 and 3.2) with a 1 m square hole round (0, 0) where no keyframe
+  // returned depth (a TV's screen, and the wall's far face behind it the walk never came near),
+  // the next room's far wall at z = -2 behind it; the walk saw the TV (a label on the near face,
+  // inside the hole) and a lamp standing in the open from the front only (looking along +z).
+  OcclusionCloudBuilder builder(0.05);
+  for (double x = -3.0; x <= 3.0; x += 0.02) {
+    for (double y = -2.5; y <= 2.5; y += 0.02) {
+      builder.AddPoint({x, y, -2.0});
+      if (std::abs(x) < 0.5 && std::abs(y) < 0.5) continue;
+      builder.AddPoint({x, y, 3.0});
+      builder.AddPoint({x, y, 3.2});
+    }
+  }
+  // The lamp's front face (z = 5.0, x in [1, 1.4]) as the walk saw it; its label clicked on it.
+  for (double x = 1.0; x <= 1.4; x += 0.02) {
+    for (double y = -0.2; y <= 0.2; y += 0.02) builder.AddPoint({x, y, 5.0});
+  }
+  const OcclusionCloud cloud = builder.Build();
+  const std::vector<store::LabelRecord> labels = {Label("tv", {{0.0, 0.0, 2.98}}),
+                                                  Label("lamp", {{1.2, 0.0, 5.0}})};
+  LabelSightings sightings(2, std::vector<PointSighting>(1));
+  for (std::vector<PointSighting>& label_sightings : sightings) {
+    label_sightings[0].mean_ray = Eigen::Vector3d::UnitZ();
+    label_sightings[0].keyframes = 10;
+  }
+  // The photo 8 m behind the wall looks back along -z: through the hole it sees the far wall.
+  Eigen::Isometry3d behind = Eigen::Isometry3d::Identity();
+  behind.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  behind.translation() = Eigen::Vector3d(0.3, 0.0, 11.0);
+  VisibilityOptions options;
+  std::vector<ApplianceInView> result =
+      AppliancesInView(labels, &cloud, intrinsics_, behind, options, &sightings);
+  ASSERT_EQ(result.size(), 2u);
+  EXPECT_EQ(result[0].name, "lamp");
+  EXPECT_FALSE(result[0].occluded) << "its own surface is drawn where it stands";
+  EXPECT_EQ(result[1].name, "tv");
+  EXPECT_TRUE(result[1].occluded) << "the z-buffer reaches past it, to the next room";
+  options.behind_needs_own_surface = false;
+  result = AppliancesInView(labels, &cloud, intrinsics_, behind, options, &sightings);
+  ASSERT_EQ(result.size(), 2u);
+  EXPECT_FALSE(result[1].occluded);
+
+  // With nothing drawn beyond the hole (no next room in the cloud) nothing is known: visible, as
+  // a ceiling light is from across the room when the walk never looked at the ceiling round it.
+  OcclusionCloudBuilder open_builder(0.05);
+  for (double x = -3.0; x <= 3.0; x += 0.02) {
+    for (double y = -2.5; y <= 2.5; y += 0.02) {
+      if (std::abs(x) < 0.5 && std::abs(y) < 0.5) continue;
+      open_builder.AddPoint({x, y, 3.0});
+    }
+  }
+  const OcclusionCloud open_cloud = open_builder.Build();
+  options.behind_needs_own_surface = true;
+  result = AppliancesInView(labels, &open_cloud, intrinsics_, behind, options, &sightings);
+  ASSERT_EQ(result.size(), 2u);
+  EXPECT_EQ(result[1].name, "tv");
+  EXPECT_FALSE(result[1].occluded);
+}
+
+TEST_F(VisibilityTest, AKeyframesDepthlessScreenHidesWhatLiesBehindItUnlessAViewSawThrough) {
+  // A keyframe 2 m before a wall (z = 3), facing it; a 0.9 x 0.6 m screen in the middle of its
+  // view returns no depth. A label 3 m behind the wall, seen by a photo through the screen.
+  const Intrinsics keyframe = Intrinsics::FromFieldOfView(640, 480, 1.0, 0.0);
+  Eigen::Isometry3d world_from_keyframe = Eigen::Isometry3d::Identity();
+  world_from_keyframe.translation() = Eigen::Vector3d(0.0, 0.0, 1.0);
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(2000));
+  const Eigen::Vector2d corner_a = keyframe.Project({-0.45, -0.3, 2.0});
+  const Eigen::Vector2d corner_b = keyframe.Project({0.45, 0.3, 2.0});
+  depth(cv::Rect(cv::Point(static_cast<int>(corner_a.x()), static_cast<int>(corner_a.y())),
+                 cv::Point(static_cast<int>(corner_b.x()), static_cast<int>(corner_b.y()))))
+      .setTo(0);
+  const std::vector<store::LabelRecord> labels = {Label("next_room", {{0.1, 0.0, 6.0}})};
+  const VisibilityOptions options;
+  auto occluded = [&](int max_hole_fill_samples, const std::vector<SightingView>& views) {
+    OcclusionCloudBuilder builder(0.05);
+    builder.AddDepth(depth, keyframe, world_from_keyframe, 4, 0.3, 5.0, max_hole_fill_samples);
+    const OcclusionCloud cloud = builder.Build(views);
+    const std::vector<ApplianceInView> result =
+        AppliancesInView(labels, &cloud, intrinsics_, Eigen::Isometry3d::Identity(), options);
+    EXPECT_EQ(result.size(), 1u);
+    return !result.empty() && result[0].occluded;
+  };
+  // The screen spans about 65 x 44 of the keyframe's 160 x 120 samples: its middle is 22-33
+  // samples from its edges.
+  EXPECT_FALSE(occluded(0, {})) << "the hole stays open";
+  EXPECT_FALSE(occluded(20, {})) << "out of reach of its middle";
+  EXPECT_TRUE(occluded(40, {}));
+  // Another keyframe, 1.5 m to the side, saw the room beyond through the same opening (a doorway
+  // onto a room beyond the first keyframe's range): nothing stands there.
+  Eigen::Isometry3d world_from_other = Eigen::Isometry3d::Identity();
+  world_from_other.translation() = Eigen::Vector3d(0.3, 0.0, 1.5);
+  const cv::Mat far(60, 80, CV_16UC1, cv::Scalar(4500));
+  EXPECT_FALSE(
+      occluded(40, {MakeSightingView(far, keyframe.Scaled(80, 60), world_from_other, 80, 60)}));
+  // One that saw a surface just behind the opening's plane does not clear it.
+  const cv::Mat near(60, 80, CV_16UC1, cv::Scalar(1550));
+  EXPECT_TRUE(
+      occluded(40, {MakeSightingView(near, keyframe.Scaled(80, 60), world_from_other, 80, 60)}));
+}
+
+TEST(FillEnclosedHolesTest, EnclosedHolesTakeTheFarthestEdgeOpenOrWideOnesStayEmpty) {
+  const float inf = std::numeric_limits<float>::infinity();
+  cv::Mat depth(10, 12, CV_32FC1, cv::Scalar(2.0f));
+  // An enclosed 2 x 2 hole; its right neighbour farther (3 m).
+  depth(cv::Rect(4, 4, 2, 2)).setTo(inf);
+  depth.at<float>(4, 6) = 3.0f;
+  // A hole touching the image's top edge: not enclosed from above.
+  depth(cv::Rect(9, 0, 2, 3)).setTo(inf);
+  cv::Mat filled = depth.clone();
+  FillEnclosedHoles(2, &filled);
+  EXPECT_FLOAT_EQ(filled.at<float>(4, 4), 3.0f);  // its row reaches the 3 m pixel
+  EXPECT_FLOAT_EQ(filled.at<float>(5, 5), 2.0f);
+  EXPECT_TRUE(std::isinf(filled.at<float>(0, 9)));
+  EXPECT_TRUE(std::isinf(filled.at<float>(2, 10)));
+  EXPECT_FLOAT_EQ(filled.at<float>(7, 7), 2.0f);  // drawn pixels unchanged
+  // Out of reach: the hole's middle pixels are 2 away from an edge on one side.
+  cv::Mat narrow = depth.clone();
+  narrow(cv::Rect(2, 2, 5, 5)).setTo(inf);
+  FillEnclosedHoles(2, &narrow);
+  EXPECT_TRUE(std::isinf(narrow.at<float>(4, 4))) << "3 pixels from every edge";
+  cv::Mat untouched = depth.clone();
+  FillEnclosedHoles(0, &untouched);
+  EXPECT_TRUE(std::isinf(untouched.at<float>(4, 4)));
+}
+
 TEST(ClearSightingTest, DepthReachingThePointOrMissingWithinTheSensorsRange) {
   const double margin_m = 0.10;
   const double range_m = 4.5;

@@ -18,20 +18,43 @@ OcclusionCloudBuilder::OcclusionCloudBuilder(double voxel_m) : voxel_m_(voxel_m)
 
 void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
                                      const Eigen::Isometry3d& world_from_cam, int pixel_step,
-                                     double min_depth_m, double max_depth_m) {
+                                     double min_depth_m, double max_depth_m,
+                                     int max_hole_fill_samples) {
   if (depth_mm.empty()) return;
   SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1, "occlusion cloud: depth must be 16-bit [mm]");
   SIGHTMAP_CHECK(pixel_step >= 1, "occlusion cloud: pixel step must be at least 1");
+  SIGHTMAP_CHECK(max_hole_fill_samples >= 0, "occlusion cloud: hole reach must not be negative");
   // Depth stored at another size than the intrinsics (never by the mapper, but cheap to allow).
   const Intrinsics k = (depth_mm.cols == intrinsics.width && depth_mm.rows == intrinsics.height)
                            ? intrinsics
                            : intrinsics.Scaled(depth_mm.cols, depth_mm.rows);
-  for (int v = pixel_step / 2; v < depth_mm.rows; v += pixel_step) {
-    const uint16_t* row = depth_mm.ptr<uint16_t>(v);
-    for (int u = pixel_step / 2; u < depth_mm.cols; u += pixel_step) {
-      const double z = row[u] * 1e-3;
-      if (z < min_depth_m || z > max_depth_m) continue;
-      AddPoint(world_from_cam * k.Unproject(u, v, z));
+  // The sampled pixels [m], +infinity where the sensor returned nothing.
+  const int first = pixel_step / 2;
+  cv::Mat samples((depth_mm.rows - first + pixel_step - 1) / pixel_step,
+                  (depth_mm.cols - first + pixel_step - 1) / pixel_step, CV_32FC1);
+  for (int sv = 0; sv < samples.rows; ++sv) {
+    const uint16_t* row = depth_mm.ptr<uint16_t>(first + sv * pixel_step);
+    float* out = samples.ptr<float>(sv);
+    for (int su = 0; su < samples.cols; ++su) {
+      const uint16_t mm = row[first + su * pixel_step];
+      out[su] = mm == 0 ? std::numeric_limits<float>::infinity() : mm * 1e-3f;
+    }
+  }
+  cv::Mat filled = samples.clone();
+  FillEnclosedHoles(max_hole_fill_samples, &filled);
+  for (int sv = 0; sv < samples.rows; ++sv) {
+    const float* measured = samples.ptr<float>(sv);
+    const float* row = filled.ptr<float>(sv);
+    for (int su = 0; su < samples.cols; ++su) {
+      const double z = row[su];
+      if (!(z >= min_depth_m && z <= max_depth_m)) continue;
+      const Eigen::Vector3d world =
+          world_from_cam * k.Unproject(first + su * pixel_step, first + sv * pixel_step, z);
+      if (std::isfinite(measured[su])) {
+        AddPoint(world);
+      } else if (const std::optional<uint64_t> key = VoxelKeyOf(world, voxel_m_)) {
+        filled_voxels_.insert(*key);
+      }
     }
   }
 }
@@ -40,13 +63,43 @@ void OcclusionCloudBuilder::AddPoint(const Eigen::Vector3d& world_point) {
   if (const std::optional<uint64_t> key = VoxelKeyOf(world_point, voxel_m_)) voxels_.insert(*key);
 }
 
-OcclusionCloud OcclusionCloudBuilder::Build() const {
+namespace {
+
+// Whether some view's depth at `world_point`'s pixel lies more than `margin_m` beyond it: that
+// view saw through the point, so nothing stands there.
+bool SeenThrough(const Eigen::Vector3d& world_point, const std::vector<SightingView>& views,
+                 double margin_m) {
+  for (const SightingView& view : views) {
+    const Eigen::Vector3d cam = view.cam_from_world * world_point;
+    if (!(cam.z() > 0.0)) continue;
+    const Eigen::Vector2d pixel = view.intrinsics.Project(cam);
+    const int u = static_cast<int>(std::lround(pixel.x()));
+    const int v = static_cast<int>(std::lround(pixel.y()));
+    if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) continue;
+    const uint16_t mm = view.depth_mm.at<uint16_t>(v, u);
+    if (mm != 0 && mm * 1e-3 > cam.z() + margin_m) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+OcclusionCloud OcclusionCloudBuilder::Build(const std::vector<SightingView>& views,
+                                            double see_through_margin_m) const {
+  SIGHTMAP_CHECK(see_through_margin_m >= 0.0, "see_through_margin_m must not be negative");
   OcclusionCloud cloud;
   cloud.voxel_m = voxel_m_;
   cloud.world_points.reserve(voxels_.size());
   const Eigen::Vector3d half = Eigen::Vector3d::Constant(0.5 * voxel_m_);
   for (uint64_t key : voxels_) {
     cloud.world_points.push_back((VoxelCorner(key, voxel_m_) + half).cast<float>());
+  }
+  for (uint64_t key : filled_voxels_) {
+    if (voxels_.count(key) != 0) continue;
+    const Eigen::Vector3d centre = VoxelCorner(key, voxel_m_) + half;
+    if (!SeenThrough(centre, views, see_through_margin_m)) {
+      cloud.world_points.push_back(centre.cast<float>());
+    }
   }
   // Sorted so the same model gives the same cloud whatever the hash order (reproducible answers).
   std::sort(cloud.world_points.begin(), cloud.world_points.end(),
@@ -121,6 +174,50 @@ cv::Mat RenderOcclusionDepth(const OcclusionCloud& cloud, const Intrinsics& intr
     }
   }
   return depth;
+}
+
+void FillEnclosedHoles(int max_distance_px, cv::Mat* depth) {
+  SIGHTMAP_CHECK(depth != nullptr && depth->type() == CV_32FC1, "a CV_32FC1 depth image");
+  SIGHTMAP_CHECK(max_distance_px >= 0, "max_distance_px must not be negative");
+  if (max_distance_px == 0 || depth->empty()) return;
+  const int w = depth->cols;
+  const int h = depth->rows;
+  const float inf = std::numeric_limits<float>::infinity();
+  // Per pixel, the farthest of the nearest finite depths in the directions scanned so far;
+  // +infinity once some direction has none within reach.
+  cv::Mat enclosing(h, w, CV_32FC1, cv::Scalar(-inf));
+  // Walks `count` pixels from (x, y) by (dx, dy), recording for each hole pixel the nearest
+  // finite depth behind it on that line.
+  auto scan = [&](int x, int y, int dx, int dy, int count) {
+    float last = inf;
+    int since = max_distance_px + 1;
+    for (int i = 0; i < count; ++i, x += dx, y += dy) {
+      const float d = depth->at<float>(y, x);
+      if (std::isfinite(d)) {
+        last = d;
+        since = 0;
+        continue;
+      }
+      ++since;
+      float& t = enclosing.at<float>(y, x);
+      t = since <= max_distance_px ? std::max(t, last) : inf;
+    }
+  };
+  for (int y = 0; y < h; ++y) {
+    scan(0, y, 1, 0, w);
+    scan(w - 1, y, -1, 0, w);
+  }
+  for (int x = 0; x < w; ++x) {
+    scan(x, 0, 0, 1, h);
+    scan(x, h - 1, 0, -1, h);
+  }
+  for (int y = 0; y < h; ++y) {
+    float* row = depth->ptr<float>(y);
+    const float* fill = enclosing.ptr<float>(y);
+    for (int x = 0; x < w; ++x) {
+      if (!std::isfinite(row[x]) && std::isfinite(fill[x])) row[x] = fill[x];
+    }
+  }
 }
 
 SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
@@ -206,7 +303,10 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelReco
     if (one_sidedness < options.min_one_sidedness) return false;
     const Eigen::Vector3d photo_ray = world_from_cam.linear() * cam_point.normalized();
     const bool from_behind = photo_ray.dot(sighting->mean_ray) < cos_behind * one_sidedness;
-    return from_behind && surface < z - options.behind_margin_m;
+    if (!from_behind) return false;
+    if (surface < z - options.behind_margin_m) return true;
+    return options.behind_needs_own_surface && std::isfinite(surface) &&
+           surface > z + options.margin_m + options.margin_ratio * z;
   };
 
   for (size_t l = 0; l < labels.size(); ++l) {

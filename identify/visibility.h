@@ -24,6 +24,13 @@ struct OcclusionCloud {
   std::vector<Eigen::Vector3f> world_points;
 };
 
+// One keyframe's depth at a small size, for telling from where the walk saw a label point.
+struct SightingView {
+  cv::Mat depth_mm;       // CV_16UC1
+  Intrinsics intrinsics;  // at depth_mm's size
+  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+};
+
 // Accumulates depth images into occupied voxels (a set, so each surface cell is kept once however
 // many keyframes saw it).
 class OcclusionCloudBuilder {
@@ -32,19 +39,28 @@ class OcclusionCloudBuilder {
 
   // Every `pixel_step`-th pixel (in both directions) of a depth image [mm] whose depth lies in
   // [min_depth_m, max_depth_m], unprojected with `intrinsics` (the depth image's size) and moved
-  // to the world frame.
+  // to the world frame. Where the sensor returned nothing inside a surface (a screen, glass, a
+  // black panel: a hole of those samples enclosed within max_hole_fill_samples of them on its
+  // four sides, FillEnclosedHoles), the farthest of the enclosing depths stands in as a filled
+  // voxel, so what lies behind a screen is hidden by it as by the wall around it (0: holes stay
+  // empty). A doorway onto a room beyond the sensor's range is such a hole too: Build drops the
+  // filled voxels that other keyframes saw through.
   void AddDepth(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
                 const Eigen::Isometry3d& world_from_cam, int pixel_step, double min_depth_m,
-                double max_depth_m);
+                double max_depth_m, int max_hole_fill_samples = 0);
   // One world point [m] (hand-built scenes in tests).
   void AddPoint(const Eigen::Vector3d& world_point);
 
   size_t size() const { return voxels_.size(); }
-  OcclusionCloud Build() const;
+  // The measured voxels and the filled ones no view saw through: a filled voxel goes when some
+  // view's depth at its pixel lies more than see_through_margin_m beyond it [m].
+  OcclusionCloud Build(const std::vector<SightingView>& views = {},
+                       double see_through_margin_m = 0.15) const;
 
  private:
   double voxel_m_;
   std::unordered_set<uint64_t> voxels_;
+  std::unordered_set<uint64_t> filled_voxels_;  // none of them in voxels_ when built
 };
 
 struct VisibilityOptions {
@@ -82,15 +98,15 @@ struct VisibilityOptions {
   double min_one_sidedness = 0.8;
   double behind_angle_deg = 120.0;
   double behind_margin_m = 0.05;
+  // Seen from behind, a point is hidden too where the z-buffer reaches past it to a surface more
+  // than margin_m + margin_ratio x its depth beyond it: the photo looks through a wall whose far
+  // side the walk did not see (or a screen's hole) into the next room, at an appliance hung on the
+  // wall's other face. A free-standing appliance shows its own surface from any side; where
+  // nothing at all is drawn (a ceiling the walk did not look at) nothing is known, and the
+  // point stays visible.
+  bool behind_needs_own_surface = true;
 
   bool Check(std::string* error) const;
-};
-
-// One keyframe's depth at a small size, for telling from where the walk saw a label point.
-struct SightingView {
-  cv::Mat depth_mm;       // CV_16UC1
-  Intrinsics intrinsics;  // at depth_mm's size
-  Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
 };
 
 // From where the walk saw a label point: the mean of the unit rays (keyframe centre to point) of
@@ -123,6 +139,11 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
 cv::Mat RenderOcclusionDepth(const OcclusionCloud& cloud, const Intrinsics& intrinsics,
                              const Eigen::Isometry3d& world_from_cam,
                              const VisibilityOptions& options);
+
+// Each +infinity pixel of a CV_32FC1 depth image with finite pixels at most `max_distance_px` away
+// along its row on both sides and along its column on both sides takes the largest of those four
+// depths (the nearest finite pixel in each direction, read before any filling). In place.
+void FillEnclosedHoles(int max_distance_px, cv::Mat* depth);
 
 // The labels in the view cone of a photo with `intrinsics` (full resolution) at `world_from_cam`,
 // nearest first; occluded ones are kept with occluded = true. Without a cloud (nullptr or empty)
