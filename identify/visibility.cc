@@ -6,6 +6,7 @@
 #include <optional>
 #include <tuple>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
@@ -94,12 +95,22 @@ OcclusionCloud OcclusionCloudBuilder::Build(const std::vector<SightingView>& vie
   for (uint64_t key : voxels_) {
     cloud.world_points.push_back((VoxelCorner(key, voxel_m_) + half).cast<float>());
   }
+  // Each filled voxel is checked against every view (1.8 s for 1,342 keyframes on one core):
+  // spread over the cores, each voxel's verdict in its own slot.
+  std::vector<Eigen::Vector3d> filled;
+  filled.reserve(filled_voxels_.size());
   for (uint64_t key : filled_voxels_) {
-    if (voxels_.count(key) != 0) continue;
-    const Eigen::Vector3d centre = VoxelCorner(key, voxel_m_) + half;
-    if (!SeenThrough(centre, views, see_through_margin_m)) {
-      cloud.world_points.push_back(centre.cast<float>());
+    if (voxels_.count(key) == 0) filled.push_back(VoxelCorner(key, voxel_m_) + half);
+  }
+  std::vector<uint8_t> kept(filled.size(), 0);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(filled.size())), [&](const cv::Range& range) {
+    for (int i = range.start; i < range.end; ++i) {
+      kept[static_cast<size_t>(i)] =
+          SeenThrough(filled[static_cast<size_t>(i)], views, see_through_margin_m) ? 0 : 1;
     }
+  });
+  for (size_t i = 0; i < filled.size(); ++i) {
+    if (kept[i] != 0) cloud.world_points.push_back(filled[i].cast<float>());
   }
   // Sorted so the same model gives the same cloud whatever the hash order (reproducible answers).
   std::sort(cloud.world_points.begin(), cloud.world_points.end(),
