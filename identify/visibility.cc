@@ -41,7 +41,8 @@ void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& 
       out[su] = mm == 0 ? std::numeric_limits<float>::infinity() : mm * 1e-3f;
     }
   }
-  cv::Mat filled = samples.clone();
+  // Without filling, both name the same samples.
+  cv::Mat filled = max_hole_fill_samples > 0 ? samples.clone() : samples;
   FillEnclosedHoles(max_hole_fill_samples, &filled);
   for (int sv = 0; sv < samples.rows; ++sv) {
     const float* measured = samples.ptr<float>(sv);
@@ -66,19 +67,34 @@ void OcclusionCloudBuilder::AddPoint(const Eigen::Vector3d& world_point) {
 
 namespace {
 
+// A world point as a sighting view sees it: in the view's frame [m], and the view's depth at its
+// pixel [mm] (0: none measured).
+struct ViewedPoint {
+  Eigen::Vector3d in_view;
+  uint16_t seen_mm = 0;
+};
+
+// Nothing when the point lies behind the view or outside its image.
+std::optional<ViewedPoint> PointInView(const SightingView& view,
+                                       const Eigen::Vector3d& world_point) {
+  const Eigen::Vector3d cam = view.cam_from_world * world_point;
+  if (!(cam.z() > 0.0)) return std::nullopt;
+  const Eigen::Vector2d pixel = view.intrinsics.Project(cam);
+  const int u = static_cast<int>(std::lround(pixel.x()));
+  const int v = static_cast<int>(std::lround(pixel.y()));
+  if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) return std::nullopt;
+  return ViewedPoint{cam, view.depth_mm.at<uint16_t>(v, u)};
+}
+
 // Whether some view's depth at `world_point`'s pixel lies more than `margin_m` beyond it: that
 // view saw through the point, so nothing stands there.
 bool SeenThrough(const Eigen::Vector3d& world_point, const std::vector<SightingView>& views,
                  double margin_m) {
   for (const SightingView& view : views) {
-    const Eigen::Vector3d cam = view.cam_from_world * world_point;
-    if (!(cam.z() > 0.0)) continue;
-    const Eigen::Vector2d pixel = view.intrinsics.Project(cam);
-    const int u = static_cast<int>(std::lround(pixel.x()));
-    const int v = static_cast<int>(std::lround(pixel.y()));
-    if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) continue;
-    const uint16_t mm = view.depth_mm.at<uint16_t>(v, u);
-    if (mm != 0 && mm * 1e-3 > cam.z() + margin_m) return true;
+    const std::optional<ViewedPoint> seen = PointInView(view, world_point);
+    if (seen && seen->seen_mm != 0 && seen->seen_mm * 1e-3 > seen->in_view.z() + margin_m) {
+      return true;
+    }
   }
   return false;
 }
@@ -257,18 +273,13 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
     for (const store::LabelPoint& point : labels[l].points) {
       PointSighting sighting;
       for (const SightingView& view : views) {
-        const Eigen::Vector3d cam = view.cam_from_world * point.world;
-        if (!(cam.z() > 0.0)) continue;
-        const Eigen::Vector2d pixel = view.intrinsics.Project(cam);
-        const int u = static_cast<int>(std::lround(pixel.x()));
-        const int v = static_cast<int>(std::lround(pixel.y()));
-        if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) continue;
-        if (!ClearSighting(view.depth_mm.at<uint16_t>(v, u), cam.z(), options.sighting_depth_m,
-                           options.sighting_max_m)) {
+        const std::optional<ViewedPoint> seen = PointInView(view, point.world);
+        if (!seen || !ClearSighting(seen->seen_mm, seen->in_view.z(), options.sighting_depth_m,
+                                    options.sighting_max_m)) {
           continue;
         }
         // The ray from the keyframe to the point, in the world frame.
-        sighting.mean_ray += view.cam_from_world.linear().transpose() * cam.normalized();
+        sighting.mean_ray += view.cam_from_world.linear().transpose() * seen->in_view.normalized();
         ++sighting.keyframes;
       }
       if (sighting.keyframes > 0) sighting.mean_ray /= sighting.keyframes;
