@@ -98,6 +98,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["prior_links"] = summary.prior_links;
   json["tracked_frames"] = summary.tracked_frames;
   json["dense_frames"] = summary.dense_frames;
+  json["dense_at_rest_frames"] = summary.dense_at_rest_frames;
   json["blind_frames"] = summary.blind_frames;
   json["early_keyframes"] = summary.early_keyframes;
   json["frames_before_start"] = summary.frames_before_start;
@@ -163,10 +164,11 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
   out << "\n";
   if (summary.tracked_frames > 0) {
     out << "  tracked     " << summary.tracked_frames << " frames (" << summary.dense_frames
-        << " by dense odometry, " << summary.blind_frames << " by the motion model alone; "
-        << summary.prior_links << " prior links, " << summary.early_keyframes
-        << " early keyframes); " << std::setprecision(1) << summary.track_median_ms
-        << " ms median, " << summary.track_p95_ms << " ms p95 per frame\n";
+        << " by dense odometry, " << summary.dense_at_rest_frames << " of them at rest, "
+        << summary.blind_frames << " by the motion model alone; " << summary.prior_links
+        << " prior links, " << summary.early_keyframes << " early keyframes); "
+        << std::setprecision(1) << summary.track_median_ms << " ms median, " << summary.track_p95_ms
+        << " ms p95 per frame\n";
     if (summary.frames_before_start > 0) {
       out << "  started     after " << summary.frames_before_start
           << (summary.frames_before_start == 1 ? " frame" : " frames")

@@ -260,6 +260,7 @@ void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage
   const TrackStageReport& tracking = track.report();
   summary->tracked_frames = tracked ? tracking.counters.frames : 0;
   summary->dense_frames = tracking.counters.dense;
+  summary->dense_at_rest_frames = tracking.counters.dense_at_rest;
   summary->blind_frames = tracking.counters.blind;
   summary->early_keyframes = tracking.counters.early_keyframes;
   summary->frames_before_start = tracking.counters.before_start;

@@ -235,15 +235,27 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
   const DenseAlignment aligned =
       aligner_.Align(*current.prepared, *last_dense_->prepared, step_guess);
-  result->dense_s = SecondsSince(start);
-  last_dense_ = std::make_unique<DenseFrame>(std::move(current));
-  if (!aligned.success) return false;
-  const Eigen::Isometry3d step =
+  if (!aligned.success) {
+    result->dense_s = SecondsSince(start);
+    last_dense_ = std::make_unique<DenseFrame>(std::move(current));
+    return false;
+  }
+  Eigen::Isometry3d step =
       !registered_velocity_.empty()
           ? KeepPriorWhereWeak(aligned.target_from_source, aligned.information,
                                registered_velocity_.Step(dt_s), options_.dense_weak_eigen_ratio,
                                options_.dense_weak_lever_m)
           : aligned.target_from_source;
+  // A step that fits the two frames worse than standing still, in every respect (fewer paired
+  // pixels, larger depth and grey residuals), is not a motion the images show: before a bare
+  // projection screen OpenCV's alignment, started from the approach's velocity, slid and turned
+  // while the frames agreed best unmoved, and the survey's standstill keyframes there ended 8-23
+  // degrees off.
+  const bool at_rest = options_.dense_prefer_rest &&
+                       StandingStillFitsBetter(*current.prepared, *last_dense_->prepared, step);
+  if (at_rest) step = Eigen::Isometry3d::Identity();
+  result->dense_s = SecondsSince(start);
+  last_dense_ = std::make_unique<DenseFrame>(std::move(current));
   const Eigen::Isometry3d deviation = step_guess.inverse() * step;
   if (!MotionWithin(deviation, options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m,
                     options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) ||
@@ -251,6 +263,7 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
                     options_.dense_max_turn_rate_dps * dt_s + options_.dense_slack_deg)) {
     return false;
   }
+  if (at_rest) ++counters_.dense_at_rest;
   frame.reference_from_cam = Orthonormalised(last_->reference_from_cam * step);
   frame.covariance = last_->covariance +
                      DiagonalCovariance(options_.dense_step_sigma_m, options_.dense_step_sigma_rad);
@@ -258,6 +271,14 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   frame.blind_s = last_->blind_s;
   frame.blind_start_covariance = last_->blind_start_covariance;
   return true;
+}
+
+bool Tracker::StandingStillFitsBetter(DenseAligner::Frame& current, DenseAligner::Frame& last,
+                                      const Eigen::Isometry3d& last_from_current) const {
+  const DenseFit moved = aligner_.Fit(current, last, last_from_current);
+  const DenseFit rest = aligner_.Fit(current, last, Eigen::Isometry3d::Identity());
+  return rest.pairs >= moved.pairs && rest.normalised_rms <= moved.normalised_rms &&
+         rest.intensity_rms <= moved.intensity_rms;
 }
 
 void Tracker::PlaceBlind(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s) const {
@@ -476,8 +497,9 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       dense_max_deviation_mps, dense_max_deviation_dps, dense_slack_m,
                       dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
                       dense_step_sigma_m, dense_step_sigma_rad, dense_weak_eigen_ratio,
-                      dense_weak_lever_m, fallback_on_smoothed_velocity, prior_sigma_m,
-                      prior_sigma_mps, prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
-                      blind_keyframe_after_s, min_reference_points, start_max_wait_s)
+                      dense_weak_lever_m, dense_prefer_rest, fallback_on_smoothed_velocity,
+                      prior_sigma_m, prior_sigma_mps, prior_sigma_rad, prior_sigma_radps,
+                      blind_velocity_decay, blind_keyframe_after_s, min_reference_points,
+                      start_max_wait_s)
 
 }  // namespace sightmap::slam

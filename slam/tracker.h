@@ -119,6 +119,10 @@ struct TrackerOptions {
   // prior where the walker's texture fixed ICP (hand-held 0.0212 m); 0 turns this off [-], [m].
   double dense_weak_eigen_ratio = 0.01;
   double dense_weak_lever_m = 1.5;
+  // A dense step that fits the frame to the last one worse than no motion at all, by every figure
+  // of DenseAligner::Fit, is replaced by no motion: the walker stood still where the alignment
+  // slid (a bare projection screen filling the view on the survey walk, seed 11, t = 425-430 s).
+  bool dense_prefer_rest = true;
 
   // Where a frame does not register but the last one did, the dense step starts from, and a blind
   // frame is placed by, the smoothed velocity of the recent registered frames (SmoothedVelocity)
@@ -220,9 +224,10 @@ struct TrackResult {
 
 struct TrackerCounters {
   int64_t frames = 0;
-  int64_t registered = 0;  // by features to a keyframe
-  int64_t dense = 0;       // by the dense fallback
-  int64_t blind = 0;       // by the motion model only
+  int64_t registered = 0;     // by features to a keyframe
+  int64_t dense = 0;          // by the dense fallback
+  int64_t dense_at_rest = 0;  // of those, placed unmoved (TrackerOptions::dense_prefer_rest)
+  int64_t blind = 0;          // by the motion model only
   int64_t keyframes = 0;
   int64_t early_keyframes = 0;  // off the rate's clock: overlap lost or weak
   int64_t prior_keyframes = 0;  // emitted on the motion model
@@ -267,6 +272,10 @@ class Tracker {
                            TrackResult* result);
   bool RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                        TrackResult* result);
+  // Whether `current` fits `last` at least as well unmoved as at `last_from_current` by every
+  // DenseFit figure (pairs, depth and grey residuals).
+  bool StandingStillFitsBetter(DenseAligner::Frame& current, DenseAligner::Frame& last,
+                               const Eigen::Isometry3d& last_from_current) const;
   void PlaceBlind(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s) const;
   // Places `frame` relative to the reference: features, then the last frame as a new keyframe,
   // then dense odometry, then the motion model. Updates the velocity and the counters.
