@@ -175,14 +175,52 @@ struct TrackingFigures {
   TrackerCounters counters;
 };
 
-// Renders the walk frame by frame (nothing kept but the keyframes' poses) and tracks every frame;
-// the keyframes the tracker emits go to the mapper.
+// --frames-out: each tracked frame as the tracker alone placed it, before the mapper optimises
+// anything: its pose through the chain of emitted keyframe motions from the first keyframe, which
+// starts at its true pose, against the truth. Shows where a stretch of frames drifts and how each
+// frame was placed (registered, dense, blind).
+class FrameTrace {
+ public:
+  explicit FrameTrace(const std::string& path) : out_(path) {
+    SIGHTMAP_CHECK(out_, "cannot write " << path);
+    out_ << "# frame time_s tracking inliers error_m error_deg (the tracker's own chain of "
+            "keyframe motions, first keyframe at its true pose)\n";
+  }
+
+  void Record(const RgbdFrame& frame, const TrackResult& result) {
+    for (const TrackedKeyframe& keyframe : result.keyframes) {
+      const Eigen::Isometry3d world_from_cam =
+          keyframe.motion ? world_from_newest_ * keyframe.motion->previous_from_cam
+                          : *keyframe.frame.world_from_cam_gt;
+      world_from_newest_ = world_from_cam;
+      newest_index_ = keyframe.frame.index;
+      started_ = true;
+    }
+    if (!started_ || newest_index_ != result.reference_index) return;
+    const Eigen::Isometry3d error =
+        frame.world_from_cam_gt->inverse() * world_from_newest_ * result.reference_from_cam;
+    out_ << frame.index << ' ' << 1e-9 * static_cast<double>(frame.timestamp_ns) << ' '
+         << ToString(result.tracking) << ' ' << result.inliers << ' ' << error.translation().norm()
+         << ' ' << RotationAngleDeg(error) << '\n';
+  }
+
+ private:
+  std::ofstream out_;
+  Eigen::Isometry3d world_from_newest_ = Eigen::Isometry3d::Identity();
+  int64_t newest_index_ = -1;
+  bool started_ = false;
+};
+
+// Renders the walk frame by frame from `first_frame` (nothing kept but the keyframes' poses) and
+// tracks every frame; the keyframes the tracker emits go to the mapper. `trace` (may be null)
+// records each frame.
 KeyframeFeed TrackedFrames(sim::Simulator& simulator, const TrackerOptions& options,
+                           int64_t first_frame, std::shared_ptr<FrameTrace> trace,
                            TrackingFigures* figures) {
   auto tracker = std::make_shared<Tracker>(simulator.options().camera, options);
   auto pending = std::make_shared<std::deque<TrackedKeyframe>>();
-  auto next = std::make_shared<int64_t>(0);
-  return [&simulator, tracker, pending, next, figures](
+  auto next = std::make_shared<int64_t>(first_frame);
+  return [&simulator, tracker, pending, next, trace, figures](
              Mapper& mapper, Eigen::Isometry3d* truth) -> std::optional<KeyframeReport> {
     while (pending->empty()) {
       if (*next >= simulator.num_frames()) {
@@ -197,6 +235,7 @@ KeyframeFeed TrackedFrames(sim::Simulator& simulator, const TrackerOptions& opti
       figures->render_s +=
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       TrackResult result = tracker->Track(frame);
+      if (trace) trace->Record(frame, result);
       figures->frame_s.push_back(result.total_s);
       for (TrackedKeyframe& keyframe : result.keyframes) pending->push_back(std::move(keyframe));
       figures->counters = tracker->counters();
@@ -545,20 +584,26 @@ void ReadConfig(const std::string& path, MapperOptions* mapper, TrackerOptions* 
 // times are the tracker's and the mapper's alone).
 int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOptions& options,
                         const TrackerOptions& tracker, bool false_loop,
-                        const std::string& trajectory_out) {
+                        const std::string& trajectory_out, int64_t first_frame,
+                        const std::string& frames_out) {
   sim::Simulator simulator(sim_options);
-  std::printf("simulator office, %s, session %d, seed %llu, %lld frames at %g Hz, tracked\n",
+  SIGHTMAP_CHECK(first_frame >= 0 && first_frame < simulator.num_frames(),
+                 "--first-frame " << first_frame << " is not a frame of the "
+                                  << simulator.num_frames() << "-frame walk");
+  std::printf("simulator office, %s, session %d, seed %llu, frames %lld-%lld at %g Hz, tracked\n",
               sim::ToString(sim_options.trajectory), sim_options.session,
               static_cast<unsigned long long>(sim_options.seed),
-              static_cast<long long>(simulator.num_frames()), sim_options.fps);
+              static_cast<long long>(first_frame),
+              static_cast<long long>(simulator.num_frames() - 1), sim_options.fps);
   TrackingFigures figures;
+  const auto trace = frames_out.empty() ? nullptr : std::make_shared<FrameTrace>(frames_out);
   const auto start = std::chrono::steady_clock::now();
-  const RunResult clean = Run(TrackedFrames(simulator, tracker, &figures),
+  const RunResult clean = Run(TrackedFrames(simulator, tracker, first_frame, trace, &figures),
                               simulator.options().camera, options, -1, true);
   WriteTrajectories(clean, trajectory_out);
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const double walk_s = static_cast<double>(simulator.num_frames()) / sim_options.fps;
+  const double walk_s = static_cast<double>(simulator.num_frames() - first_frame) / sim_options.fps;
   const TrackerCounters& c = figures.counters;
   std::printf(
       "tracking            %lld frames: %lld before the first keyframe, %lld registered, %lld "
@@ -581,8 +626,8 @@ int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOp
     sim::Simulator again(sim_options);
     TrackingFigures ignored;
     const int at = clean.keyframes * 3 / 4;
-    const RunResult injected =
-        Run(TrackedFrames(again, tracker, &ignored), again.options().camera, options, at, false);
+    const RunResult injected = Run(TrackedFrames(again, tracker, first_frame, nullptr, &ignored),
+                                   again.options().camera, options, at, false);
     PrintFalseLoop(clean, injected, at);
   }
   return 0;
@@ -601,6 +646,8 @@ int Main(int argc, char** argv) {
   int local_loop_hops = -1;
   int laps = 1;
   bool track = false;
+  int64_t first_frame = 0;
+  std::string frames_out;
   std::string trajectory_out;
   app.add_option("--trajectory", trajectory, "handheld, robot or survey")
       ->check(CLI::IsMember({"handheld", "robot", "survey"}));
@@ -628,6 +675,13 @@ int Main(int argc, char** argv) {
                "track every frame of the walk at --fps (rendered as it goes, not kept) and map the "
                "keyframes the tracker emits at 1 Hz and where the overlap runs out, as `sightmap "
                "map` does");
+  app.add_option("--first-frame", first_frame,
+                 "with --track: start the walk at this frame (the stretch up to --frames)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option(
+      "--frames-out", frames_out,
+      "with --track: write each frame's tracking (registered, dense, blind), inliers and "
+      "the tracker's own pose error against the truth, before the mapper, to FILE");
   std::string config_path;
   app.add_option("--config", config_path,
                  "read the mapper's and the tracker's options from this JSON (`sightmap map "
@@ -658,7 +712,13 @@ int Main(int argc, char** argv) {
   if (local_loop_hops >= 0) options.local_loop_hops = local_loop_hops;
   SIGHTMAP_CHECK_OPTIONS(options);
   SIGHTMAP_CHECK_OPTIONS(tracker);
-  if (track) return RunTrackedBenchmark(sim_options, options, tracker, false_loop, trajectory_out);
+  if (!track && (first_frame > 0 || !frames_out.empty())) {
+    SIGHTMAP_THROW(InvalidArgument, "--first-frame and --frames-out need --track");
+  }
+  if (track) {
+    return RunTrackedBenchmark(sim_options, options, tracker, false_loop, trajectory_out,
+                               first_frame, frames_out);
+  }
   std::vector<Frame> frames;
   const auto render_start = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < simulator.num_frames(); ++i) {
