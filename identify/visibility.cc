@@ -319,7 +319,8 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelReco
     const int v = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, small.height - 1);
     const double surface = zbuffer.at<float>(v, u);
     const double z = cam_point.z();
-    if (surface < z - (options.margin_m + options.margin_ratio * z)) return true;
+    const double margin = options.margin_m + options.margin_ratio * z;
+    if (surface < z - margin) return true;
     if (sighting == nullptr || sighting->keyframes < options.min_sighting_keyframes) return false;
     const double one_sidedness = sighting->mean_ray.norm();
     if (one_sidedness < options.min_one_sidedness) return false;
@@ -327,8 +328,7 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelReco
     const bool from_behind = photo_ray.dot(sighting->mean_ray) < cos_behind * one_sidedness;
     if (!from_behind) return false;
     if (surface < z - options.behind_margin_m) return true;
-    return options.behind_needs_own_surface && std::isfinite(surface) &&
-           surface > z + options.margin_m + options.margin_ratio * z;
+    return options.behind_needs_own_surface && std::isfinite(surface) && surface > z + margin;
   };
 
   for (size_t l = 0; l < labels.size(); ++l) {
