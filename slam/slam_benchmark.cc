@@ -188,17 +188,9 @@ class FrameTrace {
   }
 
   void Record(const RgbdFrame& frame, const TrackResult& result) {
-    for (const TrackedKeyframe& keyframe : result.keyframes) {
-      const Eigen::Isometry3d world_from_cam =
-          keyframe.motion ? world_from_newest_ * keyframe.motion->previous_from_cam
-                          : *keyframe.frame.world_from_cam_gt;
-      world_from_newest_ = world_from_cam;
-      newest_index_ = keyframe.frame.index;
-      started_ = true;
-    }
-    if (!started_ || newest_index_ != result.reference_index) return;
-    const Eigen::Isometry3d error =
-        frame.world_from_cam_gt->inverse() * world_from_newest_ * result.reference_from_cam;
+    const std::optional<Eigen::Isometry3d> world_from_cam = chain_.Add(result);
+    if (!world_from_cam) return;
+    const Eigen::Isometry3d error = frame.world_from_cam_gt->inverse() * *world_from_cam;
     out_ << frame.index << ' ' << 1e-9 * static_cast<double>(frame.timestamp_ns) << ' '
          << ToString(result.tracking) << ' ' << result.inliers << ' ' << error.translation().norm()
          << ' ' << RotationAngleDeg(error) << '\n';
@@ -206,9 +198,7 @@ class FrameTrace {
 
  private:
   std::ofstream out_;
-  Eigen::Isometry3d world_from_newest_ = Eigen::Isometry3d::Identity();
-  int64_t newest_index_ = -1;
-  bool started_ = false;
+  TrackedChain chain_;
 };
 
 // Renders the walk frame by frame from `first_frame` (nothing kept but the keyframes' poses) and

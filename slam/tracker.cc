@@ -502,4 +502,19 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       blind_velocity_decay, blind_keyframe_after_s, min_reference_points,
                       start_max_wait_s)
 
+std::optional<Eigen::Isometry3d> TrackedChain::Add(const TrackResult& result) {
+  for (const TrackedKeyframe& keyframe : result.keyframes) {
+    world_from_newest_ =
+        keyframe.motion && world_from_newest_
+            ? *world_from_newest_ * keyframe.motion->previous_from_cam
+            : keyframe.frame.world_from_cam_gt.value_or(Eigen::Isometry3d::Identity());
+    newest_index_ = keyframe.frame.index;
+  }
+  if (!world_from_newest_) return std::nullopt;
+  SIGHTMAP_CHECK(result.reference_index == newest_index_,
+                 "frame placed relative to keyframe "
+                     << result.reference_index << ", not the newest one (" << newest_index_ << ")");
+  return *world_from_newest_ * result.reference_from_cam;
+}
+
 }  // namespace sightmap::slam

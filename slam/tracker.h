@@ -311,4 +311,19 @@ class Tracker {
   TimestampNs first_timestamp_ns_ = 0;       // of the first frame seen
 };
 
+// The world poses of the frames a Tracker places, chained from the keyframe motions it emits: what
+// the tracker alone says, before a mapper optimises anything (for measuring its drift against
+// ground truth). The first keyframe stands at its frame's ground truth when it has one, else at
+// the origin.
+class TrackedChain {
+ public:
+  // Takes `result`'s keyframes and returns the frame's world_from_cam; nothing before the first
+  // keyframe.
+  std::optional<Eigen::Isometry3d> Add(const TrackResult& result);
+
+ private:
+  std::optional<Eigen::Isometry3d> world_from_newest_;  // the newest keyframe's pose
+  int64_t newest_index_ = -1;
+};
+
 }  // namespace sightmap::slam

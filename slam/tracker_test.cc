@@ -223,6 +223,45 @@ TEST(SmoothedVelocity, AveragesTheRegistrationsNoiseAway) {
   EXPECT_THROW(velocity.Add(step, 0.0), Error);
 }
 
+TEST(TrackedChain, ChainsTheEmittedMotionsFromTheFirstKeyframesTruth) {
+  const auto at = [](double x) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation().x() = x;
+    return pose;
+  };
+  const auto keyframe = [](int64_t index, std::optional<Eigen::Isometry3d> truth,
+                           std::optional<Eigen::Isometry3d> motion) {
+    TrackedKeyframe emitted;
+    emitted.frame.index = index;
+    emitted.frame.world_from_cam_gt = truth;
+    if (motion) emitted.motion = KeyframeMotion{MotionSource::kRegistered, *motion};
+    return emitted;
+  };
+  TrackedChain chain;
+  TrackResult before;  // no keyframe yet: no pose
+  EXPECT_FALSE(chain.Add(before).has_value());
+  TrackResult first;
+  first.keyframes.push_back(keyframe(3, at(10.0), std::nullopt));
+  first.reference_index = 3;
+  first.reference_from_cam = at(0.5);
+  ASSERT_TRUE(chain.Add(first).has_value());
+  EXPECT_NEAR(chain.Add(first)->translation().x(), 10.5, 1e-12);
+  // The next keyframe's truth is ignored: the tracker's own motion places it.
+  TrackResult second;
+  second.keyframes.push_back(keyframe(7, at(99.0), at(2.0)));
+  second.reference_index = 7;
+  second.reference_from_cam = at(0.25);
+  EXPECT_NEAR(chain.Add(second)->translation().x(), 12.25, 1e-12);
+  // A frame placed relative to another keyframe than the newest is the tracker's error.
+  TrackResult stale;
+  stale.reference_index = 3;
+  EXPECT_THROW(chain.Add(stale), Error);
+  // Without ground truth the first keyframe stands at the origin.
+  TrackedChain unanchored;
+  first.keyframes[0].frame.world_from_cam_gt.reset();
+  EXPECT_NEAR(unanchored.Add(first)->translation().x(), 0.5, 1e-12);
+}
+
 // 8 s of the robot walk (seed 11) from 224 s: it drives at 0.4 m/s a metre from a wall with a
 // television, panning, and from frame 2291 on features fail for 26 frames in a row.
 const Walk& RobotAlongAWall() {
@@ -359,21 +398,13 @@ const Walk& SurveyBeforeABareScreen() {
 std::pair<double, double> WorstFrameError(const Walk& walk, const TrackerOptions& options,
                                           int64_t* at_rest) {
   Tracker tracker(walk.camera, options);
-  std::vector<std::pair<int64_t, Eigen::Isometry3d>> world_from_keyframe;
+  TrackedChain chain;
   double worst_m = 0.0;
   double worst_deg = 0.0;
   for (const RgbdFrame& frame : walk.frames) {
-    const TrackResult result = tracker.Track(frame);
-    for (const TrackedKeyframe& keyframe : result.keyframes) {
-      const Eigen::Isometry3d world_from_cam =
-          keyframe.motion ? world_from_keyframe.back().second * keyframe.motion->previous_from_cam
-                          : *keyframe.frame.world_from_cam_gt;
-      world_from_keyframe.emplace_back(keyframe.frame.index, world_from_cam);
-    }
-    if (world_from_keyframe.empty()) continue;
-    EXPECT_EQ(world_from_keyframe.back().first, result.reference_index);
-    const Eigen::Isometry3d error = frame.world_from_cam_gt->inverse() *
-                                    world_from_keyframe.back().second * result.reference_from_cam;
+    const std::optional<Eigen::Isometry3d> world_from_cam = chain.Add(tracker.Track(frame));
+    if (!world_from_cam) continue;
+    const Eigen::Isometry3d error = frame.world_from_cam_gt->inverse() * *world_from_cam;
     worst_m = std::max(worst_m, error.translation().norm());
     worst_deg = std::max(worst_deg, RotationAngleDeg(error));
   }
