@@ -13,6 +13,14 @@
 #include "core/voxel_key.h"
 
 namespace sightmap::identify {
+namespace {
+
+// The see-through check's grid of view frusta: a 1 m cell holds a few of a room's views; smaller
+// cells multiply the entries of a view's frustum (~8 m deep) by the cube of the ratio.
+constexpr double kViewGridCellM = 1.0;
+
+}  // namespace
+
 OcclusionCloudBuilder::OcclusionCloudBuilder(double voxel_m) : voxel_m_(voxel_m) {
   SIGHTMAP_CHECK(voxel_m > 0.0, "the occlusion cloud's voxel size must be positive");
 }
@@ -44,6 +52,11 @@ void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& 
   // Without filling, both name the same samples.
   cv::Mat filled = max_hole_fill_samples > 0 ? samples.clone() : samples;
   FillEnclosedHoles(max_hole_fill_samples, &filled);
+  // Neighbouring samples mostly share a voxel (at 1 m, 6 x 6 of them with a step of 4): the keys
+  // are made unique per image before they enter the sets.
+  std::vector<uint64_t> measured_keys;
+  std::vector<uint64_t> filled_keys;
+  measured_keys.reserve(static_cast<size_t>(samples.total()));
   for (int sv = 0; sv < samples.rows; ++sv) {
     const float* measured = samples.ptr<float>(sv);
     const float* row = filled.ptr<float>(sv);
@@ -52,13 +65,17 @@ void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& 
       if (!(z >= min_depth_m && z <= max_depth_m)) continue;
       const Eigen::Vector3d world =
           world_from_cam * k.Unproject(first + su * pixel_step, first + sv * pixel_step, z);
-      if (std::isfinite(measured[su])) {
-        AddPoint(world);
-      } else if (const std::optional<uint64_t> key = VoxelKeyOf(world, voxel_m_)) {
-        filled_voxels_.insert(*key);
+      if (const std::optional<uint64_t> key = VoxelKeyOf(world, voxel_m_)) {
+        (std::isfinite(measured[su]) ? measured_keys : filled_keys).push_back(*key);
       }
     }
   }
+  for (std::vector<uint64_t>* keys : {&measured_keys, &filled_keys}) {
+    std::sort(keys->begin(), keys->end());
+    keys->erase(std::unique(keys->begin(), keys->end()), keys->end());
+  }
+  voxels_.insert(measured_keys.begin(), measured_keys.end());
+  filled_voxels_.insert(filled_keys.begin(), filled_keys.end());
 }
 
 void OcclusionCloudBuilder::AddPoint(const Eigen::Vector3d& world_point) {
@@ -87,11 +104,11 @@ std::optional<ViewedPoint> PointInView(const SightingView& view,
 }
 
 // Whether some view's depth at `world_point`'s pixel lies more than `margin_m` beyond it: that
-// view saw through the point, so nothing stands there.
+// view saw through the point, so nothing stands there. Only the views `grid` lists near it can.
 bool SeenThrough(const Eigen::Vector3d& world_point, const std::vector<SightingView>& views,
-                 double margin_m) {
-  for (const SightingView& view : views) {
-    const std::optional<ViewedPoint> seen = PointInView(view, world_point);
+                 const ViewGrid& grid, double margin_m) {
+  for (const uint32_t v : grid.ViewsNear(world_point)) {
+    const std::optional<ViewedPoint> seen = PointInView(views[v], world_point);
     if (seen && seen->seen_mm != 0 && seen->seen_mm * 1e-3 > seen->in_view.z() + margin_m) {
       return true;
     }
@@ -99,7 +116,55 @@ bool SeenThrough(const Eigen::Vector3d& world_point, const std::vector<SightingV
   return false;
 }
 
+// The cell coordinates of p in a grid of cell_m.
+Eigen::Vector3i CellOf(const Eigen::Vector3d& p, double cell_m) {
+  return (p / cell_m).array().floor().cast<int>();
+}
+
 }  // namespace
+
+ViewGrid::ViewGrid(const std::vector<SightingView>& views, double cell_m) : cell_m_(cell_m) {
+  SIGHTMAP_CHECK(cell_m > 0.0, "the view grid's cell size must be positive");
+  SIGHTMAP_CHECK(views.size() < std::numeric_limits<uint32_t>::max(), "too many sighting views");
+  for (size_t v = 0; v < views.size(); ++v) {
+    const SightingView& view = views[v];
+    double max_mm = 0.0;
+    if (!view.depth_mm.empty()) cv::minMaxLoc(view.depth_mm, nullptr, &max_mm);
+    if (max_mm <= 0.0) continue;  // measured nothing: sees through nothing
+    // The frustum is the hull of the centre and the image's corners at the farthest depth.
+    const Eigen::Isometry3d world_from_cam = view.cam_from_world.inverse();
+    const double far_m = max_mm * 1e-3;
+    Eigen::AlignedBox3d box(world_from_cam.translation());
+    const int w = view.depth_mm.cols;
+    const int h = view.depth_mm.rows;
+    for (const auto& [u, v_px] : {std::pair{-0.5, -0.5}, std::pair{w - 0.5, -0.5},
+                                  std::pair{-0.5, h - 0.5}, std::pair{w - 0.5, h - 0.5}}) {
+      box.extend(world_from_cam * view.intrinsics.Unproject(u, v_px, far_m));
+    }
+    // A view on a wild pose (nothing indoors lies beyond the keys' range) reaches no cell.
+    if (!VoxelKeyOf(box.min(), cell_m_) || !VoxelKeyOf(box.max(), cell_m_)) continue;
+    const Eigen::Vector3i lo = CellOf(box.min(), cell_m_);
+    const Eigen::Vector3i hi = CellOf(box.max(), cell_m_);
+    for (int x = lo.x(); x <= hi.x(); ++x) {
+      for (int y = lo.y(); y <= hi.y(); ++y) {
+        for (int z = lo.z(); z <= hi.z(); ++z) {
+          const Eigen::Vector3d centre = (Eigen::Vector3d(x, y, z).array() + 0.5) * cell_m_;
+          if (const std::optional<uint64_t> key = VoxelKeyOf(centre, cell_m_)) {
+            cells_[*key].push_back(static_cast<uint32_t>(v));
+            ++entries_;
+          }
+        }
+      }
+    }
+  }
+}
+
+const std::vector<uint32_t>& ViewGrid::ViewsNear(const Eigen::Vector3d& world_point) const {
+  const std::optional<uint64_t> key = VoxelKeyOf(world_point, cell_m_);
+  if (!key) return none_;
+  const auto cell = cells_.find(*key);
+  return cell == cells_.end() ? none_ : cell->second;
+}
 
 OcclusionCloud OcclusionCloudBuilder::Build(const std::vector<SightingView>& views,
                                             double see_through_margin_m) const {
@@ -111,18 +176,19 @@ OcclusionCloud OcclusionCloudBuilder::Build(const std::vector<SightingView>& vie
   for (uint64_t key : voxels_) {
     cloud.world_points.push_back((VoxelCorner(key, voxel_m_) + half).cast<float>());
   }
-  // Each filled voxel is checked against every view (1.8 s for 1,342 keyframes on one core):
-  // spread over the cores, each voxel's verdict in its own slot.
+  // Each filled voxel is checked against the views whose frusta reach it, spread over the cores,
+  // each voxel's verdict in its own slot.
   std::vector<Eigen::Vector3d> filled;
   filled.reserve(filled_voxels_.size());
   for (uint64_t key : filled_voxels_) {
     if (voxels_.count(key) == 0) filled.push_back(VoxelCorner(key, voxel_m_) + half);
   }
   std::vector<uint8_t> kept(filled.size(), 0);
+  const ViewGrid grid(views, kViewGridCellM);
   cv::parallel_for_(cv::Range(0, static_cast<int>(filled.size())), [&](const cv::Range& range) {
     for (int i = range.start; i < range.end; ++i) {
       kept[static_cast<size_t>(i)] =
-          SeenThrough(filled[static_cast<size_t>(i)], views, see_through_margin_m) ? 0 : 1;
+          SeenThrough(filled[static_cast<size_t>(i)], views, grid, see_through_margin_m) ? 0 : 1;
     }
   });
   for (size_t i = 0; i < filled.size(); ++i) {

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -29,6 +30,25 @@ struct SightingView {
   cv::Mat depth_mm;       // CV_16UC1
   Intrinsics intrinsics;  // at depth_mm's size
   Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+};
+
+// Which sighting views can see a point: each view's frustum, out to the farthest depth it measured,
+// bounded by an axis-aligned box and entered in the cells of a grid of `cell_m` it overlaps. A
+// point's candidates are the views of its cell (a superset of those that see it), so a test against
+// every view becomes one against the few whose frusta reach the point: what the see-through check
+// of a building's filled voxels needs, whose views and voxels both grow with the floor.
+class ViewGrid {
+ public:
+  ViewGrid(const std::vector<SightingView>& views, double cell_m);
+  // Indices into the views; empty when none reaches the point's cell.
+  const std::vector<uint32_t>& ViewsNear(const Eigen::Vector3d& world_point) const;
+  size_t entries() const { return entries_; }  // (view, cell) pairs
+
+ private:
+  double cell_m_;
+  std::unordered_map<uint64_t, std::vector<uint32_t>> cells_;
+  std::vector<uint32_t> none_;
+  size_t entries_ = 0;
 };
 
 // Accumulates depth images into occupied voxels (a set, so each surface cell is kept once however
