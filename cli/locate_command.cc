@@ -147,6 +147,9 @@ int RunLocate(int argc, char** argv) {
   model_options.read_only = true;
   model_options.create_if_missing = false;
   const store::Model model = store::Model::Open(model_path, model_options);
+  // Loading decodes every keyframe's images (seconds on a building's model): say so, on stderr so
+  // the answer on stdout stays the answer.
+  std::cerr << "sightmap locate: loading " << model_path << "\n" << std::flush;
   const identify::Locator locator(model, options);
   if (!locator.LoadWarning().empty()) std::cerr << "sightmap: " << locator.LoadWarning() << "\n";
   const identify::LocateResult result = locator.Locate(photo, hint);

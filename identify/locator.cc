@@ -474,6 +474,74 @@ Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeIn
                                            options.sift_image_side_px, options.sift_features);
 }
 
+// What a keyframe's rows give the locator before they are indexed: its ORB and RootSIFT features,
+// its thumbnail for the view check, its depth at sighting size (its depth also goes into the
+// occlusion cloud as it is loaded).
+struct LoadedKeyframe {
+  Features orb;
+  Features sift;  // with_sift only
+  std::shared_ptr<const KeyframeThumbnail> thumbnail;
+  std::optional<SightingView> sighting;  // a keyframe with depth
+  int sift_extracted = 0;                // 1: its RootSIFT was extracted here, not stored
+};
+
+LoadedKeyframe LoadKeyframe(const store::Model& model, const store::KeyframeInfo& info,
+                            bool with_sift, const LocatorOptions& options,
+                            OcclusionCloudBuilder* cloud) {
+  LoadedKeyframe loaded;
+  loaded.orb = model.LoadFeatures(info.id);
+  const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
+  loaded.thumbnail = LoadThumbnail(model, info, depth, options);
+  if (with_sift) {
+    loaded.sift = KeyframeSiftFeatures(model, info, depth, options, &loaded.sift_extracted);
+  }
+  if (!depth.empty()) {
+    cloud->AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
+                    options.features.min_depth_m, options.occlusion_max_depth_m,
+                    options.occlusion_max_hole_px);
+    loaded.sighting = MakeSightingView(depth, info.intrinsics, info.world_from_cam, 80, 60);
+  }
+  return loaded;
+}
+
+// Every keyframe's LoadKeyframe, in order. Decoding the images and voxelising the depth are most
+// of a large model's loading, so the later half loads on a second thread through its own
+// read-only connection to the file (a connection serves one thread) into its own cloud, merged
+// after; a model the file cannot be opened again for loads on the calling thread alone.
+std::vector<LoadedKeyframe> LoadKeyframes(const store::Model& model,
+                                          const std::vector<store::KeyframeInfo>& infos,
+                                          bool with_sift, const LocatorOptions& options,
+                                          OcclusionCloudBuilder* cloud) {
+  std::vector<LoadedKeyframe> loaded(infos.size());
+  const auto load = [&](const store::Model& source, size_t begin, size_t end,
+                        OcclusionCloudBuilder* into) {
+    for (size_t i = begin; i < end; ++i) {
+      loaded[i] = LoadKeyframe(source, infos[i], with_sift, options, into);
+    }
+  };
+  std::optional<store::Model> second;
+  if (infos.size() >= 2 && cv::getNumThreads() > 1) {
+    try {
+      second.emplace(store::Model::Open(model.path(), store::ModelOptions::ReadOnly()));
+    } catch (const std::exception&) {
+      second.reset();
+    }
+  }
+  if (!second) {
+    load(model, 0, infos.size(), cloud);
+    return loaded;
+  }
+  const size_t half = infos.size() / 2;
+  OcclusionCloudBuilder later_cloud(options.occlusion_voxel_m);
+  // The future's destructor waits for the thread when this one throws first.
+  std::future<void> later =
+      std::async(std::launch::async, [&] { load(*second, half, infos.size(), &later_cloud); });
+  load(model, 0, half, cloud);
+  later.get();
+  cloud->Merge(later_cloud);
+  return loaded;
+}
+
 }  // namespace
 
 Locator::Locator(const store::Model& model, const LocatorOptions& options)
@@ -491,30 +559,25 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   bool any_orb_features = false;
   const bool with_sift = options.matcher != LocatorOptions::Matcher::kOrb;
   int sift_extracted = 0;  // keyframes the model stores no RootSIFT for
+  std::vector<LoadedKeyframe> loaded = LoadKeyframes(model, infos, with_sift, options, &cloud);
   impl_->keyframes.reserve(infos.size());
-  for (const store::KeyframeInfo& info : infos) {
-    const Features features = model.LoadFeatures(info.id);
-    any_orb_features = any_orb_features || IsOrbDescriptors(features.descriptors);
-    IndexKeyframe(features, impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index,
+  for (size_t i = 0; i < infos.size(); ++i) {
+    const store::KeyframeInfo& info = infos[i];
+    LoadedKeyframe& keyframe = loaded[i];
+    any_orb_features = any_orb_features || IsOrbDescriptors(keyframe.orb.descriptors);
+    IndexKeyframe(keyframe.orb, impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index,
                   &impl_->votes);
-    impl_->keyframes.push_back(
-        MakeLocatorKeyframe(info.id, info.world_from_cam, features, impl_->vocabulary, options));
-    const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
-    impl_->keyframes.back().thumbnail = LoadThumbnail(model, info, depth, options);
+    impl_->keyframes.push_back(MakeLocatorKeyframe(info.id, info.world_from_cam, keyframe.orb,
+                                                   impl_->vocabulary, options));
+    impl_->keyframes.back().thumbnail = keyframe.thumbnail;
     if (with_sift) {
-      impl_->sift_keyframes.push_back(
-          MakeLocatorKeyframe(info.id, info.world_from_cam,
-                              KeyframeSiftFeatures(model, info, depth, options, &sift_extracted),
-                              impl_->vocabulary, options));
-      impl_->sift_keyframes.back().thumbnail = impl_->keyframes.back().thumbnail;
+      impl_->sift_keyframes.push_back(MakeLocatorKeyframe(
+          info.id, info.world_from_cam, keyframe.sift, impl_->vocabulary, options));
+      impl_->sift_keyframes.back().thumbnail = keyframe.thumbnail;
+      sift_extracted += keyframe.sift_extracted;
     }
-    if (!depth.empty()) {
-      cloud.AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
-                     options.features.min_depth_m, options.occlusion_max_depth_m,
-                     options.occlusion_max_hole_px);
-      impl_->sighting_views.push_back(
-          MakeSightingView(depth, info.intrinsics, info.world_from_cam, 80, 60));
-    }
+    if (keyframe.sighting) impl_->sighting_views.push_back(std::move(*keyframe.sighting));
+    keyframe = LoadedKeyframe();  // its features are copied into the slots
   }
   // Views rendered where the walk did not stand: matched like keyframes, never part of the
   // occlusion cloud or the sightings (their depth is the keyframes', already in both). They

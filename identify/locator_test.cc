@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
@@ -94,6 +95,37 @@ TEST_F(LocatorTest, LoadsEveryKeyframeAndAnOcclusionCloud) {
   EXPECT_EQ(locator_->NumKeyframes(), 100u);
   EXPECT_GT(locator_->NumOcclusionVoxels(), 10000u);
   EXPECT_EQ(locator_->Labels().size(), scene_->appliances.size());
+}
+
+TEST_F(LocatorTest, LoadingOnOneThreadGivesTheSameLocatorAsOnTwo) {
+  // The suite's locator loaded its keyframes on two threads (two connections, two clouds merged);
+  // with OpenCV held to one thread it loads them on the calling one.
+  if (cv::getNumThreads() < 2) GTEST_SKIP() << "OpenCV has one thread here: nothing to compare";
+  const int threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  const Locator one_thread(*model_);
+  cv::setNumThreads(threads);
+  EXPECT_EQ(one_thread.NumKeyframes(), locator_->NumKeyframes());
+  EXPECT_EQ(one_thread.NumOcclusionVoxels(), locator_->NumOcclusionVoxels());
+  ASSERT_FALSE(seen_photos_->empty());
+  int compared = 0;
+  for (size_t i = 0; i < seen_photos_->size() && compared < 3; ++i) {
+    const sim::QueryPhoto& photo = (*seen_photos_)[i];
+    const LocateResult a = locator_->Locate(photo.image, photo.intrinsics);
+    const LocateResult b = one_thread.Locate(photo.image, photo.intrinsics);
+    ASSERT_EQ(a.matched, b.matched) << "photo " << photo.index;
+    if (!a.matched) continue;
+    ++compared;
+    EXPECT_EQ(a.inliers, b.inliers) << "photo " << photo.index;
+    EXPECT_EQ(a.keyframe, b.keyframe) << "photo " << photo.index;
+    EXPECT_LT(PositionError(a.world_from_cam, b.world_from_cam), 1e-9) << "photo " << photo.index;
+    ASSERT_EQ(a.appliances.size(), b.appliances.size()) << "photo " << photo.index;
+    for (size_t k = 0; k < a.appliances.size(); ++k) {
+      EXPECT_EQ(a.appliances[k].name, b.appliances[k].name);
+      EXPECT_EQ(a.appliances[k].occluded, b.appliances[k].occluded);
+    }
+  }
+  EXPECT_EQ(compared, 3);
 }
 
 TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {

@@ -78,6 +78,14 @@ void OcclusionCloudBuilder::AddDepth(const cv::Mat& depth_mm, const Intrinsics& 
   filled_voxels_.insert(filled_keys.begin(), filled_keys.end());
 }
 
+void OcclusionCloudBuilder::Merge(const OcclusionCloudBuilder& other) {
+  SIGHTMAP_CHECK(other.voxel_m_ == voxel_m_, "occlusion clouds of different voxel sizes ("
+                                                 << voxel_m_ << " and " << other.voxel_m_
+                                                 << " m) cannot be merged");
+  voxels_.insert(other.voxels_.begin(), other.voxels_.end());
+  filled_voxels_.insert(other.filled_voxels_.begin(), other.filled_voxels_.end());
+}
+
 void OcclusionCloudBuilder::AddPoint(const Eigen::Vector3d& world_point) {
   if (const std::optional<uint64_t> key = VoxelKeyOf(world_point, voxel_m_)) voxels_.insert(*key);
 }

@@ -71,6 +71,9 @@ class OcclusionCloudBuilder {
   // One world point [m] (hand-built scenes in tests).
   void AddPoint(const Eigen::Vector3d& world_point);
 
+  // Adds another builder's voxels (of the same size): one cloud from depth added on two threads.
+  void Merge(const OcclusionCloudBuilder& other);
+
   size_t size() const { return voxels_.size(); }
   // The measured voxels and the filled ones no view saw through: a filled voxel goes when some
   // view's depth at its pixel lies more than see_through_margin_m beyond it [m].

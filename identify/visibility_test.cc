@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/rotation.h"
+#include "core/check.h"
 
 namespace sightmap::identify {
 namespace {
@@ -79,6 +79,31 @@ TEST(ViewGridTest, AViewThatMeasuredNothingIsNeverListed) {
   const ViewGrid grid(views, 1.0);
   EXPECT_EQ(grid.entries(), 0u);
   EXPECT_TRUE(grid.ViewsNear(views[0].cam_from_world.inverse().translation()).empty());
+}
+
+TEST(OcclusionCloudBuilderTest, MergingTwoBuildersGivesTheCloudOfOneThatSawBoth) {
+  const Intrinsics intrinsics = Intrinsics::FromFieldOfView(160, 120, 1.0, -1.0);
+  // A wall 3 m ahead with a hole (no depth) inside it: measured and filled voxels.
+  cv::Mat depth(120, 160, CV_16UC1, cv::Scalar(3000));
+  depth(cv::Rect(60, 40, 20, 20)).setTo(0);
+  std::vector<Eigen::Isometry3d> poses(2, Eigen::Isometry3d::Identity());
+  poses[1].translation() = Eigen::Vector3d(0.7, 0.1, -0.4);
+  poses[1].linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  OcclusionCloudBuilder both(0.05);
+  OcclusionCloudBuilder first(0.05);
+  OcclusionCloudBuilder second(0.05);
+  for (int i = 0; i < 2; ++i) {
+    both.AddDepth(depth, intrinsics, poses[static_cast<size_t>(i)], 2, 0.3, 5.0, 20);
+    (i == 0 ? first : second)
+        .AddDepth(depth, intrinsics, poses[static_cast<size_t>(i)], 2, 0.3, 5.0, 20);
+  }
+  first.Merge(second);
+  EXPECT_EQ(first.size(), both.size());
+  const OcclusionCloud merged = first.Build();
+  const OcclusionCloud whole = both.Build();
+  ASSERT_GT(whole.world_points.size(), first.size());  // the filled voxels are in the cloud too
+  EXPECT_EQ(merged.world_points, whole.world_points);
+  EXPECT_THROW(first.Merge(OcclusionCloudBuilder(0.1)), Error);
 }
 
 }  // namespace
