@@ -438,19 +438,38 @@ LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& worl
   return keyframe;
 }
 
-// Every ORB descriptor of a keyframe (with or without a point) counts in retrieval: added under
-// `slot` to the bag-of-words index (the twin check's) and, with options.retrieval kVotes, to the
-// vote index. Not without a vocabulary: a model with one keyframe of features has none to index
-// by.
-void IndexKeyframe(const Features& orb, size_t slot, const slam::Vocabulary& vocabulary,
-                   const LocatorOptions& options, slam::PlaceIndex* index, slam::VoteIndex* votes) {
-  if (vocabulary.empty() || !IsOrbDescriptors(orb.descriptors)) return;
+// What retrieval keeps of a keyframe: its bag of words, and for the vote index every ORB
+// descriptor (with or without a point) with its word.
+struct RetrievalEntry {
+  slam::BowVector bow;
+  cv::Mat descriptors;  // empty unless options.retrieval is kVotes
   std::vector<int> words;
-  slam::BowVector bow = vocabulary.Transform(orb.descriptors, &words);
+};
+
+// Nothing without a vocabulary (a model with one keyframe of features has none to index by) or
+// ORB descriptors.
+std::optional<RetrievalEntry> MakeRetrievalEntry(const Features& orb,
+                                                 const slam::Vocabulary& vocabulary,
+                                                 const LocatorOptions& options) {
+  if (vocabulary.empty() || !IsOrbDescriptors(orb.descriptors)) return std::nullopt;
+  RetrievalEntry entry;
+  entry.bow = vocabulary.Transform(orb.descriptors, &entry.words);
   if (options.retrieval == LocatorOptions::Retrieval::kVotes) {
-    votes->Add(static_cast<int64_t>(slot), orb.descriptors, words);
+    entry.descriptors = orb.descriptors;
+  } else {
+    entry.words.clear();
   }
-  index->Add(static_cast<int64_t>(slot), std::move(bow));
+  return entry;
+}
+
+// Adds the entry under `slot` to the bag-of-words index (the twin check's) and, with
+// options.retrieval kVotes, to the vote index.
+void IndexEntry(RetrievalEntry entry, size_t slot, const LocatorOptions& options,
+                slam::PlaceIndex* index, slam::VoteIndex* votes) {
+  if (options.retrieval == LocatorOptions::Retrieval::kVotes) {
+    votes->Add(static_cast<int64_t>(slot), entry.descriptors, entry.words);
+  }
+  index->Add(static_cast<int64_t>(slot), std::move(entry.bow));
 }
 
 // A keyframe's RootSIFT features with their 3D points: those the model stores (`sightmap map`
@@ -474,26 +493,34 @@ Features KeyframeSiftFeatures(const store::Model& model, const store::KeyframeIn
                                            options.sift_image_side_px, options.sift_features);
 }
 
-// What a keyframe's rows give the locator before they are indexed: its ORB and RootSIFT features,
-// its thumbnail for the view check, its depth at sighting size (its depth also goes into the
-// occlusion cloud as it is loaded).
+// A keyframe as loaded, before it is indexed: its slots (MakeLocatorKeyframe, with the thumbnail
+// for the view check), its retrieval entry, its depth at sighting size (its depth also went into
+// the occlusion cloud). The features themselves are not kept: only what the locator holds.
 struct LoadedKeyframe {
-  Features orb;
-  Features sift;  // with_sift only
-  std::shared_ptr<const KeyframeThumbnail> thumbnail;
+  bool has_orb = false;
+  LocatorKeyframe orb;
+  LocatorKeyframe sift;  // with_sift only
+  std::optional<RetrievalEntry> retrieval;
   std::optional<SightingView> sighting;  // a keyframe with depth
   int sift_extracted = 0;                // 1: its RootSIFT was extracted here, not stored
 };
 
 LoadedKeyframe LoadKeyframe(const store::Model& model, const store::KeyframeInfo& info,
-                            bool with_sift, const LocatorOptions& options,
-                            OcclusionCloudBuilder* cloud) {
+                            bool with_sift, const slam::Vocabulary& vocabulary,
+                            const LocatorOptions& options, OcclusionCloudBuilder* cloud) {
   LoadedKeyframe loaded;
-  loaded.orb = model.LoadFeatures(info.id);
+  const Features orb = model.LoadFeatures(info.id);
+  loaded.has_orb = IsOrbDescriptors(orb.descriptors);
+  loaded.retrieval = MakeRetrievalEntry(orb, vocabulary, options);
+  loaded.orb = MakeLocatorKeyframe(info.id, info.world_from_cam, orb, vocabulary, options);
   const cv::Mat depth = info.depth_bytes > 0 ? model.LoadDepth(info.id) : cv::Mat();
-  loaded.thumbnail = LoadThumbnail(model, info, depth, options);
+  loaded.orb.thumbnail = LoadThumbnail(model, info, depth, options);
   if (with_sift) {
-    loaded.sift = KeyframeSiftFeatures(model, info, depth, options, &loaded.sift_extracted);
+    loaded.sift = MakeLocatorKeyframe(
+        info.id, info.world_from_cam,
+        KeyframeSiftFeatures(model, info, depth, options, &loaded.sift_extracted), vocabulary,
+        options);
+    loaded.sift.thumbnail = loaded.orb.thumbnail;
   }
   if (!depth.empty()) {
     cloud->AddDepth(depth, info.intrinsics, info.world_from_cam, options.occlusion_pixel_step,
@@ -510,13 +537,14 @@ LoadedKeyframe LoadKeyframe(const store::Model& model, const store::KeyframeInfo
 // after; a model the file cannot be opened again for loads on the calling thread alone.
 std::vector<LoadedKeyframe> LoadKeyframes(const store::Model& model,
                                           const std::vector<store::KeyframeInfo>& infos,
-                                          bool with_sift, const LocatorOptions& options,
+                                          bool with_sift, const slam::Vocabulary& vocabulary,
+                                          const LocatorOptions& options,
                                           OcclusionCloudBuilder* cloud) {
   std::vector<LoadedKeyframe> loaded(infos.size());
   const auto load = [&](const store::Model& source, size_t begin, size_t end,
                         OcclusionCloudBuilder* into) {
     for (size_t i = begin; i < end; ++i) {
-      loaded[i] = LoadKeyframe(source, infos[i], with_sift, options, into);
+      loaded[i] = LoadKeyframe(source, infos[i], with_sift, vocabulary, options, into);
     }
   };
   std::optional<store::Model> second;
@@ -559,34 +587,34 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   bool any_orb_features = false;
   const bool with_sift = options.matcher != LocatorOptions::Matcher::kOrb;
   int sift_extracted = 0;  // keyframes the model stores no RootSIFT for
-  std::vector<LoadedKeyframe> loaded = LoadKeyframes(model, infos, with_sift, options, &cloud);
+  std::vector<LoadedKeyframe> loaded =
+      LoadKeyframes(model, infos, with_sift, impl_->vocabulary, options, &cloud);
   impl_->keyframes.reserve(infos.size());
-  for (size_t i = 0; i < infos.size(); ++i) {
-    const store::KeyframeInfo& info = infos[i];
-    LoadedKeyframe& keyframe = loaded[i];
-    any_orb_features = any_orb_features || IsOrbDescriptors(keyframe.orb.descriptors);
-    IndexKeyframe(keyframe.orb, impl_->keyframes.size(), impl_->vocabulary, options, &impl_->index,
-                  &impl_->votes);
-    impl_->keyframes.push_back(MakeLocatorKeyframe(info.id, info.world_from_cam, keyframe.orb,
-                                                   impl_->vocabulary, options));
-    impl_->keyframes.back().thumbnail = keyframe.thumbnail;
+  for (LoadedKeyframe& keyframe : loaded) {
+    any_orb_features = any_orb_features || keyframe.has_orb;
+    if (keyframe.retrieval) {
+      IndexEntry(std::move(*keyframe.retrieval), impl_->keyframes.size(), options, &impl_->index,
+                 &impl_->votes);
+    }
+    impl_->keyframes.push_back(std::move(keyframe.orb));
     if (with_sift) {
-      impl_->sift_keyframes.push_back(MakeLocatorKeyframe(
-          info.id, info.world_from_cam, keyframe.sift, impl_->vocabulary, options));
-      impl_->sift_keyframes.back().thumbnail = keyframe.thumbnail;
+      impl_->sift_keyframes.push_back(std::move(keyframe.sift));
       sift_extracted += keyframe.sift_extracted;
     }
     if (keyframe.sighting) impl_->sighting_views.push_back(std::move(*keyframe.sighting));
-    keyframe = LoadedKeyframe();  // its features are copied into the slots
   }
+  loaded.clear();
   // Views rendered where the walk did not stand: matched like keyframes, never part of the
   // occlusion cloud or the sightings (their depth is the keyframes', already in both). They
   // store ORB features only: RootSIFT matching has a slot without points for each.
   if (options.use_synthetic_views) {
     for (const store::SyntheticViewRecord& view : model.SyntheticViews()) {
       if (!IsOrbDescriptors(view.features.descriptors)) continue;
-      IndexKeyframe(view.features, impl_->keyframes.size(), impl_->vocabulary, options,
-                    &impl_->index, &impl_->votes);
+      if (std::optional<RetrievalEntry> entry =
+              MakeRetrievalEntry(view.features, impl_->vocabulary, options)) {
+        IndexEntry(std::move(*entry), impl_->keyframes.size(), options, &impl_->index,
+                   &impl_->votes);
+      }
       LocatorKeyframe keyframe = MakeLocatorKeyframe(view.source, view.world_from_cam,
                                                      view.features, impl_->vocabulary, options);
       keyframe.synthetic_view = view.id;
