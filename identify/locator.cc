@@ -442,7 +442,7 @@ LocatorKeyframe MakeLocatorKeyframe(KeyframeId id, const Eigen::Isometry3d& worl
 // descriptor (with or without a point) with its word.
 struct RetrievalEntry {
   slam::BowVector bow;
-  cv::Mat descriptors;  // empty unless options.retrieval is kVotes
+  cv::Mat descriptors;  // both empty unless options.retrieval is kVotes
   std::vector<int> words;
 };
 
@@ -452,13 +452,10 @@ std::optional<RetrievalEntry> MakeRetrievalEntry(const Features& orb,
                                                  const slam::Vocabulary& vocabulary,
                                                  const LocatorOptions& options) {
   if (vocabulary.empty() || !IsOrbDescriptors(orb.descriptors)) return std::nullopt;
+  const bool votes = options.retrieval == LocatorOptions::Retrieval::kVotes;
   RetrievalEntry entry;
-  entry.bow = vocabulary.Transform(orb.descriptors, &entry.words);
-  if (options.retrieval == LocatorOptions::Retrieval::kVotes) {
-    entry.descriptors = orb.descriptors;
-  } else {
-    entry.words.clear();
-  }
+  entry.bow = vocabulary.Transform(orb.descriptors, votes ? &entry.words : nullptr);
+  if (votes) entry.descriptors = orb.descriptors;
   return entry;
 }
 
@@ -552,7 +549,7 @@ std::vector<LoadedKeyframe> LoadKeyframes(const store::Model& model,
     try {
       second.emplace(store::Model::Open(model.path(), store::ModelOptions::ReadOnly()));
     } catch (const std::exception&) {
-      second.reset();
+      // Left empty: the calling thread loads every keyframe.
     }
   }
   if (!second) {
@@ -603,7 +600,6 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
     }
     if (keyframe.sighting) impl_->sighting_views.push_back(std::move(*keyframe.sighting));
   }
-  loaded.clear();
   // Views rendered where the walk did not stand: matched like keyframes, never part of the
   // occlusion cloud or the sightings (their depth is the keyframes', already in both). They
   // store ORB features only: RootSIFT matching has a slot without points for each.
