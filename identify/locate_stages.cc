@@ -614,7 +614,7 @@ std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alik
     int matches = 0;
     const double shared =
         SharedPointShare(keyframes[verified_slot], keyframes[slot], options, &matches);
-    if (matches >= options.min_inliers && shared < options.twin_max_shared_share) {
+    if (matches >= options.twin_min_matches && shared < options.twin_max_shared_share) {
       twins.push_back(candidate);
     }
   }

@@ -206,7 +206,7 @@ bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& option
 // the first confident place and retrieval ranks by the photo's words, so the other copy may never
 // be verified. The winner's inliers' model descriptors, as a query (RetrieveCandidates), rank the
 // keyframes that look like what the photo matched: `look_alikes`. Those whose descriptor matches
-// with the winner's verified keyframe (at least min_inliers) mostly join different 3D points
+// with the winner's verified keyframe (at least twin_min_matches) mostly join different 3D points
 // (SharedPointShare below twin_max_shared_share) look like it without looking at the same things:
 // they are grouped as
 // GroupPlaces does, at most twin_places places (none already in a place tried), to be verified

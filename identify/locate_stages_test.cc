@@ -208,6 +208,40 @@ TEST(TwinPlacesTest, LookAlikesThatSeeOtherPointsBecomePlacesThoseOfTheWinnersOw
   EXPECT_THROW(TwinPlaces(look_alikes, 9, tried, keyframes, options), Error);
 }
 
+TEST(TwinPlacesTest, ACopySeenFromAnotherAngleIsATwinWithFewerMatchesThanAPoseNeeds) {
+  std::mt19937 rng(9);
+  LocatorOptions options;  // min_inliers 25, twin_min_matches 15
+  const cv::Mat desk = RandomDescriptors(40, &rng);
+  LocatorKeyframe winner = KeyframeAt({0, 0, 0}, 0, 0);
+  winner.descriptors = desk.clone();
+  for (int i = 0; i < desk.rows; ++i) winner.world_points.emplace_back(0.02f * i, 0.0f, 2.0f);
+  // The identical desk 2.2 m along, walked past at a turn: 18 of its 40 descriptors still match
+  // the winner's keyframe's, the others changed with the view.
+  LocatorKeyframe turned = KeyframeAt({2.2, 0, 0}, 35, 0);
+  turned.descriptors = RandomDescriptors(40, &rng);
+  desk.rowRange(0, 18).copyTo(turned.descriptors.rowRange(0, 18));
+  for (int i = 0; i < desk.rows; ++i)
+    turned.world_points.emplace_back(2.2f + 0.02f * i, 0.0f, 2.0f);
+  const std::vector<LocatorKeyframe> keyframes = {winner, turned};
+  int matches = 0;
+  ASSERT_DOUBLE_EQ(SharedPointShare(winner, turned, options, &matches), 0.0);
+  ASSERT_EQ(matches, 18);
+  ASSERT_LT(matches, options.min_inliers);
+
+  const std::vector<Place> tried = {Place{0, {0}}};
+  const std::vector<slam::PlaceCandidate> look_alikes = {{0, 0.9}, {1, 0.4}};
+  const std::vector<Place> twins = TwinPlaces(look_alikes, 0, tried, keyframes, options);
+  ASSERT_EQ(twins.size(), 1u);
+  EXPECT_EQ(twins[0].head, 1u);
+  // Asking for as many matches as a pose needs loses it.
+  options.twin_min_matches = options.min_inliers;
+  EXPECT_TRUE(TwinPlaces(look_alikes, 0, tried, keyframes, options).empty());
+  options.twin_min_matches = 0;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("twin_min_matches"), std::string::npos) << error;
+}
+
 // A place of two keyframes over random descriptors, and a photo holding some of them.
 class MatchPlaceTest : public ::testing::Test {
  protected:

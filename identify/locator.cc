@@ -61,8 +61,10 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "min_inliers must be at least 4 (PnP needs 4 points)";
   else if (confident_inliers < min_inliers)
     why << "confident_inliers must be at least min_inliers";
-  else if (twin_places < 0 || !(twin_max_shared_share >= 0.0 && twin_max_shared_share <= 1.0))
-    why << "twin_places must not be negative, twin_max_shared_share in [0, 1]";
+  else if (twin_places < 0 || twin_min_matches < 1 ||
+           !(twin_max_shared_share >= 0.0 && twin_max_shared_share <= 1.0))
+    why << "twin_places must not be negative, twin_min_matches positive, twin_max_shared_share "
+           "in [0, 1]";
   else if (!(max_rotation_from_keyframe_deg > 0.0 && max_rotation_from_keyframe_deg <= 180.0))
     why << "max_rotation_from_keyframe_deg must be in (0, 180]";
   else if (!(place_radius_m >= 0.0) || !(place_max_angle_deg >= 0.0) || max_places < 1)
@@ -906,10 +908,10 @@ SIGHTMAP_OPTIONS_JSON(
     guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
     min_inlier_cells_few_detail, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
     same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
-    twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement,
-    min_inliers_unchecked, view_agreement, focal_candidates_35mm, refine_estimated_focal,
-    occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
-    occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
+    twin_min_matches, twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,
+    min_view_agreement, min_inliers_unchecked, view_agreement, focal_candidates_35mm,
+    refine_estimated_focal, occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
+    occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
     occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views)
 
 }  // namespace sightmap::identify

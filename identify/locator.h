@@ -176,9 +176,15 @@ struct LocatorOptions {
   // After the search, up to this many places that look like what the winner matched but lie
   // elsewhere (its twins: the office's identical desks, the same box in two rooms) are verified
   // against the photo too, with the winner's intrinsics; 0 turns the check off.
-  int twin_places = 2;
-  // A look-alike keyframe whose descriptor matches with the winner's keyframe join the same 3D
-  // points (within same_pose_m) at this share or more sees the winner's own place, not a twin.
+  int twin_places = 3;
+  // A look-alike keyframe is a twin only with this many descriptor matches with the winner's
+  // keyframe, and it sees the winner's own place, not a twin, when those matches join the same 3D
+  // points (within same_pose_m) at twin_max_shared_share or more. Fewer matches than min_inliers:
+  // the copy the photo shows may have been walked past 30-40 degrees from where the winner's
+  // keyframe saw the other one (the survey's desks: 16-27 matches), and ORB matches little across
+  // that turn. On the survey model's 200 photos, 15 matches and 3 places turned one twin desk's
+  // wrong pose into "ambiguous" and one ambiguous photo into a right pose (25 and 2: 6 wrong).
+  int twin_min_matches = 15;
   double twin_max_shared_share = 0.5;
   // A verified candidate with this many inliers ends the search (the remaining candidates would
   // cost their matching time for a pose that is already certain). 150 rather than 80: a copy
