@@ -249,7 +249,8 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     const store::Model model = store::Model::Open(args.model_path, model_options);
     identify::LocatorOptions locator_options = args.locator;
     if (args.without_synthetic_views) locator_options.use_synthetic_views = false;
-    locator = std::make_unique<identify::Locator>(model, locator_options);
+    locator = std::make_unique<identify::Locator>(
+        model, locator_options, TenthsProgress("eval identify: loaded", "keyframes"));
     if (!locator->LoadWarning().empty()) {
       std::cerr << "sightmap: " << locator->LoadWarning() << "\n";
     }

@@ -150,7 +150,8 @@ int RunLocate(int argc, char** argv) {
   // Loading decodes every keyframe's images (seconds on a building's model): say so, on stderr so
   // the answer on stdout stays the answer.
   std::cerr << "sightmap locate: loading " << model_path << "\n" << std::flush;
-  const identify::Locator locator(model, options);
+  const identify::Locator locator(model, options,
+                                  TenthsProgress("sightmap locate: loaded", "keyframes"));
   if (!locator.LoadWarning().empty()) std::cerr << "sightmap: " << locator.LoadWarning() << "\n";
   const identify::LocateResult result = locator.Locate(photo, hint);
   if (json) {

@@ -762,14 +762,14 @@ LocateServer::LocateServer(const std::string& model_path, const LocateServerOpti
 
 LocateServer::~LocateServer() { Stop(); }
 
-void LocateServer::Load() {
+void LocateServer::Load(const identify::LoadProgress& progress) {
   Impl& impl = *impl_;
   SIGHTMAP_CHECK(impl.locator == nullptr, "LocateServer::Load called twice");
   {
     store::ModelOptions model_options;
     model_options.read_only = true;
     const store::Model model = store::Model::Open(impl.model_path, model_options);
-    impl.locator = std::make_unique<identify::Locator>(model, impl.options.locator);
+    impl.locator = std::make_unique<identify::Locator>(model, impl.options.locator, progress);
     if (!impl.locator->LoadWarning().empty()) {
       std::cerr << "sightmap: " << impl.locator->LoadWarning() << "\n";
     }

@@ -83,7 +83,7 @@ class LocateServer {
   int port() const;  // the bound port, after Bind()
   // Loads the model read-only and builds the Locator once (seconds for a large model). Throws
   // sightmap::Error when the model cannot be used.
-  void Load();
+  void Load(const identify::LoadProgress& progress = {});
   // Serves until Stop(); returns after the workers have finished their requests. Re-reads the
   // labels every label_refresh_s meanwhile.
   void Run();

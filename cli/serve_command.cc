@@ -121,7 +121,7 @@ int RunServe(int argc, char** argv) {
   LocateServer server(model_path, options);
   server.Bind();
   std::cerr << "sightmap serve: loading " << model_path << "\n" << std::flush;
-  server.Load();
+  server.Load(TenthsProgress("sightmap serve: loaded", "keyframes"));
   // Declared after the server, so destroyed first however this returns: the watcher never calls
   // Stop() on a server that is gone.
   struct FinishWatcher {

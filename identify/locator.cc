@@ -1,6 +1,7 @@
 #include "identify/locator.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <exception>
 #include <functional>
@@ -533,17 +534,25 @@ LoadedKeyframe LoadKeyframe(const store::Model& model, const store::KeyframeInfo
 // Every keyframe's LoadKeyframe, in order. Decoding the images and voxelising the depth are most
 // of a large model's loading, so the later half loads on a second thread through its own
 // read-only connection to the file (a connection serves one thread) into its own cloud, merged
-// after; a model the file cannot be opened again for loads on the calling thread alone.
+// after; a model the file cannot be opened again for loads on the calling thread alone. Progress
+// is reported from the calling thread only (LoadProgress).
 std::vector<LoadedKeyframe> LoadKeyframes(const store::Model& model,
                                           const std::vector<store::KeyframeInfo>& infos,
                                           bool with_sift, const slam::Vocabulary& vocabulary,
                                           const LocatorOptions& options,
-                                          OcclusionCloudBuilder* cloud) {
+                                          OcclusionCloudBuilder* cloud,
+                                          const LoadProgress& progress) {
   std::vector<LoadedKeyframe> loaded(infos.size());
+  std::atomic<size_t> done{0};
+  const auto report = [&] {
+    if (progress) progress(done.load(), infos.size());
+  };
   const auto load = [&](const store::Model& source, size_t begin, size_t end,
-                        OcclusionCloudBuilder* into) {
+                        OcclusionCloudBuilder* into, bool reporting) {
     for (size_t i = begin; i < end; ++i) {
       loaded[i] = LoadKeyframe(source, infos[i], with_sift, vocabulary, options, into);
+      ++done;
+      if (reporting) report();
     }
   };
   std::optional<store::Model> second;
@@ -555,23 +564,27 @@ std::vector<LoadedKeyframe> LoadKeyframes(const store::Model& model,
     }
   }
   if (!second) {
-    load(model, 0, infos.size(), cloud);
+    load(model, 0, infos.size(), cloud, /*reporting=*/true);
     return loaded;
   }
   const size_t half = infos.size() / 2;
   OcclusionCloudBuilder later_cloud(options.occlusion_voxel_m);
   // The future's destructor waits for the thread when this one throws first.
-  std::future<void> later =
-      std::async(std::launch::async, [&] { load(*second, half, infos.size(), &later_cloud); });
-  load(model, 0, half, cloud);
+  std::future<void> later = std::async(std::launch::async, [&] {
+    load(*second, half, infos.size(), &later_cloud, /*reporting=*/false);
+  });
+  load(model, 0, half, cloud, /*reporting=*/true);
+  while (later.wait_for(std::chrono::milliseconds(200)) != std::future_status::ready) report();
   later.get();
+  report();
   cloud->Merge(later_cloud);
   return loaded;
 }
 
 }  // namespace
 
-Locator::Locator(const store::Model& model, const LocatorOptions& options)
+Locator::Locator(const store::Model& model, const LocatorOptions& options,
+                 const LoadProgress& progress)
     : impl_(std::make_unique<Impl>()) {
   SIGHTMAP_CHECK_OPTIONS(options);
   impl_->votes = slam::VoteIndex(options.vote_max_hamming);
@@ -587,7 +600,7 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options)
   const bool with_sift = options.matcher != LocatorOptions::Matcher::kOrb;
   int sift_extracted = 0;  // keyframes the model stores no RootSIFT for
   std::vector<LoadedKeyframe> loaded =
-      LoadKeyframes(model, infos, with_sift, impl_->vocabulary, options, &cloud);
+      LoadKeyframes(model, infos, with_sift, impl_->vocabulary, options, &cloud, progress);
   impl_->keyframes.reserve(infos.size());
   for (LoadedKeyframe& keyframe : loaded) {
     any_orb_features = any_orb_features || keyframe.has_orb;

@@ -4,6 +4,7 @@
 // then answers any number of photos, from several threads at once, as `sightmap serve` does.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -344,14 +345,21 @@ struct LocateResult {
 // [{"name","type","pixel":[u,v],"distance_m", "visible","visible_share"}], "timings_ms": {...}}.
 nlohmann::json ToJson(const LocateResult& result);
 
+// How far a Locator's loading has got: keyframes read so far (on every loading thread) of the
+// model's total.
+using LoadProgress = std::function<void(size_t loaded, size_t total)>;
+
 class Locator {
  public:
   // Reads the model's keyframes (features, poses, depth for the occlusion cloud), its synthetic
   // views (with use_synthetic_views), vocabulary and labels. A model without a vocabulary (fewer
   // keyframes than the mapper trains one on) gets one trained from its keyframes, and a model of at
   // most retrieval_candidates keyframes verifies every one of them. Throws Error with one line when
-  // the model has no keyframe.
-  Locator(const store::Model& model, const LocatorOptions& options = LocatorOptions());
+  // the model has no keyframe. `progress`, when given, is called on the constructing thread only:
+  // after each keyframe it reads, every 0.2 s while it waits for the other loading thread, and
+  // last with loaded == total (a building's model takes seconds).
+  Locator(const store::Model& model, const LocatorOptions& options = LocatorOptions(),
+          const LoadProgress& progress = {});
   ~Locator();
   Locator(const Locator&) = delete;
   Locator& operator=(const Locator&) = delete;

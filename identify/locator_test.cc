@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <random>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <unistd.h>
 
@@ -126,6 +128,37 @@ TEST_F(LocatorTest, LoadingOnOneThreadGivesTheSameLocatorAsOnTwo) {
     }
   }
   EXPECT_EQ(compared, 3);
+}
+
+TEST_F(LocatorTest, LoadingReportsItsProgressOnTheCallingThreadUpToEveryKeyframe) {
+  // On one loading thread and on two (the later half read on another thread, which must not call
+  // a progress printer that is not thread-safe).
+  const int threads = cv::getNumThreads();
+  for (const int loading_threads : {1, threads}) {
+    cv::setNumThreads(loading_threads);
+    std::vector<std::pair<size_t, size_t>> calls;
+    const std::thread::id caller = std::this_thread::get_id();
+    bool called_elsewhere = false;
+    const Locator loaded(*model_, LocatorOptions(), [&](size_t done, size_t total) {
+      called_elsewhere = called_elsewhere || std::this_thread::get_id() != caller;
+      calls.emplace_back(done, total);
+    });
+    cv::setNumThreads(threads);
+    const size_t keyframes = loaded.NumKeyframes();
+    ASSERT_GT(keyframes, 10u);
+    EXPECT_FALSE(called_elsewhere) << loading_threads << " loading threads";
+    // At least one call per keyframe the calling thread read, the count never going back, the
+    // last one the whole model.
+    ASSERT_GE(calls.size(), loading_threads == 1 ? keyframes : keyframes / 2);
+    for (size_t i = 0; i < calls.size(); ++i) {
+      EXPECT_EQ(calls[i].second, keyframes);
+      EXPECT_LE(calls[i].first, keyframes);
+      if (i > 0) {
+        EXPECT_GE(calls[i].first, calls[i - 1].first);
+      }
+    }
+    EXPECT_EQ(calls.back().first, keyframes) << loading_threads << " loading threads";
+  }
 }
 
 TEST_F(LocatorTest, SessionTwoPhotosOfSeenPlacesAreMatchedWithinCentimetres) {
