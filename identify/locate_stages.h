@@ -208,10 +208,9 @@ bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& option
 // keyframes that look like what the photo matched: `look_alikes`. Those whose descriptor matches
 // with the winner's verified keyframe (at least twin_min_matches) mostly join different 3D points
 // (SharedPointShare below twin_max_shared_share) look like it without looking at the same things:
-// they are grouped as
-// GroupPlaces does, at most twin_places places (none already in a place tried), to be verified
-// against the photo and decided with the rest. A twin that fits about as well makes the photo
-// ambiguous; one that fits better wins.
+// they are grouped as GroupPlaces does, at most twin_places places (none already in a place tried),
+// to be verified against the photo and decided with the rest. A twin that fits about as well makes
+// the photo ambiguous; one that fits better wins.
 std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alikes,
                               size_t verified_slot, const std::vector<Place>& tried,
                               const std::vector<LocatorKeyframe>& keyframes,

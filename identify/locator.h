@@ -182,7 +182,7 @@ struct LocatorOptions {
   // keyframe, and it sees the winner's own place, not a twin, when those matches join the same 3D
   // points (within same_pose_m) at twin_max_shared_share or more. Fewer matches than min_inliers:
   // the copy the photo shows may have been walked past 30-40 degrees from where the winner's
-  // keyframe saw the other one (the survey's desks: 16-27 matches), and ORB matches little across
+  // keyframe saw the other one (the survey's desks: 16-32 matches), and ORB matches little across
   // that turn. On the survey model's 200 photos, 15 matches and 3 places turned one twin desk's
   // wrong pose into "ambiguous" and one ambiguous photo into a right pose (25 and 2: 6 wrong).
   int twin_min_matches = 15;
