@@ -83,19 +83,31 @@ __attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t
   }
 }
 
-// KNearest with AVX-512's vector popcount, on CPUs that have it (checked at run time): the
-// references' words transposed (word w of reference r at w * stride + r, padded to whole blocks
-// of eight), so that eight references' distances to a query take four loads, XORs and popcounts,
-// and one compare skips a block with nothing nearer than the k-th so far. 3,000 x 6,000
-// descriptors (a photo against a place): 21.6 -> 8.1 ms (slam/matching_benchmark.cc).
+// The references' words transposed for the vector kernels: word w of reference r at
+// w * stride + r, the stride padded to whole blocks of `block` references (padding all ones;
+// the kernels skip it by index).
+std::vector<uint64_t> Columns(const uint64_t* reference, int num_reference, size_t block,
+                              size_t* stride) {
+  *stride = (static_cast<size_t>(num_reference) + block - 1) / block * block;
+  std::vector<uint64_t> columns(4 * *stride, ~uint64_t{0});
+  for (int r = 0; r < num_reference; ++r) {
+    for (size_t w = 0; w < 4; ++w) {
+      columns[w * *stride + static_cast<size_t>(r)] = reference[4 * static_cast<size_t>(r) + w];
+    }
+  }
+  return columns;
+}
+
+// KNearest with AVX-512's vector popcount, on CPUs that have it (checked at run time): with the
+// references' words transposed (Columns), eight references' distances to a query take four
+// loads, XORs and popcounts, and one compare skips a block with nothing nearer than the k-th so
+// far. 3,000 x 6,000 descriptors (a photo against a place): 21.6 -> 8.1 ms on an AMD EPYC with
+// AVX-512 (slam/matching_benchmark.cc).
 __attribute__((target("avx512f,avx512vpopcntdq"))) void KNearestAvx512(
     const uint64_t* query, int num_query, const uint64_t* reference, int num_reference, int k,
     int* indices, int* distances) {
-  const size_t stride = (static_cast<size_t>(num_reference) + 7) / 8 * 8;
-  std::vector<uint64_t> columns(4 * stride, ~uint64_t{0});
-  for (int r = 0; r < num_reference; ++r) {
-    for (int w = 0; w < 4; ++w) columns[w * stride + r] = reference[4 * static_cast<size_t>(r) + w];
-  }
+  size_t stride = 0;
+  const std::vector<uint64_t> columns = Columns(reference, num_reference, 8, &stride);
   alignas(64) uint64_t lanes[8];
   for (int q = 0; q < num_query; ++q) {
     const uint64_t* a = query + 4 * static_cast<size_t>(q);
@@ -126,6 +138,69 @@ __attribute__((target("avx512f,avx512vpopcntdq"))) void KNearestAvx512(
         if (((nearer >> lane) & 1) == 0 || ref >= num_reference) continue;
         OfferNearest(ref, static_cast<int>(lanes[lane]), k, index, distance);
       }
+    }
+  }
+}
+
+// The bits set in each byte of x, by two 16-entry table look-ups (its nibbles).
+__attribute__((target("avx2"))) inline __m256i BitsPerByte(__m256i x) {
+  const __m256i nibble_bits = _mm256_setr_epi8(0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4, 0, 1,
+                                               1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4);
+  const __m256i low_nibble = _mm256_set1_epi8(0x0f);
+  const __m256i low = _mm256_and_si256(x, low_nibble);
+  const __m256i high = _mm256_and_si256(_mm256_srli_epi16(x, 4), low_nibble);
+  return _mm256_add_epi8(_mm256_shuffle_epi8(nibble_bits, low),
+                         _mm256_shuffle_epi8(nibble_bits, high));
+}
+
+// BitsPerByte of one descriptor word XOR four references' same word.
+__attribute__((target("avx2"))) inline __m256i WordBits(__m256i query_word,
+                                                        const uint64_t* reference_words) {
+  return BitsPerByte(_mm256_xor_si256(
+      query_word, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(reference_words))));
+}
+
+// KNearest for CPUs with AVX2 but not AVX-512's vector popcount (AMD Zen 2 and 3, Intel before
+// Ice Lake): the same transposed words, four references a block; the four words' bits per byte
+// are added, and one sum of absolute differences against zero adds each reference's 32 byte
+// counts into its distance.
+__attribute__((target("avx2"))) void KNearestAvx2(const uint64_t* query, int num_query,
+                                                  const uint64_t* reference, int num_reference,
+                                                  int k, int* indices, int* distances) {
+  size_t stride = 0;
+  const std::vector<uint64_t> columns = Columns(reference, num_reference, 4, &stride);
+  const uint64_t* c0 = columns.data();
+  const uint64_t* c1 = c0 + stride;
+  const uint64_t* c2 = c1 + stride;
+  const uint64_t* c3 = c2 + stride;
+  alignas(32) uint64_t lanes[4];
+  for (int q = 0; q < num_query; ++q) {
+    const uint64_t* a = query + 4 * static_cast<size_t>(q);
+    const __m256i a0 = _mm256_set1_epi64x(static_cast<long long>(a[0]));
+    const __m256i a1 = _mm256_set1_epi64x(static_cast<long long>(a[1]));
+    const __m256i a2 = _mm256_set1_epi64x(static_cast<long long>(a[2]));
+    const __m256i a3 = _mm256_set1_epi64x(static_cast<long long>(a[3]));
+    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
+    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
+    std::fill(index, index + k, -1);
+    std::fill(distance, distance + k, kNoDistance);
+    __m256i kth = _mm256_set1_epi64x(distance[k - 1]);
+    for (size_t r = 0; r < stride; r += 4) {
+      // At most 4 x 8 bits per byte: the byte sums cannot overflow.
+      const __m256i bytes =
+          _mm256_add_epi8(_mm256_add_epi8(WordBits(a0, c0 + r), WordBits(a1, c1 + r)),
+                          _mm256_add_epi8(WordBits(a2, c2 + r), WordBits(a3, c3 + r)));
+      const __m256i sum = _mm256_sad_epu8(bytes, _mm256_setzero_si256());
+      // Most blocks hold nothing nearer than the k-th nearest so far: one compare skips them.
+      const int nearer = _mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(kth, sum)));
+      if (nearer == 0) continue;
+      _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), sum);
+      for (int lane = 0; lane < 4; ++lane) {
+        const int ref = static_cast<int>(r) + lane;
+        if (((nearer >> lane) & 1) == 0 || ref >= num_reference) continue;
+        OfferNearest(ref, static_cast<int>(lanes[lane]), k, index, distance);
+      }
+      kth = _mm256_set1_epi64x(distance[k - 1]);
     }
   }
 }
@@ -205,11 +280,31 @@ BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& refer
   return neighbours;
 }
 
-bool HasAvx512Popcount() { return __builtin_cpu_supports("avx512vpopcntdq"); }
+bool HasKernel(BinaryKernel kernel) {
+  switch (kernel) {
+    case BinaryKernel::kAvx512:
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vpopcntdq");
+    case BinaryKernel::kAvx2:
+      return __builtin_cpu_supports("avx2");
+    case BinaryKernel::kFastest:
+    case BinaryKernel::kPortable:
+      return true;
+  }
+  return false;
+}
+
+BinaryKernel FastestKernel() {
+  if (HasKernel(BinaryKernel::kAvx512)) return BinaryKernel::kAvx512;
+  if (HasKernel(BinaryKernel::kAvx2)) return BinaryKernel::kAvx2;
+  return BinaryKernel::kPortable;
+}
 
 std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
-                                                    int k, bool portable) {
+                                                    int k, BinaryKernel kernel) {
   SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");
+  SIGHTMAP_CHECK(HasKernel(kernel),
+                 "this CPU lacks the instructions of the k-nearest kernel asked for");
+  if (kernel == BinaryKernel::kFastest) kernel = FastestKernel();
   SIGHTMAP_CHECK(query.type() == CV_8U && reference.type() == CV_8U &&
                      (query.empty() || query.cols == 32) &&
                      (reference.empty() || reference.cols == 32),
@@ -219,9 +314,12 @@ std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const 
   std::vector<int> distances(slots);
   const std::vector<uint64_t> query_words = Words(query);
   const std::vector<uint64_t> reference_words = Words(reference);
-  if (!portable && HasAvx512Popcount()) {
+  if (kernel == BinaryKernel::kAvx512) {
     KNearestAvx512(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
                    indices.data(), distances.data());
+  } else if (kernel == BinaryKernel::kAvx2) {
+    KNearestAvx2(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
+                 indices.data(), distances.data());
   } else {
     KNearest(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
              indices.data(), distances.data());

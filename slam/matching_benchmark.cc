@@ -17,23 +17,26 @@ cv::Mat RandomDescriptors(int rows, uint64_t seed) {
   return descriptors;
 }
 
-// range(2): 1 forces the portable kernel, 0 takes the AVX-512 one where the CPU has it.
+// range(2): the kernel (slam::BinaryKernel: 1 AVX-512, 2 AVX2, 3 portable); one this CPU lacks
+// is skipped.
 void BM_KNearestBinary(benchmark::State& state) {
   const cv::Mat query = RandomDescriptors(static_cast<int>(state.range(0)), 1);
   const cv::Mat reference = RandomDescriptors(static_cast<int>(state.range(1)), 2);
-  const bool portable = state.range(2) != 0;
+  const auto kernel = static_cast<BinaryKernel>(state.range(2));
+  if (!HasKernel(kernel)) {
+    state.SkipWithError("this CPU lacks the kernel's instructions");
+    return;
+  }
   for (auto _ : state) {
-    benchmark::DoNotOptimize(KNearestBinary(query, reference, 4, portable));
+    benchmark::DoNotOptimize(KNearestBinary(query, reference, 4, kernel));
   }
   state.counters["pairs/s"] =
       benchmark::Counter(static_cast<double>(state.range(0)) * static_cast<double>(state.range(1)),
                          benchmark::Counter::kIsIterationInvariantRate);
 }
 BENCHMARK(BM_KNearestBinary)
-    ->Args({3000, 6000, 0})
-    ->Args({3000, 6000, 1})
-    ->Args({1000, 1000, 0})
-    ->Args({1000, 1000, 1})
+    ->ArgsProduct({{3000}, {6000}, {1, 2, 3}})
+    ->ArgsProduct({{1000}, {1000}, {1, 2, 3}})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace

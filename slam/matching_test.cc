@@ -104,27 +104,44 @@ TEST(Matching, KNearestAreOpenCvsKnnMatch) {
   EXPECT_EQ(four[1][2].distance, 0.0f);
 }
 
-// Both kernels give the same lists, ties included, at reference counts that fill the AVX-512
-// kernel's blocks of eight and that do not (its padding is never a neighbour, even for a query
-// that matches the padding's bits exactly).
+// Every kernel this CPU runs gives the portable kernel's lists, ties included, at reference
+// counts that fill the vector kernels' blocks (of four and eight) and that do not (their padding
+// is never a neighbour, even for a query that matches the padding's bits exactly).
 TEST(Matching, KNearestKernelsAgree) {
-  if (!HasAvx512Popcount()) GTEST_SKIP() << "this CPU has no AVX-512 popcount: one kernel only";
-  for (const int rows : {1, 7, 8, 9, 403}) {
-    cv::Mat query, reference;
-    PlantedDescriptors(120, rows, &query, &reference);
-    query.row(0).setTo(cv::Scalar(255));  // all ones, as the padding
-    reference.row(0).copyTo(reference.row(rows - 1));
-    for (const int k : {1, 4}) {
-      const auto fast = KNearestBinary(query, reference, k);
-      const auto portable = KNearestBinary(query, reference, k, /*portable=*/true);
-      ASSERT_EQ(fast.size(), portable.size());
-      for (size_t q = 0; q < fast.size(); ++q) {
-        SCOPED_TRACE(testing::Message() << rows << " references, k " << k << ", query " << q);
-        ExpectSameMatches(fast[q], portable[q]);
-        for (const cv::DMatch& match : fast[q]) EXPECT_LT(match.trainIdx, rows);
+  int compared = 0;
+  for (const BinaryKernel kernel : {BinaryKernel::kAvx512, BinaryKernel::kAvx2}) {
+    if (!HasKernel(kernel)) continue;
+    ++compared;
+    for (const int rows : {1, 3, 4, 5, 7, 8, 9, 403}) {
+      cv::Mat query, reference;
+      PlantedDescriptors(120, rows, &query, &reference);
+      query.row(0).setTo(cv::Scalar(255));  // all ones, as the padding
+      reference.row(0).copyTo(reference.row(rows - 1));
+      for (const int k : {1, 4}) {
+        const auto fast = KNearestBinary(query, reference, k, kernel);
+        const auto portable = KNearestBinary(query, reference, k, BinaryKernel::kPortable);
+        ASSERT_EQ(fast.size(), portable.size());
+        for (size_t q = 0; q < fast.size(); ++q) {
+          SCOPED_TRACE(testing::Message() << "kernel " << static_cast<int>(kernel) << ", " << rows
+                                          << " references, k " << k << ", query " << q);
+          ExpectSameMatches(fast[q], portable[q]);
+          for (const cv::DMatch& match : fast[q]) EXPECT_LT(match.trainIdx, rows);
+        }
       }
     }
   }
+  if (compared == 0) GTEST_SKIP() << "this CPU has neither AVX2 nor AVX-512: one kernel only";
+}
+
+TEST(Matching, KNearestRefusesAKernelTheCpuLacks) {
+  cv::Mat query, reference;
+  PlantedDescriptors(3, 5, &query, &reference);
+  for (const BinaryKernel kernel : {BinaryKernel::kAvx512, BinaryKernel::kAvx2}) {
+    if (HasKernel(kernel)) continue;
+    EXPECT_THROW(KNearestBinary(query, reference, 2, kernel), std::exception);
+  }
+  EXPECT_TRUE(HasKernel(BinaryKernel::kPortable));
+  EXPECT_TRUE(HasKernel(BinaryKernel::kFastest));
 }
 
 TEST(Matching, KNearestOfFewerReferencesThanKListsThemAll) {
