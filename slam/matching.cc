@@ -257,6 +257,148 @@ std::vector<cv::DMatch> MatchWithOpenCv(const cv::Mat& query, const cv::Mat& ref
   return matches;
 }
 
+// Per query the k slots the kernels filled (-1: none), as cv::DMatch lists with `to_distance`
+// of each kernel distance.
+template <typename ToDistance>
+std::vector<std::vector<cv::DMatch>> ToDMatches(int num_query, int k,
+                                                const std::vector<int>& indices,
+                                                const std::vector<int>& distances,
+                                                ToDistance to_distance) {
+  std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(num_query));
+  for (int q = 0; q < num_query; ++q) {
+    std::vector<cv::DMatch>& neighbours = knn[static_cast<size_t>(q)];
+    for (int j = 0; j < k; ++j) {
+      const size_t slot = static_cast<size_t>(q) * static_cast<size_t>(k) + static_cast<size_t>(j);
+      if (indices[slot] < 0) break;
+      neighbours.emplace_back(q, indices[slot], to_distance(distances[slot]));
+    }
+  }
+  return knn;
+}
+
+// Sum of squared differences of two byte rows of `cols` bytes: 16 bytes a step with SSE2 (every
+// x86-64 CPU has it), widened to 16-bit and squared and added in pairs; the rest byte by byte.
+int SquaredDistance(const uint8_t* a, const uint8_t* b, int cols) {
+  const __m128i zero = _mm_setzero_si128();
+  __m128i sums = zero;
+  int c = 0;
+  for (; c + 16 <= cols; c += 16) {
+    const __m128i va = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a + c));
+    const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + c));
+    const __m128i low = _mm_sub_epi16(_mm_unpacklo_epi8(va, zero), _mm_unpacklo_epi8(vb, zero));
+    const __m128i high = _mm_sub_epi16(_mm_unpackhi_epi8(va, zero), _mm_unpackhi_epi8(vb, zero));
+    sums = _mm_add_epi32(sums, _mm_add_epi32(_mm_madd_epi16(low, low), _mm_madd_epi16(high, high)));
+  }
+  alignas(16) int lanes[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(lanes), sums);
+  int sum = lanes[0] + lanes[1] + lanes[2] + lanes[3];
+  for (; c < cols; ++c) {
+    const int d = static_cast<int>(a[c]) - static_cast<int>(b[c]);
+    sum += d * d;
+  }
+  return sum;
+}
+
+// Each byte query row's k nearest byte reference rows by squared distance (OfferNearest).
+void KNearestBytes(const cv::Mat& query, const cv::Mat& reference, int k, int* indices,
+                   int* distances) {
+  for (int q = 0; q < query.rows; ++q) {
+    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
+    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
+    std::fill(index, index + k, -1);
+    std::fill(distance, distance + k, kNoDistance);
+    const uint8_t* a = query.ptr<uint8_t>(q);
+    for (int r = 0; r < reference.rows; ++r) {
+      OfferNearest(r, SquaredDistance(a, reference.ptr<uint8_t>(r), query.cols), k, index,
+                   distance);
+    }
+  }
+}
+
+// Squared differences of a query's 16 bytes (as 16-bit) and a reference's, added in pairs into
+// eight 32-bit sums: at most 2 x 255^2 each, no overflow.
+__attribute__((target("avx2"))) inline __m256i AddSquaredDifferences(__m256i sums,
+                                                                     __m256i query_words,
+                                                                     const uint8_t* reference) {
+  const __m256i r =
+      _mm256_cvtepu8_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(reference)));
+  const __m256i d = _mm256_sub_epi16(query_words, r);
+  return _mm256_add_epi32(sums, _mm256_madd_epi16(d, d));
+}
+
+// KNearestBytes for rows of a multiple of 16 bytes (RootSIFT's 128), on CPUs with AVX2: the query
+// row widened to 16-bit once, four references a block, their eight partial sums each reduced
+// together by three horizontal adds, and one compare skips a block with nothing nearer than the
+// k-th so far.
+__attribute__((target("avx2"))) void KNearestBytesAvx2(const cv::Mat& query,
+                                                       const cv::Mat& reference, int k,
+                                                       int* indices, int* distances) {
+  const int chunks = query.cols / 16;
+  std::vector<int16_t> widened(static_cast<size_t>(query.cols));
+  const int blocks = reference.rows / 4;
+  for (int q = 0; q < query.rows; ++q) {
+    const uint8_t* a = query.ptr<uint8_t>(q);
+    std::copy(a, a + query.cols, widened.begin());
+    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
+    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
+    std::fill(index, index + k, -1);
+    std::fill(distance, distance + k, kNoDistance);
+    alignas(16) int lanes[4];
+    for (int block = 0; block < blocks; ++block) {
+      const int r = 4 * block;
+      const uint8_t* b0 = reference.ptr<uint8_t>(r);
+      const uint8_t* b1 = reference.ptr<uint8_t>(r + 1);
+      const uint8_t* b2 = reference.ptr<uint8_t>(r + 2);
+      const uint8_t* b3 = reference.ptr<uint8_t>(r + 3);
+      __m256i s0 = _mm256_setzero_si256();
+      __m256i s1 = _mm256_setzero_si256();
+      __m256i s2 = _mm256_setzero_si256();
+      __m256i s3 = _mm256_setzero_si256();
+      for (int c = 0; c < chunks; ++c) {
+        const __m256i w = _mm256_loadu_si256(
+            reinterpret_cast<const __m256i*>(&widened[16 * static_cast<size_t>(c)]));
+        s0 = AddSquaredDifferences(s0, w, b0 + 16 * c);
+        s1 = AddSquaredDifferences(s1, w, b1 + 16 * c);
+        s2 = AddSquaredDifferences(s2, w, b2 + 16 * c);
+        s3 = AddSquaredDifferences(s3, w, b3 + 16 * c);
+      }
+      // Per 128-bit half: [sum s0, sum s1, sum s2, sum s3] of that half's four lanes each.
+      const __m256i halves =
+          _mm256_hadd_epi32(_mm256_hadd_epi32(s0, s1), _mm256_hadd_epi32(s2, s3));
+      const __m128i sums =
+          _mm_add_epi32(_mm256_castsi256_si128(halves), _mm256_extracti128_si256(halves, 1));
+      const int nearer =
+          _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32(distance[k - 1]), sums)));
+      if (nearer == 0) continue;
+      _mm_store_si128(reinterpret_cast<__m128i*>(lanes), sums);
+      for (int lane = 0; lane < 4; ++lane) {
+        if ((nearer >> lane) & 1) OfferNearest(r + lane, lanes[lane], k, index, distance);
+      }
+    }
+    for (int r = 4 * blocks; r < reference.rows; ++r) {
+      OfferNearest(r, SquaredDistance(a, reference.ptr<uint8_t>(r), query.cols), k, index,
+                   distance);
+    }
+  }
+}
+
+// The k nearest of byte rows, exactly, as cv::DMatch lists with Euclidean distances computed as
+// cv::BFMatcher does (the float square root of the sum).
+std::vector<std::vector<cv::DMatch>> KNearestEuclideanBytes(const cv::Mat& query,
+                                                            const cv::Mat& reference, int k,
+                                                            MatchKernel kernel) {
+  const size_t slots = static_cast<size_t>(query.rows) * static_cast<size_t>(k);
+  std::vector<int> indices(slots);
+  std::vector<int> distances(slots);
+  if (kernel != MatchKernel::kPortable && query.cols % 16 == 0 && HasKernel(MatchKernel::kAvx2)) {
+    KNearestBytesAvx2(query, reference, k, indices.data(), distances.data());
+  } else {
+    KNearestBytes(query, reference, k, indices.data(), distances.data());
+  }
+  return ToDMatches(query.rows, k, indices, distances,
+                    [](int d) { return std::sqrt(static_cast<float>(d)); });
+}
+
 }  // namespace
 
 bool MatchOptions::Check(std::string* error) const {
@@ -280,31 +422,31 @@ BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& refer
   return neighbours;
 }
 
-bool HasKernel(BinaryKernel kernel) {
+bool HasKernel(MatchKernel kernel) {
   switch (kernel) {
-    case BinaryKernel::kAvx512:
+    case MatchKernel::kAvx512:
       return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vpopcntdq");
-    case BinaryKernel::kAvx2:
+    case MatchKernel::kAvx2:
       return __builtin_cpu_supports("avx2");
-    case BinaryKernel::kFastest:
-    case BinaryKernel::kPortable:
+    case MatchKernel::kFastest:
+    case MatchKernel::kPortable:
       return true;
   }
   return false;
 }
 
-BinaryKernel FastestKernel() {
-  if (HasKernel(BinaryKernel::kAvx512)) return BinaryKernel::kAvx512;
-  if (HasKernel(BinaryKernel::kAvx2)) return BinaryKernel::kAvx2;
-  return BinaryKernel::kPortable;
+MatchKernel FastestKernel() {
+  if (HasKernel(MatchKernel::kAvx512)) return MatchKernel::kAvx512;
+  if (HasKernel(MatchKernel::kAvx2)) return MatchKernel::kAvx2;
+  return MatchKernel::kPortable;
 }
 
 std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
-                                                    int k, BinaryKernel kernel) {
+                                                    int k, MatchKernel kernel) {
   SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");
   SIGHTMAP_CHECK(HasKernel(kernel),
                  "this CPU lacks the instructions of the k-nearest kernel asked for");
-  if (kernel == BinaryKernel::kFastest) kernel = FastestKernel();
+  if (kernel == MatchKernel::kFastest) kernel = FastestKernel();
   SIGHTMAP_CHECK(query.type() == CV_8U && reference.type() == CV_8U &&
                      (query.empty() || query.cols == 32) &&
                      (reference.empty() || reference.cols == 32),
@@ -314,30 +456,22 @@ std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const 
   std::vector<int> distances(slots);
   const std::vector<uint64_t> query_words = Words(query);
   const std::vector<uint64_t> reference_words = Words(reference);
-  if (kernel == BinaryKernel::kAvx512) {
+  if (kernel == MatchKernel::kAvx512) {
     KNearestAvx512(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
                    indices.data(), distances.data());
-  } else if (kernel == BinaryKernel::kAvx2) {
+  } else if (kernel == MatchKernel::kAvx2) {
     KNearestAvx2(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
                  indices.data(), distances.data());
   } else {
     KNearest(query_words.data(), query.rows, reference_words.data(), reference.rows, k,
              indices.data(), distances.data());
   }
-  std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(query.rows));
-  for (int q = 0; q < query.rows; ++q) {
-    std::vector<cv::DMatch>& neighbours = knn[static_cast<size_t>(q)];
-    for (int j = 0; j < k; ++j) {
-      const size_t slot = static_cast<size_t>(q) * static_cast<size_t>(k) + static_cast<size_t>(j);
-      if (indices[slot] < 0) break;
-      neighbours.emplace_back(q, indices[slot], static_cast<float>(distances[slot]));
-    }
-  }
-  return knn;
+  return ToDMatches(query.rows, k, indices, distances, [](int d) { return static_cast<float>(d); });
 }
 
 std::vector<std::vector<cv::DMatch>> KNearestEuclidean(const cv::Mat& query,
-                                                       const cv::Mat& reference, int k) {
+                                                       const cv::Mat& reference, int k,
+                                                       MatchKernel kernel) {
   SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");
   SIGHTMAP_CHECK((query.type() == CV_8U || query.type() == CV_32F) &&
                      query.type() == reference.type() &&
@@ -345,6 +479,9 @@ std::vector<std::vector<cv::DMatch>> KNearestEuclidean(const cv::Mat& query,
                  "Euclidean k nearest needs byte or float rows of one width");
   std::vector<std::vector<cv::DMatch>> knn(static_cast<size_t>(query.rows));
   if (query.empty() || reference.empty()) return knn;
+  SIGHTMAP_CHECK(HasKernel(kernel),
+                 "this CPU lacks the instructions of the k-nearest kernel asked for");
+  if (query.type() == CV_8U) return KNearestEuclideanBytes(query, reference, k, kernel);
   cv::Mat query_f;
   cv::Mat reference_f;
   query.convertTo(query_f, CV_32F);

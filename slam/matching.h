@@ -34,16 +34,21 @@ struct BinaryNeighbours {
 };
 BinaryNeighbours FindBinaryNeighbours(const cv::Mat& query, const cv::Mat& reference);
 
-// KNearestBinary's kernels, which give the same lists. kFastest: the first of the others this CPU
+// The k-nearest kernels, which give the same lists. kFastest: the first of the others this CPU
 // runs (checked at run time); tests and benchmarks name one to compare them.
-enum class BinaryKernel {
+enum class MatchKernel {
   kFastest,
-  kAvx512,    // AVX-512's vector popcount (AMD Zen 4, Intel Ice Lake and later)
-  kAvx2,      // nibble table look-ups (AMD Zen 2 and 3, Intel Haswell to Comet Lake)
-  kPortable,  // the popcount instruction where there is one, else bit arithmetic
+  // Hamming: AVX-512's vector popcount (AMD Zen 4, Intel Ice Lake and later); Euclidean: AVX2's.
+  kAvx512,
+  // Hamming: nibble table look-ups; Euclidean: 16-bit differences squared and added in pairs
+  // (AMD Zen 2 and later, Intel Haswell and later).
+  kAvx2,
+  // Hamming: the popcount instruction where there is one, else bit arithmetic; Euclidean: SSE2,
+  // one pair of rows at a time.
+  kPortable,
 };
 // Whether this CPU runs `kernel`.
-bool HasKernel(BinaryKernel kernel);
+bool HasKernel(MatchKernel kernel);
 
 // For every query descriptor its k nearest references by Hamming distance (256-bit descriptors),
 // nearest first; fewer when the reference has fewer rows. The same lists, in the same order, as
@@ -53,15 +58,18 @@ bool HasKernel(BinaryKernel kernel);
 // for a kernel this CPU lacks.
 std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
                                                     int k,
-                                                    BinaryKernel kernel = BinaryKernel::kFastest);
+                                                    MatchKernel kernel = MatchKernel::kFastest);
 
 // For every query descriptor its k nearest references by Euclidean distance (equal-width byte or
 // float rows: RootSIFT), nearest first; fewer when the reference has fewer rows. Distances in the
-// rows' own units. Exact up to kExactEuclideanPairs query x reference pairs, approximate above
-// (randomised kd-trees, seeded, so the same input gives the same answer).
+// rows' own units. Byte rows are compared exactly, by integer sums of squares (the same lists as
+// cv::BFMatcher(cv::NORM_L2).knnMatch of the rows as floats, ties included; `kernel` as for
+// KNearestBinary). Float rows: exact up to kExactEuclideanPairs query x reference pairs,
+// approximate above (randomised kd-trees, seeded, so the same input gives the same answer).
 inline constexpr double kExactEuclideanPairs = 4e6;
 std::vector<std::vector<cv::DMatch>> KNearestEuclidean(const cv::Mat& query,
-                                                       const cv::Mat& reference, int k);
+                                                       const cv::Mat& reference, int k,
+                                                       MatchKernel kernel = MatchKernel::kFastest);
 
 // Matches query descriptors to reference descriptors (both CV_8U binary, or both CV_32F).
 // DMatch::queryIdx indexes `query`, trainIdx indexes `reference`.

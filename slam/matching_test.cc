@@ -109,7 +109,7 @@ TEST(Matching, KNearestAreOpenCvsKnnMatch) {
 // is never a neighbour, even for a query that matches the padding's bits exactly).
 TEST(Matching, KNearestKernelsAgree) {
   int compared = 0;
-  for (const BinaryKernel kernel : {BinaryKernel::kAvx512, BinaryKernel::kAvx2}) {
+  for (const MatchKernel kernel : {MatchKernel::kAvx512, MatchKernel::kAvx2}) {
     if (!HasKernel(kernel)) continue;
     ++compared;
     for (const int rows : {1, 3, 4, 5, 7, 8, 9, 403}) {
@@ -119,7 +119,7 @@ TEST(Matching, KNearestKernelsAgree) {
       reference.row(0).copyTo(reference.row(rows - 1));
       for (const int k : {1, 4}) {
         const auto fast = KNearestBinary(query, reference, k, kernel);
-        const auto portable = KNearestBinary(query, reference, k, BinaryKernel::kPortable);
+        const auto portable = KNearestBinary(query, reference, k, MatchKernel::kPortable);
         ASSERT_EQ(fast.size(), portable.size());
         for (size_t q = 0; q < fast.size(); ++q) {
           SCOPED_TRACE(testing::Message() << "kernel " << static_cast<int>(kernel) << ", " << rows
@@ -136,12 +136,12 @@ TEST(Matching, KNearestKernelsAgree) {
 TEST(Matching, KNearestRefusesAKernelTheCpuLacks) {
   cv::Mat query, reference;
   PlantedDescriptors(3, 5, &query, &reference);
-  for (const BinaryKernel kernel : {BinaryKernel::kAvx512, BinaryKernel::kAvx2}) {
+  for (const MatchKernel kernel : {MatchKernel::kAvx512, MatchKernel::kAvx2}) {
     if (HasKernel(kernel)) continue;
     EXPECT_THROW(KNearestBinary(query, reference, 2, kernel), std::exception);
   }
-  EXPECT_TRUE(HasKernel(BinaryKernel::kPortable));
-  EXPECT_TRUE(HasKernel(BinaryKernel::kFastest));
+  EXPECT_TRUE(HasKernel(MatchKernel::kPortable));
+  EXPECT_TRUE(HasKernel(MatchKernel::kFastest));
 }
 
 TEST(Matching, KNearestOfFewerReferencesThanKListsThemAll) {
@@ -217,35 +217,72 @@ void PlantedByteRows(int num_query, int num_reference, cv::Mat* query, cv::Mat* 
   }
 }
 
-TEST(Matching, EuclideanKNearestIsOpenCvsKnnMatchWhenExact) {
-  cv::Mat query;
-  cv::Mat reference;
-  PlantedByteRows(200, 300, &query, &reference);
-  ASSERT_LE(200.0 * 300.0, kExactEuclideanPairs);
-  const auto knn = KNearestEuclidean(query, reference, 3);
+// OpenCV's brute-force k nearest of byte rows compared as floats.
+std::vector<std::vector<cv::DMatch>> OpenCvEuclideanKnn(const cv::Mat& query,
+                                                        const cv::Mat& reference, int k) {
   cv::Mat query_f;
   cv::Mat reference_f;
   query.convertTo(query_f, CV_32F);
   reference.convertTo(reference_f, CV_32F);
   std::vector<std::vector<cv::DMatch>> expected;
-  cv::BFMatcher(cv::NORM_L2).knnMatch(query_f, reference_f, expected, 3);
-  ASSERT_EQ(knn.size(), 200u);
-  for (size_t q = 0; q < knn.size(); ++q) {
-    ASSERT_EQ(knn[q].size(), 3u);
-    for (size_t j = 0; j < 3; ++j) {
-      EXPECT_EQ(knn[q][j].trainIdx, expected[q][j].trainIdx) << q << " " << j;
-      EXPECT_NEAR(knn[q][j].distance, expected[q][j].distance, 1e-3);
+  cv::BFMatcher(cv::NORM_L2).knnMatch(query_f, reference_f, expected, k);
+  return expected;
+}
+
+// Byte rows are compared exactly by every kernel this CPU runs: OpenCV's lists, ties included
+// (duplicated references), distances to the last bit, at reference counts that fill the AVX2
+// kernel's blocks of four and that do not, and at a width it does not take (40 bytes).
+TEST(Matching, EuclideanKNearestOfBytesIsOpenCvsKnnMatch) {
+  for (const MatchKernel kernel :
+       {MatchKernel::kFastest, MatchKernel::kAvx2, MatchKernel::kPortable}) {
+    if (!HasKernel(kernel)) continue;
+    for (const int rows : {1, 3, 4, 5, 301}) {
+      for (const int cols : {128, 40}) {
+        cv::Mat query;
+        cv::Mat reference;
+        PlantedByteRows(60, rows, &query, &reference);
+        query = query.colRange(0, cols).clone();
+        reference = reference.colRange(0, cols).clone();
+        reference.row(0).copyTo(reference.row(rows - 1));
+        for (const int k : {1, 3}) {
+          const auto knn = KNearestEuclidean(query, reference, k, kernel);
+          const auto expected = OpenCvEuclideanKnn(query, reference, k);
+          ASSERT_EQ(knn.size(), expected.size());
+          for (size_t q = 0; q < knn.size(); ++q) {
+            SCOPED_TRACE(testing::Message() << "kernel " << static_cast<int>(kernel) << ", " << rows
+                                            << " x " << cols << ", k " << k << ", query " << q);
+            ExpectSameMatches(knn[q], expected[q]);
+          }
+        }
+      }
     }
-    EXPECT_EQ(knn[q][0].trainIdx, static_cast<int>((q * 7) % 300));
   }
 }
 
-// Above kExactEuclideanPairs the kd-trees answer: nearly every planted neighbour is found, with
-// its true distance, and the same input gives the same answer.
-TEST(Matching, EuclideanKNearestOfManyPairsFindsThePlantedNeighbourTheSameWayTwice) {
+TEST(Matching, EuclideanKNearestOfBytesFindsThePlantedNeighbourAtAnySize) {
   cv::Mat query;
   cv::Mat reference;
   PlantedByteRows(1000, 6000, &query, &reference);
+  ASSERT_GT(1000.0 * 6000.0, kExactEuclideanPairs);  // float rows would go to the kd-trees
+  const auto knn = KNearestEuclidean(query, reference, 2);
+  ASSERT_EQ(knn.size(), 1000u);
+  for (size_t q = 0; q < knn.size(); ++q) {
+    ASSERT_EQ(knn[q].size(), 2u);
+    EXPECT_EQ(knn[q][0].trainIdx, static_cast<int>((q * 7) % 6000)) << q;
+    EXPECT_LE(knn[q][0].distance, knn[q][1].distance);
+  }
+}
+
+// Float rows above kExactEuclideanPairs are answered by kd-trees: nearly every planted neighbour
+// is found, with its true distance, and the same input gives the same answer.
+TEST(Matching, EuclideanKNearestOfManyFloatPairsFindsThePlantedNeighbourTheSameWayTwice) {
+  cv::Mat query_bytes;
+  cv::Mat reference_bytes;
+  PlantedByteRows(1000, 6000, &query_bytes, &reference_bytes);
+  cv::Mat query;
+  cv::Mat reference;
+  query_bytes.convertTo(query, CV_32F);
+  reference_bytes.convertTo(reference, CV_32F);
   ASSERT_GT(1000.0 * 6000.0, kExactEuclideanPairs);
   const auto knn = KNearestEuclidean(query, reference, 2);
   const auto again = KNearestEuclidean(query, reference, 2);
