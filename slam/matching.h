@@ -40,8 +40,9 @@ enum class MatchKernel {
   kFastest,
   // Hamming: AVX-512's vector popcount (AMD Zen 4, Intel Ice Lake and later); Euclidean: AVX2's.
   kAvx512,
-  // Hamming: nibble table look-ups; Euclidean: 16-bit differences squared and added in pairs
-  // (AMD Zen 2 and later, Intel Haswell and later).
+  // Hamming: nibble table look-ups; Euclidean: 16-bit differences squared and added in pairs,
+  // for rows of a multiple of 16 bytes (others run the portable kernel). AMD Zen 2 and later,
+  // Intel Haswell and later.
   kAvx2,
   // Hamming: the popcount instruction where there is one, else bit arithmetic; Euclidean: SSE2,
   // one pair of rows at a time.
