@@ -24,6 +24,7 @@
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
 #include "render/image_file.h"
+#include "slam/matching.h"
 #include "store/model.h"
 
 namespace sightmap::cli {
@@ -111,7 +112,8 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
     std::cout << std::left << std::setw(20) << ToString(static_cast<identify::TruthType>(type))
               << std::right << std::setw(12) << row[1] << std::setw(16) << row[0] << "\n";
   }
-  std::cout << "\ntimings [ms]   median      p95     mean      max\n";
+  std::cout << "\ntimings [ms]   median      p95     mean      max   (matching kernel: "
+            << slam::KernelName(slam::FastestKernel()) << ")\n";
   for (const char* stage : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
     const auto found = e.stages.find(stage);
     if (found == e.stages.end()) continue;
@@ -305,6 +307,7 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     out["queries"] = args.queries_path;
     out["keyframes"] = locator->NumKeyframes();
     out["model_load_s"] = load_s;
+    out["match_kernel"] = slam::KernelName(slam::FastestKernel());
     out["plot"] = args.plot_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.plot_path);
     out["covered"] = covered ? identify::ToJson(*covered) : nlohmann::json(nullptr);
     out["not_covered"] = not_covered ? identify::ToJson(*not_covered) : nlohmann::json(nullptr);

@@ -441,6 +441,20 @@ MatchKernel FastestKernel() {
   return MatchKernel::kPortable;
 }
 
+std::string KernelName(MatchKernel kernel) {
+  switch (kernel) {
+    case MatchKernel::kFastest:
+      return "fastest";
+    case MatchKernel::kAvx512:
+      return "avx512";
+    case MatchKernel::kAvx2:
+      return "avx2";
+    case MatchKernel::kPortable:
+      return "portable";
+  }
+  return "unknown";
+}
+
 std::vector<std::vector<cv::DMatch>> KNearestBinary(const cv::Mat& query, const cv::Mat& reference,
                                                     int k, MatchKernel kernel) {
   SIGHTMAP_CHECK(k >= 1, "k nearest needs k >= 1");

@@ -50,6 +50,10 @@ enum class MatchKernel {
 };
 // Whether this CPU runs `kernel`.
 bool HasKernel(MatchKernel kernel);
+// The kernel kFastest picks on this CPU, and a kernel's name ("avx512", "avx2", "portable",
+// "fastest"): timings are only comparable between runs on the same kernel.
+MatchKernel FastestKernel();
+std::string KernelName(MatchKernel kernel);
 
 // For every query descriptor its k nearest references by Hamming distance (256-bit descriptors),
 // nearest first; fewer when the reference has fewer rows. The same lists, in the same order, as

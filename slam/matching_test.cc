@@ -142,6 +142,10 @@ TEST(Matching, KNearestRefusesAKernelTheCpuLacks) {
   }
   EXPECT_TRUE(HasKernel(MatchKernel::kPortable));
   EXPECT_TRUE(HasKernel(MatchKernel::kFastest));
+  EXPECT_TRUE(HasKernel(FastestKernel()));
+  EXPECT_NE(FastestKernel(), MatchKernel::kFastest);
+  EXPECT_EQ(KernelName(MatchKernel::kAvx2), "avx2");
+  EXPECT_EQ(KernelName(MatchKernel::kPortable), "portable");
 }
 
 TEST(Matching, KNearestOfFewerReferencesThanKListsThemAll) {

@@ -32,6 +32,7 @@
 #include "identify/exif_testing.h"
 #include "identify/identify_eval.h"
 #include "identify/sim_model_testing.h"
+#include "slam/matching.h"
 #include "tests/command_runner.h"
 #include "tests/test_data.h"
 
@@ -736,6 +737,9 @@ TEST_F(ServeTest, EvalIdentifyReportsThePapersFigures) {
   }
   EXPECT_EQ(e["photos"], 6);
   EXPECT_GT(e["locate_median_ms"].get<double>(), 0.0);
+  // Which matching kernel the timings came from: this CPU's fastest.
+  EXPECT_EQ(e["match_kernel"], slam::KernelName(slam::FastestKernel()));
+  EXPECT_NE(e["match_kernel"], "fastest");
   EXPECT_NE(json.err.find("6/6 photos"), std::string::npos) << json.err;  // progress
   const cv::Mat image = cv::imread(plot);
   EXPECT_EQ(image.cols, 1200);
