@@ -65,6 +65,34 @@ inline void OfferNearest(int r, int d, int k, int* index, int* distance) {
   index[j] = r;
 }
 
+// One query's k nearest references so far: its k slots of a kernel's output arrays, emptied on
+// construction (index -1, distance kNoDistance), nearest first.
+struct NearestSlots {
+  NearestSlots(int q, int num_nearest, int* indices, int* distances)
+      : k(num_nearest),
+        index(indices + static_cast<size_t>(q) * static_cast<size_t>(num_nearest)),
+        distance(distances + static_cast<size_t>(q) * static_cast<size_t>(num_nearest)) {
+    std::fill(index, index + k, -1);
+    std::fill(distance, distance + k, kNoDistance);
+  }
+  int Kth() const { return distance[k - 1]; }
+  void Offer(int r, int d) { OfferNearest(r, d, k, index, distance); }
+  // A vector kernel's block of `count` references from `first`: offers the lanes the bit mask
+  // `nearer` marks, skipping the padding past num_reference.
+  template <typename Lane>
+  void OfferLanes(int first, const Lane* lanes, int count, int nearer, int num_reference) {
+    for (int lane = 0; lane < count; ++lane) {
+      const int ref = first + lane;
+      if (((nearer >> lane) & 1) == 0 || ref >= num_reference) continue;
+      Offer(ref, static_cast<int>(lanes[lane]));
+    }
+  }
+
+  int k;
+  int* index;
+  int* distance;
+};
+
 // Each query's k nearest references, nearest first (OfferNearest).
 __attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t* query,
                                                                   int num_query,
@@ -73,12 +101,9 @@ __attribute__((target_clones("popcnt", "default"))) void KNearest(const uint64_t
                                                                   int* indices, int* distances) {
   for (int q = 0; q < num_query; ++q) {
     const uint64_t* a = query + 4 * static_cast<size_t>(q);
-    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
-    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
-    std::fill(index, index + k, -1);
-    std::fill(distance, distance + k, kNoDistance);
+    NearestSlots nearest(q, k, indices, distances);
     for (int r = 0; r < num_reference; ++r) {
-      OfferNearest(r, Hamming256(a, reference + 4 * static_cast<size_t>(r)), k, index, distance);
+      nearest.Offer(r, Hamming256(a, reference + 4 * static_cast<size_t>(r)));
     }
   }
 }
@@ -115,10 +140,7 @@ __attribute__((target("avx512f,avx512vpopcntdq"))) void KNearestAvx512(
     const __m512i a1 = _mm512_set1_epi64(static_cast<long long>(a[1]));
     const __m512i a2 = _mm512_set1_epi64(static_cast<long long>(a[2]));
     const __m512i a3 = _mm512_set1_epi64(static_cast<long long>(a[3]));
-    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
-    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
-    std::fill(index, index + k, -1);
-    std::fill(distance, distance + k, kNoDistance);
+    NearestSlots nearest(q, k, indices, distances);
     for (size_t r = 0; r < stride; r += 8) {
       const __m512i d0 =
           _mm512_popcnt_epi64(_mm512_xor_si512(a0, _mm512_loadu_si512(&columns[0 * stride + r])));
@@ -130,14 +152,10 @@ __attribute__((target("avx512f,avx512vpopcntdq"))) void KNearestAvx512(
           _mm512_popcnt_epi64(_mm512_xor_si512(a3, _mm512_loadu_si512(&columns[3 * stride + r])));
       const __m512i sum = _mm512_add_epi64(_mm512_add_epi64(d0, d1), _mm512_add_epi64(d2, d3));
       // Most blocks hold nothing nearer than the k-th nearest so far: one compare skips them.
-      __mmask8 nearer = _mm512_cmplt_epi64_mask(sum, _mm512_set1_epi64(distance[k - 1]));
+      __mmask8 nearer = _mm512_cmplt_epi64_mask(sum, _mm512_set1_epi64(nearest.Kth()));
       if (nearer == 0) continue;
       _mm512_store_si512(lanes, sum);
-      for (int lane = 0; lane < 8; ++lane) {
-        const int ref = static_cast<int>(r) + lane;
-        if (((nearer >> lane) & 1) == 0 || ref >= num_reference) continue;
-        OfferNearest(ref, static_cast<int>(lanes[lane]), k, index, distance);
-      }
+      nearest.OfferLanes(static_cast<int>(r), lanes, 8, nearer, num_reference);
     }
   }
 }
@@ -180,11 +198,8 @@ __attribute__((target("avx2"))) void KNearestAvx2(const uint64_t* query, int num
     const __m256i a1 = _mm256_set1_epi64x(static_cast<long long>(a[1]));
     const __m256i a2 = _mm256_set1_epi64x(static_cast<long long>(a[2]));
     const __m256i a3 = _mm256_set1_epi64x(static_cast<long long>(a[3]));
-    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
-    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
-    std::fill(index, index + k, -1);
-    std::fill(distance, distance + k, kNoDistance);
-    __m256i kth = _mm256_set1_epi64x(distance[k - 1]);
+    NearestSlots nearest(q, k, indices, distances);
+    __m256i kth = _mm256_set1_epi64x(nearest.Kth());
     for (size_t r = 0; r < stride; r += 4) {
       // At most 4 x 8 bits per byte: the byte sums cannot overflow.
       const __m256i bytes =
@@ -195,12 +210,8 @@ __attribute__((target("avx2"))) void KNearestAvx2(const uint64_t* query, int num
       const int nearer = _mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(kth, sum)));
       if (nearer == 0) continue;
       _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), sum);
-      for (int lane = 0; lane < 4; ++lane) {
-        const int ref = static_cast<int>(r) + lane;
-        if (((nearer >> lane) & 1) == 0 || ref >= num_reference) continue;
-        OfferNearest(ref, static_cast<int>(lanes[lane]), k, index, distance);
-      }
-      kth = _mm256_set1_epi64x(distance[k - 1]);
+      nearest.OfferLanes(static_cast<int>(r), lanes, 4, nearer, num_reference);
+      kth = _mm256_set1_epi64x(nearest.Kth());
     }
   }
 }
@@ -303,14 +314,10 @@ int SquaredDistance(const uint8_t* a, const uint8_t* b, int cols) {
 void KNearestBytes(const cv::Mat& query, const cv::Mat& reference, int k, int* indices,
                    int* distances) {
   for (int q = 0; q < query.rows; ++q) {
-    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
-    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
-    std::fill(index, index + k, -1);
-    std::fill(distance, distance + k, kNoDistance);
+    NearestSlots nearest(q, k, indices, distances);
     const uint8_t* a = query.ptr<uint8_t>(q);
     for (int r = 0; r < reference.rows; ++r) {
-      OfferNearest(r, SquaredDistance(a, reference.ptr<uint8_t>(r), query.cols), k, index,
-                   distance);
+      nearest.Offer(r, SquaredDistance(a, reference.ptr<uint8_t>(r), query.cols));
     }
   }
 }
@@ -339,10 +346,7 @@ __attribute__((target("avx2"))) void KNearestBytesAvx2(const cv::Mat& query,
   for (int q = 0; q < query.rows; ++q) {
     const uint8_t* a = query.ptr<uint8_t>(q);
     std::copy(a, a + query.cols, widened.begin());
-    int* index = indices + static_cast<size_t>(q) * static_cast<size_t>(k);
-    int* distance = distances + static_cast<size_t>(q) * static_cast<size_t>(k);
-    std::fill(index, index + k, -1);
-    std::fill(distance, distance + k, kNoDistance);
+    NearestSlots nearest(q, k, indices, distances);
     alignas(16) int lanes[4];
     for (int block = 0; block < blocks; ++block) {
       const int r = 4 * block;
@@ -368,16 +372,13 @@ __attribute__((target("avx2"))) void KNearestBytesAvx2(const cv::Mat& query,
       const __m128i sums =
           _mm_add_epi32(_mm256_castsi256_si128(halves), _mm256_extracti128_si256(halves, 1));
       const int nearer =
-          _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32(distance[k - 1]), sums)));
+          _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32(nearest.Kth()), sums)));
       if (nearer == 0) continue;
       _mm_store_si128(reinterpret_cast<__m128i*>(lanes), sums);
-      for (int lane = 0; lane < 4; ++lane) {
-        if ((nearer >> lane) & 1) OfferNearest(r + lane, lanes[lane], k, index, distance);
-      }
+      nearest.OfferLanes(r, lanes, 4, nearer, reference.rows);
     }
     for (int r = 4 * blocks; r < reference.rows; ++r) {
-      OfferNearest(r, SquaredDistance(a, reference.ptr<uint8_t>(r), query.cols), k, index,
-                   distance);
+      nearest.Offer(r, SquaredDistance(a, reference.ptr<uint8_t>(r), query.cols));
     }
   }
 }
