@@ -5,7 +5,6 @@
 #include <limits>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
@@ -14,8 +13,8 @@
 namespace sightmap::sim {
 
 bool DepthSensorOptions::Check(std::string* error) const {
-  if (!(min_depth_m > 0.0 && max_depth_m > min_depth_m)) {
-    *error = "need 0 < min_depth_m < max_depth_m";
+  if (!(min_depth_m > 0.0 && max_depth_m > min_depth_m && max_depth_m <= 65.535)) {
+    *error = "need 0 < min_depth_m < max_depth_m <= 65.535 (depth is 16-bit millimetres)";
     return false;
   }
   if (axial_noise_coeff < 0.0 || focal_baseline_px_m <= 0.0 || disparity_step_px < 0.0) {
@@ -46,6 +45,227 @@ bool ColorSensorOptions::Check(std::string* error) const {
   return true;
 }
 
+namespace {
+
+// 1. Projector shadow, row by row: a pixel is shadowed when a pixel to its emitter side maps to
+//    the same or a smaller emitter column (something closer blocks the emitter's ray).
+void MarkProjectorShadow(const cv::Mat& depth_m, double focal_offset_px_m, cv::Mat* keep) {
+  const bool emitter_right = focal_offset_px_m > 0.0;
+  const int w = depth_m.cols;
+  for (int v = 0; v < depth_m.rows; ++v) {
+    const float* z = depth_m.ptr<float>(v);
+    uint8_t* kp = keep->ptr<uint8_t>(v);
+    double extreme = emitter_right ? std::numeric_limits<double>::infinity()
+                                   : -std::numeric_limits<double>::infinity();
+    for (int i = 0; i < w; ++i) {
+      const int u = emitter_right ? w - 1 - i : i;
+      if (z[u] <= 0.0f) continue;
+      const double ue = u - focal_offset_px_m / z[u];
+      if (emitter_right ? ue >= extreme : ue <= extreme) {
+        kp[u] = 0;
+      } else {
+        extreme = ue;
+      }
+    }
+  }
+}
+
+// The normalised image coordinates of the pixel grid, x = (u - cx) / fx a column and
+// y = (v - cy) / fy a row, with their one-pixel neighbours x +- 1 / fx and y +- 1 / fy: computed
+// once a frame rather than once a pixel (three divisions a pixel were a third of the model's
+// time).
+struct PixelGrid {
+  PixelGrid(const Intrinsics& k, int width, int height) {
+    const double dx = 1.0 / k.fx, dy = 1.0 / k.fy;
+    for (int u = 0; u < width; ++u) {
+      x.push_back((u - k.cx) / k.fx);
+      x_right.push_back(x.back() + dx);
+      x_left.push_back(x.back() - dx);
+    }
+    for (int v = 0; v < height; ++v) {
+      y.push_back((v - k.cy) / k.fy);
+      y_down.push_back(y.back() + dy);
+      y_up.push_back(y.back() - dy);
+    }
+  }
+  std::vector<double> x, x_right, x_left;
+  std::vector<double> y, y_down, y_up;
+};
+
+// |cos| of the angle between the viewing ray (x, y, 1) and the surface normal from the
+// back-projected 4-neighbours; -1 when they give no normal. Written out in the order Eigen's
+// cross, dot and norm of 3-vectors evaluate (left to right), so the dropouts are those the Eigen
+// expression gave; no branch, so the row's loop vectorises.
+inline double IncidenceCosine(double x, double x_right, double x_left, double y, double y_down,
+                              double y_up, float zl, float zr, float zu, float zd) {
+  const double h0 = x_right * zr - x_left * zl;
+  const double h1 = y * (zr - zl);
+  const double h2 = zr - zl;
+  const double v0 = x * (zd - zu);
+  const double v1 = y_down * zd - y_up * zu;
+  const double v2 = zd - zu;
+  const double n0 = h1 * v2 - h2 * v1;
+  const double n1 = h2 * v0 - h0 * v2;
+  const double n2 = h0 * v1 - h1 * v0;
+  const double norm = std::sqrt((n0 * n0 + n1 * n1) + n2 * n2) * std::sqrt((x * x + y * y) + 1.0);
+  const double cosine = std::abs((n0 * x + n1 * y) + n2) / norm;
+  return norm > 0.0 ? cosine : -1.0;
+}
+
+// std::round of x (half away from zero) where x >= 0, and some value <= 0 where x <= 0, without a
+// call: adding and taking away 2^52 rounds to the nearest integer, ties to even, and the one tie
+// that went down is moved up. Exact: x - r is representable (|x - r| <= 0.5).
+inline double RoundHalfUp(double x) {
+  constexpr double kTwo52 = 4503599627370496.0;  // from here on every double is an integer
+  const double r = (x + kTwo52) - kTwo52;
+  const double up = x - r == 0.5 ? r + 1.0 : r;
+  return x < kTwo52 ? up : x;
+}
+
+// What a pixel of one row returns, decided in passes so that the random draws, which must come in
+// column order from the row's stream, are the only serial part: geometry first, then the draws,
+// then the noise arithmetic; the first and last are loops without branches or calls, vectorised.
+enum class Return : uint8_t { kNone, kSure, kDiscontinuity, kGrazing };
+
+struct RowScratch {
+  explicit RowScratch(int width)
+      : code(static_cast<size_t>(width), Return::kNone),
+        cosine(static_cast<size_t>(width), 0.0),
+        normal(static_cast<size_t>(width), 0.0) {}
+  std::vector<Return> code;
+  std::vector<double> cosine;  // |cos| of the incidence; a grazing pixel's dropout probability
+  std::vector<double> normal;  // a returning pixel's standard normal draw
+};
+
+struct RowGeometry {
+  const float* z;
+  const float* z_up;    // nullptr on the image's first and last rows
+  const float* z_down;  // nullptr on the image's first and last rows
+  const uint8_t* no_depth;
+  const uint8_t* keep;
+};
+
+// Pass one (a): the incidence of every pixel with four neighbours.
+__attribute__((target_clones("avx2", "default"))) void RowIncidence(const RowGeometry& row,
+                                                                    int u_begin, int u_end,
+                                                                    const PixelGrid& grid, int v,
+                                                                    double* cosine) {
+  const double y = grid.y[static_cast<size_t>(v)];
+  const double y_down = grid.y_down[static_cast<size_t>(v)];
+  const double y_up = grid.y_up[static_cast<size_t>(v)];
+  const double* x = grid.x.data();
+  const double* x_right = grid.x_right.data();
+  const double* x_left = grid.x_left.data();
+  const float* z = row.z;
+  const float* z_up = row.z_up;
+  const float* z_down = row.z_down;
+  for (int u = u_begin; u < u_end; ++u) {
+    cosine[u] = IncidenceCosine(x[u], x_right[u], x_left[u], y, y_down, y_up, z[u - 1], z[u + 1],
+                                z_up[u], z_down[u]);
+  }
+}
+
+// Pass one (b): projector shadow, no-return materials, discontinuities and incidence.
+void ClassifyRow(const RowGeometry& row, int v, int u_begin, int u_end, int width,
+                 const PixelGrid& grid, const DepthSensorOptions& options, RowScratch* scratch) {
+  const bool inner_row = row.z_up != nullptr;
+  const int inner_begin = std::max(u_begin, 1);
+  const int inner_end = std::min(u_end, width - 1);
+  if (inner_row && inner_begin < inner_end) {
+    RowIncidence(row, inner_begin, inner_end, grid, v, scratch->cosine.data());
+  }
+  const double cos_start = std::cos(options.grazing_start_deg * M_PI / 180.0);
+  const double cos_max = std::cos(options.grazing_max_deg * M_PI / 180.0);
+  const float relative_jump = static_cast<float>(options.discontinuity_relative);
+  const float* z = row.z;
+  for (int u = u_begin; u < u_end; ++u) {
+    const size_t i = static_cast<size_t>(u);
+    Return& code = scratch->code[i];
+    const float z0 = z[u];
+    code = Return::kNone;
+    if (z0 <= 0.0f || row.no_depth[u] || !row.keep[u]) continue;
+    code = Return::kSure;
+    if (!inner_row || u == 0 || u == width - 1) continue;
+    const float jump = relative_jump * z0;
+    if (std::abs(z[u - 1] - z0) > jump || std::abs(z[u + 1] - z0) > jump ||
+        std::abs(row.z_up[u] - z0) > jump || std::abs(row.z_down[u] - z0) > jump) {
+      code = Return::kDiscontinuity;
+      continue;
+    }
+    double& cos_incidence = scratch->cosine[i];
+    if (cos_incidence < 0.0 || cos_incidence >= cos_start) continue;
+    if (cos_incidence < cos_max) {
+      code = Return::kNone;
+    } else {
+      code = Return::kGrazing;
+      cos_incidence = (cos_start - cos_incidence) / (cos_start - cos_max);
+    }
+  }
+}
+
+// Pass two: the row's draws in column order: a dropout draw where pass one left a chance, a
+// standard normal for every pixel that returns (cv::RNG::gaussian(s) is that draw times s).
+void DrawRow(int u_begin, int u_end, double discontinuity_dropout, cv::RNG* rng,
+             RowScratch* scratch) {
+  for (int u = u_begin; u < u_end; ++u) {
+    const size_t i = static_cast<size_t>(u);
+    Return& code = scratch->code[i];
+    if (code == Return::kNone) continue;
+    if ((code == Return::kDiscontinuity && rng->uniform(0.0, 1.0) < discontinuity_dropout) ||
+        (code == Return::kGrazing && rng->uniform(0.0, 1.0) < scratch->cosine[i])) {
+      code = Return::kNone;
+      continue;
+    }
+    code = Return::kSure;
+    scratch->normal[i] = rng->gaussian(1.0);
+  }
+}
+
+// Pass three: noise in disparity and its quantisation, to millimetres (0 where nothing returns).
+__attribute__((target_clones("avx2", "default"))) void MeasureRow(
+    const float* z, int u_begin, int u_end, const DepthSensorOptions& options, const Return* code,
+    const double* normal, uint16_t* out) {
+  const double fb = options.focal_baseline_px_m;
+  const double step = options.disparity_step_px;
+  const double min_depth_m = options.min_depth_m;
+  const double max_depth_m = options.max_depth_m;
+  const double quantise = step > 0.0 ? 1.0 : 0.0;
+  const double divisor = step > 0.0 ? step : 1.0;
+  for (int u = u_begin; u < u_end; ++u) {
+    // Quantisation contributes delta^2 / 12 of the variance.
+    const double z0 = z[u];
+    const double sigma = options.DepthStdDev(z0);
+    const double delta = options.DepthStep(z0);
+    const double gauss_sigma = std::sqrt(std::max(sigma * sigma - delta * delta / 12.0, 0.0));
+    const double raw = fb / z0 + normal[u] * (gauss_sigma * fb / (z0 * z0));
+    const double disparity = quantise > 0.0 ? RoundHalfUp(raw / divisor) * divisor : raw;
+    const double zm = fb / disparity;
+    const bool valid =
+        code[u] == Return::kSure && disparity > 0.0 && zm >= min_depth_m && zm <= max_depth_m;
+    // Check() keeps max_depth_m within 16-bit millimetres, so the integer conversion is exact.
+    const int mm = static_cast<int>(RoundHalfUp(valid ? zm * 1000.0 : 0.0));
+    out[u] = static_cast<uint16_t>(mm);
+  }
+}
+
+// A colour row's exposure gain and sensor noise (standard normal draws given), to 8 bits as
+// cv::saturate_cast does, rounded to nearest, ties to even (cvRound's conversion): clamped first,
+// which gives the same bytes, then rounded by adding and taking away 2^23.
+__attribute__((target_clones("avx2", "default"))) void AddNoiseRow(const uint8_t* in,
+                                                                   const float* noise, int n,
+                                                                   float gain, float read,
+                                                                   float shot, uint8_t* out) {
+  for (int i = 0; i < n; ++i) {
+    const float level = gain * in[i];
+    const float value = level + noise[i] * (read + shot * std::sqrt(level));
+    const float clamped = std::min(std::max(value, 0.0f), 255.0f);
+    constexpr float kTwo23 = 8388608.0f;  // from here on every float is an integer
+    out[i] = static_cast<uint8_t>((clamped + kTwo23) - kTwo23);
+  }
+}
+
+}  // namespace
+
 cv::Mat SimulateDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, const Intrinsics& k,
                       const DepthSensorOptions& options, uint64_t seed) {
   SIGHTMAP_CHECK_OPTIONS(options);
@@ -55,90 +275,31 @@ cv::Mat SimulateDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, cons
   const int w = depth_m.cols;
   const int h = depth_m.rows;
   cv::Mat keep(h, w, CV_8U, cv::Scalar(255));
-
-  // 1. Projector shadow, row by row: a pixel is shadowed when a pixel to its emitter side maps
-  //    to the same or a smaller emitter column (something closer blocks the emitter's ray).
   if (options.projector_offset_m != 0.0) {
-    const double shift = k.fx * options.projector_offset_m;
-    const bool emitter_right = options.projector_offset_m > 0.0;
-    for (int v = 0; v < h; ++v) {
-      const float* z = depth_m.ptr<float>(v);
-      uint8_t* kp = keep.ptr<uint8_t>(v);
-      double extreme = emitter_right ? std::numeric_limits<double>::infinity()
-                                     : -std::numeric_limits<double>::infinity();
-      for (int i = 0; i < w; ++i) {
-        const int u = emitter_right ? w - 1 - i : i;
-        if (z[u] <= 0.0f) continue;
-        const double ue = u - shift / z[u];
-        if (emitter_right ? ue >= extreme : ue <= extreme) {
-          kp[u] = 0;
-        } else {
-          extreme = ue;
-        }
-      }
-    }
+    MarkProjectorShadow(depth_m, k.fx * options.projector_offset_m, &keep);
   }
 
   // 2.-5. Per row, in parallel; each row draws from its own random stream so the result does not
   //       depend on the number of threads.
-  const double cos_start = std::cos(options.grazing_start_deg * M_PI / 180.0);
-  const double cos_max = std::cos(options.grazing_max_deg * M_PI / 180.0);
-  const double fb = options.focal_baseline_px_m;
-  const double step = options.disparity_step_px;
+  const DepthSensorOptions opt = options;
+  const PixelGrid grid(k, w, h);
+  const int u_begin = opt.border_left_px;
+  const int u_end = w - opt.border_right_px;
+  const int v_begin = opt.border_top_px;
+  const int v_end = h - opt.border_bottom_px;
   cv::Mat out(h, w, CV_16U, cv::Scalar(0));
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-    for (int v = rows.start; v < rows.end; ++v) {
+    RowScratch scratch(w);
+    for (int v = std::max(rows.start, v_begin); v < std::min(rows.end, v_end); ++v) {
+      const bool inner_row = v > 0 && v < h - 1;
+      const RowGeometry row{depth_m.ptr<float>(v), inner_row ? depth_m.ptr<float>(v - 1) : nullptr,
+                            inner_row ? depth_m.ptr<float>(v + 1) : nullptr,
+                            no_depth_mask.ptr<uint8_t>(v), keep.ptr<uint8_t>(v)};
+      ClassifyRow(row, v, u_begin, u_end, w, grid, opt, &scratch);
       cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
-      const float* z = depth_m.ptr<float>(v);
-      const uint8_t* no_depth = no_depth_mask.ptr<uint8_t>(v);
-      uint8_t* kp = keep.ptr<uint8_t>(v);
-      uint16_t* o = out.ptr<uint16_t>(v);
-      const bool row_in_border = v < options.border_top_px || v >= h - options.border_bottom_px;
-      const double y = (v - k.cy) / k.fy;  // ray (x, y, 1) through the pixel
-      for (int u = 0; u < w; ++u) {
-        if (z[u] <= 0.0f || no_depth[u] || !kp[u]) continue;
-        if (row_in_border || u < options.border_left_px || u >= w - options.border_right_px) {
-          continue;
-        }
-        if (u > 0 && v > 0 && u < w - 1 && v < h - 1) {
-          const float zl = z[u - 1], zr = z[u + 1];
-          const float zu = depth_m.ptr<float>(v - 1)[u], zd = depth_m.ptr<float>(v + 1)[u];
-          const float jump = static_cast<float>(options.discontinuity_relative) * z[u];
-          const bool discontinuity = std::abs(zl - z[u]) > jump || std::abs(zr - z[u]) > jump ||
-                                     std::abs(zu - z[u]) > jump || std::abs(zd - z[u]) > jump;
-          if (discontinuity) {
-            if (rng.uniform(0.0, 1.0) < options.discontinuity_dropout) continue;
-          } else {
-            // Surface normal from the back-projected neighbours, against the viewing ray.
-            const double x = (u - k.cx) / k.fx;
-            const double dx = 1.0 / k.fx, dy = 1.0 / k.fy;
-            const Eigen::Vector3d horizontal((x + dx) * zr - (x - dx) * zl, y * (zr - zl), zr - zl);
-            const Eigen::Vector3d vertical(x * (zd - zu), (y + dy) * zd - (y - dy) * zu, zd - zu);
-            const Eigen::Vector3d normal = horizontal.cross(vertical);
-            const Eigen::Vector3d ray(x, y, 1.0);
-            const double norm = normal.norm() * ray.norm();
-            if (norm > 0.0) {
-              const double cos_incidence = std::abs(normal.dot(ray)) / norm;
-              if (cos_incidence < cos_max) continue;
-              if (cos_incidence < cos_start &&
-                  rng.uniform(0.0, 1.0) < (cos_start - cos_incidence) / (cos_start - cos_max)) {
-                continue;
-              }
-            }
-          }
-        }
-        // Noise in disparity; quantisation contributes delta^2 / 12 of the variance.
-        const double z0 = z[u];
-        const double sigma = options.DepthStdDev(z0);
-        const double delta = options.DepthStep(z0);
-        const double gauss_sigma = std::sqrt(std::max(sigma * sigma - delta * delta / 12.0, 0.0));
-        double disparity = fb / z0 + rng.gaussian(gauss_sigma * fb / (z0 * z0));
-        if (step > 0.0) disparity = std::round(disparity / step) * step;
-        if (disparity <= 0.0) continue;
-        const double zm = fb / disparity;
-        if (zm < options.min_depth_m || zm > options.max_depth_m) continue;
-        o[u] = static_cast<uint16_t>(std::lround(zm * 1000.0));
-      }
+      DrawRow(u_begin, u_end, opt.discontinuity_dropout, &rng, &scratch);
+      MeasureRow(row.z, u_begin, u_end, opt, scratch.code.data(), scratch.normal.data(),
+                 out.ptr<uint16_t>(v));
     }
   });
   return out;
@@ -179,14 +340,8 @@ cv::Mat SimulateColor(const cv::Mat& bgr, double gain, const Eigen::Vector2d& bl
       cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
       cv::Mat noise_row(1, image.cols * 3, CV_32F, noise.data());
       rng.fill(noise_row, cv::RNG::NORMAL, 0.0, 1.0);
-      const uint8_t* in = image.ptr<uint8_t>(v);
-      uint8_t* o = out.ptr<uint8_t>(v);
-      for (int i = 0; i < image.cols * 3; ++i) {
-        const float level = g * in[i];
-        const float value =
-            level + noise[static_cast<size_t>(i)] * (read + shot * std::sqrt(level));
-        o[i] = cv::saturate_cast<uint8_t>(value);
-      }
+      AddNoiseRow(image.ptr<uint8_t>(v), noise.data(), image.cols * 3, g, read, shot,
+                  out.ptr<uint8_t>(v));
     }
   });
   return out;

@@ -1,12 +1,15 @@
 #include "sim/sensor_model.h"
 
 #include <cmath>
+#include <limits>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
 #include "render/mesh_renderer.h"
+#include "sim/random.h"
 #include "sim/simulator.h"
 #include "sim/trajectory.h"
 
@@ -157,10 +160,185 @@ TEST(SensorModel, ColourGainBlurAndNoise) {
   EXPECT_NEAR(std_diff[0], sigma * std::sqrt(2.0), 0.15 * sigma * std::sqrt(2.0));
 }
 
+// The depth model as its header defines it, a pixel at a time (Eigen for the normal, the C library
+// for rounding): SimulateDepth computes it in vectorised passes and must give the same bits.
+cv::Mat ReferenceDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, const Intrinsics& k,
+                       const DepthSensorOptions& options, uint64_t seed) {
+  const int w = depth_m.cols;
+  const int h = depth_m.rows;
+  cv::Mat keep(h, w, CV_8U, cv::Scalar(255));
+  if (options.projector_offset_m != 0.0) {
+    const double shift = k.fx * options.projector_offset_m;
+    const bool emitter_right = options.projector_offset_m > 0.0;
+    for (int v = 0; v < h; ++v) {
+      double extreme = emitter_right ? std::numeric_limits<double>::infinity()
+                                     : -std::numeric_limits<double>::infinity();
+      for (int i = 0; i < w; ++i) {
+        const int u = emitter_right ? w - 1 - i : i;
+        const float z = depth_m.at<float>(v, u);
+        if (z <= 0.0f) continue;
+        const double ue = u - shift / z;
+        if (emitter_right ? ue >= extreme : ue <= extreme) {
+          keep.at<uint8_t>(v, u) = 0;
+        } else {
+          extreme = ue;
+        }
+      }
+    }
+  }
+  const double cos_start = std::cos(options.grazing_start_deg * M_PI / 180.0);
+  const double cos_max = std::cos(options.grazing_max_deg * M_PI / 180.0);
+  const double fb = options.focal_baseline_px_m;
+  const double step = options.disparity_step_px;
+  cv::Mat out(h, w, CV_16U, cv::Scalar(0));
+  for (int v = 0; v < h; ++v) {
+    cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
+    const double y = (v - k.cy) / k.fy;
+    for (int u = 0; u < w; ++u) {
+      const float z = depth_m.at<float>(v, u);
+      if (z <= 0.0f || no_depth_mask.at<uint8_t>(v, u) || !keep.at<uint8_t>(v, u)) continue;
+      if (v < options.border_top_px || v >= h - options.border_bottom_px ||
+          u < options.border_left_px || u >= w - options.border_right_px) {
+        continue;
+      }
+      if (u > 0 && v > 0 && u < w - 1 && v < h - 1) {
+        const float zl = depth_m.at<float>(v, u - 1), zr = depth_m.at<float>(v, u + 1);
+        const float zu = depth_m.at<float>(v - 1, u), zd = depth_m.at<float>(v + 1, u);
+        const float jump = static_cast<float>(options.discontinuity_relative) * z;
+        if (std::abs(zl - z) > jump || std::abs(zr - z) > jump || std::abs(zu - z) > jump ||
+            std::abs(zd - z) > jump) {
+          if (rng.uniform(0.0, 1.0) < options.discontinuity_dropout) continue;
+        } else {
+          const double x = (u - k.cx) / k.fx;
+          const double dx = 1.0 / k.fx, dy = 1.0 / k.fy;
+          const Eigen::Vector3d horizontal((x + dx) * zr - (x - dx) * zl, y * (zr - zl), zr - zl);
+          const Eigen::Vector3d vertical(x * (zd - zu), (y + dy) * zd - (y - dy) * zu, zd - zu);
+          const Eigen::Vector3d normal = horizontal.cross(vertical);
+          const Eigen::Vector3d ray(x, y, 1.0);
+          const double norm = normal.norm() * ray.norm();
+          if (norm > 0.0) {
+            const double cos_incidence = std::abs(normal.dot(ray)) / norm;
+            if (cos_incidence < cos_max) continue;
+            if (cos_incidence < cos_start &&
+                rng.uniform(0.0, 1.0) < (cos_start - cos_incidence) / (cos_start - cos_max)) {
+              continue;
+            }
+          }
+        }
+      }
+      const double z0 = z;
+      const double sigma = options.DepthStdDev(z0);
+      const double delta = options.DepthStep(z0);
+      const double gauss_sigma = std::sqrt(std::max(sigma * sigma - delta * delta / 12.0, 0.0));
+      double disparity = fb / z0 + rng.gaussian(gauss_sigma * fb / (z0 * z0));
+      if (step > 0.0) disparity = std::round(disparity / step) * step;
+      if (disparity <= 0.0) continue;
+      const double zm = fb / disparity;
+      if (zm < options.min_depth_m || zm > options.max_depth_m) continue;
+      out.at<uint16_t>(v, u) = static_cast<uint16_t>(std::lround(zm * 1000.0));
+    }
+  }
+  return out;
+}
+
+int CountDifferent(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat differ;
+  cv::compare(a, b, differ, cv::CMP_NE);
+  return cv::countNonZero(differ.reshape(1));
+}
+
+// Simulated frames of the office (hand-held and robot, several sensor variants) give the depth of
+// the per-pixel definition to the bit.
+TEST(SensorModel, DepthIsThePerPixelDefinitionBitForBit) {
+  DepthSensorOptions mirrored;
+  mirrored.projector_offset_m = -0.075;
+  DepthSensorOptions plain;  // no quantisation, shadow or border; more dropout
+  plain.disparity_step_px = 0.0;
+  plain.projector_offset_m = 0.0;
+  plain.border_left_px = plain.border_right_px = plain.border_top_px = plain.border_bottom_px = 0;
+  plain.discontinuity_relative = 0.01;
+  plain.grazing_start_deg = 40.0;
+  for (const TrajectoryKind kind : {TrajectoryKind::kHandheld, TrajectoryKind::kRobot}) {
+    SimulatorOptions sim_options;
+    sim_options.trajectory = kind;
+    Simulator simulator(sim_options);
+    for (const int64_t index : {0, 137, 1450}) {
+      const render::RenderedView view =
+          simulator.renderer().Render(sim_options.camera, simulator.WorldFromCam(index));
+      for (const DepthSensorOptions& options : {DepthSensorOptions(), mirrored, plain}) {
+        const uint64_t seed = static_cast<uint64_t>(index) + 7;
+        const cv::Mat fast =
+            SimulateDepth(view.depth, view.no_depth, sim_options.camera, options, seed);
+        const cv::Mat reference =
+            ReferenceDepth(view.depth, view.no_depth, sim_options.camera, options, seed);
+        ASSERT_GT(cv::countNonZero(reference), 50000) << "frame " << index;
+        EXPECT_EQ(CountDifferent(fast, reference), 0) << "frame " << index;
+      }
+    }
+  }
+}
+
+// Quantisation rounds half a step away from zero, as std::round does: 5 / 2 m = 2.5 px is 3 px
+// (1.667 m), not the 2 px (2.5 m) of rounding to even.
+TEST(SensorModel, QuantisationRoundsHalfAStepUp) {
+  DepthSensorOptions options;
+  options.axial_noise_coeff = 0.0;
+  options.focal_baseline_px_m = 5.0;
+  options.disparity_step_px = 1.0;
+  options.projector_offset_m = 0.0;
+  const cv::Mat ideal(48, 64, CV_32F, cv::Scalar(2.0));
+  const cv::Mat mask(48, 64, CV_8U, cv::Scalar(0));
+  const cv::Mat depth = SimulateDepth(ideal, mask, KinectIntrinsics().Scaled(64, 48), options, 1);
+  EXPECT_EQ(depth.at<uint16_t>(24, 20), 1667);
+  EXPECT_EQ(CountDifferent(
+                depth, ReferenceDepth(ideal, mask, KinectIntrinsics().Scaled(64, 48), options, 1)),
+            0);
+}
+
+// The colour model as its header defines it, a pixel at a time with cv::saturate_cast.
+cv::Mat ReferenceNoise(const cv::Mat& bgr, double gain, const ColorSensorOptions& options,
+                       uint64_t seed) {
+  cv::Mat out(bgr.size(), CV_8UC3);
+  std::vector<float> noise(static_cast<size_t>(bgr.cols) * 3);
+  for (int v = 0; v < bgr.rows; ++v) {
+    cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
+    cv::Mat noise_row(1, bgr.cols * 3, CV_32F, noise.data());
+    rng.fill(noise_row, cv::RNG::NORMAL, 0.0, 1.0);
+    for (int i = 0; i < bgr.cols * 3; ++i) {
+      const float level = static_cast<float>(gain) * bgr.ptr<uint8_t>(v)[i];
+      const float value = level + noise[static_cast<size_t>(i)] *
+                                      (static_cast<float>(options.read_noise) +
+                                       static_cast<float>(options.shot_noise) * std::sqrt(level));
+      out.ptr<uint8_t>(v)[i] = cv::saturate_cast<uint8_t>(value);
+    }
+  }
+  return out;
+}
+
+// Gain and noise give the bytes of the per-pixel definition, clipped at both ends included.
+TEST(SensorModel, ColourNoiseIsThePerPixelDefinitionBitForBit) {
+  cv::Mat bgr(97, 131, CV_8UC3);
+  cv::RNG(5).fill(bgr, cv::RNG::UNIFORM, 0, 256);
+  ColorSensorOptions options;
+  options.read_noise = 9.0;  // enough to push dark pixels below 0 and bright ones above 255
+  int clipped_white = 0, clipped_black = 0;
+  for (const double gain : {0.5, 1.0, 1.7}) {
+    const cv::Mat fast = SimulateColor(bgr, gain, Eigen::Vector2d::Zero(), options, 11);
+    const cv::Mat reference = ReferenceNoise(bgr, gain, options, 11);
+    EXPECT_EQ(CountDifferent(fast, reference), 0) << "gain " << gain;
+    clipped_white += cv::countNonZero(fast.reshape(1) == 255);
+    clipped_black += cv::countNonZero(fast.reshape(1) == 0);
+  }
+  EXPECT_GT(clipped_white, 1000);
+  EXPECT_GT(clipped_black, 100);
+}
+
 TEST(SensorModel, OptionsAreChecked) {
   DepthSensorOptions depth;
   std::string error;
   EXPECT_TRUE(depth.Check(&error));
+  depth.max_depth_m = 66.0;  // beyond 16-bit millimetres
+  EXPECT_FALSE(depth.Check(&error));
   depth.max_depth_m = 0.2;
   EXPECT_FALSE(depth.Check(&error));
   EXPECT_THROW(SimulateDepth(cv::Mat(4, 4, CV_32F, cv::Scalar(1)),

@@ -46,20 +46,34 @@ void BM_RenderOnly(benchmark::State& state) {
 }
 BENCHMARK(BM_RenderOnly)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
 
-void BM_SensorModels(benchmark::State& state) {
+// The sensor models on one rendered hand-held view.
+sightmap::render::RenderedView SampleView(Simulator* simulator) {
+  return simulator->renderer().Render(simulator->options().camera, simulator->WorldFromCam(40));
+}
+
+void BM_SimulateDepth(benchmark::State& state) {
   Simulator simulator(Options(0));
-  const sightmap::render::RenderedView view =
-      simulator.renderer().Render(simulator.options().camera, simulator.WorldFromCam(40));
+  const sightmap::render::RenderedView view = SampleView(&simulator);
   uint64_t seed = 1;
   for (auto _ : state) {
     benchmark::DoNotOptimize(sightmap::sim::SimulateDepth(
-        view.depth, view.no_depth, simulator.options().camera, simulator.options().depth, seed));
+        view.depth, view.no_depth, simulator.options().camera, simulator.options().depth, seed++));
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_SimulateDepth)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
+
+void BM_SimulateColor(benchmark::State& state) {
+  Simulator simulator(Options(0));
+  const sightmap::render::RenderedView view = SampleView(&simulator);
+  uint64_t seed = 1;
+  for (auto _ : state) {
     benchmark::DoNotOptimize(sightmap::sim::SimulateColor(view.color, 1.0, Eigen::Vector2d(3, 1),
                                                           simulator.options().color, seed++));
   }
   state.SetItemsProcessed(state.iterations());
 }
-BENCHMARK(BM_SensorModels)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
+BENCHMARK(BM_SimulateColor)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
 
 }  // namespace
 
