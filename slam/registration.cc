@@ -236,10 +236,10 @@ std::vector<size_t> Ransac(const std::vector<Correspondence>& pairs,
 // Matches each source keypoint with a 3D point to the target keypoints (with 3D points) within
 // guided_radius_px of where `target_from_source` projects it, keeping the nearest descriptor when
 // it is close enough and clearly better than the runner-up there; mutual best only.
-std::vector<cv::DMatch> GuidedMatches(const Features& source, const Features& target,
-                                      const Eigen::Isometry3d& target_from_source,
-                                      const Intrinsics& camera,
-                                      const RegistrationOptions& options) {
+// Comparing descriptors is most of its work: the popcnt clone serves CPUs with the instruction.
+__attribute__((target_clones("popcnt", "default"))) std::vector<cv::DMatch> GuidedMatches(
+    const Features& source, const Features& target, const Eigen::Isometry3d& target_from_source,
+    const Intrinsics& camera, const RegistrationOptions& options) {
   std::vector<cv::DMatch> matches;
   // 256-bit binary descriptors (ORB) only; others keep the global matches.
   if (source.descriptors.type() != CV_8U || target.descriptors.type() != CV_8U ||
