@@ -79,8 +79,9 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "track_every must be >= 1";
     return false;
   }
-  if (replay_nice_increment < 0 || replay_nice_increment > 19) {
-    *error = "replay_nice_increment must be in [0, 19]";
+  if (replay_nice_increment < 0 || replay_nice_increment > 19 || replay_write_nice_increment < 0 ||
+      replay_write_nice_increment > 19) {
+    *error = "replay_nice_increment and replay_write_nice_increment must be in [0, 19]";
     return false;
   }
   if (frame_queue_capacity < 1 || keyframe_queue_capacity < 1 || write_queue_capacity < 1) {
@@ -461,7 +462,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   }
   WriteStage writer(&model, view.get(), static_cast<int>(summary.session_number),
                     restored.store_ids, static_cast<size_t>(options_.write_queue_capacity),
-                    std::move(photo_features));
+                    std::move(photo_features), live ? 0 : options_.replay_write_nice_increment);
   TrackStage track(camera, tracking, &frames, &keyframes, std::move(continue_from));
   CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track, continue_after),
                        &frames, view.get());
@@ -518,7 +519,7 @@ SIGHTMAP_OPTIONS_JSON(MappingOptions, source, model_path, ply_path, trajectory_p
                       continue_replay, max_keyframes, live, anchor_to_ground_truth,
                       ground_truth_poses, frame_queue_capacity, keyframe_queue_capacity,
                       write_queue_capacity, source_options, sampler, tracking, track_every,
-                      replay_nice_increment, mapper, photo_features, photo_feature_options,
-                      photo_feature_side_px, model, ply, view, show_view)
+                      replay_nice_increment, replay_write_nice_increment, mapper, photo_features,
+                      photo_feature_options, photo_feature_side_px, model, ply, view, show_view)
 
 }  // namespace sightmap::mapping

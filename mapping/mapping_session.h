@@ -92,6 +92,12 @@ struct MappingOptions {
   // (3.1-3.3x real time), the same map (ATE 0.0116 m); 5 was between (118-133 ms). README:
   // "Checked on 2026-11-27", the keyframe p95 of `map`.
   int replay_nice_increment = 10;
+  // A replay's writer thread (RootSIFT for photos, the model's writes, the progress image) runs
+  // this much lower (nice, 0-19); a live session's keeps its priority. The main command (`sim:
+  // office?fps=10`) at 0 and 5 alternating, four runs each on the Zen 3: keyframe p95 170-195 ms
+  // (median 171) -> 151-160 (156), tracking p95 46-50 -> 41-44 ms, wall 2:37-2:50 either way, the
+  // same map.
+  int replay_write_nice_increment = 5;
   slam::MapperOptions mapper;
   // Each keyframe is stored with RootSIFT features for matching phone photos (`sightmap locate`'s
   // RootSIFT matcher reads them rather than extracting them at load), extracted by the writer

@@ -215,6 +215,9 @@ TEST(MappingSession, BadOptionsAreRefused) {
   options.track_every = 1;
   options.replay_nice_increment = 20;
   EXPECT_THROW(MappingSession{options}, InvalidArgument);
+  options.replay_nice_increment = 10;
+  options.replay_write_nice_increment = -1;
+  EXPECT_THROW(MappingSession{options}, InvalidArgument);
 }
 
 }  // namespace

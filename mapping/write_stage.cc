@@ -3,19 +3,23 @@
 #include <optional>
 
 #include "core/check.h"
+#include "core/thread_priority.h"
 
 namespace sightmap::mapping {
 
 WriteStage::WriteStage(store::Model* model, MapViewFeed* view, int session_number,
                        std::vector<KeyframeId> store_ids, size_t queue_capacity,
-                       std::optional<PhotoFeatureExtraction> photo_features)
+                       std::optional<PhotoFeatureExtraction> photo_features, int nice_increment)
     : model_(model),
       view_(view),
       session_number_(session_number),
       photo_features_(std::move(photo_features)),
       store_ids_(std::move(store_ids)),
-      tasks_(queue_capacity) {
+      tasks_(queue_capacity),
+      nice_increment_(nice_increment) {
   SIGHTMAP_CHECK(model_ != nullptr, "the write stage needs a model");
+  SIGHTMAP_CHECK(nice_increment_ >= 0 && nice_increment_ <= 19,
+                 "the writer's nice increment must be in [0, 19], not " << nice_increment_);
   SIGHTMAP_CHECK(session_number_ >= 1, "session numbers start at 1, not " << session_number_);
   if (photo_features_) SIGHTMAP_CHECK_OPTIONS(*photo_features_);
   thread_ = std::thread([this] { Run(); });
@@ -31,6 +35,8 @@ void WriteStage::Finish() {
 }
 
 void WriteStage::Run() {
+  if (nice_increment_ > 0) (void)LowerThisThreadsPriority(nice_increment_);
+  thread_nice_ = ThisThreadsNice();
   try {
     while (std::optional<WriteTask> task = tasks_.Pop()) Write(*task);
   } catch (...) {

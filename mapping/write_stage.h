@@ -51,10 +51,12 @@ class WriteStage {
   // Starts the thread. `store_ids` maps the mapper ids of the keyframes already in the model
   // (restored, in mapper order) to their model ids; `session_number` (>= 1) colours the view's
   // track. `model` and `view` (may be null) must outlive the stage. With `photo_features`, each
-  // keyframe is written with them.
+  // keyframe is written with them. The thread runs `nice_increment` lower (Linux nice, per
+  // thread, 0-19), as a replay's writer does: its work can wait for tracking and mapping's.
   WriteStage(store::Model* model, MapViewFeed* view, int session_number,
              std::vector<KeyframeId> store_ids, size_t queue_capacity,
-             std::optional<PhotoFeatureExtraction> photo_features = std::nullopt);
+             std::optional<PhotoFeatureExtraction> photo_features = std::nullopt,
+             int nice_increment = 0);
   ~WriteStage();
   WriteStage(const WriteStage&) = delete;
   WriteStage& operator=(const WriteStage&) = delete;
@@ -63,6 +65,8 @@ class WriteStage {
   bool Push(WriteTask task);
   // Writes what is queued and ends the thread (idempotent).
   void Finish();
+  // The nice value the thread runs at, once it started (ThisThreadsNice() there).
+  int thread_nice() const { return thread_nice_.load(); }
 
   // A write failed: the thread stopped and later tasks are refused (any thread).
   bool failed() const { return failed_.load(); }
@@ -87,6 +91,8 @@ class WriteStage {
   std::atomic<bool> failed_{false};
   std::atomic<int64_t> committed_{0};
   std::exception_ptr error_;  // written by the thread before it sets failed_
+  const int nice_increment_;
+  std::atomic<int> thread_nice_{-100};  // -100 until the thread started
   std::thread thread_;
 };
 

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "core/thread_priority.h"
 #include "tests/test_data.h"
 
 namespace sightmap::mapping {
@@ -184,6 +185,24 @@ TEST(WriteStage, LinksToRestoredKeyframesUseTheirModelIds) {
   EXPECT_EQ(links[1].type, LinkType::kRelocalisation);
   EXPECT_EQ(links[1].from, restored[1]);
   EXPECT_EQ(links[1].to, model.Keyframes().back().id);
+}
+
+// A replay's writer runs at a lower priority than the stage that starts it; the starter keeps its
+// own, and an increment outside nice's range is refused.
+TEST(WriteStage, ItsThreadRunsTheGivenIncrementLower) {
+  const std::string path = testing::MakeTempDir("write-stage-nice") + "/model.db";
+  store::Model model = store::Model::Open(path);
+  const SessionId session = Begin(model);
+  const int base = ThisThreadsNice();
+  for (const int increment : {0, 3}) {
+    WriteStage stage(&model, nullptr, 1, {}, 2, std::nullopt, increment);
+    stage.Push(KeyframeTask(session, 0, {}));
+    stage.Finish();
+    ASSERT_FALSE(stage.failed());
+    EXPECT_EQ(stage.thread_nice(), std::min(19, base + increment)) << "increment " << increment;
+  }
+  EXPECT_EQ(ThisThreadsNice(), base);
+  EXPECT_THROW(WriteStage(&model, nullptr, 1, {}, 2, std::nullopt, 20), Error);
 }
 
 TEST(WriteStage, AFailedWriteStopsTheStageAndKeepsWhatWasCommitted) {
