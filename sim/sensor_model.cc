@@ -165,18 +165,29 @@ __attribute__((target_clones("avx2", "default"))) void RowIncidence(const RowGeo
   }
 }
 
+// The dropout thresholds of DepthSensorOptions in the form pass one compares, made once a frame.
+struct DropoutThresholds {
+  explicit DropoutThresholds(const DepthSensorOptions& options)
+      : cos_start(std::cos(options.grazing_start_deg * M_PI / 180.0)),
+        cos_max(std::cos(options.grazing_max_deg * M_PI / 180.0)),
+        relative_jump(static_cast<float>(options.discontinuity_relative)) {}
+  double cos_start;  // incidence where dropouts begin, as |cos|
+  double cos_max;    // incidence beyond which nothing is measured, as |cos|
+  float relative_jump;
+};
+
 // Pass one (b): projector shadow, no-return materials, discontinuities and incidence.
 void ClassifyRow(const RowGeometry& row, int v, int u_begin, int u_end, int width,
-                 const PixelGrid& grid, const DepthSensorOptions& options, RowScratch* scratch) {
+                 const PixelGrid& grid, const DropoutThresholds& thresholds, RowScratch* scratch) {
   const bool inner_row = row.z_up != nullptr;
   const int inner_begin = std::max(u_begin, 1);
   const int inner_end = std::min(u_end, width - 1);
   if (inner_row && inner_begin < inner_end) {
     RowIncidence(row, inner_begin, inner_end, grid, v, scratch->cosine.data());
   }
-  const double cos_start = std::cos(options.grazing_start_deg * M_PI / 180.0);
-  const double cos_max = std::cos(options.grazing_max_deg * M_PI / 180.0);
-  const float relative_jump = static_cast<float>(options.discontinuity_relative);
+  const double cos_start = thresholds.cos_start;
+  const double cos_max = thresholds.cos_max;
+  const float relative_jump = thresholds.relative_jump;
   const float* z = row.z;
   for (int u = u_begin; u < u_end; ++u) {
     const size_t i = static_cast<size_t>(u);
@@ -229,8 +240,7 @@ __attribute__((target_clones("avx2", "default"))) void MeasureRow(
   const double step = options.disparity_step_px;
   const double min_depth_m = options.min_depth_m;
   const double max_depth_m = options.max_depth_m;
-  const double quantise = step > 0.0 ? 1.0 : 0.0;
-  const double divisor = step > 0.0 ? step : 1.0;
+  const bool quantise = step > 0.0;
   for (int u = u_begin; u < u_end; ++u) {
     // Quantisation contributes delta^2 / 12 of the variance.
     const double z0 = z[u];
@@ -238,7 +248,7 @@ __attribute__((target_clones("avx2", "default"))) void MeasureRow(
     const double delta = options.DepthStep(z0);
     const double gauss_sigma = std::sqrt(std::max(sigma * sigma - delta * delta / 12.0, 0.0));
     const double raw = fb / z0 + normal[u] * (gauss_sigma * fb / (z0 * z0));
-    const double disparity = quantise > 0.0 ? RoundHalfUp(raw / divisor) * divisor : raw;
+    const double disparity = quantise ? RoundHalfUp(raw / step) * step : raw;
     const double zm = fb / disparity;
     const bool valid =
         code[u] == Return::kSure && disparity > 0.0 && zm >= min_depth_m && zm <= max_depth_m;
@@ -281,12 +291,12 @@ cv::Mat SimulateDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, cons
 
   // 2.-5. Per row, in parallel; each row draws from its own random stream so the result does not
   //       depend on the number of threads.
-  const DepthSensorOptions opt = options;
   const PixelGrid grid(k, w, h);
-  const int u_begin = opt.border_left_px;
-  const int u_end = w - opt.border_right_px;
-  const int v_begin = opt.border_top_px;
-  const int v_end = h - opt.border_bottom_px;
+  const DropoutThresholds thresholds(options);
+  const int u_begin = options.border_left_px;
+  const int u_end = w - options.border_right_px;
+  const int v_begin = options.border_top_px;
+  const int v_end = h - options.border_bottom_px;
   cv::Mat out(h, w, CV_16U, cv::Scalar(0));
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
     RowScratch scratch(w);
@@ -295,10 +305,10 @@ cv::Mat SimulateDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, cons
       const RowGeometry row{depth_m.ptr<float>(v), inner_row ? depth_m.ptr<float>(v - 1) : nullptr,
                             inner_row ? depth_m.ptr<float>(v + 1) : nullptr,
                             no_depth_mask.ptr<uint8_t>(v), keep.ptr<uint8_t>(v)};
-      ClassifyRow(row, v, u_begin, u_end, w, grid, opt, &scratch);
+      ClassifyRow(row, v, u_begin, u_end, w, grid, thresholds, &scratch);
       cv::RNG rng(MixSeed(seed, static_cast<uint64_t>(v)));
-      DrawRow(u_begin, u_end, opt.discontinuity_dropout, &rng, &scratch);
-      MeasureRow(row.z, u_begin, u_end, opt, scratch.code.data(), scratch.normal.data(),
+      DrawRow(u_begin, u_end, options.discontinuity_dropout, &rng, &scratch);
+      MeasureRow(row.z, u_begin, u_end, options, scratch.code.data(), scratch.normal.data(),
                  out.ptr<uint16_t>(v));
     }
   });
