@@ -18,14 +18,13 @@
 
 #include "capture/calibration.h"
 #include "core/check.h"
+#include "core/rotation.h"
 #include "tests/test_data.h"
 
 namespace sightmap::capture {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr double kPi = 3.14159265358979323846;
 
 // ------------------------------------------------------------------------------------------------
 // Shared 3DMatch frames

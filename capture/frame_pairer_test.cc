@@ -7,11 +7,9 @@
 namespace sightmap::capture {
 namespace {
 
-constexpr int64_t kMs = 1'000'000;
-
 // Images carry their own timestamp as a pixel so a test can tell which frame was paired.
 TimedImage Stamp(int64_t t_ms) {
-  return {t_ms * kMs, cv::Mat(1, 1, CV_32SC1, cv::Scalar(static_cast<int>(t_ms)))};
+  return {t_ms * kNsPerMs, cv::Mat(1, 1, CV_32SC1, cv::Scalar(static_cast<int>(t_ms)))};
 }
 
 std::vector<std::pair<int, int>> Drain(FramePairer& pairer) {
@@ -24,7 +22,7 @@ std::vector<std::pair<int, int>> Drain(FramePairer& pairer) {
 
 TEST(FramePairer, ColourBeforeDepthPairsWithTheNearer) {
   // kinect-12f.oni order: colour at 0, depth at 11.7 ms, colour at 33.3 ms, ...
-  FramePairer pairer(20 * kMs);
+  FramePairer pairer(20 * kNsPerMs);
   pairer.AddColor(Stamp(0));
   pairer.AddDepth(Stamp(12));
   pairer.AddColor(Stamp(33));
@@ -35,7 +33,7 @@ TEST(FramePairer, ColourBeforeDepthPairsWithTheNearer) {
 }
 
 TEST(FramePairer, DepthWaitsForALaterCloserColourFrame) {
-  FramePairer pairer(20 * kMs);
+  FramePairer pairer(20 * kNsPerMs);
   pairer.AddColor(Stamp(0));
   pairer.AddDepth(Stamp(30));
   EXPECT_TRUE(Drain(pairer).empty());  // colour at 33 may still come
@@ -45,7 +43,7 @@ TEST(FramePairer, DepthWaitsForALaterCloserColourFrame) {
 
 TEST(FramePairer, DepthRunningAFrameAheadOfColourStillPairsFrameForFrame) {
   // OpenNI2's dummy device, now and then: depth k+1 arrives before colour k, every frame.
-  FramePairer pairer(20 * kMs);
+  FramePairer pairer(20 * kNsPerMs);
   pairer.AddDepth(Stamp(0));
   for (int k = 0; k < 10; ++k) {
     pairer.AddDepth(Stamp((k + 1) * 33));
@@ -59,7 +57,7 @@ TEST(FramePairer, DepthRunningAFrameAheadOfColourStillPairsFrameForFrame) {
 
 TEST(FramePairer, LastDepthWithoutPartnerIsCountedUnpaired) {
   // openni2-24f.oni ends with a depth frame 30 ms after the last colour frame.
-  FramePairer pairer(20 * kMs);
+  FramePairer pairer(20 * kNsPerMs);
   pairer.AddDepth(Stamp(734));
   pairer.AddColor(Stamp(737));
   pairer.AddDepth(Stamp(767));
@@ -69,7 +67,7 @@ TEST(FramePairer, LastDepthWithoutPartnerIsCountedUnpaired) {
 }
 
 TEST(FramePairer, DeadColourStreamDoesNotGrowWithoutBound) {
-  FramePairer pairer(20 * kMs);
+  FramePairer pairer(20 * kNsPerMs);
   for (int i = 0; i < 100; ++i) pairer.AddDepth(Stamp(i * 33));
   EXPECT_TRUE(Drain(pairer).empty());
   EXPECT_GE(pairer.unpaired_depth_frames(), 90);
@@ -78,7 +76,7 @@ TEST(FramePairer, DeadColourStreamDoesNotGrowWithoutBound) {
 }
 
 TEST(FramePairer, SlowColourStreamServesSeveralDepthFrames) {
-  FramePairer pairer(20 * kMs);
+  FramePairer pairer(20 * kNsPerMs);
   pairer.AddColor(Stamp(0));
   pairer.AddDepth(Stamp(1));
   pairer.AddDepth(Stamp(15));

@@ -9,12 +9,10 @@
 namespace sightmap::capture {
 namespace {
 
-constexpr int64_t kMs = 1'000'000;
-
 std::vector<int64_t> SampleMs(KeyframeSampler& sampler, const std::vector<int64_t>& times_ms) {
   std::vector<int64_t> kept;
   for (int64_t t : times_ms) {
-    if (sampler.Accept(t * kMs)) kept.push_back(t);
+    if (sampler.Accept(t * kNsPerMs)) kept.push_back(t);
   }
   return kept;
 }

@@ -20,6 +20,7 @@
 #include "capture/oni_file.h"
 #include "capture/openni_runtime.h"
 #include "core/check.h"
+#include "core/format.h"
 
 namespace sightmap::capture {
 namespace {
@@ -30,14 +31,6 @@ constexpr double kPrimeSenseHfovRad = 1.0145;
 constexpr double kPrimeSenseVfovRad = 0.7898;
 constexpr double kPrimeSenseBaselineM = 0.025;
 constexpr std::chrono::milliseconds kStopGrace(150);
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out.setf(std::ios::fixed);
-  out.precision(digits);
-  out << value;
-  return out.str();
-}
 
 std::string OpenNiError() {
   std::string text = openni::OpenNI::getExtendedError();

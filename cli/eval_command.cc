@@ -21,6 +21,7 @@
 #include "cli/commands.h"
 #include "cli/eval_identify.h"
 #include "core/check.h"
+#include "core/format.h"
 #include "render/image_file.h"
 #include "slam/trajectory_eval.h"
 #include "slam/trajectory_plot.h"
@@ -35,12 +36,6 @@ std::vector<StampedPose> ReadPoses(const std::string& path, const char* what) {
                                       << " has no poses: expected lines 'timestamp tx ty tz qx qy "
                                          "qz qw' (TUM trajectory format)");
   return poses;
-}
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream text;
-  text << std::fixed << std::setprecision(digits) << value;
-  return text.str();
 }
 
 void PrintTable(const std::string& gt_path, const std::string& est_path, size_t gt_poses,

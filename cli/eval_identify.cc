@@ -20,6 +20,8 @@
 #include "cli/command_util.h"
 #include "core/atomic_file.h"
 #include "core/check.h"
+#include "core/format.h"
+#include "core/timing.h"
 #include "identify/coverage.h"
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
@@ -31,16 +33,6 @@ namespace sightmap::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream text;
-  text << std::fixed << std::setprecision(digits) << value;
-  return text.str();
-}
 
 std::string Share(int part, int whole) {
   std::ostringstream text;

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/format.h"
 #include "core/options_json.h"
 
 namespace sightmap::cli {
@@ -39,12 +40,6 @@ void CheckObject(const nlohmann::json& request) {
   if (!request.is_object()) {
     throw ServiceError(kBadRequest, "the request body must be a JSON object");
   }
-}
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << value;
-  return out.str();
 }
 
 }  // namespace

@@ -74,7 +74,10 @@ class BoundedTaskQueue : public httplib::TaskQueue {
   size_t pending_ = 0;
 };
 
-// At most `count` holders at once (C++17 has no std::counting_semaphore).
+}  // namespace
+
+// At most `count` holders at once (C++17 has no std::counting_semaphore). Outside the anonymous
+// namespace because LocateServer::Impl holds one.
 class Slots {
  public:
   explicit Slots(int count) : free_(count) {}
@@ -104,6 +107,8 @@ class Slots {
   std::condition_variable freed_;
   int free_;
 };
+
+namespace {
 
 void Reply(httplib::Response& response, int status, const nlohmann::json& body) {
   response.status = status;

@@ -11,6 +11,7 @@ namespace sightmap {
 
 // Nanoseconds since the start of the stream (recordings) or the epoch (live devices).
 using TimestampNs = int64_t;
+inline constexpr TimestampNs kNsPerMs = 1'000'000;
 
 // A camera pose at a time: one line of a TUM trajectory, one pose of an estimate.
 struct StampedPose {

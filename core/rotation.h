@@ -7,6 +7,8 @@
 
 namespace sightmap {
 
+inline constexpr double kPi = 3.14159265358979323846;
+
 // The angle of `rotation`'s axis-angle form [deg, 0-180].
 double RotationAngleDeg(const Eigen::Matrix3d& rotation);
 // The angle between two orientations: of a^T b [deg, 0-180].

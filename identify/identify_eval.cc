@@ -427,7 +427,7 @@ const cv::Scalar kRight(80, 170, 60);     // BGR green: the outcome is right
 const cv::Scalar kWrong(60, 60, 210);     // red: an error
 const cv::Scalar kEither(170, 170, 170);  // grey: either outcome is fine
 const cv::Scalar kInk(40, 40, 40);
-const cv::Scalar kGrid(225, 225, 225);
+const cv::Scalar kLight(225, 225, 225);  // light grey: empty bars and plot frames
 
 std::string Percent(double share) {
   std::ostringstream text;
@@ -458,7 +458,7 @@ void DrawCategories(cv::Mat& image, const IdentifyEvaluation& e, cv::Rect area) 
     const int no = e.categories[static_cast<size_t>(type)][0];
     const int all = yes + no;
     Text(image, kTruthNames[type], {area.x, y + h / 2 + 5});
-    cv::rectangle(image, cv::Rect(bar_x, y, bar_w, h), kGrid, cv::FILLED);
+    cv::rectangle(image, cv::Rect(bar_x, y, bar_w, h), kLight, cv::FILLED);
     if (all > 0) {
       const int yes_w = static_cast<int>(std::lround(bar_w * Ratio(yes, all)));
       if (yes_w > 0) {
@@ -499,7 +499,7 @@ void DrawHistogram(cv::Mat& image, const std::string& title, const std::vector<i
   const int plot_w = area.width - 50;
   const int plot_h = area.height - 90;
   const int peak = std::max(1, *std::max_element(histogram.begin(), histogram.end()));
-  cv::rectangle(image, cv::Rect(plot_x, plot_y, plot_w, plot_h), kGrid, 1);
+  cv::rectangle(image, cv::Rect(plot_x, plot_y, plot_w, plot_h), kLight, 1);
   const int bar_w = plot_w / std::max(1, bins);
   const int regular = bins - 1;  // the last bin is exactly 1.0
   for (int b = 0; b < bins; ++b) {

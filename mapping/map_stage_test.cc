@@ -13,7 +13,7 @@
 namespace sightmap::mapping {
 namespace {
 
-sim::Simulator Walk(int frames) {
+sim::Simulator OneHzWalk(int frames) {
   sim::SimulatorOptions options;
   options.fps = 1.0;
   options.frames = frames;
@@ -28,7 +28,7 @@ KeyframeItem Untracked(RgbdFrame frame) {
 }
 
 TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
-  sim::Simulator simulator = Walk(34);
+  sim::Simulator simulator = OneHzWalk(34);
   const Intrinsics camera = simulator.options().camera;
   slam::Mapper mapper(camera);
   MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());
@@ -99,7 +99,7 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
 }
 
 TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {
-  sim::Simulator simulator = Walk(2);
+  sim::Simulator simulator = OneHzWalk(2);
   const Intrinsics camera = simulator.options().camera;
   slam::Mapper mapper(camera);
   MapStageOptions options;
@@ -123,7 +123,7 @@ TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {
 }
 
 TEST(MapStage, NoAccuracyWithoutGroundTruth) {
-  sim::Simulator simulator = Walk(4);
+  sim::Simulator simulator = OneHzWalk(4);
   const Intrinsics camera = simulator.options().camera;
   slam::Mapper mapper(camera);
   MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());

@@ -16,6 +16,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 #include "core/statistics.h"
+#include "core/timing.h"
 #include "mapping/capture_stage.h"
 #include "mapping/map_stage.h"
 #include "mapping/model_restore.h"
@@ -27,10 +28,6 @@ namespace sightmap::mapping {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 TimestampNs WallClockNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(

@@ -12,7 +12,7 @@
 namespace sightmap::mapping {
 namespace {
 
-sim::Simulator Walk(int frames) {
+sim::Simulator TenHzWalk(int frames) {
   sim::SimulatorOptions options;
   options.fps = 10.0;
   options.frames = frames;
@@ -34,7 +34,7 @@ std::vector<KeyframeItem> Drain(BoundedQueue<KeyframeItem>* keyframes) {
 }
 
 TEST(TrackStage, TracksEveryFrameAndEmitsKeyframesAtTheRate) {
-  sim::Simulator simulator = Walk(31);  // 3 s at 10 Hz
+  sim::Simulator simulator = TenHzWalk(31);  // 3 s at 10 Hz
   BoundedQueue<RgbdFrame> frames(2);
   BoundedQueue<KeyframeItem> keyframes(64);
   TrackStageOptions options;
@@ -63,7 +63,7 @@ TEST(TrackStage, TracksEveryFrameAndEmitsKeyframesAtTheRate) {
 }
 
 TEST(TrackStage, WithoutTrackingEveryFrameGoesOnAsAKeyframe) {
-  sim::Simulator simulator = Walk(5);
+  sim::Simulator simulator = TenHzWalk(5);
   BoundedQueue<RgbdFrame> frames(2);
   BoundedQueue<KeyframeItem> keyframes(8);
   TrackStageOptions options;
@@ -82,7 +82,7 @@ TEST(TrackStage, WithoutTrackingEveryFrameGoesOnAsAKeyframe) {
 }
 
 TEST(TrackStage, AFrameTheTrackerRefusesEndsTheStageWithTheError) {
-  sim::Simulator simulator = Walk(2);
+  sim::Simulator simulator = TenHzWalk(2);
   BoundedQueue<RgbdFrame> frames(4);
   BoundedQueue<KeyframeItem> keyframes(4);
   TrackStage stage(simulator.options().camera, TrackStageOptions(), &frames, &keyframes);
@@ -96,7 +96,7 @@ TEST(TrackStage, AFrameTheTrackerRefusesEndsTheStageWithTheError) {
 }
 
 TEST(TrackStage, StopsWhenTheMappingStageTakesNoMoreKeyframes) {
-  sim::Simulator simulator = Walk(3);
+  sim::Simulator simulator = TenHzWalk(3);
   BoundedQueue<RgbdFrame> frames(4);
   BoundedQueue<KeyframeItem> keyframes(1);
   keyframes.Close();  // mapping stopped

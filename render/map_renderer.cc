@@ -14,18 +14,19 @@
 #include "core/rotation.h"
 #include "render/bitmap_font.h"
 #include "render/gl_api.h"
+#include "render/gl_camera.h"
 
 namespace sightmap::render {
-namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-// One vertex of the point and line buffers: 16 bytes, position then RGBA.
+// One vertex of the point and line buffers: 16 bytes, position then RGBA. Outside the anonymous
+// namespace because MapRenderer::Impl holds a buffer of them.
 struct ColorVertex {
   float x, y, z;
   uint8_t r, g, b, a;
 };
 static_assert(sizeof(ColorVertex) == 16, "ColorVertex must be tightly packed");
+
+namespace {
 
 ColorVertex MakeVertex(const Eigen::Vector3d& p, const Eigen::Vector3f& rgb) {
   auto byte = [](float c) {
@@ -38,43 +39,6 @@ ColorVertex MakeVertex(const Eigen::Vector3d& p, const Eigen::Vector3f& rgb) {
           byte(rgb.y()),
           byte(rgb.z()),
           255};
-}
-
-// OpenGL's eye frame has y up and z backward; OpenCV's camera frame has y down, z forward.
-Eigen::Matrix4d GlEyeFromCam() {
-  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
-  m(1, 1) = -1;
-  m(2, 2) = -1;
-  return m;
-}
-
-// Clip from GL eye coordinates such that camera point (x, y, z) lands on pixel Project(x, y, z)
-// of the viewport (pixel centres at integers, row 0 at the top).
-Eigen::Matrix4d GlProjection(const ViewCamera& view) {
-  const Intrinsics& k = view.intrinsics;
-  const double n = view.near_m;
-  const double f = view.far_m;
-  Eigen::Matrix4d p = Eigen::Matrix4d::Zero();
-  if (view.orthographic) {
-    // x_ndc = 2 (u + 0.5) / w - 1 with u = cx + fx x_cam = cx + fx x_eye.
-    p(0, 0) = 2.0 * k.fx / k.width;
-    p(0, 3) = 2.0 * (k.cx + 0.5) / k.width - 1.0;
-    // y_ndc = 1 - 2 (v + 0.5) / h with v = cy + fy y_cam = cy - fy y_eye.
-    p(1, 1) = 2.0 * k.fy / k.height;
-    p(1, 3) = 1.0 - 2.0 * (k.cy + 0.5) / k.height;
-    p(2, 2) = -2.0 / (f - n);
-    p(2, 3) = -(f + n) / (f - n);
-    p(3, 3) = 1.0;
-  } else {
-    p(0, 0) = 2.0 * k.fx / k.width;
-    p(0, 2) = 1.0 - 2.0 * (k.cx + 0.5) / k.width;
-    p(1, 1) = 2.0 * k.fy / k.height;
-    p(1, 2) = 2.0 * (k.cy + 0.5) / k.height - 1.0;
-    p(2, 2) = -(f + n) / (f - n);
-    p(2, 3) = -2.0 * f * n / (f - n);
-    p(3, 2) = -1.0;
-  }
-  return p;
 }
 
 // world_from_cam of a camera at `eye` looking at `target` with image-up along `up`.
@@ -541,7 +505,9 @@ void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const V
   impl.SetViewport(viewport);
   gl.Clear(GL_DEPTH_BUFFER_BIT);
   gl.MatrixMode(GL_PROJECTION);
-  const Eigen::Matrix4d projection = GlProjection(view);
+  const Eigen::Matrix4d projection = view.orthographic
+                                         ? GlOrthographic(view.intrinsics, view.near_m, view.far_m)
+                                         : GlPerspective(view.intrinsics, view.near_m, view.far_m);
   gl.LoadMatrixd(projection.data());  // Eigen is column-major like GL
   gl.MatrixMode(GL_MODELVIEW);
   const Eigen::Matrix4d eye_from_world = GlEyeFromCam() * view.world_from_cam.inverse().matrix();

@@ -7,6 +7,7 @@
 
 #include "core/check.h"
 #include "render/gl_api.h"
+#include "render/gl_camera.h"
 
 namespace sightmap::render {
 namespace {
@@ -30,28 +31,6 @@ void AddQuad(const Eigen::Vector3f& bl, const Eigen::Vector3f& br, const Eigen::
     mesh->normals.push_back(normal);
     mesh->uvs.push_back(uvs[i]);
   }
-}
-
-// OpenGL's eye frame has y up and z backward; OpenCV's camera frame has y down, z forward.
-Eigen::Matrix4d GlEyeFromCam() {
-  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
-  m(1, 1) = -1;
-  m(2, 2) = -1;
-  return m;
-}
-
-// Projection that maps an OpenCV pixel (u, v) (centres at integers) to GL window coordinates
-// (u + 0.5, height - v - 0.5), with the image read back top row first.
-Eigen::Matrix4d GlProjection(const Intrinsics& k, double near_m, double far_m) {
-  Eigen::Matrix4d p = Eigen::Matrix4d::Zero();
-  p(0, 0) = 2.0 * k.fx / k.width;
-  p(0, 2) = 1.0 - 2.0 * (k.cx + 0.5) / k.width;
-  p(1, 1) = 2.0 * k.fy / k.height;
-  p(1, 2) = 2.0 * (k.cy + 0.5) / k.height - 1.0;
-  p(2, 2) = -(far_m + near_m) / (far_m - near_m);
-  p(2, 3) = -2.0 * far_m * near_m / (far_m - near_m);
-  p(3, 2) = -1.0;
-  return p;
 }
 
 }  // namespace
@@ -138,7 +117,7 @@ struct MeshRenderer::Impl {
     gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
 
-    const Eigen::Matrix4d projection = GlProjection(k, options.near_m, options.far_m);
+    const Eigen::Matrix4d projection = GlPerspective(k, options.near_m, options.far_m);
     gl.MatrixMode(GL_PROJECTION);
     gl.LoadMatrixd(projection.data());  // Eigen is column-major like GL
     const Eigen::Matrix4d gl_eye_from_world = GlEyeFromCam() * world_from_cam.inverse().matrix();

@@ -16,12 +16,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "render/image_file.h"
 
 namespace sightmap::render {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // GLFW reports errors through a process-wide callback; keep the last message for the exception.
 std::mutex g_glfw_error_mutex;

@@ -14,14 +14,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/random.h"
 
 namespace sightmap::sim {
 namespace {
 
 using nlohmann::json;
-
-constexpr double kPi = 3.14159265358979323846;
 
 Eigen::Vector3d ReadVector3(const json& j, const std::string& what) {
   SIGHTMAP_CHECK(j.is_array() && j.size() == 3, what << " must be an array of 3 numbers");

@@ -7,12 +7,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/random.h"
 
 namespace sightmap::sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 uint64_t SessionSeed(uint64_t seed, int session) {
   return MixSeed(seed, 0x5e55'0000ULL + static_cast<uint64_t>(session));

@@ -12,13 +12,12 @@
 
 #include "capture/rgbd_source.h"
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/sim_source.h"
 #include "tests/test_data.h"
 
 namespace sightmap::sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 SimulatorOptions FastOptions(TrajectoryKind kind = TrajectoryKind::kHandheld) {
   SimulatorOptions options;

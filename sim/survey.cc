@@ -9,11 +9,11 @@
 #include <utility>
 
 #include "core/check.h"
+#include "core/rotation.h"
 
 namespace sightmap::sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDegToRad = kPi / 180.0;
 
 double WrapDeg(double a) {

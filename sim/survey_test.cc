@@ -8,13 +8,12 @@
 #include <gtest/gtest.h>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/simulator.h"
 #include "sim/trajectory.h"
 
 namespace sightmap::sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 SceneBox Box(const std::string& name, const Eigen::Vector3d& center, const Eigen::Vector3d& size) {
   SceneBox box;

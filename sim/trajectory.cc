@@ -8,12 +8,11 @@
 #include <vector>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/random.h"
 
 namespace sightmap::sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 double WrapAngle(double a) {
   while (a > kPi) a -= 2 * kPi;

@@ -11,6 +11,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 #include "core/rotation.h"
+#include "core/timing.h"
 
 namespace sightmap::slam {
 namespace {
@@ -20,10 +21,6 @@ using Clock = std::chrono::steady_clock;
 // What a link's information gets on its diagonal before it is inverted: a covariance of 1e9 along
 // a direction the link does not fix.
 constexpr double kRidge = 1e-9;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* total) {
   total->matching_s += times.matching_s;

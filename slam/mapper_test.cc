@@ -28,7 +28,7 @@ using Walk = testing::SimWalk;
 // 9 s of the handheld walk at 5 Hz, rendered once for all tests of this file. These tests check
 // the mapper's logic on frames registration can bridge; how it fares at 1 Hz over a whole walk
 // (where it still loses tracking on bare walls) is measured by slam_benchmark.
-const Walk& HandheldWalk() {
+const Walk& HandheldWalkAt5Hz() {
   static const Walk* walk = [] {
     sim::SimulatorOptions options;
     options.fps = 5.0;
@@ -46,7 +46,7 @@ MapperOptions SmallVocabulary() {
 }
 
 TEST(Mapper, TracksTheHandheldWalkWithCentimetreAccuracy) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera, SmallVocabulary());
   std::vector<StampedPose> ground_truth;
   int lost = 0;
@@ -149,7 +149,7 @@ MappedWalk ThereAndBack(const Walk& walk, const MapperOptions& options) {
 }
 
 TEST(Mapper, LoopsThatFitTheMapMoveOnlyTheKeyframesNearThem) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   const MappedWalk local = ThereAndBack(walk, SmallVocabulary());
   MapperOptions whole_options = SmallVocabulary();
   whole_options.local_loop_hops = 0;
@@ -180,7 +180,7 @@ TEST(Mapper, LoopsThatFitTheMapMoveOnlyTheKeyframesNearThem) {
 // odometry drifts for the loops to correct: with it, this short walk's odometry alone is within
 // 1-2 mm.
 TEST(Mapper, ProximityClosesLoopsThePlaceIndexIsNotAskedFor) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   MapperOptions options = SmallVocabulary();
   options.loop_candidates = 0;
   options.dense_refinement = false;
@@ -220,7 +220,7 @@ double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
 // the keyframe's pose relative to keyframe 11 [m].
 // Frames 0-12 of the walk as the tracker emits them, every frame a keyframe.
 std::vector<TrackedKeyframe> TrackedKeyframes0To12() {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   TrackerOptions tracker_options;
   tracker_options.keyframe_rate_hz = 0.0;  // every frame a keyframe
   Tracker tracker(walk.camera, tracker_options);
@@ -235,7 +235,7 @@ std::vector<TrackedKeyframe> TrackedKeyframes0To12() {
 }
 
 bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   MapperOptions options = SmallVocabulary();
   options.vocabulary_training_keyframes = 1000;  // links only
   Mapper mapper(walk.camera, options);
@@ -271,7 +271,7 @@ TEST(Mapper, ABlindKeyframeKeepsOnlyLinksAWalkerCouldMake) {
 // `offset` off (as repeated texture puts features: a radiator's fins, a tiled box). Returns the
 // error of the mapper's link 11 -> 12 against the truth [m].
 double ErrorOfAMotionPutOff(const Eigen::Isometry3d& offset, const MapperOptions& options) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera, options);
   std::vector<TrackedKeyframe> keyframes = TrackedKeyframes0To12();
   const Eigen::Isometry3d true_11_from_12 =
@@ -308,7 +308,7 @@ TEST(Mapper, ARefinementTheFramesFitBetterCorrectsAMotionCentimetresOff) {
 // The walk's keyframes as the tracker emits them (every frame), linked by their motions only;
 // with `blind`, keyframes 10-29 as if the motion model had placed each after a second blind.
 std::unique_ptr<Mapper> ChainedWalk(bool blind) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   TrackerOptions tracker_options;
   tracker_options.keyframe_rate_hz = 0.0;
   Tracker tracker(walk.camera, tracker_options);
@@ -424,7 +424,7 @@ TEST(Mapper, PlaceRecognitionRefusesALookAlikeRoomTheGraphPutsElsewhere) {
 }
 
 TEST(Mapper, DenseRefinementMakesTheOdometryLinksMillimetreAccurate) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   MapperOptions features_only = SmallVocabulary();
   features_only.dense_refinement = false;
   const double features_m = MedianOdometryLinkError(walk, features_only);
@@ -438,7 +438,7 @@ TEST(Mapper, DenseRefinementMakesTheOdometryLinksMillimetreAccurate) {
 TEST(Mapper, RelocalisesAfterAJumpAndJoinsTheSegments) {
   // The camera walks frames 0-29, then "teleports" back to where frame 10 was and walks on: a
   // second segment starts and is joined when the place is found.
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera, SmallVocabulary());
   std::vector<size_t> order;
   for (size_t i = 0; i < 30; ++i) order.push_back(i);
@@ -470,7 +470,7 @@ TEST(Mapper, RelocalisesAfterAJumpAndJoinsTheSegments) {
 // mapper's segments at the end and whether any keyframe was relocalised.
 std::pair<int, bool> WalkBackAfterABlindGap(const MapperOptions& options, double* gap_s,
                                             double* jump_m) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera, options);
   const cv::Mat black = cv::Mat::zeros(walk.frames[0].color.size(), walk.frames[0].color.type());
   const cv::Mat no_depth = cv::Mat::zeros(walk.frames[0].depth.size(), CV_16UC1);
@@ -529,15 +529,15 @@ TEST(Mapper, OptionsRefuseAnImpossibleWalkBound) {
   no_tilt.walk_max_tilt_deg = 0.0;
   EXPECT_FALSE(no_tilt.Check(&error));
   EXPECT_NE(error.find("walk_max_tilt_deg"), std::string::npos) << error;
-  EXPECT_THROW(Mapper(HandheldWalk().camera, still), Error);
+  EXPECT_THROW(Mapper(HandheldWalkAt5Hz().camera, still), Error);
 }
 
 // A keyframe, then the same view upside down (the camera rolled half a turn where it stood):
 // registration matches it, as it matched a row of locker doors read upside down at 1 Hz. Returns
 // the second keyframe's report and the mapper's segments.
 std::pair<KeyframeReport, int> AddAViewAndItUpsideDown(const MapperOptions& options) {
-  const RgbdFrame& frame = HandheldWalk().frames[20];
-  Mapper mapper(HandheldWalk().camera, options);
+  const RgbdFrame& frame = HandheldWalkAt5Hz().frames[20];
+  Mapper mapper(HandheldWalkAt5Hz().camera, options);
   mapper.AddKeyframe(0, frame.color, frame.depth);
   cv::Mat color;
   cv::Mat depth;
@@ -565,7 +565,7 @@ TEST(Mapper, ARegistrationThatTurnsTheCameraUpsideDownIsRefused) {
 }
 
 TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   std::vector<StampedPose> ground_truth;
   for (const RgbdFrame& frame : walk.frames) {
     ground_truth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
@@ -603,7 +603,7 @@ TEST(Mapper, AResumedSessionRelocalisesIntoTheRestoredMap) {
   // Day one maps frames 0-29; day two restores that map (as `sightmap map` does from the model)
   // and walks frames 15-29 again: its first keyframe cannot be registered by odometry, is
   // relocalised, and the new keyframes share the stored map's frame.
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper first(walk.camera, SmallVocabulary());
   for (size_t i = 0; i < 30; ++i) {
     first.AddKeyframe(walk.frames[i].timestamp_ns, walk.frames[i].color, walk.frames[i].depth);
@@ -641,7 +641,7 @@ TEST(Mapper, AResumedSessionRelocalisesIntoTheRestoredMap) {
 }
 
 TEST(Mapper, KeyframesAtKnownPosesKeepThemAndAreIndexed) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera, SmallVocabulary());
   for (const RgbdFrame& frame : walk.frames) {
     const KeyframeReport report = mapper.AddKeyframeAtPose(frame.timestamp_ns, frame.color,
@@ -661,7 +661,7 @@ TEST(Mapper, KeyframesAtKnownPosesKeepThemAndAreIndexed) {
 }
 
 TEST(Mapper, TheFirstKeyframeSitsAtTheGivenPose) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera, SmallVocabulary());
   const Eigen::Isometry3d& anchor = *walk.frames[0].world_from_cam_gt;
   mapper.SetFirstPose(anchor);
@@ -677,7 +677,7 @@ TEST(Mapper, TheFirstKeyframeSitsAtTheGivenPose) {
 }
 
 TEST(Mapper, RefusesImagesThatDoNotFitTheCamera) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt5Hz();
   Mapper mapper(walk.camera);
   const cv::Mat small(240, 320, CV_8UC3, cv::Scalar(0, 0, 0));
   const cv::Mat small_depth(240, 320, CV_16UC1, cv::Scalar(0));

@@ -10,6 +10,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 #include "core/rotation.h"
+#include "core/timing.h"
 #include "slam/pose_graph.h"
 
 namespace sightmap::slam {
@@ -17,10 +18,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 // Registration's information can be singular along a degenerate direction: a tiny ridge keeps the
 // inverse finite, and the mapper's floor decides how much such a link is trusted.

@@ -26,7 +26,7 @@ using Walk = testing::SimWalk;
 
 // 4 s of the handheld walk at 10 Hz, rendered once for all tests of this file. It starts facing a
 // bare wall at arm's length while turning away.
-const Walk& HandheldWalk() {
+const Walk& HandheldWalkAt10Hz() {
   static const Walk* walk = [] {
     sim::SimulatorOptions options;
     options.fps = 10.0;
@@ -68,7 +68,7 @@ void Append(const TrackResult& result, const std::vector<RgbdFrame>& frames, Cha
 }
 
 TEST(Tracker, KeepsOneKeyframeASecondAndChainsThemAccurately) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   Tracker tracker(walk.camera);
   Chain chain;
   for (const RgbdFrame& frame : walk.frames) Append(tracker.Track(frame), walk.frames, &chain);
@@ -98,7 +98,7 @@ TEST(Tracker, KeepsOneKeyframeASecondAndChainsThemAccurately) {
 }
 
 TEST(Tracker, EveryFrameIsAKeyframeAtRateZero) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   TrackerOptions options;
   options.keyframe_rate_hz = 0.0;
   Tracker tracker(walk.camera, options);
@@ -110,7 +110,7 @@ TEST(Tracker, EveryFrameIsAKeyframeAtRateZero) {
 }
 
 TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   TrackerOptions options;
   options.min_reference_points = 0;  // the blind frames themselves become keyframes
   Tracker tracker(walk.camera, options);
@@ -161,7 +161,7 @@ TEST(Tracker, BridgesBlindFramesWithAPriorWhoseCovarianceGrowsWithTheGap) {
 // Tracks frames 20-29 of the walk with their timestamps multiplied by `stretch`, frame 29 without
 // features (grey colour, its depth as measured); returns how frame 29 was placed.
 FrameTracking TrackAGreyFrame(double stretch, const TrackerOptions& options) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   Tracker tracker(walk.camera, options);
   FrameTracking last = FrameTracking::kRegistered;
   for (size_t i = 20; i < 30; ++i) {
@@ -463,7 +463,7 @@ TEST(Tracker, AKeyframeComesBeforeTheNearOverlapRunsOut) {
 }
 
 TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   TrackerOptions options;
   options.min_reference_points = 0;
   Tracker tracker(walk.camera, options);
@@ -494,7 +494,7 @@ TEST(Tracker, TheMapperKeepsKeyframesOnThePriorInOneSegmentWithPriorLinks) {
 // stores it, JPEG) places the next frames relative to it and emits its next keyframe with the
 // motion from it, as the tracker that mapped the stored walk would have.
 TEST(Tracker, ContinuesAWalkFromItsNewestStoredKeyframe) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   const size_t stored = 28;
   RgbdFrame keyframe = walk.frames[stored];
   std::vector<uint8_t> jpeg;
@@ -588,7 +588,7 @@ TEST(Tracker, ARichFirstFrameNothingRegistersToDoesNotStartTheMap) {
 }
 
 TEST(Tracker, WithoutARichFrameTheMapStartsOnTheRichestOfTheWait) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   TrackerOptions options;
   options.min_reference_points = 100000;  // no frame is rich enough
   options.start_max_wait_s = 0.5;
@@ -623,7 +623,7 @@ TEST(Tracker, WithoutARichFrameTheMapStartsOnTheRichestOfTheWait) {
 }
 
 TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
-  const Walk& walk = HandheldWalk();
+  const Walk& walk = HandheldWalkAt10Hz();
   Tracker tracker(walk.camera);
   RgbdFrame small = walk.frames[0];
   small.color = cv::Mat::zeros(10, 10, CV_8UC3);

@@ -15,6 +15,7 @@
 
 #include "capture/rgbd_source.h"
 #include "core/check.h"
+#include "core/timing.h"
 #include "slam/features.h"
 #include "slam/mapper.h"
 #include "slam/place_index.h"
@@ -22,10 +23,6 @@
 
 namespace sightmap::slam {
 namespace {
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // ORB-like data: each "place" has its own pool of prototype descriptors; an image of a place
 // holds `rows` prototypes of it with a few bits flipped (viewpoint and noise), so words are
