@@ -9,7 +9,9 @@ seconds=${1:-10}
 # -O1, as libFuzzer's documentation builds: the sanitized build took 315 s instead of 388 s at -O2
 # on 2 cores. Inputs run in 10 s went either way (label_request 69k -> 40k, locate_request
 # 167 -> 267, photo 618 -> 711); for a long hunt, -O2 may find more an hour.
-cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
+generator=()
+[[ -f build-fuzz/CMakeCache.txt ]] || generator=(-G Ninja)
+cmake -S . -B build-fuzz "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang-14 \
   -DCMAKE_CXX_COMPILER=clang++-14 -DSIGHTMAP_FUZZ=ON -DSIGHTMAP_BUILD_TESTS=OFF \
   "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g -DNDEBUG" "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g -DNDEBUG" \
   -DSIGHTMAP_FUZZ_SECONDS="$seconds" -DSIGHTMAP_FUZZ_SEEDS="$PWD/build/fuzz-seeds" >/dev/null

@@ -4,7 +4,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake pkg-config git      # toolchain
+  build-essential cmake ninja-build pkg-config git  # toolchain
   libopenni2-dev                            # OpenNI2: live sensors and .oni replay
   libusb-1.0-0-dev                          # USB sensor discovery (sightmap devices)
   libopencv-dev                             # image codecs, colour conversion
