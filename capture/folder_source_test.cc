@@ -19,6 +19,7 @@
 #include "capture/calibration.h"
 #include "core/check.h"
 #include "core/rotation.h"
+#include "core/timing.h"
 #include "tests/test_data.h"
 
 namespace sightmap::capture {
@@ -479,8 +480,7 @@ TEST(TumFolderTest, RealtimeKeepsTheRecordedPace) {
   const auto start = std::chrono::steady_clock::now();
   int frames = 0;
   while (source->Next()) ++frames;
-  const double elapsed_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double elapsed_s = SecondsSince(start);
   EXPECT_EQ(frames, 5);
   EXPECT_GE(elapsed_s, 0.166);  // d0 to d5
 }

@@ -13,6 +13,7 @@
 #include "capture/oni_file.h"
 #include "capture/openni_runtime.h"
 #include "core/check.h"
+#include "core/timing.h"
 #include "tests/test_data.h"
 
 namespace sightmap::capture {
@@ -167,8 +168,7 @@ TEST(OpenNiSource, RealtimeReplayKeepsTheRecordedPace) {
   auto source = OpenOniFile(path, options);
   const auto start = std::chrono::steady_clock::now();
   const ReadAll all = Drain(*source);
-  const double elapsed_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double elapsed_s = SecondsSince(start);
   // A busy machine can make the reader miss frames (OpenNI2 keeps a stream's newest frame only);
   // each is counted.
   const SourceStats stats = source->stats();

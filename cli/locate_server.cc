@@ -29,6 +29,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 #include "core/statistics.h"
+#include "core/timing.h"
 #include "identify/photo.h"
 #include "store/model.h"
 
@@ -661,8 +662,7 @@ void LocateServer::Impl::AddLabelRoutes() {
 }
 
 void LocateServer::Impl::HandleHealth(httplib::Response& response) const {
-  const double uptime_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  const double uptime_s = SecondsSince(started);
   int64_t answered = 0;
   int64_t failed = 0;
   std::vector<double> times;

@@ -32,6 +32,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/rotation.h"
+#include "core/timing.h"
 #include "identify/identify_eval.h"
 #include "identify/locator.h"
 #include "identify/sim_model_testing.h"
@@ -43,10 +44,6 @@ namespace sightmap::identify {
 namespace {
 
 namespace fs = std::filesystem;
-
-double Seconds(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // A model holding `factor` copies of `source`'s keyframe features (no images), the copy c moved
 // by 100 c metres along x, and its vocabulary and labels.
@@ -223,12 +220,12 @@ int Run(int argc, char** argv) {
   auto start = std::chrono::steady_clock::now();
   const Locator locator(model, locator_options);
   std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
-              locator.NumKeyframes(), locator.NumOcclusionVoxels(), Seconds(start));
+              locator.NumKeyframes(), locator.NumOcclusionVoxels(), SecondsSince(start));
 
   sim::Simulator simulator(PhotoSessionOptions());
   start = std::chrono::steady_clock::now();
   const std::vector<sim::QueryPhoto> queries = simulator.MakeQueries(photos, sim::QueryOptions());
-  std::printf("%d session-2 photos rendered in %.1f s\n", photos, Seconds(start));
+  std::printf("%d session-2 photos rendered in %.1f s\n", photos, SecondsSince(start));
 
   // The ground truth and the answers as `sightmap eval identify` scores them.
   std::vector<QueryTruth> truths;
@@ -340,7 +337,7 @@ int Run(int argc, char** argv) {
     if (!fs::exists(large_path)) {
       start = std::chrono::steady_clock::now();
       ReplicateModel(model, large_path, large_factor);
-      std::printf("\nreplicated model written in %.1f s\n", Seconds(start));
+      std::printf("\nreplicated model written in %.1f s\n", SecondsSince(start));
       std::fflush(stdout);
     }
     const store::Model large_model = store::Model::Open(large_path, read_only);

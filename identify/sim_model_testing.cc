@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "core/check.h"
+#include "core/timing.h"
 #include "store/model.h"
 
 namespace sightmap::identify {
@@ -97,7 +98,7 @@ SimModelSummary BuildSimulatorModel(const std::string& path, const SimModelOptio
   }
   model.EndSession(session_id, store::SessionEnd::kFinished, 0);
   summary.keyframes = frames;
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = SecondsSince(start);
   return summary;
 }
 

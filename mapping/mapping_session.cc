@@ -76,9 +76,12 @@ bool MappingOptions::Check(std::string* error) const {
     *error = "track_every must be >= 1";
     return false;
   }
-  if (replay_nice_increment < 0 || replay_nice_increment > 19 || replay_write_nice_increment < 0 ||
-      replay_write_nice_increment > 19) {
-    *error = "replay_nice_increment and replay_write_nice_increment must be in [0, 19]";
+  if (replay_nice_increment < 0 || replay_nice_increment > 19) {
+    *error = "replay_nice_increment must be in [0, 19]";
+    return false;
+  }
+  if (replay_write_nice_increment < 0 || replay_write_nice_increment > 19) {
+    *error = "replay_write_nice_increment must be in [0, 19]";
     return false;
   }
   if (frame_queue_capacity < 1 || keyframe_queue_capacity < 1 || write_queue_capacity < 1) {

@@ -218,6 +218,9 @@ TEST(MappingSession, BadOptionsAreRefused) {
   options.replay_nice_increment = 10;
   options.replay_write_nice_increment = -1;
   EXPECT_THROW(MappingSession{options}, InvalidArgument);
+  std::string why;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_EQ(why, "replay_write_nice_increment must be in [0, 19]");
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
+#include "core/timing.h"
 #include "render/map_view_factory.h"
 
 namespace sightmap::render {
@@ -119,7 +120,7 @@ TEST(PreviewWindow, OpensDrawsAMapTakesScreenshotsHandlesKeysAndClosesCleanly) {
 
   const auto start = std::chrono::steady_clock::now();
   window.reset();
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 5.0);
+  EXPECT_LT(SecondsSince(start), 5.0);
   // The window is gone: a new one can open.
   PreviewWindow again(options);
   EXPECT_FALSE(again.Screenshot().empty());

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <string>
 
+#include "core/timing.h"
 #include "render/progress_writer.h"
 #include "sim/simulator.h"
 
@@ -62,8 +63,7 @@ int main(int argc, char** argv) {
         poses.push_back(keyframe.world_from_cam);
         update.camera = keyframe.world_from_cam;
         update.keyframes.push_back(std::move(keyframe));
-        const double elapsed =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const double elapsed = SecondsSince(start);
         update.status = MapStatus{static_cast<int64_t>(poses.size()), loops,
                                   TrackingState::kTracking, poses.size() / elapsed, elapsed};
         writer.Submit(std::move(update));

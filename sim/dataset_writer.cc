@@ -10,6 +10,7 @@
 
 #include "capture/calibration.h"
 #include "core/check.h"
+#include "core/timing.h"
 #include "core/tum_format.h"
 
 namespace sightmap::sim {
@@ -176,7 +177,7 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
   }
   WriteImage(dir / "overview.png", DrawOverview(scene, walk, photos));
   summary.queries = static_cast<int>(photos.size());
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = SecondsSince(start);
   summary.frames_per_second = summary.seconds > 0 ? summary.frames / summary.seconds : 0.0;
   return summary;
 }

@@ -20,6 +20,7 @@
 #include "core/link_type.h"
 #include "core/options_json.h"
 #include "core/rotation.h"
+#include "core/timing.h"
 
 namespace sightmap::slam {
 
@@ -419,15 +420,14 @@ PoseGraphSummary PoseGraph::OptimizeNear(size_t edge, int hops, double max_borde
     if (WindowFits(summary, border, max_border_chi2_rise, options.max_loop_chi2)) {
       summary.local = true;
       summary.iterations = iterations;
-      summary.time_s =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      summary.time_s = SecondsSince(start);
       return summary;
     }
     for (const auto& [id, pose] : before) nodes_.at(id).world_from_cam = pose;
   }
   PoseGraphSummary summary = OptimizeAround(to, options);
   summary.iterations += iterations;
-  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.time_s = SecondsSince(start);
   return summary;
 }
 
@@ -615,7 +615,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
       summary.edge_chi2[e] = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
     }
   }
-  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.time_s = SecondsSince(start);
   return summary;
 }
 

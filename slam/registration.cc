@@ -9,6 +9,7 @@
 #include "core/check.h"
 #include "core/options_json.h"
 #include "core/rotation.h"
+#include "core/timing.h"
 #include "slam/hamming.h"
 #include "slam/rigid_alignment.h"
 
@@ -344,9 +345,6 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const Eigen::Isometry3d* prior) {
   SIGHTMAP_CHECK_OPTIONS(options);
   using Clock = std::chrono::steady_clock;
-  const auto seconds_since = [](Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-  };
   RegistrationResult result;
   auto stage_start = Clock::now();
   // Only keypoints with a 3D point on both sides can take part, so only those are matched: a
@@ -362,7 +360,7 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
   }
   result.matches = static_cast<int>(matches.size());
   std::vector<Correspondence> pairs = MakeCorrespondences(source, target, matches, options);
-  result.times.matching_s = seconds_since(stage_start);
+  result.times.matching_s = SecondsSince(stage_start);
   stage_start = Clock::now();
 
   std::mt19937_64 rng(options.ransac_seed);
@@ -383,7 +381,7 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
       const auto guided_start = Clock::now();
       std::vector<Correspondence> guided = MakeCorrespondences(
           source, target, GuidedMatches(source, target, seed, camera, options), options);
-      result.times.matching_s += seconds_since(guided_start);
+      result.times.matching_s += SecondsSince(guided_start);
       Eigen::Isometry3d pose;
       std::vector<size_t> inliers = Ransac(guided, options, rng, &pose);
       if (inliers.size() > best_inliers.size()) {
@@ -432,7 +430,7 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
     result.information += pair.weight * jacobian.transpose() * jacobian;
   }
   result.rmse_m = std::sqrt(squared / best_inliers.size());
-  result.times.ransac_s = seconds_since(stage_start);
+  result.times.ransac_s = SecondsSince(stage_start);
 
   if (result.inliers < options.min_inliers) {
     result.failure = "too few inliers after refinement (" + std::to_string(result.inliers) + ")";
@@ -463,7 +461,7 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
         CompareDepth(source_depth_mm, target_depth_mm, best, depth_camera, stride, options);
     const DenseAgreement backward = CompareDepth(target_depth_mm, source_depth_mm, best.inverse(),
                                                  depth_camera, stride, options);
-    result.times.verification_s = seconds_since(stage_start);
+    result.times.verification_s = SecondsSince(stage_start);
     result.overlap_samples = std::min(forward.samples, backward.samples);
     auto fraction = [](int part, int whole) {
       return whole > 0 ? static_cast<double>(part) / whole : 0.0;

@@ -29,6 +29,7 @@
 
 #include "core/check.h"
 #include "core/rotation.h"
+#include "core/timing.h"
 #include "core/tum_format.h"
 #include "sim/simulator.h"
 #include "slam/features.h"
@@ -222,8 +223,7 @@ KeyframeFeed TrackedFrames(sim::Simulator& simulator, const TrackerOptions& opti
       }
       const auto start = std::chrono::steady_clock::now();
       const RgbdFrame frame = simulator.RenderFrame((*next)++);
-      figures->render_s +=
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      figures->render_s += SecondsSince(start);
       TrackResult result = tracker->Track(frame);
       if (trace) trace->Record(frame, result);
       figures->frame_s.push_back(result.total_s);
@@ -591,8 +591,7 @@ int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOp
   const RunResult clean = Run(TrackedFrames(simulator, tracker, first_frame, trace, &figures),
                               simulator.options().camera, options, -1, true);
   WriteTrajectories(clean, trajectory_out);
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double wall_s = SecondsSince(start);
   const double walk_s = static_cast<double>(simulator.num_frames() - first_frame) / sim_options.fps;
   const TrackerCounters& c = figures.counters;
   std::printf(
@@ -719,9 +718,7 @@ int Main(int argc, char** argv) {
                    static_cast<long long>(simulator.num_frames()));
     }
   }
-  std::fprintf(
-      stderr, "rendering took %.1f s\n",
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count());
+  std::fprintf(stderr, "rendering took %.1f s\n", SecondsSince(render_start));
   std::printf("simulator office, %s, session %d, seed %llu, %zu keyframes at %g Hz\n",
               trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size(),
               fps);

@@ -16,6 +16,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/timing.h"
 #include "store/model.h"
 #include "store/synthetic_model.h"
 
@@ -23,10 +24,6 @@ namespace sightmap::store {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double Seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
 
 int64_t FileBytes(const std::string& path) {
   std::error_code ec;
@@ -87,7 +84,7 @@ void WriteThroughput(const std::string& dir, int count, bool sync_every_commit,
       previous = model.AddKeyframe(keyframe);
     }
   }  // closing checkpoints the WAL into the database file
-  const double seconds = Seconds(start);
+  const double seconds = SecondsSince(start);
   int64_t color_bytes = 0;
   int64_t depth_bytes = 0;
   for (const KeyframeInfo& info : Model::Open(path).Keyframes()) {
@@ -133,25 +130,25 @@ void LargeModel(const std::string& dir, int count) {
     }
   }
   std::printf("large model: %d keyframes (64x48, 100 features) built in %.1f s, %.1f MB\n", count,
-              Seconds(start), FileBytes(path) / 1e6);
+              SecondsSince(start), FileBytes(path) / 1e6);
 
   start = Clock::now();
   Model model = Model::Open(path);
-  const double open_s = Seconds(start);
+  const double open_s = SecondsSince(start);
   start = Clock::now();
   const std::vector<KeyframeInfo> keyframes = model.Keyframes();
-  const double list_s = Seconds(start);
+  const double list_s = SecondsSince(start);
   start = Clock::now();
   const ModelSummary summary = model.Summary();
-  const double summary_s = Seconds(start);
+  const double summary_s = SecondsSince(start);
   std::vector<std::pair<KeyframeId, Eigen::Isometry3d>> poses;
   for (const KeyframeInfo& info : keyframes) poses.emplace_back(info.id, info.world_from_cam);
   start = Clock::now();
   model.UpdatePoses(poses);
-  const double update_s = Seconds(start);
+  const double update_s = SecondsSince(start);
   start = Clock::now();
   const cv::Mat color = model.LoadColor(keyframes[keyframes.size() / 2].id);
-  const double load_s = Seconds(start);
+  const double load_s = SecondsSince(start);
   std::printf("  open %.1f ms + list %zu keyframes %.1f ms = %.1f ms (target < 1000 ms)\n",
               1e3 * open_s, keyframes.size(), 1e3 * list_s, 1e3 * (open_s + list_s));
   std::printf(

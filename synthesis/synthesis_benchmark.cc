@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/check.h"
+#include "core/timing.h"
 #include "identify/identify_eval.h"
 #include "store/model.h"
 #include "synthesis/view_synthesis.h"
@@ -57,8 +58,7 @@ int main(int argc, char** argv) {
         ++refused;
       }
     }
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds = SecondsSince(start);
     std::cout << "written " << written << ", refused " << refused << ", mean drawn share "
               << drawn / std::max(1, written + refused) << ", " << seconds << " s\n";
   } catch (const Error& e) {

@@ -11,6 +11,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/timing.h"
 
 namespace sightmap::synthesis {
 namespace {
@@ -418,7 +419,7 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
     report.deleted = model.DeleteSyntheticViews(SyntheticViewId(first_written.value() - 1));
   }
   report.bytes = model.Summary().synthetic_view_bytes;
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  report.seconds = SecondsSince(start);
   return report;
 }
 

@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/timing.h"
 #include "store/model.h"
 #include "store/point_cloud.h"
 #include "store/trajectory.h"
@@ -481,8 +482,7 @@ TEST(Map, CtrlCFinishesCommitsWritesThePlyAndExitsZero) {
   run.Signal(SIGINT);
   const auto signalled = std::chrono::steady_clock::now();
   const CommandResult result = run.Wait();
-  const double stop_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
+  const double stop_s = SecondsSince(signalled);
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("stopped: interrupted"), std::string::npos) << result.out;
   EXPECT_LT(stop_s, 30.0);

@@ -29,6 +29,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/camera.h"
+#include "core/timing.h"
 #include "identify/exif_testing.h"
 #include "identify/identify_eval.h"
 #include "identify/sim_model_testing.h"
@@ -658,7 +659,7 @@ TEST_F(ServeTest, AThousandMixedRequestsFromEightClients) {
     });
   }
   for (std::thread& client : clients) client.join();
-  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  const double seconds = SecondsSince(start);
   const double rss_end = ResidentMiB(server_->pid());
   std::printf(
       "%d requests from %d clients in %.1f s (%.0f/s); RSS %.1f MiB after 100, %.1f MiB "
