@@ -41,7 +41,7 @@ Eigen::Matrix4d ReadMatrix4(const std::string& path) {
 }
 
 double AngleDegrees(const Eigen::Matrix3d& rotation) {
-  return Eigen::AngleAxisd(rotation).angle() * 180.0 / kPi;
+  return RadToDeg(Eigen::AngleAxisd(rotation).angle());
 }
 
 TEST(ThreeDMatchFolderTest, ReadsTheSharedLoungeFrames) {

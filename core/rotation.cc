@@ -5,7 +5,7 @@
 namespace sightmap {
 
 double RotationAngleDeg(const Eigen::Matrix3d& rotation) {
-  return Eigen::AngleAxisd(rotation).angle() * 180.0 / M_PI;
+  return RadToDeg(Eigen::AngleAxisd(rotation).angle());
 }
 
 double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
@@ -59,7 +59,7 @@ void FloorAxes(const Eigen::Vector3d& up, Eigen::Vector3d* e1, Eigen::Vector3d* 
 
 double FloorBearingDeg(const Eigen::Vector3d& offset, const Eigen::Vector3d& e1,
                        const Eigen::Vector3d& e2) {
-  const double deg = std::atan2(offset.dot(e2), offset.dot(e1)) * 180.0 / M_PI;
+  const double deg = RadToDeg(std::atan2(offset.dot(e2), offset.dot(e1)));
   return deg < 0.0 ? deg + 360.0 : deg;
 }
 

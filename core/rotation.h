@@ -9,6 +9,11 @@ namespace sightmap {
 
 inline constexpr double kPi = 3.14159265358979323846;
 
+// Degrees to radians and back, as `deg * kPi / 180` and `rad * 180 / kPi` (in that order, so a
+// value converted here equals the one the expression gives).
+inline constexpr double DegToRad(double deg) { return deg * kPi / 180.0; }
+inline constexpr double RadToDeg(double rad) { return rad * 180.0 / kPi; }
+
 // The angle of `rotation`'s axis-angle form [deg, 0-180].
 double RotationAngleDeg(const Eigen::Matrix3d& rotation);
 // The angle between two orientations: of a^T b [deg, 0-180].

@@ -11,15 +11,15 @@ TEST(RotationAngleDeg, MeasuresTheTurnWhateverTheAxis) {
   EXPECT_NEAR(RotationAngleDeg(Eigen::Matrix3d::Identity()), 0.0, 1e-12);
   const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 0.5).normalized();
   for (double deg : {0.5, 30.0, 90.0, 179.0}) {
-    const Eigen::Matrix3d r = Eigen::AngleAxisd(deg * M_PI / 180.0, axis).toRotationMatrix();
+    const Eigen::Matrix3d r = Eigen::AngleAxisd(DegToRad(deg), axis).toRotationMatrix();
     EXPECT_NEAR(RotationAngleDeg(r), deg, 1e-9);
     EXPECT_NEAR(RotationAngleDeg(Eigen::Matrix3d(r.transpose())), deg, 1e-9);  // either way
   }
   // Between two orientations: 40 deg about z, then 70 deg about z.
   const Eigen::Matrix3d a =
-      Eigen::AngleAxisd(40.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      Eigen::AngleAxisd(DegToRad(40.0), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const Eigen::Matrix3d b =
-      Eigen::AngleAxisd(70.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      Eigen::AngleAxisd(DegToRad(70.0), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   EXPECT_NEAR(RotationAngleDeg(a, b), 30.0, 1e-9);
   EXPECT_NEAR(RotationAngleDeg(b, a), 30.0, 1e-9);
   // A motion's translation does not count.
@@ -31,8 +31,7 @@ TEST(RotationAngleDeg, MeasuresTheTurnWhateverTheAxis) {
 
 TEST(MotionWithin, BoundsTheMoveAndTheTurnBothInclusive) {
   Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
-  motion.linear() =
-      Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  motion.linear() = Eigen::AngleAxisd(DegToRad(10.0), Eigen::Vector3d::UnitY()).toRotationMatrix();
   motion.translation() = Eigen::Vector3d(0.3, 0.0, 0.4);  // 0.5 m
   EXPECT_TRUE(MotionWithin(motion, 0.5, 10.0 + 1e-9));
   EXPECT_TRUE(MotionWithin(motion, 1.0, 20.0));

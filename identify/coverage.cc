@@ -15,7 +15,6 @@
 namespace sightmap::identify {
 namespace {
 
-constexpr double kDegPerRad = 180.0 / M_PI;
 // The floor plan shows the space within this of eye height, and this much around it [m].
 constexpr double kPlanHalfHeightM = 0.6;
 constexpr double kPlanMarginM = 1.0;
@@ -139,7 +138,7 @@ double BearingDeg(const Eigen::Vector3d& offset, const ModelCoverage& coverage) 
 bool CanSeeFrom(const Eigen::Vector3d& label_centre, double bearing_deg, double distance_m,
                 const ModelCoverage& coverage, const SpaceGrid& grid,
                 const CoverageOptions& options) {
-  const double bearing = bearing_deg / kDegPerRad;
+  const double bearing = DegToRad(bearing_deg);
   const Eigen::Vector3d on_floor = label_centre - label_centre.dot(coverage.up) * coverage.up;
   const Eigen::Vector3d standpoint =
       on_floor + coverage.eye_height_m * coverage.up +
@@ -439,7 +438,7 @@ std::optional<double> NearestViewAngleDeg(const Eigen::Isometry3d& world_from_ph
     }
   }
   if (best_cos < -1.5) return std::nullopt;
-  return std::acos(std::clamp(best_cos, -1.0, 1.0)) * kDegPerRad;
+  return RadToDeg(std::acos(std::clamp(best_cos, -1.0, 1.0)));
 }
 
 bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,

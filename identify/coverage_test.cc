@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "store/model.h"
 #include "store/synthetic_model.h"
 
@@ -59,7 +60,7 @@ class RoomModel {
     // Cameras at the room's middle looking round it, but not at the thermostat (east, yaw 0):
     // they carve the room's space.
     for (const double yaw_deg : {70.0, 110.0, 150.0, 180.0, 210.0, 250.0, 290.0}) {
-      const double yaw = yaw_deg * M_PI / 180.0;
+      const double yaw = DegToRad(yaw_deg);
       const Eigen::Vector3d eye(3.0, 2.0, 1.5);
       Add(LookAt(eye, eye + Eigen::Vector3d(std::cos(yaw), std::sin(yaw), -0.1)));
     }
@@ -75,7 +76,7 @@ class RoomModel {
   // A keyframe standing `distance_m` from the thermostat towards `bearing_deg` (from +x towards
   // +y), looking at it.
   void AddLookingAtThermostat(double bearing_deg, double distance_m) {
-    const double b = bearing_deg * M_PI / 180.0;
+    const double b = DegToRad(bearing_deg);
     const Eigen::Vector3d eye = Eigen::Vector3d(kThermostat.x(), kThermostat.y(), 1.5) +
                                 distance_m * Eigen::Vector3d(std::cos(b), std::sin(b), 0.0);
     Add(LookAt(eye, kThermostat));
@@ -238,7 +239,7 @@ TEST(Coverage, JsonAndPlanSayTheSame) {
 }
 
 TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
-  const Intrinsics camera = Intrinsics::FromFieldOfView(640, 480, 62.0 * M_PI / 180.0, 0.0);
+  const Intrinsics camera = Intrinsics::FromFieldOfView(640, 480, DegToRad(62.0), 0.0);
   // The photo 2 m in front of the thermostat (which faces -x).
   const Eigen::Isometry3d photo = LookAt({3.95, 2.0, 1.5}, kThermostat);
   auto keyframe_at = [&](const Eigen::Vector3d& eye, const Eigen::Vector3d& look_at) {
@@ -248,7 +249,7 @@ TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
     return std::vector<store::KeyframeInfo>{keyframe};
   };
   auto at_bearing = [&](double deg, double distance) {
-    const double a = (180.0 + deg) * M_PI / 180.0;
+    const double a = DegToRad(180.0 + deg);
     return Eigen::Vector3d(kThermostat.x() + distance * std::cos(a),
                            kThermostat.y() + distance * std::sin(a), 1.5);
   };
@@ -266,7 +267,7 @@ TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
   // The target near its image's edge still counts: 25 deg off its axis (the half field is 31).
   const Eigen::Vector3d eye = at_bearing(0, 2.0);
   const Eigen::Vector3d aside =
-      eye + Eigen::AngleAxisd(25.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) * (kThermostat - eye);
+      eye + Eigen::AngleAxisd(DegToRad(25.0), Eigen::Vector3d::UnitZ()) * (kThermostat - eye);
   EXPECT_TRUE(ViewWasSeen(photo, kThermostat, keyframe_at(eye, aside)));
   EXPECT_FALSE(ViewWasSeen(photo, kThermostat, {}));
   // The nearest view's angle: the smaller of two keyframes', none beyond the distance factor.

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 
 namespace sightmap::identify {
 namespace {
@@ -237,8 +238,7 @@ TEST(IdentifyEval, WrongPosesAreCountedAndPhotosSplitByCoverage) {
   auto moved = [&](const Eigen::Vector3d& shift, double turn_deg) {
     Eigen::Isometry3d pose = truth_pose;
     pose.translation() += shift;
-    pose.linear() =
-        Eigen::AngleAxisd(turn_deg * M_PI / 180.0, Eigen::Vector3d(0, 0.6, 0.8)).matrix();
+    pose.linear() = Eigen::AngleAxisd(DegToRad(turn_deg), Eigen::Vector3d(0, 0.6, 0.8)).matrix();
     return pose;
   };
   for (size_t i = 0; i < 4; ++i) truths[i].world_from_cam = truth_pose;

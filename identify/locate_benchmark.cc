@@ -92,7 +92,7 @@ void ReplicateModel(const store::Model& source, const std::string& path, int fac
 class ViewCoverage {
  public:
   ViewCoverage(const store::Model& model, double max_angle_deg, double max_scale)
-      : cos_max_(std::cos(max_angle_deg * M_PI / 180.0)), max_scale_(max_scale) {
+      : cos_max_(std::cos(DegToRad(max_angle_deg))), max_scale_(max_scale) {
     OcclusionCloudBuilder builder(0.05);
     for (const store::KeyframeInfo& info : model.Keyframes()) {
       const cv::Mat depth = model.LoadDepth(info.id);

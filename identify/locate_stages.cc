@@ -377,7 +377,7 @@ int DetailCells(const Features& features, const cv::Size& size) {
 
 void FindNeighbours(const LocatorOptions& options, std::vector<LocatorKeyframe>* keyframes) {
   // Quadratic once at load (3,000 keyframes: 9M cheap tests); retrieval itself never scans.
-  const double cos_max = std::cos(options.neighbour_max_angle_deg * M_PI / 180.0);
+  const double cos_max = std::cos(DegToRad(options.neighbour_max_angle_deg));
   const double radius_sq = options.neighbour_radius_m * options.neighbour_radius_m;
   std::vector<LocatorKeyframe>& all = *keyframes;
   for (size_t i = 0; i < all.size(); ++i) {
@@ -546,7 +546,7 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
 std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,
                                const std::vector<LocatorKeyframe>& keyframes,
                                const LocatorOptions& options) {
-  const double place_cos = std::cos(options.place_max_angle_deg * M_PI / 180.0);
+  const double place_cos = std::cos(DegToRad(options.place_max_angle_deg));
   std::vector<Place> places;
   for (const slam::PlaceCandidate& candidate : candidates) {
     const size_t slot = static_cast<size_t>(candidate.id);

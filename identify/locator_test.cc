@@ -670,7 +670,7 @@ TEST(LocatorModelTest, AFewKeyframesWithoutAVocabularyStillLocatePhotos) {
 class VisibilityTest : public ::testing::Test {
  protected:
   VisibilityTest() {
-    intrinsics_ = Intrinsics::FromFieldOfView(1280, 960, 65.0 * M_PI / 180.0, 0.0);
+    intrinsics_ = Intrinsics::FromFieldOfView(1280, 960, DegToRad(65.0), 0.0);
     // A wall at z = 3 m across the whole view, sampled finer than its voxels.
     OcclusionCloudBuilder builder(0.05);
     for (double x = -3.0; x <= 3.0; x += 0.02) {

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "core/timing.h"
 #include "store/model.h"
 
@@ -114,7 +115,7 @@ sim::SimulatorOptions PhotoSessionOptions() {
 bool WalkSawPlace(const std::vector<Eigen::Isometry3d>& keyframes_world_from_cam,
                   const Eigen::Isometry3d& photo_world_from_cam, double max_distance_m,
                   double max_angle_deg) {
-  const double min_cos = std::cos(max_angle_deg * M_PI / 180.0);
+  const double min_cos = std::cos(DegToRad(max_angle_deg));
   for (const Eigen::Isometry3d& keyframe : keyframes_world_from_cam) {
     if ((keyframe.translation() - photo_world_from_cam.translation()).norm() < max_distance_m &&
         keyframe.linear().col(2).dot(photo_world_from_cam.linear().col(2)) > min_cos) {

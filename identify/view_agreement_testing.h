@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/camera.h"
+#include "core/rotation.h"
 
 namespace sightmap::identify::testing {
 
@@ -16,7 +17,7 @@ namespace sightmap::identify::testing {
 // locator tests' standpoints.
 inline Eigen::Isometry3d PoseAt(const Eigen::Vector3d& position, double yaw_deg) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  pose.linear() = Eigen::AngleAxisd(DegToRad(yaw_deg), Eigen::Vector3d::UnitY()).matrix();
   pose.translation() = position;
   return pose;
 }

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "core/voxel_key.h"
 
 namespace sightmap::identify {
@@ -375,7 +376,7 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelReco
   std::vector<ApplianceInView> result;
   if (labels.empty()) return result;
   const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
-  const double cos_behind = std::cos(options.behind_angle_deg * M_PI / 180.0);
+  const double cos_behind = std::cos(DegToRad(options.behind_angle_deg));
 
   // The z-buffer, drawn only when some label is in the view cone.
   cv::Mat zbuffer;

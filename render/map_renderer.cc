@@ -240,7 +240,7 @@ ViewCamera FollowCamera(const MapScene& scene, int width, int height,
 
   ViewCamera view;
   view.intrinsics =
-      Intrinsics::FromFieldOfView(width, height, options.follow_hfov_deg * kPi / 180.0, 0.0);
+      Intrinsics::FromFieldOfView(width, height, DegToRad(options.follow_hfov_deg), 0.0);
   view.world_from_cam = LookAt(eye, target, up);
   view.near_m = 0.1;
   view.far_m = 200.0;
@@ -253,11 +253,11 @@ ViewCamera OrbitCamera(const Eigen::Vector3d& target, double yaw_rad, double pit
   const Eigen::Vector3d up = world_up.normalized();
   Eigen::Vector3d e1, e2;
   FloorAxes(up, &e1, &e2);
-  const double pitch = std::clamp(pitch_rad, -89.0 * kPi / 180.0, 89.0 * kPi / 180.0);
+  const double pitch = std::clamp(pitch_rad, DegToRad(-89.0), DegToRad(89.0));
   const Eigen::Vector3d direction =
       std::cos(pitch) * (std::cos(yaw_rad) * e1 + std::sin(yaw_rad) * e2) + std::sin(pitch) * up;
   ViewCamera view;
-  view.intrinsics = Intrinsics::FromFieldOfView(width, height, hfov_deg * kPi / 180.0, 0.0);
+  view.intrinsics = Intrinsics::FromFieldOfView(width, height, DegToRad(hfov_deg), 0.0);
   view.world_from_cam = LookAt(target + std::max(distance_m, 0.01) * direction, target, up);
   view.near_m = std::max(0.01, 0.01 * distance_m);
   view.far_m = 200.0 + distance_m;

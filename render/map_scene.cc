@@ -135,7 +135,7 @@ bool SectorOptions::Check(std::string* error) const {
 }
 
 Eigen::Vector3d MapScene::FloorDirection(double bearing_deg) const {
-  const double a = bearing_deg * M_PI / 180.0;
+  const double a = DegToRad(bearing_deg);
   return std::cos(a) * floor_x_ + std::sin(a) * floor_y_;
 }
 

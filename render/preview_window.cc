@@ -85,7 +85,7 @@ struct PreviewWindow::Impl {
   cv::Mat shown_bgr;
   cv::Mat shown_depth;
   double yaw = -kPi / 2;  // orbit view [rad]
-  double pitch = 50.0 * kPi / 180.0;
+  double pitch = DegToRad(50.0);
   double distance = 9.0;  // [m]
   bool follow = true;     // the orbit centre follows the camera until the user pans
   Eigen::Vector3d target = Eigen::Vector3d::Zero();
@@ -119,7 +119,7 @@ struct PreviewWindow::Impl {
   void HandleDrag(int button, double dx, double dy) {
     if (button == 0) {
       yaw -= dx * 0.01;
-      pitch = std::clamp(pitch + dy * 0.01, -85.0 * kPi / 180.0, 89.0 * kPi / 180.0);
+      pitch = std::clamp(pitch + dy * 0.01, DegToRad(-85.0), DegToRad(89.0));
     } else {
       // Pan in the view's image plane, scaled so the map follows the cursor at the target.
       int fb_width = 1, fb_height = 1;

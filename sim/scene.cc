@@ -41,7 +41,7 @@ SceneBox ReadBox(const json& j, const Scene& scene, const std::string& where) {
   box.center = ReadVector3(j["center"], what + " center");
   box.size = ReadVector3(j["size"], what + " size");
   SIGHTMAP_CHECK(box.size.minCoeff() > 0.0, what << " has a non-positive size");
-  box.yaw_rad = j.value("yaw_deg", 0.0) * kPi / 180.0;
+  box.yaw_rad = DegToRad(j.value("yaw_deg", 0.0));
   box.material = j["material"].get<std::string>();
   SIGHTMAP_CHECK(scene.materials.count(box.material) == 1,
                  what << " uses material '" << box.material << "' which \"materials\" lacks");

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "sim/random.h"
 
 namespace sightmap::sim {
@@ -168,8 +169,8 @@ __attribute__((target_clones("avx2", "default"))) void RowIncidence(const RowGeo
 // The dropout thresholds of DepthSensorOptions in the form pass one compares, made once a frame.
 struct DropoutThresholds {
   explicit DropoutThresholds(const DepthSensorOptions& options)
-      : cos_start(std::cos(options.grazing_start_deg * M_PI / 180.0)),
-        cos_max(std::cos(options.grazing_max_deg * M_PI / 180.0)),
+      : cos_start(std::cos(DegToRad(options.grazing_start_deg))),
+        cos_max(std::cos(DegToRad(options.grazing_max_deg))),
         relative_jump(static_cast<float>(options.discontinuity_relative)) {}
   double cos_start;  // incidence where dropouts begin, as |cos|
   double cos_max;    // incidence beyond which nothing is measured, as |cos|

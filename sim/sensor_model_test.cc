@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "render/mesh_renderer.h"
 #include "sim/random.h"
 #include "sim/simulator.h"
@@ -186,8 +187,8 @@ cv::Mat ReferenceDepth(const cv::Mat& depth_m, const cv::Mat& no_depth_mask, con
       }
     }
   }
-  const double cos_start = std::cos(options.grazing_start_deg * M_PI / 180.0);
-  const double cos_max = std::cos(options.grazing_max_deg * M_PI / 180.0);
+  const double cos_start = std::cos(DegToRad(options.grazing_start_deg));
+  const double cos_max = std::cos(DegToRad(options.grazing_max_deg));
   const double fb = options.focal_baseline_px_m;
   const double step = options.disparity_step_px;
   cv::Mat out(h, w, CV_16U, cv::Scalar(0));

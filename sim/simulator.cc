@@ -129,7 +129,7 @@ bool QueryOptions::Check(std::string* error) const {
 }
 
 Intrinsics QueryOptions::PhoneIntrinsics() const {
-  return Intrinsics::FromFieldOfView(width, height, hfov_deg * kPi / 180.0, 0.0);
+  return Intrinsics::FromFieldOfView(width, height, DegToRad(hfov_deg), 0.0);
 }
 
 Simulator::Simulator(const SimulatorOptions& options) : options_(options) {
@@ -288,7 +288,7 @@ QueryAim DrawQueryAim(const Scene& scene, const Appliance& target, const QueryOp
                             aim.y() + distance * std::sin(angle), height);
     if (room != nullptr && !room->Contains(p.head<2>(), 0.3)) continue;
     if (overhead && std::atan2(aim.z() - p.z(), (aim - p).head<2>().norm()) >
-                        options.overhead_max_elevation_deg * kPi / 180.0) {
+                        DegToRad(options.overhead_max_elevation_deg)) {
       continue;
     }
     if (!scene.IsFree(p, 0.25)) continue;
@@ -307,11 +307,11 @@ QueryAim DrawQueryAim(const Scene& scene, const Appliance& target, const QueryOp
                             << target.name << " from; check the scene's rooms and boxes");
   const Eigen::Vector3d to = aim - position;
   const double yaw = std::atan2(to.y(), to.x()) +
-                     UniformReal(rng, -1.0, 1.0) * options.max_yaw_jitter_deg * kPi / 180.0;
-  const double frame_offset = overhead ? options.overhead_frame_offset_deg * kPi / 180.0 : 0.0;
+                     DegToRad(UniformReal(rng, -1.0, 1.0) * options.max_yaw_jitter_deg);
+  const double frame_offset = overhead ? DegToRad(options.overhead_frame_offset_deg) : 0.0;
   const double pitch = std::atan2(to.z(), to.head<2>().norm()) - frame_offset +
-                       UniformReal(rng, -1.0, 1.0) * options.max_pitch_jitter_deg * kPi / 180.0;
-  const double roll = UniformReal(rng, -1.0, 1.0) * options.max_roll_deg * kPi / 180.0;
+                       DegToRad(UniformReal(rng, -1.0, 1.0) * options.max_pitch_jitter_deg);
+  const double roll = DegToRad(UniformReal(rng, -1.0, 1.0) * options.max_roll_deg);
   QueryAim result;
   result.world_from_cam.linear() = WorldFromCamRotation(yaw, pitch, roll);
   result.world_from_cam.translation() = position;

@@ -116,8 +116,8 @@ TEST(Simulator, TrajectoriesStayInTheirEnvelopeVisitEveryRoomAndLoop) {
       } else {
         ASSERT_GE(p.z(), 1.4);
         ASSERT_LE(p.z(), 1.7);
-        ASSERT_LE(std::abs(pitch), 15.0 * kPi / 180.0 + 1e-9);
-        ASSERT_LE(std::abs(roll), 5.0 * kPi / 180.0 + 1e-9);
+        ASSERT_LE(std::abs(pitch), DegToRad(15.0) + 1e-9);
+        ASSERT_LE(std::abs(roll), DegToRad(5.0) + 1e-9);
       }
       ASSERT_TRUE(scene.IsFree(p, 0.05))
           << "camera inside an object at t=" << t << ": " << p.transpose();
@@ -246,7 +246,7 @@ TEST(Simulator, PhonePhotosAreAimedAtAppliancesWithinTheEnvelope) {
     EXPECT_LE(distance, options.max_distance_m + 1e-9);
     EXPECT_GE(p.z(), options.min_height_m);
     EXPECT_LE(p.z(), options.max_height_m);
-    EXPECT_NEAR(photo.intrinsics.HorizontalFieldOfView(), 65.0 * kPi / 180.0, 1e-6);
+    EXPECT_NEAR(photo.intrinsics.HorizontalFieldOfView(), DegToRad(65.0), 1e-6);
     occluders += photo.with_occluder;
     targets.insert(photo.target_appliance);
   }
@@ -302,11 +302,11 @@ TEST(Simulator, PhotosOfCeilingLightsLookUpModeratelyWithTheLightHighInTheFrame)
     if (target.points.front().z() <= options.overhead_min_height_m) continue;
     ++overhead;
     const Eigen::Vector3d to = target.points.front() - photo.world_from_cam.translation();
-    const double elevation_deg = std::atan2(to.z(), to.head<2>().norm()) * 180.0 / kPi;
+    const double elevation_deg = RadToDeg(std::atan2(to.z(), to.head<2>().norm()));
     EXPECT_LE(elevation_deg, options.overhead_max_elevation_deg + 1e-9) << target.name;
     // The optical axis (camera z) tilts up by at most elevation - offset + jitter.
     const Eigen::Vector3d axis = photo.world_from_cam.linear().col(2);
-    const double pitch_deg = std::asin(axis.z()) * 180.0 / kPi;
+    const double pitch_deg = RadToDeg(std::asin(axis.z()));
     EXPECT_LE(pitch_deg, options.overhead_max_elevation_deg - options.overhead_frame_offset_deg +
                              options.max_pitch_jitter_deg + 1e-6)
         << target.name;

@@ -14,8 +14,6 @@
 namespace sightmap::sim {
 namespace {
 
-constexpr double kDegToRad = kPi / 180.0;
-
 double WrapDeg(double a) {
   a = std::fmod(a, 360.0);
   if (a > 180.0) a -= 360.0;
@@ -270,9 +268,9 @@ class StandpointProbe {
         room_(scene.RoomAt(target_.head<2>())),
         preferred_m_(target_.z() > options.overhead_min_height_m ? options.overhead_distance_m
                                                                  : options.distance_m),
-        min_distance_m_(
-            std::max(options.min_distance_m, (target_.z() - options.eye_height_m) /
-                                                 std::tan(options.max_elevation_deg * kDegToRad))),
+        min_distance_m_(std::max(
+            options.min_distance_m,
+            (target_.z() - options.eye_height_m) / std::tan(DegToRad(options.max_elevation_deg)))),
         plain_(PlainBoxNames(scene)) {}
 
   const Eigen::Vector3d& target() const { return target_; }
@@ -286,7 +284,7 @@ class StandpointProbe {
   // view grazing a wall or half filled by a cupboard beside the walker is one the tracker loses.
   std::optional<Eigen::Vector2d> At(double bearing_deg, double distance) const {
     if (distance < min_distance_m_) return std::nullopt;
-    const double a = bearing_deg * kDegToRad;
+    const double a = DegToRad(bearing_deg);
     const Eigen::Vector2d p =
         target_.head<2>() + distance * Eigen::Vector2d(std::cos(a), std::sin(a));
     if (!grid_.IsFree(p) || (room_ != nullptr && scene_.RoomAt(p) != room_)) return std::nullopt;
@@ -295,7 +293,7 @@ class StandpointProbe {
     if (scene_.Raycast(eye, ray.normalized(), ray.norm() - 0.05, appliance_.id)) {
       return std::nullopt;
     }
-    for (const double side : {-12.0 * kDegToRad, 12.0 * kDegToRad}) {
+    for (const double side : {DegToRad(-12.0), DegToRad(12.0)}) {
       if (!open_view_required_) break;
       const Eigen::Vector3d aside = Eigen::AngleAxisd(side, Eigen::Vector3d::UnitZ()) * ray;
       if (scene_.Raycast(eye, aside.normalized(), std::min(0.8, ray.norm() - 0.3), appliance_.id)) {
@@ -395,7 +393,7 @@ OpenArc FindOpenArc(StandpointProbe* probe, const std::string& name) {
   } else if (const Room* room = probe->room()) {
     const Eigen::Vector2d to_middle = 0.5 * (room->min + room->max) - probe->target().head<2>();
     if (to_middle.norm() > 0.1) {
-      arc.front_deg = std::atan2(to_middle.y(), to_middle.x()) / kDegToRad;
+      arc.front_deg = RadToDeg(std::atan2(to_middle.y(), to_middle.x()));
     }
   }
   return arc;

@@ -147,7 +147,7 @@ TEST(Survey, ACeilingLightIsLookedAtFromFurtherAwaySoTheCameraTiltsModerately) {
     const double distance = (stop.position - stop.target->head<2>()).norm();
     EXPECT_NEAR(distance, options.overhead_distance_m, 0.26);
     const double elevation_deg =
-        std::atan2(stop.target->z() - options.eye_height_m, distance) * 180 / kPi;
+        RadToDeg(std::atan2(stop.target->z() - options.eye_height_m, distance));
     EXPECT_LE(elevation_deg, options.max_elevation_deg);
     EXPECT_EQ(stop.room, "a");
     EXPECT_TRUE(ClearLineOfSight(scene, stop, options.eye_height_m));
@@ -159,7 +159,7 @@ TEST(Survey, ACeilingLightIsLookedAtFromFurtherAwaySoTheCameraTiltsModerately) {
   for (const SurveyStop& stop :
        ChooseStandpoints(scene, grid, scene.appliances[1], options).stops) {
     const double distance = (stop.position - stop.target->head<2>()).norm();
-    EXPECT_GE(distance, (2.77 - options.eye_height_m) / std::tan(30.0 * kPi / 180.0));
+    EXPECT_GE(distance, (2.77 - options.eye_height_m) / std::tan(DegToRad(30.0)));
   }
 }
 
@@ -326,13 +326,13 @@ TEST(Survey, TheSurveyWalkLooksAtEachApplianceFromEachStandpoint) {
     max_speed = std::max(max_speed, (poses[i + 30].translation() - p).head<2>().norm());
     ASSERT_TRUE(scene.IsFree(p, 0.05)) << "t=" << i * dt << ": " << p.transpose();
     const double pitch = std::asin(pose.linear().col(2).z());
-    ASSERT_LE(std::abs(pitch), 35.0 * kPi / 180.0 + 1e-9) << i * dt;
+    ASSERT_LE(std::abs(pitch), DegToRad(35.0) + 1e-9) << i * dt;
     const Eigen::Vector3d f0 = poses[i - 1].linear().col(2), f1 = pose.linear().col(2);
     const double turn =
         std::atan2(f0.x() * f1.y() - f0.y() * f1.x(), f0.head<2>().dot(f1.head<2>()));
-    max_turn_dps = std::max(max_turn_dps, std::abs(turn) / dt * 180 / kPi);
+    max_turn_dps = std::max(max_turn_dps, RadToDeg(std::abs(turn) / dt));
     const double pitch_before = std::asin(f0.z());
-    max_tilt_dps = std::max(max_tilt_dps, std::abs(pitch - pitch_before) / dt * 180 / kPi);
+    max_tilt_dps = std::max(max_tilt_dps, RadToDeg(std::abs(pitch - pitch_before) / dt));
     facing_a_surface += scene.Raycast(p, f1, 0.6).has_value();
   }
   // The walker keeps the view open (the sensor measures nothing within 0.5 m).

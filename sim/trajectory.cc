@@ -127,7 +127,7 @@ Trajectory::Trajectory(const Scene& scene, const TrajectoryOptions& options)
   const double turn_rate_dps = options.max_turn_rate_dps > 0.0
                                    ? options.max_turn_rate_dps
                                    : (options.kind == TrajectoryKind::kRobot ? 30.0 : 35.0);
-  turn_rate_rad_s_ = turn_rate_dps * kPi / 180.0;
+  turn_rate_rad_s_ = DegToRad(turn_rate_dps);
   speed_mps_ = options.speed_mps > 0.0                     ? options.speed_mps
                : options.kind == TrajectoryKind::kHandheld ? 0.5
                : options.kind == TrajectoryKind::kRobot    ? 0.4
@@ -314,7 +314,7 @@ std::optional<Eigen::Vector3d> Trajectory::ChooseLookTarget(int64_t window_index
   double best_score = -1e9;
   std::optional<Eigen::Vector3d> target;
   for (int i = -11; i <= 11; ++i) {
-    const double yaw = heading + i * (110.0 / 11.0) * kPi / 180.0;
+    const double yaw = heading + DegToRad(i * (110.0 / 11.0));
     const Eigen::Vector3d dir(std::cos(yaw), std::sin(yaw), 0.0);
     const auto hit = scene_.Raycast(eye, dir, 3.8);
     if (!hit || hit->first < 1.6) continue;
@@ -466,7 +466,7 @@ double Trajectory::OpenYaw(const Eigen::Vector3d& eye, double yaw) const {
   if (open(yaw)) return yaw;
   for (int step = 1; step <= 12; ++step) {
     for (const double sign : {1.0, -1.0}) {
-      const double turned = yaw + sign * step * 10.0 * kPi / 180.0;
+      const double turned = yaw + DegToRad(sign * step * 10.0);
       if (open(turned)) return turned;
     }
   }

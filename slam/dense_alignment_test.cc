@@ -39,7 +39,7 @@ Eigen::Isometry3d Perturbed(const Eigen::Isometry3d& pose, const Eigen::Vector3d
                             double turn_deg) {
   Eigen::Isometry3d perturbation = Eigen::Isometry3d::Identity();
   perturbation.linear() =
-      Eigen::AngleAxisd(turn_deg * M_PI / 180.0, Eigen::Vector3d(0.3, 1.0, 0.2).normalized())
+      Eigen::AngleAxisd(DegToRad(turn_deg), Eigen::Vector3d(0.3, 1.0, 0.2).normalized())
           .toRotationMatrix();
   perturbation.translation() = offset_m;
   return perturbation * pose;

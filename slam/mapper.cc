@@ -42,7 +42,7 @@ Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>
 // freely, away from it barely [deg].
 double DownAxisTurnDeg(const Eigen::Isometry3d& target_from_source) {
   const double cosine = target_from_source.linear().col(1).y();
-  return std::acos(std::clamp(cosine, -1.0, 1.0)) * 180.0 / M_PI;
+  return RadToDeg(std::acos(std::clamp(cosine, -1.0, 1.0)));
 }
 
 // The link a registration of keyframe `to` (the source) against keyframe `from` (the target) makes.
@@ -778,7 +778,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
                              pending_join_->newer == newer &&
                              MotionWithin(pending_join_->correction.inverse() * correction,
                                           options_.join_max_disagreement_m,
-                                          options_.join_max_disagreement_rad * 180.0 / M_PI);
+                                          RadToDeg(options_.join_max_disagreement_rad));
       if (!confirmed) {
         pending_join_ = PendingJoin{older, newer, correction, link};
         break;
@@ -804,7 +804,7 @@ bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
 std::vector<int64_t> Mapper::NearbyKeyframes(const Keyframe& keyframe) const {
   const int root = Root(keyframe.segment);
   const Eigen::Isometry3d world_from_cam = graph_.Pose(keyframe.id);
-  const double min_cos = std::cos(options_.proximity_max_angle_deg * M_PI / 180.0);
+  const double min_cos = std::cos(DegToRad(options_.proximity_max_angle_deg));
   std::vector<std::pair<double, int64_t>> nearby;
   const int64_t newest_allowed = keyframe.id - options_.loop_exclude_recent;
   for (int64_t id = 0; id <= newest_allowed; ++id) {

@@ -292,7 +292,7 @@ double ErrorOfAMotionPutOff(const Eigen::Isometry3d& offset, const MapperOptions
 TEST(Mapper, ARefinementTheFramesFitBetterCorrectsAMotionCentimetresOff) {
   // 8 cm sideways and 1.5 degrees: beyond the plain bound (5 cm), within the fit's (15 cm).
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
-  offset.linear() = Eigen::AngleAxisd(1.5 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  offset.linear() = Eigen::AngleAxisd(DegToRad(1.5), Eigen::Vector3d::UnitY()).matrix();
   offset.translation() = Eigen::Vector3d(0.08, 0.0, 0.0);
   MapperOptions options = SmallVocabulary();
   options.vocabulary_training_keyframes = 1000;  // links only

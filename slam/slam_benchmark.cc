@@ -99,7 +99,7 @@ Eigen::Isometry3d TruthOf(const MapperLink& link, const std::vector<StampedPose>
 
 LinkError ErrorOf(const MapperLink& link, const Eigen::Isometry3d& truth) {
   const Eigen::Matrix<double, 6, 1> r = LogSe3(truth * link.to_in_from.inverse());
-  return {r.head<3>().norm(), r.tail<3>().norm() * 180.0 / M_PI, r.dot(link.information * r)};
+  return {r.head<3>().norm(), RadToDeg(r.tail<3>().norm()), r.dot(link.information * r)};
 }
 
 // The kinds of link a walk makes, each with its own source of error.

@@ -208,7 +208,7 @@ TEST(SmoothedVelocity, AveragesTheRegistrationsNoiseAway) {
   EXPECT_TRUE(velocity.empty());
   EXPECT_TRUE(velocity.Step(0.1).isApprox(Eigen::Isometry3d::Identity()));
   Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
-  step.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  step.linear() = Eigen::AngleAxisd(DegToRad(2.0), Eigen::Vector3d::UnitY()).matrix();
   for (int k = 0; k < 30; ++k) {
     step.translation() = Eigen::Vector3d(k % 2 == 0 ? 0.046 : 0.034, 0.0, 0.0);
     velocity.Add(step, 0.1);

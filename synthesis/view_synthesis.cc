@@ -11,16 +11,15 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/rotation.h"
 #include "core/timing.h"
 
 namespace sightmap::synthesis {
 namespace {
 
-constexpr double kDegPerRad = 180.0 / M_PI;
-
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   const double c = a.normalized().dot(b.normalized());
-  return std::acos(std::clamp(c, -1.0, 1.0)) * kDegPerRad;
+  return RadToDeg(std::acos(std::clamp(c, -1.0, 1.0)));
 }
 
 // The keyframe's depth at `pixel` [m], 0 when none or outside.
@@ -81,14 +80,14 @@ std::vector<Standpoint> PlanStandpoints(const identify::ModelCoverage& coverage,
     for (const identify::SectorCoverage& sector : label.sectors) {
       if (options.missing_sectors_only && sector.seen()) continue;
       const double bearing_deg = 0.5 * (sector.from_deg + sector.to_deg);
-      const double bearing = bearing_deg / kDegPerRad;
+      const double bearing = DegToRad(bearing_deg);
       const Eigen::Vector3d on_floor = label.centre - label.centre.dot(coverage.up) * coverage.up;
       for (const double distance : sector.open_distances_m) {
         const Eigen::Vector3d eye = on_floor + coverage.eye_height_m * coverage.up +
                                     distance * (std::cos(bearing) * coverage.floor_x +
                                                 std::sin(bearing) * coverage.floor_y);
         const double sine = std::abs((label.centre - eye).normalized().dot(coverage.up));
-        if (std::asin(std::min(1.0, sine)) * kDegPerRad > options.max_pitch_deg) continue;
+        if (RadToDeg(std::asin(std::min(1.0, sine))) > options.max_pitch_deg) continue;
         Standpoint standpoint;
         standpoint.label = label.id;
         standpoint.label_name = label.name;

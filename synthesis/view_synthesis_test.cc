@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
+#include "core/rotation.h"
 #include "identify/locator.h"
 #include "identify/sim_model_testing.h"
 
@@ -74,7 +75,7 @@ TEST(PlanStandpoints, OneViewPerOpenDistanceOfEachMissingSectorAtEyeHeight) {
     EXPECT_NEAR(eye.z(), 1.4, 1e-12);
     const Eigen::Vector2d offset = (eye - label.centre).head<2>();
     EXPECT_NEAR(offset.norm(), standpoint.distance_m, 1e-9);
-    EXPECT_NEAR(std::atan2(offset.y(), offset.x()) * 180.0 / M_PI, 45.0, 1e-9);
+    EXPECT_NEAR(RadToDeg(std::atan2(offset.y(), offset.x())), 45.0, 1e-9);
     const Eigen::Vector3d in_cam = standpoint.world_from_cam.inverse() * label.centre;
     EXPECT_NEAR(in_cam.head<2>().norm(), 0.0, 1e-9);  // the label at the image centre
   }
@@ -85,7 +86,7 @@ TEST(PlanStandpoints, OneViewPerOpenDistanceOfEachMissingSectorAtEyeHeight) {
   EXPECT_EQ(PlanStandpoints(coverage, options).size(), 3u);
 
   // A ceiling light straight above the nearest standpoint is too steep to photograph.
-  coverage.labels[0].centre.z() = 1.4 + 1.5 * std::tan(70.0 / 180.0 * M_PI);
+  coverage.labels[0].centre.z() = 1.4 + 1.5 * std::tan(DegToRad(70.0));
   options.missing_sectors_only = true;
   standpoints = PlanStandpoints(coverage, options);
   ASSERT_EQ(standpoints.size(), 1u);
