@@ -21,6 +21,7 @@
 #include "core/options_json.h"
 #include "core/rotation.h"
 #include "core/timing.h"
+#include "slam/pose_graph_stages.h"
 
 namespace sightmap::slam {
 
@@ -163,25 +164,6 @@ bool ConnectedWithout(const Neighbours& neighbours, const std::unordered_set<int
   return false;
 }
 
-// Disjoint sets over pose indices.
-class Components {
- public:
-  explicit Components(size_t size) : parent_(size) {
-    std::iota(parent_.begin(), parent_.end(), size_t{0});
-  }
-  size_t Find(size_t i) {
-    while (parent_[i] != i) {
-      parent_[i] = parent_[parent_[i]];
-      i = parent_[i];
-    }
-    return i;
-  }
-  void Join(size_t a, size_t b) { parent_[Find(a)] = Find(b); }
-
- private:
-  std::vector<size_t> parent_;
-};
-
 ceres::LinearSolverType SparseSolver() {
   for (const auto library :
        {ceres::SUITE_SPARSE, ceres::EIGEN_SPARSE, ceres::ACCELERATE_SPARSE, ceres::CX_SPARSE}) {
@@ -190,6 +172,74 @@ ceres::LinearSolverType SparseSolver() {
     }
   }
   return ceres::CGNR;  // no sparse factorisation compiled in: iterative, still sparse
+}
+
+ceres::Solver::Options SolverOptions(const PoseGraphOptions& options) {
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = SparseSolver();
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.max_solver_time_in_seconds = options.max_solver_time_s;
+  solver_options.num_threads = options.num_threads;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.function_tolerance = options.function_tolerance;
+  // Tighter than Ceres' defaults (1e-10, 1e-8), so that the cost decides when to stop.
+  solver_options.gradient_tolerance = 1e-12;
+  solver_options.parameter_tolerance = 1e-10;
+  return solver_options;
+}
+
+// One least-squares solve of the `solved` edges, from the poses `initial`.
+struct Solve {
+  bool anything = false;  // some edge was solved
+  ceres::Solver::Summary summary;
+  std::vector<PoseParameters> parameters;  // the solution; `initial` for poses that did not move
+  std::vector<bool> moved;                 // the poses the solve was free to move
+};
+
+Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
+                 const std::vector<bool>& solved, const std::vector<Matrix6d>& sqrt_information,
+                 const std::vector<PoseParameters>& initial, const std::vector<bool>& pinned,
+                 const PoseGraphOptions& options) {
+  ceres::EigenQuaternionManifold quaternion_manifold;
+  ceres::CauchyLoss loop_loss(options.loop_loss_scale);
+  const std::unique_ptr<ceres::LossFunction> odometry_loss(
+      options.odometry_loss_scale > 0.0 ? new ceres::CauchyLoss(options.odometry_loss_scale)
+                                        : nullptr);
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+
+  Solve solve;
+  solve.parameters = initial;
+  solve.moved.assign(initial.size(), false);
+  std::vector<bool> in_problem(initial.size(), false);
+  std::vector<bool> ties(edges.size(), false);
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (!solved[e]) continue;
+    const auto [a, b] = ends[e];
+    problem.AddResidualBlock(EdgeCost::Create(edges[e].to_in_from, sqrt_information[e]),
+                             IsLoopEdge(edges[e].type) ? &loop_loss : odometry_loss.get(),
+                             solve.parameters[a].q, solve.parameters[a].p, solve.parameters[b].q,
+                             solve.parameters[b].p);
+    in_problem[a] = in_problem[b] = true;
+    ties[e] = !edges[e].information.isZero();
+  }
+  if (problem.NumResidualBlocks() == 0) return solve;
+  solve.anything = true;
+
+  const std::vector<bool> held = internal::HeldPoses(ends, solved, ties, pinned);
+  for (size_t i = 0; i < initial.size(); ++i) {
+    if (!in_problem[i]) continue;
+    problem.SetManifold(solve.parameters[i].q, &quaternion_manifold);
+    if (held[i]) {
+      problem.SetParameterBlockConstant(solve.parameters[i].q);
+      problem.SetParameterBlockConstant(solve.parameters[i].p);
+    }
+    solve.moved[i] = !held[i];
+  }
+  ceres::Solve(SolverOptions(options), &problem, &solve.summary);
+  return solve;
 }
 
 }  // namespace
@@ -464,37 +514,28 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     nodes.push_back(&node);
     ids.push_back(id);
   }
-  std::vector<std::pair<size_t, size_t>> ends(edges_.size());
+  internal::EdgeEnds ends(edges_.size());
   for (size_t e = 0; e < edges_.size(); ++e) {
     ends[e] = {index_of.at(edges_[e].from), index_of.at(edges_[e].to)};
   }
-  // The edges in play: every active one, or those that active edges tie to `around`.
-  std::vector<bool> selected(active_);
-  if (scope.around) {
-    Components tied(nodes.size());
-    for (size_t e = 0; e < edges_.size(); ++e) {
-      if (active_[e]) tied.Join(ends[e].first, ends[e].second);
-    }
-    const size_t part = tied.Find(index_of.at(*scope.around));
-    for (size_t e = 0; e < edges_.size(); ++e) {
-      selected[e] = active_[e] && tied.Find(ends[e].first) == part;
-    }
-  }
-  // The poses that may move: all, or those of `free`; an edge with no free end has nothing to
-  // move.
+  // The poses that may move (all, or those of `free`) and the edges in play.
   std::vector<bool> free(nodes.size(), true);
   if (scope.free) {
     for (size_t i = 0; i < nodes.size(); ++i) free[i] = scope.free->count(ids[i]) > 0;
-    for (size_t e = 0; e < edges_.size(); ++e) {
-      selected[e] = selected[e] && (free[ends[e].first] || free[ends[e].second]);
-    }
   }
+  const std::vector<bool> selected = internal::SelectEdges(
+      ends, active_, free,
+      scope.around ? std::optional<size_t>(index_of.at(*scope.around)) : std::nullopt);
   std::vector<Matrix6d> sqrt_information(edges_.size());
   for (size_t e = 0; e < edges_.size(); ++e) {
     if (selected[e]) sqrt_information[e] = SqrtInformation(edges_[e].information);
   }
   std::vector<PoseParameters> initial(nodes.size());
-  for (size_t i = 0; i < nodes.size(); ++i) initial[i].Set(nodes[i]->world_from_cam);
+  std::vector<bool> pinned(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    initial[i].Set(nodes[i]->world_from_cam);
+    pinned[i] = nodes[i]->fixed || !free[i];
+  }
   if (border) {
     for (size_t e = 0; e < edges_.size(); ++e) {
       if (selected[e] && free[ends[e].first] != free[ends[e].second]) {
@@ -505,102 +546,42 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     if (border->empty()) return summary;
   }
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = SparseSolver();
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.max_solver_time_in_seconds = options.max_solver_time_s;
-  solver_options.num_threads = options.num_threads;
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.function_tolerance = options.function_tolerance;
-  // Tighter than Ceres' defaults (1e-10, 1e-8), so that the cost decides when to stop.
-  solver_options.gradient_tolerance = 1e-12;
-  solver_options.parameter_tolerance = 1e-10;
-
-  ceres::EigenQuaternionManifold quaternion_manifold;
-  ceres::CauchyLoss loop_loss(options.loop_loss_scale);
-  const std::unique_ptr<ceres::LossFunction> odometry_loss(
-      options.odometry_loss_scale > 0.0 ? new ceres::CauchyLoss(options.odometry_loss_scale)
-                                        : nullptr);
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-
+  // Solve, switch off the worst inconsistent loop edge, and solve again until none is. Each
+  // solve starts from the poses given, so the answer after switching an edge off does not depend
+  // on where that edge had pulled the poses.
   std::vector<PoseParameters> parameters = initial;
-  std::vector<bool> moved(nodes.size(), false);  // free in the last solve
+  std::vector<bool> moved(nodes.size(), false);
   while (true) {
-    // Each solve starts from the poses Optimize() was given, so the answer after switching an
-    // edge off does not depend on where that edge had pulled the poses.
-    parameters = initial;
-    ceres::Problem problem(problem_options);
-    moved.assign(nodes.size(), false);
-    std::vector<bool> in_problem(nodes.size(), false);
-    Components components(nodes.size());
-    for (size_t e = 0; e < edges_.size(); ++e) {
-      if (!active_[e] || !selected[e]) continue;
-      const auto [a, b] = ends[e];
-      problem.AddResidualBlock(EdgeCost::Create(edges_[e].to_in_from, sqrt_information[e]),
-                               IsLoopEdge(edges_[e].type) ? &loop_loss : odometry_loss.get(),
-                               parameters[a].q, parameters[a].p, parameters[b].q, parameters[b].p);
-      in_problem[a] = in_problem[b] = true;
-      // An edge without information does not tie its poses together.
-      if (!edges_[e].information.isZero()) components.Join(a, b);
-    }
-    if (problem.NumResidualBlocks() == 0) {
+    std::vector<bool> solved(edges_.size());
+    for (size_t e = 0; e < edges_.size(); ++e) solved[e] = active_[e] && selected[e];
+    Solve solve = SolveEdges(edges_, ends, solved, sqrt_information, initial, pinned, options);
+    parameters = std::move(solve.parameters);
+    moved = std::move(solve.moved);
+    if (!solve.anything) {
       summary.converged = true;  // nothing to move
       break;
     }
-
-    // Gauge: every component holds its fixed poses, or else its lowest id (first in id order).
-    std::vector<bool> component_held(nodes.size(), false);
-    for (size_t i = 0; i < nodes.size(); ++i) {
-      if (in_problem[i] && (nodes[i]->fixed || !free[i])) {
-        component_held[components.Find(i)] = true;
-      }
-    }
-    for (size_t i = 0; i < nodes.size(); ++i) {
-      if (!in_problem[i]) continue;
-      problem.SetManifold(parameters[i].q, &quaternion_manifold);
-      bool hold = nodes[i]->fixed || !free[i];
-      if (!component_held[components.Find(i)]) {
-        component_held[components.Find(i)] = true;
-        hold = true;
-      }
-      if (hold) {
-        problem.SetParameterBlockConstant(parameters[i].q);
-        problem.SetParameterBlockConstant(parameters[i].p);
-      }
-      moved[i] = !hold;
-    }
-
-    ceres::Solver::Summary solver_summary;
-    ceres::Solve(solver_options, &problem, &solver_summary);
-    if (summary.solves == 0) summary.initial_cost = solver_summary.initial_cost;
+    if (summary.solves == 0) summary.initial_cost = solve.summary.initial_cost;
     ++summary.solves;
-    summary.iterations += static_cast<int>(solver_summary.iterations.size());
-    summary.final_cost = solver_summary.final_cost;
-    summary.converged = solver_summary.termination_type == ceres::CONVERGENCE;
-    if (!solver_summary.IsSolutionUsable()) {
+    summary.iterations += static_cast<int>(solve.summary.iterations.size());
+    summary.final_cost = solve.summary.final_cost;
+    summary.converged = solve.summary.termination_type == ceres::CONVERGENCE;
+    if (!solve.summary.IsSolutionUsable()) {
       summary.usable = false;
       moved.assign(nodes.size(), false);
       parameters = initial;
       break;
     }
-
-    // Switch off the worst inconsistent loop edge, if any, and solve again. Only the worst: a
-    // false loop also raises the error of the correct loops near it.
-    size_t worst = edges_.size();
-    double worst_chi2 = options.max_loop_chi2;
+    std::vector<std::optional<double>> loop_chi2(edges_.size());
     for (size_t e = 0; e < edges_.size(); ++e) {
-      if (!active_[e] || !selected[e] || !IsLoopEdge(edges_[e].type)) continue;
-      const double chi2 = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
-      if (chi2 > worst_chi2) {
-        worst = e;
-        worst_chi2 = chi2;
+      if (solved[e] && IsLoopEdge(edges_[e].type)) {
+        loop_chi2[e] = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
       }
     }
-    if (worst == edges_.size()) break;
-    active_[worst] = false;
-    summary.rejected_edges.push_back(worst);
+    const std::optional<size_t> worst = internal::WorstLoop(loop_chi2, options.max_loop_chi2);
+    if (!worst) break;
+    active_[*worst] = false;
+    summary.rejected_edges.push_back(*worst);
   }
 
   // Poses that did not take part keep their exact input (no round trip through a quaternion).
