@@ -306,6 +306,150 @@ __attribute__((target_clones("popcnt", "default"))) std::vector<cv::DMatch> Guid
   return matches;
 }
 
+// Descriptor matches between the keypoints of `source` and `target` that have 3D points (rows of
+// the full feature sets). Only those can take part, so only those are matched: a frame has a few
+// hundred of them among its 1,000 keypoints, and matching cost is quadratic.
+std::vector<cv::DMatch> MatchKeypointsWithPoints(const Features& source, const Features& target,
+                                                 const MatchOptions& options) {
+  const std::vector<int> source_rows = RowsWithPoints(source);
+  const std::vector<int> target_rows = RowsWithPoints(target);
+  std::vector<cv::DMatch> matches =
+      MatchDescriptors(SelectRows(source.descriptors, source_rows),
+                       SelectRows(target.descriptors, target_rows), options);
+  for (cv::DMatch& match : matches) {
+    match.queryIdx = source_rows[static_cast<size_t>(match.queryIdx)];
+    match.trainIdx = target_rows[static_cast<size_t>(match.trainIdx)];
+  }
+  return matches;
+}
+
+// A pose with the correspondences it was found on and its inliers among them.
+struct PoseEstimate {
+  Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
+  std::vector<Correspondence> pairs;
+  std::vector<size_t> inliers;
+  bool guided = false;  // the pairs came from guided matching
+};
+
+// RANSAC on the global matches' pairs, then guided matching: a rough pose (RANSAC's, or the
+// caller's prior) predicts where each source point appears in the target image, and it is matched
+// among the target keypoints near there only. Frames a second apart with motion blur and repeated
+// texture keep few global ratio-test matches; the local search recovers many more, and RANSAC runs
+// again on them. The estimate with the most inliers wins. Adds guided matching's time to
+// `matching_s`.
+PoseEstimate EstimatePose(const Features& source, const Features& target,
+                          std::vector<Correspondence> pairs, const Intrinsics& camera,
+                          const RegistrationOptions& options, const Eigen::Isometry3d* prior,
+                          double* matching_s) {
+  std::mt19937_64 rng(options.ransac_seed);
+  PoseEstimate best;
+  best.inliers = Ransac(pairs, options, rng, &best.target_from_source);
+  best.pairs = std::move(pairs);
+  if (!(options.guided_radius_px > 0.0)) return best;
+  std::vector<Eigen::Isometry3d> seeds;
+  if (static_cast<int>(best.inliers.size()) >= options.guided_min_seed_inliers) {
+    seeds.push_back(best.target_from_source);
+  }
+  if (prior != nullptr) seeds.push_back(*prior);
+  for (const Eigen::Isometry3d& seed : seeds) {
+    const auto guided_start = std::chrono::steady_clock::now();
+    std::vector<Correspondence> guided = MakeCorrespondences(
+        source, target, GuidedMatches(source, target, seed, camera, options), options);
+    *matching_s += SecondsSince(guided_start);
+    Eigen::Isometry3d pose;
+    std::vector<size_t> inliers = Ransac(guided, options, rng, &pose);
+    if (inliers.size() > best.inliers.size()) {
+      best.pairs = std::move(guided);
+      best.inliers = std::move(inliers);
+      best.target_from_source = pose;
+      best.guided = true;
+    }
+  }
+  return best;
+}
+
+// Fits the pose on all inliers, weighting near points (less depth noise) more, and takes the
+// inliers of the fit, until the set settles (at most five rounds; a fit that loses inliers is not
+// taken); then refines it by reprojection.
+void RefineOnInliers(const Intrinsics& camera, const RegistrationOptions& options,
+                     PoseEstimate* estimate) {
+  for (int round = 0; round < 5; ++round) {
+    Eigen::Isometry3d refined;
+    if (!FitOn(estimate->pairs, estimate->inliers, true, &refined)) break;
+    std::vector<size_t> inliers = FindInliers(estimate->pairs, refined);
+    if (inliers.size() < estimate->inliers.size()) break;
+    const bool settled = inliers == estimate->inliers;
+    estimate->target_from_source = refined;
+    estimate->inliers = std::move(inliers);
+    if (settled) break;
+  }
+  estimate->target_from_source = RefineByReprojection(estimate->pairs, estimate->inliers, camera,
+                                                      estimate->target_from_source, options);
+}
+
+// The result's pose, inlier counts, RMSE and information (each inlier's point-to-point Jacobian
+// weighted by its inverse depth variance).
+void MeasureInliers(const PoseEstimate& estimate, const RegistrationOptions& options,
+                    RegistrationResult* result) {
+  const Eigen::Isometry3d& pose = estimate.target_from_source;
+  result->target_from_source = pose;
+  result->inliers = static_cast<int>(estimate.inliers.size());
+  double squared = 0.0;
+  for (size_t i : estimate.inliers) {
+    const Correspondence& pair = estimate.pairs[i];
+    if (pair.target.z() <= options.near_depth_m) ++result->near_inliers;
+    const Eigen::Vector3d moved = pose * pair.source;
+    squared += (moved - pair.target).squaredNorm();
+    Eigen::Matrix<double, 3, 6> jacobian;
+    jacobian.leftCols<3>().setIdentity();
+    jacobian.rightCols<3>() = -Skew(moved);
+    result->information += pair.weight * jacobian.transpose() * jacobian;
+  }
+  result->rmse_m = std::sqrt(squared / estimate.inliers.size());
+}
+
+// Dense verification of the result's pose: each depth image's pixels moved into the other camera
+// (both ways) must agree with the depth seen there, and not lie in front of it (space the other
+// camera saw empty). Fills the result's figures; the reason to refuse, or empty.
+std::string VerifyByDepth(const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
+                          const Intrinsics& camera, const RegistrationOptions& options,
+                          RegistrationResult* result) {
+  SIGHTMAP_CHECK(source_depth_mm.type() == CV_16UC1 && target_depth_mm.type() == CV_16UC1 &&
+                     source_depth_mm.cols > 0 && camera.width % source_depth_mm.cols == 0 &&
+                     camera.height % source_depth_mm.rows == 0 &&
+                     camera.width / source_depth_mm.cols == camera.height / source_depth_mm.rows &&
+                     target_depth_mm.size() == source_depth_mm.size(),
+                 "registration needs 16-bit depth images of the camera's size, or that size "
+                 "divided by a whole factor");
+  const int factor = camera.width / source_depth_mm.cols;
+  const Intrinsics depth_camera =
+      factor == 1 ? camera : camera.Scaled(source_depth_mm.cols, source_depth_mm.rows);
+  const int stride = std::max(1, options.verify_stride_px / factor);
+  const Eigen::Isometry3d& pose = result->target_from_source;
+  const DenseAgreement forward =
+      CompareDepth(source_depth_mm, target_depth_mm, pose, depth_camera, stride, options);
+  const DenseAgreement backward =
+      CompareDepth(target_depth_mm, source_depth_mm, pose.inverse(), depth_camera, stride, options);
+  result->overlap_samples = std::min(forward.samples, backward.samples);
+  const auto fraction = [](int part, int whole) {
+    return whole > 0 ? static_cast<double>(part) / whole : 0.0;
+  };
+  result->consistent_fraction = std::min(fraction(forward.consistent, forward.samples),
+                                         fraction(backward.consistent, backward.samples));
+  result->violation_fraction = std::max(fraction(forward.violations, forward.samples),
+                                        fraction(backward.violations, backward.samples));
+  if (result->overlap_samples < options.min_overlap_samples) {
+    return "too little overlap to verify (" + std::to_string(result->overlap_samples) + " samples)";
+  }
+  if (result->violation_fraction > options.max_violation_fraction ||
+      result->consistent_fraction < options.min_consistent_fraction) {
+    return "depth maps disagree: " +
+           std::to_string(static_cast<int>(100 * result->consistent_fraction)) + "% consistent, " +
+           std::to_string(static_cast<int>(100 * result->violation_fraction)) + "% seen through";
+  }
+  return "";
+}
+
 }  // namespace
 
 bool RegistrationOptions::Check(std::string* error) const {
@@ -347,91 +491,30 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
   using Clock = std::chrono::steady_clock;
   RegistrationResult result;
   auto stage_start = Clock::now();
-  // Only keypoints with a 3D point on both sides can take part, so only those are matched: a
-  // frame has a few hundred of them among its 1,000 keypoints, and matching cost is quadratic.
-  const std::vector<int> source_rows = RowsWithPoints(source);
-  const std::vector<int> target_rows = RowsWithPoints(target);
-  std::vector<cv::DMatch> matches =
-      MatchDescriptors(SelectRows(source.descriptors, source_rows),
-                       SelectRows(target.descriptors, target_rows), options.matching);
-  for (cv::DMatch& match : matches) {
-    match.queryIdx = source_rows[static_cast<size_t>(match.queryIdx)];
-    match.trainIdx = target_rows[static_cast<size_t>(match.trainIdx)];
-  }
+  const std::vector<cv::DMatch> matches =
+      MatchKeypointsWithPoints(source, target, options.matching);
   result.matches = static_cast<int>(matches.size());
   std::vector<Correspondence> pairs = MakeCorrespondences(source, target, matches, options);
   result.times.matching_s = SecondsSince(stage_start);
+
   stage_start = Clock::now();
-
-  std::mt19937_64 rng(options.ransac_seed);
-  Eigen::Isometry3d best = Eigen::Isometry3d::Identity();
-  std::vector<size_t> best_inliers = Ransac(pairs, options, rng, &best);
-
-  // Guided matching: a rough pose (from the global matches, or the caller's prior) predicts where
-  // each source point appears in the target image, and it is matched among the target keypoints
-  // near there only. Frames a second apart with motion blur and repeated texture keep few global
-  // ratio-test matches; the local search recovers many more, and RANSAC runs again on them.
-  if (options.guided_radius_px > 0.0) {
-    std::vector<Eigen::Isometry3d> seeds;
-    if (static_cast<int>(best_inliers.size()) >= options.guided_min_seed_inliers) {
-      seeds.push_back(best);
-    }
-    if (prior != nullptr) seeds.push_back(*prior);
-    for (const Eigen::Isometry3d& seed : seeds) {
-      const auto guided_start = Clock::now();
-      std::vector<Correspondence> guided = MakeCorrespondences(
-          source, target, GuidedMatches(source, target, seed, camera, options), options);
-      result.times.matching_s += SecondsSince(guided_start);
-      Eigen::Isometry3d pose;
-      std::vector<size_t> inliers = Ransac(guided, options, rng, &pose);
-      if (inliers.size() > best_inliers.size()) {
-        pairs = std::move(guided);
-        best_inliers = std::move(inliers);
-        best = pose;
-        result.guided = true;
-      }
-    }
-  }
-  result.correspondences = static_cast<int>(pairs.size());
+  PoseEstimate estimate = EstimatePose(source, target, std::move(pairs), camera, options, prior,
+                                       &result.times.matching_s);
+  result.guided = estimate.guided;
+  result.correspondences = static_cast<int>(estimate.pairs.size());
   if (result.correspondences < options.min_inliers) {
     result.failure = "too few 3D correspondences (" + std::to_string(result.correspondences) + ")";
     return result;
   }
-  if (static_cast<int>(best_inliers.size()) < options.min_inliers) {
-    result.inliers = static_cast<int>(best_inliers.size());
+  if (static_cast<int>(estimate.inliers.size()) < options.min_inliers) {
+    result.inliers = static_cast<int>(estimate.inliers.size());
     result.failure = "too few RANSAC inliers (" + std::to_string(result.inliers) + " of " +
                      std::to_string(result.correspondences) + ")";
     return result;
   }
-
-  // Refine on all inliers, weighting near points (less depth noise) more, until the set settles.
-  for (int round = 0; round < 5; ++round) {
-    Eigen::Isometry3d refined;
-    if (!FitOn(pairs, best_inliers, true, &refined)) break;
-    std::vector<size_t> inliers = FindInliers(pairs, refined);
-    if (inliers.size() < best_inliers.size()) break;
-    const bool settled = inliers == best_inliers;
-    best = refined;
-    best_inliers = std::move(inliers);
-    if (settled) break;
-  }
-  best = RefineByReprojection(pairs, best_inliers, camera, best, options);
-  result.target_from_source = best;
-  result.inliers = static_cast<int>(best_inliers.size());
-  double squared = 0.0;
-  for (size_t i : best_inliers) {
-    const Correspondence& pair = pairs[i];
-    if (pair.target.z() <= options.near_depth_m) ++result.near_inliers;
-    const Eigen::Vector3d moved = best * pair.source;
-    squared += (moved - pair.target).squaredNorm();
-    Eigen::Matrix<double, 3, 6> jacobian;
-    jacobian.leftCols<3>().setIdentity();
-    jacobian.rightCols<3>() = -Skew(moved);
-    result.information += pair.weight * jacobian.transpose() * jacobian;
-  }
-  result.rmse_m = std::sqrt(squared / best_inliers.size());
+  RefineOnInliers(camera, options, &estimate);
+  MeasureInliers(estimate, options, &result);
   result.times.ransac_s = SecondsSince(stage_start);
-
   if (result.inliers < options.min_inliers) {
     result.failure = "too few inliers after refinement (" + std::to_string(result.inliers) + ")";
     return result;
@@ -445,44 +528,9 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
 
   if (!source_depth_mm.empty() && !target_depth_mm.empty()) {
     stage_start = Clock::now();
-    SIGHTMAP_CHECK(
-        source_depth_mm.type() == CV_16UC1 && target_depth_mm.type() == CV_16UC1 &&
-            source_depth_mm.cols > 0 && camera.width % source_depth_mm.cols == 0 &&
-            camera.height % source_depth_mm.rows == 0 &&
-            camera.width / source_depth_mm.cols == camera.height / source_depth_mm.rows &&
-            target_depth_mm.size() == source_depth_mm.size(),
-        "registration needs 16-bit depth images of the camera's size, or that size "
-        "divided by a whole factor");
-    const int factor = camera.width / source_depth_mm.cols;
-    const Intrinsics depth_camera =
-        factor == 1 ? camera : camera.Scaled(source_depth_mm.cols, source_depth_mm.rows);
-    const int stride = std::max(1, options.verify_stride_px / factor);
-    const DenseAgreement forward =
-        CompareDepth(source_depth_mm, target_depth_mm, best, depth_camera, stride, options);
-    const DenseAgreement backward = CompareDepth(target_depth_mm, source_depth_mm, best.inverse(),
-                                                 depth_camera, stride, options);
+    result.failure = VerifyByDepth(source_depth_mm, target_depth_mm, camera, options, &result);
     result.times.verification_s = SecondsSince(stage_start);
-    result.overlap_samples = std::min(forward.samples, backward.samples);
-    auto fraction = [](int part, int whole) {
-      return whole > 0 ? static_cast<double>(part) / whole : 0.0;
-    };
-    result.consistent_fraction = std::min(fraction(forward.consistent, forward.samples),
-                                          fraction(backward.consistent, backward.samples));
-    result.violation_fraction = std::max(fraction(forward.violations, forward.samples),
-                                         fraction(backward.violations, backward.samples));
-    if (result.overlap_samples < options.min_overlap_samples) {
-      result.failure =
-          "too little overlap to verify (" + std::to_string(result.overlap_samples) + " samples)";
-      return result;
-    }
-    if (result.violation_fraction > options.max_violation_fraction ||
-        result.consistent_fraction < options.min_consistent_fraction) {
-      result.failure =
-          "depth maps disagree: " +
-          std::to_string(static_cast<int>(100 * result.consistent_fraction)) + "% consistent, " +
-          std::to_string(static_cast<int>(100 * result.violation_fraction)) + "% seen through";
-      return result;
-    }
+    if (!result.failure.empty()) return result;
   }
   result.success = true;
   return result;

@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "capture/rgbd_source.h"
+#include "core/check.h"
 #include "core/rotation.h"
 #include "tests/test_data.h"
 
@@ -114,6 +115,58 @@ TEST(Registration, RefusesFramesWithoutDepth) {
       RegisterRgbd(source, target, cv::Mat(), cv::Mat(), Intrinsics());
   EXPECT_FALSE(result.success);
   EXPECT_NE(result.failure.find("3D correspondences"), std::string::npos) << result.failure;
+}
+
+// Keypoints where `camera` sees each feature's point (the reprojection refinement reads them).
+void ProjectKeypoints(const Intrinsics& camera, Features* features) {
+  for (size_t i = 0; i < features->size(); ++i) {
+    const Eigen::Vector2d pixel = camera.Project(features->points_cam[i]);
+    features->keypoints[i].pt =
+        cv::Point2f(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()));
+  }
+}
+
+// A wall facing the camera `z_m` away (0: nothing measured), as 16-bit depth [mm].
+cv::Mat Wall(const Intrinsics& camera, double z_m) {
+  return cv::Mat(camera.height, camera.width, CV_16UC1, cv::Scalar(z_m * 1000.0));
+}
+
+// The last stage: the features agree on a pose, and the depth images must agree with it too.
+TEST(Registration, DenseVerificationRefusesAPoseTheDepthContradicts) {
+  const Intrinsics camera = Intrinsics::FromPinhole(320, 240, 250.0, 250.0, 159.5, 119.5);
+  const Eigen::Isometry3d truth = Motion(0.0, {0.1, 0.0, 0.0});  // a step sideways
+  Features source;
+  Features target;
+  SyntheticPair(truth, 200, 0, 0.0, &source, &target);
+  ProjectKeypoints(camera, &source);
+  ProjectKeypoints(camera, &target);
+  const cv::Mat wall = Wall(camera, 2.0);
+
+  // A wall 2 m ahead stays 2 m ahead after a step sideways: every overlapping sample agrees.
+  const RegistrationResult agreed = RegisterRgbd(source, target, wall, wall, camera);
+  ASSERT_TRUE(agreed.success) << agreed.failure;
+  EXPECT_LT((agreed.target_from_source.translation() - truth.translation()).norm(), 1e-3);
+  EXPECT_GT(agreed.overlap_samples, 3000);  // of 80 x 60 samples, less the step's margin
+  EXPECT_DOUBLE_EQ(agreed.consistent_fraction, 1.0);
+  EXPECT_DOUBLE_EQ(agreed.violation_fraction, 0.0);
+
+  // The target saw the wall at 3 m: the source's wall would stand in space the target saw empty.
+  const RegistrationResult seen_through =
+      RegisterRgbd(source, target, wall, Wall(camera, 3.0), camera);
+  EXPECT_FALSE(seen_through.success);
+  EXPECT_EQ(seen_through.failure, "depth maps disagree: 0% consistent, 100% seen through");
+  EXPECT_EQ(seen_through.inliers, agreed.inliers);  // the features alone did not object
+
+  // Nothing measured in the target: nothing confirms the pose.
+  const RegistrationResult unconfirmed =
+      RegisterRgbd(source, target, wall, Wall(camera, 0.0), camera);
+  EXPECT_FALSE(unconfirmed.success);
+  EXPECT_EQ(unconfirmed.failure, "too little overlap to verify (0 samples)");
+
+  // Depth at a size the camera's does not divide into is an error, not a refusal.
+  EXPECT_THROW(RegisterRgbd(source, target, cv::Mat(70, 70, CV_16UC1, cv::Scalar(2000)),
+                            cv::Mat(70, 70, CV_16UC1, cv::Scalar(2000)), camera),
+               Error);
 }
 
 // Real Kinect-class frames with ground truth good to about a centimetre (ARCHITECTURE.md and the
