@@ -470,107 +470,154 @@ KeyframeReport Mapper::AddTrackedKeyframe(TrackedKeyframe tracked) {
   return report;
 }
 
-void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
-                    KeyframeReport* report) {
+std::optional<KeyframeMotion> Mapper::RefinedMotion(const Keyframe& keyframe,
+                                                    const KeyframeMotion* tracked_motion,
+                                                    MapperStageTimes* times, bool* refined) const {
+  *refined = false;
+  if (!tracked_motion) return std::nullopt;
   // The tracker's motion is refined like a registration when features registered it. Motions
   // chained through dense steps or guessed by the motion model are not: they come from views
   // without features (a bare wall), where alignment started 12 degrees off converges within 2
   // degrees of its start (measured on the simulated walk) and would claim millimetres for it.
-  std::optional<KeyframeMotion> refined_motion;
-  bool motion_refined = false;
-  if (tracked_motion) {
-    refined_motion = *tracked_motion;
-    if (tracked_motion->source == MotionSource::kRegistered && !keyframes_.empty()) {
-      motion_refined =
-          RefineDensely(keyframe, keyframes_.back(), &refined_motion->previous_from_cam,
-                        &refined_motion->information, &report->times, /*odometry=*/true);
-    }
+  KeyframeMotion motion = *tracked_motion;
+  if (tracked_motion->source == MotionSource::kRegistered && !keyframes_.empty()) {
+    *refined = RefineDensely(keyframe, keyframes_.back(), &motion.previous_from_cam,
+                             &motion.information, times, /*odometry=*/true);
   }
+  return motion;
+}
+
+Eigen::Isometry3d Mapper::PredictPose(const KeyframeMotion* motion) const {
+  const Keyframe& last = keyframes_.back();
+  const Eigen::Isometry3d world_from_last = graph_.Pose(last.id);
+  if (motion) return Orthonormalised(world_from_last * motion->previous_from_cam);
+  // Without a tracked motion, the last motion again (a walker keeps turning and walking for a
+  // few seconds), when the two keyframes before are of one segment.
+  if (last.id > 0 &&
+      Root(keyframes_[static_cast<size_t>(last.id - 1)].segment) == Root(last.segment)) {
+    return world_from_last * (graph_.Pose(last.id - 1).inverse() * world_from_last);
+  }
+  return world_from_last;
+}
+
+std::vector<MapperLink> Mapper::RegisterOdometry(const Keyframe& keyframe,
+                                                 const KeyframeMotion* motion,
+                                                 const Eigen::Isometry3d& predicted,
+                                                 KeyframeReport* report) const {
+  // The newest keyframes, newest first. They may lie in an older segment than the last keyframe:
+  // when one keyframe could not be registered (a bare wall filled the view), the next one often
+  // registers to the keyframes before it and so continues their segment. A tracked keyframe is
+  // linked to the last one already; its registrations start one further back.
+  std::vector<MapperLink> odometry;
+  const Keyframe& last = keyframes_.back();
+  const int segment_root = Root(last.segment);
+  const int64_t first_target = motion ? last.id - 1 : last.id;
+  const int wanted_links = options_.extra_odometry_links + (motion ? 0 : 1);
+  for (int64_t id = first_target; !start_new_segment_ && wanted_links > 0 && id >= 0 &&
+                                  last.id - id < options_.odometry_window;
+       --id) {
+    const Keyframe& target = keyframes_[static_cast<size_t>(id)];
+    const int target_root = Root(target.segment);
+    const int64_t anchor = !odometry.empty() ? odometry[0].from : (motion ? last.id : -1);
+    if (anchor >= 0 && target_root != Root(keyframes_[static_cast<size_t>(anchor)].segment)) {
+      continue;  // links of one keyframe stay within one segment
+    }
+    // The prediction is in the last keyframe's segment frame: no prior for other segments.
+    const Eigen::Isometry3d prior = graph_.Pose(target.id).inverse() * predicted;
+    const RegistrationResult result =
+        Register(keyframe, target, &report->times, target_root == segment_root ? &prior : nullptr,
+                 /*require_dense=*/false);
+    if (!result.success) {
+      if (report->odometry_failure.empty()) {
+        report->odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
+      }
+      continue;
+    }
+    if (motion && motion->source != MotionSource::kPrior &&
+        !AgreesWithTrackedMotion(graph_.Pose(target.id) * result.target_from_source, predicted)) {
+      // An extra link is odometry and never switched off: one 40 degrees off (a repeated texture
+      // registered across a second) bent a whole walk once the next loop was optimised.
+      continue;
+    }
+    if (motion && motion->source == MotionSource::kPrior &&
+        !WithinBlindMotion(graph_.Pose(target.id) * result.target_from_source, predicted,
+                           motion->blind_s)) {
+      if (report->odometry_failure.empty()) {
+        report->odometry_failure = "to keyframe " + std::to_string(id) +
+                                   ": further from the motion model than a walker goes";
+      }
+      continue;
+    }
+    odometry.push_back(RegisteredLink(target.id, keyframe.id, result, LinkType::kOdometry));
+    if (static_cast<int>(odometry.size()) >= wanted_links) break;
+  }
+  return odometry;
+}
+
+MapperLink Mapper::TrackedMotionLink(int64_t id, const KeyframeMotion& motion, bool refined) const {
+  MapperLink link;
+  link.from = keyframes_.back().id;
+  link.to = id;
+  link.to_in_from = Orthonormalised(motion.previous_from_cam);
+  link.information =
+      refined ? motion.information : FlooredInformation(motion.information, options_);
+  link.type = motion.source == MotionSource::kPrior ? LinkType::kPrior : LinkType::kOdometry;
+  link.inliers = motion.inliers;
+  return link;
+}
+
+Eigen::Isometry3d Mapper::PlaceKeyframe(const std::vector<MapperLink>& registered,
+                                        const KeyframeMotion* motion,
+                                        const Eigen::Isometry3d& predicted) const {
+  // A motion the tracker measured places the keyframe; one only guessed (the motion model) yields
+  // to a registration.
+  if (motion && (registered.empty() || motion->source != MotionSource::kPrior)) return predicted;
+  if (!registered.empty())
+    return graph_.Pose(registered.front().from) * registered.front().to_in_from;
+  return graph_.Pose(keyframes_.back().id);
+}
+
+void Mapper::AssignSegment(const std::vector<MapperLink>& odometry, const KeyframeMotion* motion,
+                           Keyframe* keyframe, KeyframeReport* report) {
+  keyframe->segment =
+      odometry.empty() ? keyframes_.back().segment : Get(odometry.front().from).segment;
+  if (odometry.empty() || start_new_segment_) {
+    // Lost: a new segment, seeded where the camera was last.
+    keyframe->segment = static_cast<int>(segment_parent_.size());
+    segment_parent_.push_back(keyframe->segment);
+  } else if (!motion || motion->source != MotionSource::kPrior) {
+    report->odometry_failure.clear();
+  }
+}
+
+bool Mapper::RecognisePlace(Keyframe& keyframe, KeyframeReport* report) {
+  if (!vocabulary_) {
+    if (static_cast<int>(keyframes_.size()) >= options_.vocabulary_training_keyframes) {
+      TrainVocabulary(&report->times);
+    }
+    return false;
+  }
+  const bool relocalised = SearchPlaces(keyframe, report);
+  if (!relocalised && !report->loop_closed) SearchNearby(keyframe, report);
+  return relocalised;
+}
+
+void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
+                    KeyframeReport* report) {
+  bool motion_refined = false;
+  const std::optional<KeyframeMotion> refined_motion =
+      RefinedMotion(keyframe, tracked_motion, &report->times, &motion_refined);
   const KeyframeMotion* motion = refined_motion ? &*refined_motion : nullptr;
-  // Odometry: the newest keyframes, newest first. They may lie in an older segment than the last
-  // keyframe: when one keyframe could not be registered (a bare wall filled the view), the next
-  // one often registers to the keyframes before it and so continues their segment. A tracked
-  // keyframe is linked to the last one already; its registrations start one further back.
   std::vector<MapperLink> odometry;
   Eigen::Isometry3d world_from_cam = first_world_from_cam_;
   if (!keyframes_.empty()) {
-    const Keyframe& last = keyframes_.back();
-    const int segment_root = Root(last.segment);
-    world_from_cam = graph_.Pose(last.id);
-    // Where the camera probably is: the tracked motion, or else the last motion again (a walker
-    // keeps turning and walking for a few seconds), which seeds guided matching when global
-    // matches are few.
-    Eigen::Isometry3d predicted = world_from_cam;
+    const Eigen::Isometry3d predicted = PredictPose(motion);
+    odometry = RegisterOdometry(keyframe, motion, predicted, report);
+    world_from_cam = PlaceKeyframe(odometry, motion, predicted);
     if (motion) {
-      predicted = Orthonormalised(world_from_cam * motion->previous_from_cam);
-    } else if (last.id > 0 &&
-               Root(keyframes_[static_cast<size_t>(last.id - 1)].segment) == segment_root) {
-      predicted = world_from_cam * (graph_.Pose(last.id - 1).inverse() * world_from_cam);
+      odometry.insert(odometry.begin(), TrackedMotionLink(keyframe.id, *motion, motion_refined));
     }
-    const int64_t first_target = motion ? last.id - 1 : last.id;
-    const int wanted_links = options_.extra_odometry_links + (motion ? 0 : 1);
-    for (int64_t id = first_target; !start_new_segment_ && wanted_links > 0 && id >= 0 &&
-                                    last.id - id < options_.odometry_window;
-         --id) {
-      const Keyframe& target = keyframes_[static_cast<size_t>(id)];
-      const int target_root = Root(target.segment);
-      const int64_t anchor = !odometry.empty() ? odometry[0].from : (motion ? last.id : -1);
-      if (anchor >= 0 && target_root != Root(keyframes_[static_cast<size_t>(anchor)].segment)) {
-        continue;  // links of one keyframe stay within one segment
-      }
-      // The prediction is in the last keyframe's segment frame: no prior for other segments.
-      const Eigen::Isometry3d prior = graph_.Pose(target.id).inverse() * predicted;
-      const RegistrationResult result =
-          Register(keyframe, target, &report->times, target_root == segment_root ? &prior : nullptr,
-                   /*require_dense=*/false);
-      if (!result.success) {
-        if (report->odometry_failure.empty()) {
-          report->odometry_failure = "to keyframe " + std::to_string(id) + ": " + result.failure;
-        }
-        continue;
-      }
-      if (motion && motion->source != MotionSource::kPrior &&
-          !AgreesWithTrackedMotion(graph_.Pose(target.id) * result.target_from_source, predicted)) {
-        // An extra link is odometry and never switched off: one 40 degrees off (a repeated texture
-        // registered across a second) bent a whole walk once the next loop was optimised.
-        continue;
-      }
-      if (motion && motion->source == MotionSource::kPrior &&
-          !WithinBlindMotion(graph_.Pose(target.id) * result.target_from_source, predicted,
-                             motion->blind_s)) {
-        if (report->odometry_failure.empty()) {
-          report->odometry_failure = "to keyframe " + std::to_string(id) +
-                                     ": further from the motion model than a walker goes";
-        }
-        continue;
-      }
-      const MapperLink link = RegisteredLink(target.id, keyframe.id, result, LinkType::kOdometry);
-      if (odometry.empty() && (!motion || motion->source == MotionSource::kPrior)) {
-        world_from_cam = graph_.Pose(target.id) * link.to_in_from;
-      }
-      odometry.push_back(link);
-      if (static_cast<int>(odometry.size()) >= wanted_links) break;
-    }
-    if (motion) {
-      MapperLink link;
-      link.from = last.id;
-      link.to = keyframe.id;
-      link.to_in_from = Orthonormalised(motion->previous_from_cam);
-      link.information =
-          motion_refined ? motion->information : FlooredInformation(motion->information, options_);
-      link.type = motion->source == MotionSource::kPrior ? LinkType::kPrior : LinkType::kOdometry;
-      link.inliers = motion->inliers;
-      if (odometry.empty() || motion->source != MotionSource::kPrior) world_from_cam = predicted;
-      odometry.insert(odometry.begin(), link);
-    }
-    keyframe.segment = odometry.empty() ? last.segment : Get(odometry.front().from).segment;
-    if (odometry.empty() || start_new_segment_) {
-      // Lost: a new segment, seeded where the camera was last.
-      keyframe.segment = static_cast<int>(segment_parent_.size());
-      segment_parent_.push_back(keyframe.segment);
-    } else if (!motion || motion->source != MotionSource::kPrior) {
-      report->odometry_failure.clear();
-    }
+    AssignSegment(odometry, motion, &keyframe, report);
   } else {
     segment_parent_.push_back(0);
   }
@@ -580,15 +627,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
   for (const MapperLink& link : odometry) AddLink(link, report);
   keyframes_.push_back(std::move(keyframe));
   Keyframe& inserted = keyframes_.back();
-  // Place recognition.
-  bool relocalised = false;
-  if (!vocabulary_ &&
-      static_cast<int>(keyframes_.size()) >= options_.vocabulary_training_keyframes) {
-    TrainVocabulary(&report->times);
-  } else if (vocabulary_) {
-    relocalised = SearchPlaces(inserted, report);
-    if (!relocalised && !report->loop_closed) SearchNearby(inserted, report);
-  }
+  const bool relocalised = RecognisePlace(inserted, report);
   // Lost: this keyframe could not be registered to the last ones and starts a segment of its own
   // (NumSegments() says how many parts of the map are not joined yet). The first keyframe of a
   // map, and of a resumed session that is not relocalised at once, count as lost too.

@@ -354,6 +354,33 @@ class Mapper {
   // last when `motion` already links it to the last) and inserts it with its links; then place
   // recognition. The shared body of AddKeyframe and AddTrackedKeyframe.
   void Insert(Keyframe keyframe, const KeyframeMotion* motion, KeyframeReport* report);
+  // Insert's stages, in order. The tracked motion (none without one), refined densely when
+  // features registered it (`refined`).
+  std::optional<KeyframeMotion> RefinedMotion(const Keyframe& keyframe,
+                                              const KeyframeMotion* tracked_motion,
+                                              MapperStageTimes* times, bool* refined) const;
+  // Where the new keyframe probably is, in the last keyframe's segment frame (a map with one).
+  Eigen::Isometry3d PredictPose(const KeyframeMotion* motion) const;
+  // The new keyframe's registered odometry links to the newest keyframes (odometry_window,
+  // extra_odometry_links), each checked against `predicted` when a motion was tracked or guessed;
+  // the first failure's reason goes into the report.
+  std::vector<MapperLink> RegisterOdometry(const Keyframe& keyframe, const KeyframeMotion* motion,
+                                           const Eigen::Isometry3d& predicted,
+                                           KeyframeReport* report) const;
+  // The link of a tracked (or guessed) motion from the last keyframe to keyframe `id`.
+  MapperLink TrackedMotionLink(int64_t id, const KeyframeMotion& motion, bool refined) const;
+  // The new keyframe's initial pose from its links: the tracked motion's, else the first
+  // registered link's, else the last keyframe's.
+  Eigen::Isometry3d PlaceKeyframe(const std::vector<MapperLink>& registered,
+                                  const KeyframeMotion* motion,
+                                  const Eigen::Isometry3d& predicted) const;
+  // The segment of the first odometry link's keyframe, or a new one when there is none (lost) or
+  // one was asked for.
+  void AssignSegment(const std::vector<MapperLink>& odometry, const KeyframeMotion* motion,
+                     Keyframe* keyframe, KeyframeReport* report);
+  // Trains the vocabulary once enough keyframes are in, then searches places for loops and
+  // relocalisation and, without either, nearby keyframes; true when relocalised.
+  bool RecognisePlace(Keyframe& keyframe, KeyframeReport* report);
   // Whether a registration's pose for a keyframe placed on the motion model lies within the
   // blind_link_* bounds of the model's pose after blind_s seconds.
   bool WithinBlindMotion(const Eigen::Isometry3d& registered, const Eigen::Isometry3d& predicted,
