@@ -472,14 +472,11 @@ Model::Model(Model&&) noexcept = default;
 Model& Model::operator=(Model&&) noexcept = default;
 Model::~Model() = default;
 
-Model Model::Open(const std::string& path, const ModelOptions& options) {
-  SIGHTMAP_CHECK_OPTIONS(options);
-  auto impl = std::make_unique<Impl>();
-  impl->path = path;
-  impl->options = options;
-  const std::string what = FileDescription(path);
-  const bool memory = IsMemoryPath(path);
+namespace {
 
+// Whether the model's file exists; throws when it must and does not, or is not a file.
+bool CheckModelPath(const std::string& path, bool memory, const std::string& what,
+                    const ModelOptions& options) {
   std::error_code ec;
   const bool exists = !memory && std::filesystem::exists(path, ec);
   if (!memory && !exists) {
@@ -490,140 +487,173 @@ Model Model::Open(const std::string& path, const ModelOptions& options) {
     SIGHTMAP_CHECK(std::filesystem::is_regular_file(path, ec),
                    what << " is not a file: pass the model's .db file");
   }
+  return exists;
+}
 
-  // Returns the first read's result code: it decides whether this is SQLite at all.
+// Opens `name` into *db (closing the connection there first) and reads the number of schema
+// objects into *num_objects. Returns that first read's result code: it decides whether this is
+// SQLite at all.
+int Connect(const std::string& name, int flags, const std::string& what,
+            const ModelOptions& options, sqlite3** db, int64_t* num_objects) {
+  if (*db) sqlite3_close_v2(*db);
+  *db = nullptr;
+  const int open_rc = sqlite3_open_v2(name.c_str(), db, flags | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (open_rc != SQLITE_OK) {
+    const std::string detail = *db ? sqlite3_errmsg(*db) : sqlite3_errstr(open_rc);
+    SIGHTMAP_THROW(Error, "cannot open model " << what << ": " << detail
+                                               << "; check the path and its permissions");
+  }
+  sqlite3_extended_result_codes(*db, 1);
+  SIGHTMAP_SQLITE3_CALL(*db, sqlite3_busy_timeout(*db, options.busy_timeout_ms));
+  sqlite3_stmt* probe = nullptr;
+  int rc = sqlite3_prepare_v2(*db, "SELECT count(*) FROM sqlite_master", -1, &probe, nullptr);
+  if (rc == SQLITE_OK) {
+    rc = sqlite3_step(probe);
+    if (rc == SQLITE_ROW) *num_objects = sqlite3_column_int64(probe, 0);
+  }
+  sqlite3_finalize(probe);
+  return rc == SQLITE_ROW ? SQLITE_OK : sqlite3_extended_errcode(*db);
+}
+
+[[noreturn]] void ThrowReadOnly(const std::string& what) {
+  SIGHTMAP_THROW(Error, "model " << what
+                                 << " is read-only: make it writable (chmod u+w) or copy it to a "
+                                    "writable folder");
+}
+
+// Connects for writing, holding the writer lock (`lock`) from before the first read.
+int ConnectToWrite(const std::string& path, bool exists, const std::string& what,
+                   const ModelOptions& options, std::optional<WriterLock>* lock, sqlite3** db,
+                   int64_t* num_objects) {
+  if (exists && access(path.c_str(), W_OK) != 0) ThrowReadOnly(what);
+  lock->emplace(path);
+  const int rc =
+      Connect(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, what, options, db, num_objects);
+  // SQLite silently falls back to read-only when the OS refuses writes; say so now rather than at
+  // the first keyframe.
+  if (sqlite3_db_readonly(*db, "main") == 1) ThrowReadOnly(what);
+  return rc;
+}
+
+// Connects read-only. A WAL model in a folder we cannot write (a shared or archived model) cannot
+// create its shared-memory file. With no WAL left behind, nobody is writing it and the main file
+// is the whole model, so it is then read as immutable.
+int ConnectToRead(const std::string& path, const std::string& what, const ModelOptions& options,
+                  sqlite3** db, int64_t* num_objects) {
+  const int rc = Connect(path, SQLITE_OPEN_READONLY, what, options, db, num_objects);
+  const int primary = rc & 0xff;
+  if (primary != SQLITE_READONLY && primary != SQLITE_CANTOPEN) return rc;
+  std::error_code wal_error;
+  const auto wal_size = std::filesystem::file_size(path + "-wal", wal_error);
+  SIGHTMAP_CHECK(wal_error || wal_size == 0,
+                 "cannot read model " << what
+                                      << ": its folder is not writable and it has an unmerged "
+                                         "-wal file; copy the model with its -wal file to a "
+                                         "writable folder");
+  return Connect("file:" + PercentEncode(std::filesystem::absolute(path).string()) + "?immutable=1",
+                 SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, what, options, db, num_objects);
+}
+
+int ReadApplicationId(sqlite3* db) {
+  Statement query(db, "PRAGMA application_id");
+  query.Step();
+  return static_cast<int>(query.Int(0));
+}
+
+int ReadSchemaVersion(sqlite3* db) {
+  Statement query(db, "SELECT COALESCE(MAX(version), 0) FROM sightmap_schema");
+  query.Step();
+  return static_cast<int>(query.Int(0));
+}
+
+// A database with objects must carry sightmap's application id.
+void CheckOurs(sqlite3* db, const std::string& what, int64_t objects) {
+  if (ReadApplicationId(db) != internal::kApplicationId && objects > 0) {
+    SIGHTMAP_THROW(Error, what << " is a SQLite database of another application, not a sightmap "
+                                  "model: pass a sightmap model, or a new file name to create "
+                                  "one");
+  }
+}
+
+void CheckNotNewer(int version, const std::string& what) {
+  const int latest = internal::LatestSchemaVersion();
+  if (version > latest) {
+    SIGHTMAP_THROW(Error, "model " << what << " has schema version " << version
+                                   << ", newer than this sightmap reads (" << latest
+                                   << "): update sightmap");
+  }
+}
+
+// Switches a writable model to WAL and its sync mode, then creates or migrates its schema to the
+// latest version, which it returns. Decided and upgraded under the write lock, so two processes
+// opening a new file do not both create the schema.
+int PrepareToWrite(sqlite3* db, bool memory, const std::string& what, const ModelOptions& options) {
+  if (!memory) {
+    Statement journal(db, "PRAGMA journal_mode=WAL");
+    journal.Step();
+    SIGHTMAP_CHECK(journal.Text(0) == "wal", "cannot switch model "
+                                                 << what << " to WAL mode (got '" << journal.Text(0)
+                                                 << "'); put the model on a local filesystem");
+  }
+  Exec(db, options.sync_every_commit ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
+  Transaction transaction(db);
+  // Finalised before migrating: a statement still reading sqlite_master keeps a migration from
+  // dropping a table ("database table is locked").
+  const int64_t objects = [db] {
+    Statement count(db, "SELECT count(*) FROM sqlite_master");
+    count.Step();
+    return count.Int(0);
+  }();
+  CheckOurs(db, what, objects);
+  const int version = objects == 0 ? 0 : ReadSchemaVersion(db);
+  CheckNotNewer(version, what);
+  const int latest = internal::LatestSchemaVersion();
+  if (version < latest) internal::ApplyMigrations(db, version, latest);
+  transaction.Commit();
+  return latest;
+}
+
+}  // namespace
+
+Model Model::Open(const std::string& path, const ModelOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->options = options;
+  const std::string what = FileDescription(path);
+  const bool memory = IsMemoryPath(path);
+  const bool exists = CheckModelPath(path, memory, what, options);
+
   int64_t num_objects = 0;
-  auto connect = [&](const std::string& name, int flags) {
-    if (impl->db) sqlite3_close_v2(impl->db);
-    impl->db = nullptr;
-    const int open_rc =
-        sqlite3_open_v2(name.c_str(), &impl->db, flags | SQLITE_OPEN_NOMUTEX, nullptr);
-    if (open_rc != SQLITE_OK) {
-      const std::string detail = impl->db ? sqlite3_errmsg(impl->db) : sqlite3_errstr(open_rc);
-      SIGHTMAP_THROW(Error, "cannot open model " << what << ": " << detail
-                                                 << "; check the path and its permissions");
-    }
-    sqlite3_extended_result_codes(impl->db, 1);
-    SIGHTMAP_SQLITE3_CALL(impl->db, sqlite3_busy_timeout(impl->db, options.busy_timeout_ms));
-    sqlite3_stmt* probe = nullptr;
-    int rc =
-        sqlite3_prepare_v2(impl->db, "SELECT count(*) FROM sqlite_master", -1, &probe, nullptr);
-    if (rc == SQLITE_OK) {
-      rc = sqlite3_step(probe);
-      if (rc == SQLITE_ROW) num_objects = sqlite3_column_int64(probe, 0);
-    }
-    sqlite3_finalize(probe);
-    return rc == SQLITE_ROW ? SQLITE_OK : sqlite3_extended_errcode(impl->db);
-  };
-
   int rc = SQLITE_OK;
   if (memory) {
-    rc = connect(":memory:", SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+    rc = Connect(":memory:", SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, what, options, &impl->db,
+                 &num_objects);
   } else if (!options.read_only) {
-    if (exists && access(path.c_str(), W_OK) != 0) {
-      SIGHTMAP_THROW(Error, "model " << what
-                                     << " is read-only: make it writable (chmod u+w) or copy it "
-                                        "to a writable folder");
-    }
-    impl->writer_lock.emplace(path);
-    rc = connect(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
-    // SQLite silently falls back to read-only when the OS refuses writes; say so now rather than
-    // at the first keyframe.
-    if (sqlite3_db_readonly(impl->db, "main") == 1) {
-      SIGHTMAP_THROW(Error, "model " << what
-                                     << " is read-only: make it writable (chmod u+w) or copy it "
-                                        "to a writable folder");
-    }
+    rc = ConnectToWrite(path, exists, what, options, &impl->writer_lock, &impl->db, &num_objects);
   } else {
-    rc = connect(path, SQLITE_OPEN_READONLY);
-    // A WAL model in a folder we cannot write (a shared or archived model) cannot create its
-    // shared-memory file. With no WAL left behind, nobody is writing it and the main file is the
-    // whole model, so it can be read as immutable.
-    const int primary = rc & 0xff;
-    if (primary == SQLITE_READONLY || primary == SQLITE_CANTOPEN) {
-      std::error_code wal_error;
-      const auto wal_size = std::filesystem::file_size(path + "-wal", wal_error);
-      SIGHTMAP_CHECK(wal_error || wal_size == 0,
-                     "cannot read model " << what
-                                          << ": its folder is not writable and it has an "
-                                             "unmerged -wal file; copy the model with its -wal "
-                                             "file to a writable folder");
-      rc = connect(
-          "file:" + PercentEncode(std::filesystem::absolute(path).string()) + "?immutable=1",
-          SQLITE_OPEN_READONLY | SQLITE_OPEN_URI);
-    }
+    rc = ConnectToRead(path, what, options, &impl->db, &num_objects);
   }
   sqlite3* db = impl->db;
   if ((rc & 0xff) == SQLITE_NOTADB) {
     SIGHTMAP_THROW(Error, what << " is not a sightmap model (not a SQLite database): pass the "
                                   ".db file that sightmap wrote");
   }
-  if (rc != SQLITE_OK) {
-    internal::ThrowSqliteError(db, rc, "open", __FILE__, __LINE__);
-  }
+  if (rc != SQLITE_OK) internal::ThrowSqliteError(db, rc, "open", __FILE__, __LINE__);
 
-  auto read_application_id = [db]() {
-    Statement query(db, "PRAGMA application_id");
-    query.Step();
-    return static_cast<int>(query.Int(0));
-  };
-  auto read_version = [db]() {
-    Statement query(db, "SELECT COALESCE(MAX(version), 0) FROM sightmap_schema");
-    query.Step();
-    return static_cast<int>(query.Int(0));
-  };
-  auto check_ours = [&](int application_id, int64_t objects) {
-    if (application_id != internal::kApplicationId && objects > 0) {
-      SIGHTMAP_THROW(Error, what << " is a SQLite database of another application, not a sightmap "
-                                    "model: pass a sightmap model, or a new file name to create "
-                                    "one");
-    }
-  };
-
-  check_ours(read_application_id(), num_objects);
-  const int latest = LatestSchemaVersion();
+  CheckOurs(db, what, num_objects);
   if (options.read_only) {
     SIGHTMAP_CHECK(num_objects > 0, what << " is an empty database, not a sightmap model");
-    impl->schema_version = read_version();
+    impl->schema_version = ReadSchemaVersion(db);
+    CheckNotNewer(impl->schema_version, what);
+    if (impl->schema_version < internal::LatestSchemaVersion()) {
+      SIGHTMAP_THROW(Error, "model "
+                                << what << " has the older schema version " << impl->schema_version
+                                << ": upgrade it once with 'sightmap info --upgrade " << impl->path
+                                << "'");
+    }
   } else {
-    if (!memory) {
-      Statement journal(db, "PRAGMA journal_mode=WAL");
-      journal.Step();
-      SIGHTMAP_CHECK(journal.Text(0) == "wal",
-                     "cannot switch model " << what << " to WAL mode (got '" << journal.Text(0)
-                                            << "'); put the model on a local filesystem");
-    }
-    Exec(db, options.sync_every_commit ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
-    // Decide and upgrade under the write lock, so two processes opening a new file do not both
-    // create the schema.
-    Transaction transaction(db);
-    // Finalised before migrating: a statement still reading sqlite_master keeps a migration from
-    // dropping a table ("database table is locked").
-    const int64_t objects = [db] {
-      Statement count(db, "SELECT count(*) FROM sqlite_master");
-      count.Step();
-      return count.Int(0);
-    }();
-    check_ours(read_application_id(), objects);
-    const int version = objects == 0 ? 0 : read_version();
-    if (version > latest) {
-      SIGHTMAP_THROW(Error, "model " << what << " has schema version " << version
-                                     << ", newer than this sightmap reads (" << latest
-                                     << "): update sightmap");
-    }
-    if (version < latest) internal::ApplyMigrations(db, version, latest);
-    transaction.Commit();
-    impl->schema_version = latest;
-  }
-  if (impl->schema_version > latest) {
-    SIGHTMAP_THROW(Error, "model " << what << " has schema version " << impl->schema_version
-                                   << ", newer than this sightmap reads (" << latest
-                                   << "): update sightmap");
-  }
-  if (options.read_only && impl->schema_version < latest) {
-    SIGHTMAP_THROW(
-        Error, "model " << what << " has the older schema version " << impl->schema_version
-                        << ": upgrade it once with 'sightmap info --upgrade " << impl->path << "'");
+    impl->schema_version = PrepareToWrite(db, memory, what, options);
   }
   Exec(db, "PRAGMA foreign_keys=ON");
   return Model(std::move(impl));
