@@ -410,6 +410,168 @@ struct MapRenderer::Impl {
     gl.DisableClientState(GL_COLOR_ARRAY);
     gl.DisableClientState(GL_VERTEX_ARRAY);
   }
+
+  // DrawMap's stages, in order.
+  // Loads the view's projection; returns the world's eye frame (the model-view of world points).
+  Eigen::Matrix4d SetCamera(const ViewCamera& view) {
+    gl.Clear(GL_DEPTH_BUFFER_BIT);
+    gl.MatrixMode(GL_PROJECTION);
+    const Eigen::Matrix4d projection =
+        view.orthographic ? GlOrthographic(view.intrinsics, view.near_m, view.far_m)
+                          : GlPerspective(view.intrinsics, view.near_m, view.far_m);
+    gl.LoadMatrixd(projection.data());  // Eigen is column-major like GL
+    gl.MatrixMode(GL_MODELVIEW);
+    gl.Enable(GL_DEPTH_TEST);
+    gl.DepthFunc(GL_LESS);
+    return GlEyeFromCam() * view.world_from_cam.inverse().matrix();
+  }
+
+  // The keyframes' points, one buffer per keyframe with its pose as model matrix: those whose
+  // bounding sphere meets the view volume, thinned to max_points_per_pixel, fogged by depth_cue_m.
+  void DrawPoints(const MapScene& scene, const ViewCamera& view, const Viewport& viewport,
+                  const Eigen::Matrix4d& eye_from_world) {
+    if (view.depth_cue_m > 0.0) {
+      const Eigen::Vector3f& bg = options.background_rgb;
+      const GLfloat fog_color[4] = {bg.x(), bg.y(), bg.z(), 1.0f};
+      gl.Enable(GL_FOG);
+      gl.Fogi(GL_FOG_MODE, GL_LINEAR);
+      gl.Fogf(GL_FOG_START, 0.0f);
+      gl.Fogf(GL_FOG_END, static_cast<float>(view.depth_cue_m));
+      gl.Fogfv(GL_FOG_COLOR, fog_color);
+    }
+    const Eigen::Isometry3d cam_from_world = view.world_from_cam.inverse();
+    std::vector<std::pair<const KeyframeBuffer*, const MapKeyframe*>> visible;
+    size_t visible_points = 0;
+    for (const auto& [id, buffer] : buffers) {
+      const auto it = scene.keyframes().find(id);
+      if (it == scene.keyframes().end() || buffer.count == 0) continue;
+      const Eigen::Vector3d c = cam_from_world * (it->second.world_from_cam * buffer.centre_cam);
+      if (!SphereMayBeVisible(view, c, buffer.radius)) continue;
+      visible.emplace_back(&buffer, &it->second);
+      visible_points += static_cast<size_t>(buffer.count);
+    }
+    double fraction = 1.0;
+    if (options.max_points_per_pixel > 0.0 && visible_points > 0) {
+      const double budget = options.max_points_per_pixel * viewport.width * viewport.height;
+      fraction = std::min(1.0, budget / static_cast<double>(visible_points));
+    }
+    points_drawn = 0;
+    gl.PointSize(options.point_size_px);
+    gl.EnableClientState(GL_VERTEX_ARRAY);
+    gl.EnableClientState(GL_COLOR_ARRAY);
+    for (const auto& [buffer, keyframe] : visible) {
+      const GLsizei count =
+          std::min(buffer->count, static_cast<GLsizei>(std::ceil(buffer->count * fraction)));
+      const Eigen::Matrix4d model_view = eye_from_world * keyframe->world_from_cam.matrix();
+      gl.LoadMatrixd(model_view.data());
+      gl.BindBuffer(GL_ARRAY_BUFFER, buffer->buffer);
+      gl.VertexPointer(3, GL_FLOAT, sizeof(ColorVertex), nullptr);
+      gl.ColorPointer(4, GL_UNSIGNED_BYTE, sizeof(ColorVertex),
+                      reinterpret_cast<const void*>(offsetof(ColorVertex, r)));
+      gl.DrawArrays(GL_POINTS, 0, count);
+      points_drawn += static_cast<size_t>(count);
+    }
+    gl.BindBuffer(GL_ARRAY_BUFFER, 0);
+    gl.DisableClientState(GL_COLOR_ARRAY);
+    gl.DisableClientState(GL_VERTEX_ARRAY);
+    gl.Disable(GL_FOG);
+  }
+
+  // Trajectories (one polyline per session), keyframe dots and loop edges, in world coordinates;
+  // on the floor plan on top of everything.
+  void DrawWalk(const MapScene& scene, const ViewCamera& view,
+                const Eigen::Matrix4d& eye_from_world) {
+    gl.LoadMatrixd(eye_from_world.data());
+    if (view.orthographic) gl.Disable(GL_DEPTH_TEST);
+    std::vector<ColorVertex> lines;
+    std::vector<ColorVertex> dots;
+    std::map<int, const MapKeyframe*> last_of_session;
+    for (const auto& [id, keyframe] : scene.keyframes()) {
+      const Eigen::Vector3f color = SessionColor(keyframe.session);
+      const Eigen::Vector3d position = keyframe.world_from_cam.translation();
+      auto it = last_of_session.find(keyframe.session);
+      if (it != last_of_session.end()) {
+        lines.push_back(MakeVertex(it->second->world_from_cam.translation(), color));
+        lines.push_back(MakeVertex(position, color));
+      }
+      last_of_session[keyframe.session] = &keyframe;
+      dots.push_back(MakeVertex(position, color));
+    }
+    const Eigen::Vector3f loop_color(1.0f, 0.25f, 0.9f);
+    for (const LoopEdge& edge : scene.loops()) {
+      const auto a = scene.keyframes().find(edge.from_id);
+      const auto b = scene.keyframes().find(edge.to_id);
+      if (a == scene.keyframes().end() || b == scene.keyframes().end()) continue;
+      lines.push_back(MakeVertex(a->second.world_from_cam.translation(), loop_color));
+      lines.push_back(MakeVertex(b->second.world_from_cam.translation(), loop_color));
+    }
+    Lines(lines, GL_LINES, options.trajectory_width_px);
+    Lines(dots, GL_POINTS, options.trajectory_width_px + 1.0f);
+  }
+
+  // The current camera's frustum, always on top, coloured by the tracking state; on the floor
+  // plan at least 14 px deep.
+  void DrawCamera(const MapScene& scene, const ViewCamera& view) {
+    gl.Disable(GL_DEPTH_TEST);
+    if (!scene.camera()) return;
+    double depth = options.frustum_depth_m;
+    if (view.orthographic) depth = std::max(depth, 14.0 / view.intrinsics.fx);
+    const Eigen::Vector3f color = TrackingColor(scene.status().tracking);
+    const Eigen::Isometry3d& pose = *scene.camera();
+    const Eigen::Vector3d apex = pose.translation();
+    Eigen::Vector3d corners[4];
+    const double hx = 0.55 * depth;  // about the Kinect's 58 x 45 degrees
+    const double hy = 0.41 * depth;
+    corners[0] = pose * Eigen::Vector3d(-hx, -hy, depth);
+    corners[1] = pose * Eigen::Vector3d(hx, -hy, depth);
+    corners[2] = pose * Eigen::Vector3d(hx, hy, depth);
+    corners[3] = pose * Eigen::Vector3d(-hx, hy, depth);
+    std::vector<ColorVertex> frustum;
+    for (int i = 0; i < 4; ++i) {
+      frustum.push_back(MakeVertex(apex, color));
+      frustum.push_back(MakeVertex(corners[i], color));
+      frustum.push_back(MakeVertex(corners[i], color));
+      frustum.push_back(MakeVertex(corners[(i + 1) % 4], color));
+    }
+    Lines(frustum, GL_LINES, 2.0f);
+  }
+
+  // Appliances: a marker and the name, in screen space so they stay readable at any zoom; on the
+  // floor plan, where they hang whatever their height (a ceiling light above the plan's cut),
+  // with the ring of directions they were seen from. The names first, then the rings and markers
+  // over them, so that no name's backing hides a neighbour's ring.
+  void DrawAppliances(const MapScene& scene, const ViewCamera& view, const Viewport& viewport) {
+    Begin2D(viewport);
+    const int scale = options.text_scale;
+    const float r = 3.0f * scale;
+    const bool rings = view.orthographic && options.show_coverage;
+    const float clear = rings ? kRingOuter * static_cast<float>(scale) : r;
+    const std::vector<uint64_t> seen =
+        rings ? scene.SeenSectors(options.coverage) : std::vector<uint64_t>();
+    std::vector<std::pair<size_t, Eigen::Vector2d>> placed;  // appliance, pixel
+    for (size_t a = 0; a < scene.appliances().size(); ++a) {
+      const ApplianceLabel& label = scene.appliances()[a];
+      const std::optional<Eigen::Vector2d> pixel = view.ProjectOnPlan(label.world_point);
+      if (!pixel) continue;
+      const float x = static_cast<float>(pixel->x()) + 0.5f;
+      const float y = static_cast<float>(pixel->y()) + 0.5f;
+      placed.emplace_back(a, *pixel);
+      // Right of the marker (and its ring), or left of it when the name would leave the viewport.
+      float text_x = x + clear + scale;
+      if (text_x + TextWidthPx(label.name, scale) > viewport.width) {
+        text_x = x - clear - scale - TextWidthPx(label.name, scale);
+      }
+      Text2D(label.name, text_x, y - 3.5f * scale, scale, Eigen::Vector3f(1.0f, 0.95f, 0.6f));
+    }
+    for (const auto& [a, pixel] : placed) {
+      const float x = static_cast<float>(pixel.x()) + 0.5f;
+      const float y = static_cast<float>(pixel.y()) + 0.5f;
+      if (rings) CoverageRing(scene, view, scene.appliances()[a].world_point, pixel, seen[a]);
+      std::vector<Eigen::Vector2f> marker = {{x, y - r}, {x + r, y}, {x, y + r},
+                                             {x, y - r}, {x, y + r}, {x - r, y}};
+      Triangles2D(marker, Eigen::Vector4f(1.0f, 0.9f, 0.1f, 1.0f));
+    }
+  }
 };
 
 MapRenderer::MapRenderer(GlProcLoader loader, const MapRenderOptions& options)
@@ -500,157 +662,13 @@ void MapRenderer::BeginFrame(int framebuffer_width, int framebuffer_height) {
 
 void MapRenderer::DrawMap(const MapScene& scene, const ViewCamera& view, const Viewport& viewport) {
   Impl& impl = *impl_;
-  const GlApi& gl = impl.gl;
-  const MapRenderOptions& options = impl.options;
   impl.SetViewport(viewport);
-  gl.Clear(GL_DEPTH_BUFFER_BIT);
-  gl.MatrixMode(GL_PROJECTION);
-  const Eigen::Matrix4d projection = view.orthographic
-                                         ? GlOrthographic(view.intrinsics, view.near_m, view.far_m)
-                                         : GlPerspective(view.intrinsics, view.near_m, view.far_m);
-  gl.LoadMatrixd(projection.data());  // Eigen is column-major like GL
-  gl.MatrixMode(GL_MODELVIEW);
-  const Eigen::Matrix4d eye_from_world = GlEyeFromCam() * view.world_from_cam.inverse().matrix();
-  gl.Enable(GL_DEPTH_TEST);
-  gl.DepthFunc(GL_LESS);
-
-  // Points, one buffer per keyframe with its pose as model matrix.
-  if (view.depth_cue_m > 0.0) {
-    const Eigen::Vector3f& bg = options.background_rgb;
-    const GLfloat fog_color[4] = {bg.x(), bg.y(), bg.z(), 1.0f};
-    gl.Enable(GL_FOG);
-    gl.Fogi(GL_FOG_MODE, GL_LINEAR);
-    gl.Fogf(GL_FOG_START, 0.0f);
-    gl.Fogf(GL_FOG_END, static_cast<float>(view.depth_cue_m));
-    gl.Fogfv(GL_FOG_COLOR, fog_color);
-  }
-  // Keyframes whose bounding sphere meets the view volume, then the level of detail.
-  const Eigen::Isometry3d cam_from_world = view.world_from_cam.inverse();
-  std::vector<std::pair<const Impl::KeyframeBuffer*, const MapKeyframe*>> visible;
-  size_t visible_points = 0;
-  for (const auto& [id, buffer] : impl.buffers) {
-    const auto it = scene.keyframes().find(id);
-    if (it == scene.keyframes().end() || buffer.count == 0) continue;
-    const Eigen::Vector3d c = cam_from_world * (it->second.world_from_cam * buffer.centre_cam);
-    if (!SphereMayBeVisible(view, c, buffer.radius)) continue;
-    visible.emplace_back(&buffer, &it->second);
-    visible_points += static_cast<size_t>(buffer.count);
-  }
-  double fraction = 1.0;
-  if (options.max_points_per_pixel > 0.0 && visible_points > 0) {
-    const double budget = options.max_points_per_pixel * viewport.width * viewport.height;
-    fraction = std::min(1.0, budget / static_cast<double>(visible_points));
-  }
-  impl.points_drawn = 0;
-  gl.PointSize(options.point_size_px);
-  gl.EnableClientState(GL_VERTEX_ARRAY);
-  gl.EnableClientState(GL_COLOR_ARRAY);
-  for (const auto& [buffer, keyframe] : visible) {
-    const GLsizei count =
-        std::min(buffer->count, static_cast<GLsizei>(std::ceil(buffer->count * fraction)));
-    const Eigen::Matrix4d model_view = eye_from_world * keyframe->world_from_cam.matrix();
-    gl.LoadMatrixd(model_view.data());
-    gl.BindBuffer(GL_ARRAY_BUFFER, buffer->buffer);
-    gl.VertexPointer(3, GL_FLOAT, sizeof(ColorVertex), nullptr);
-    gl.ColorPointer(4, GL_UNSIGNED_BYTE, sizeof(ColorVertex),
-                    reinterpret_cast<const void*>(offsetof(ColorVertex, r)));
-    gl.DrawArrays(GL_POINTS, 0, count);
-    impl.points_drawn += static_cast<size_t>(count);
-  }
-  gl.BindBuffer(GL_ARRAY_BUFFER, 0);
-  gl.DisableClientState(GL_COLOR_ARRAY);
-  gl.DisableClientState(GL_VERTEX_ARRAY);
-  gl.Disable(GL_FOG);
-
-  // Trajectories (one polyline per session), keyframe dots and loop edges, in world coordinates.
-  gl.LoadMatrixd(eye_from_world.data());
-  if (view.orthographic) gl.Disable(GL_DEPTH_TEST);  // on top of the floor plan
-  std::vector<ColorVertex> lines;
-  std::vector<ColorVertex> dots;
-  std::map<int, const MapKeyframe*> last_of_session;
-  for (const auto& [id, keyframe] : scene.keyframes()) {
-    const Eigen::Vector3f color = SessionColor(keyframe.session);
-    const Eigen::Vector3d position = keyframe.world_from_cam.translation();
-    auto it = last_of_session.find(keyframe.session);
-    if (it != last_of_session.end()) {
-      lines.push_back(MakeVertex(it->second->world_from_cam.translation(), color));
-      lines.push_back(MakeVertex(position, color));
-    }
-    last_of_session[keyframe.session] = &keyframe;
-    dots.push_back(MakeVertex(position, color));
-  }
-  const Eigen::Vector3f loop_color(1.0f, 0.25f, 0.9f);
-  for (const LoopEdge& edge : scene.loops()) {
-    const auto a = scene.keyframes().find(edge.from_id);
-    const auto b = scene.keyframes().find(edge.to_id);
-    if (a == scene.keyframes().end() || b == scene.keyframes().end()) continue;
-    lines.push_back(MakeVertex(a->second.world_from_cam.translation(), loop_color));
-    lines.push_back(MakeVertex(b->second.world_from_cam.translation(), loop_color));
-  }
-  impl.Lines(lines, GL_LINES, options.trajectory_width_px);
-  impl.Lines(dots, GL_POINTS, options.trajectory_width_px + 1.0f);
-
-  // The current camera's frustum, always on top, coloured by the tracking state.
-  gl.Disable(GL_DEPTH_TEST);
-  const MapStatus status = scene.status();
-  if (scene.camera()) {
-    double depth = options.frustum_depth_m;
-    if (view.orthographic) depth = std::max(depth, 14.0 / view.intrinsics.fx);  // >= 14 px
-    const Eigen::Vector3f color = TrackingColor(status.tracking);
-    const Eigen::Isometry3d& pose = *scene.camera();
-    const Eigen::Vector3d apex = pose.translation();
-    Eigen::Vector3d corners[4];
-    const double hx = 0.55 * depth;  // about the Kinect's 58 x 45 degrees
-    const double hy = 0.41 * depth;
-    corners[0] = pose * Eigen::Vector3d(-hx, -hy, depth);
-    corners[1] = pose * Eigen::Vector3d(hx, -hy, depth);
-    corners[2] = pose * Eigen::Vector3d(hx, hy, depth);
-    corners[3] = pose * Eigen::Vector3d(-hx, hy, depth);
-    std::vector<ColorVertex> frustum;
-    for (int i = 0; i < 4; ++i) {
-      frustum.push_back(MakeVertex(apex, color));
-      frustum.push_back(MakeVertex(corners[i], color));
-      frustum.push_back(MakeVertex(corners[i], color));
-      frustum.push_back(MakeVertex(corners[(i + 1) % 4], color));
-    }
-    impl.Lines(frustum, GL_LINES, 2.0f);
-  }
-
-  // Appliances: a marker and the name, in screen space so they stay readable at any zoom; on the
-  // floor plan, where they hang whatever their height (a ceiling light above the plan's cut),
-  // with the ring of directions they were seen from. The names first, then the rings and markers
-  // over them, so that no name's backing hides a neighbour's ring.
-  impl.Begin2D(viewport);
-  const int scale = options.text_scale;
-  const float r = 3.0f * scale;
-  const bool rings = view.orthographic && options.show_coverage;
-  const float clear = rings ? Impl::kRingOuter * static_cast<float>(scale) : r;
-  const std::vector<uint64_t> seen =
-      rings ? scene.SeenSectors(options.coverage) : std::vector<uint64_t>();
-  std::vector<std::pair<size_t, Eigen::Vector2d>> placed;  // appliance, pixel
-  for (size_t a = 0; a < scene.appliances().size(); ++a) {
-    const ApplianceLabel& label = scene.appliances()[a];
-    const std::optional<Eigen::Vector2d> pixel = view.ProjectOnPlan(label.world_point);
-    if (!pixel) continue;
-    const float x = static_cast<float>(pixel->x()) + 0.5f;
-    const float y = static_cast<float>(pixel->y()) + 0.5f;
-    placed.emplace_back(a, *pixel);
-    // Right of the marker (and its ring), or left of it when the name would leave the viewport.
-    float text_x = x + clear + scale;
-    if (text_x + TextWidthPx(label.name, scale) > viewport.width) {
-      text_x = x - clear - scale - TextWidthPx(label.name, scale);
-    }
-    impl.Text2D(label.name, text_x, y - 3.5f * scale, scale, Eigen::Vector3f(1.0f, 0.95f, 0.6f));
-  }
-  for (const auto& [a, pixel] : placed) {
-    const float x = static_cast<float>(pixel.x()) + 0.5f;
-    const float y = static_cast<float>(pixel.y()) + 0.5f;
-    if (rings) impl.CoverageRing(scene, view, scene.appliances()[a].world_point, pixel, seen[a]);
-    std::vector<Eigen::Vector2f> marker = {{x, y - r}, {x + r, y}, {x, y + r},
-                                           {x, y - r}, {x, y + r}, {x - r, y}};
-    impl.Triangles2D(marker, Eigen::Vector4f(1.0f, 0.9f, 0.1f, 1.0f));
-  }
-  gl.Disable(GL_SCISSOR_TEST);
+  const Eigen::Matrix4d eye_from_world = impl.SetCamera(view);
+  impl.DrawPoints(scene, view, viewport, eye_from_world);
+  impl.DrawWalk(scene, view, eye_from_world);
+  impl.DrawCamera(scene, view);
+  impl.DrawAppliances(scene, view, viewport);
+  impl.gl.Disable(GL_SCISSOR_TEST);
 }
 
 void MapRenderer::DrawStatus(const MapScene& scene, const Viewport& viewport) {

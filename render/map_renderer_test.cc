@@ -405,5 +405,59 @@ TEST(MapRenderer, TheFloorPlanRingsEachApplianceGreenWhereItWasSeenFrom) {
   EXPECT_EQ(PixelsNear(image_without, *centre, ring + 4.0, red), 0);
 }
 
+// Blue-ish session 1 against pink-ish session 2, and the loops in magenta: on the floor plan the
+// walk of each session is a polyline of its colour, and a loop edge joins its two keyframes.
+TEST(MapRenderer, TheFloorPlanDrawsEachSessionsWalkAndTheLoopsInTheirColours) {
+  OffscreenContext context(16, 16);
+  const MapRenderOptions options = ExactOptions();
+  context.Resize(options.width, options.height);
+  MapRenderer renderer(&OffscreenContext::ProcAddress, options);
+  MapScene scene;
+  MapUpdate update;
+  const auto add_keyframe = [&update](int64_t id, int session, const Eigen::Vector3d& at) {
+    MapKeyframe keyframe;
+    keyframe.id = id;
+    keyframe.session = session;
+    keyframe.world_from_cam = SomePose(at, 0.0, 0.0);
+    AddWorldPoint(at + Eigen::Vector3d(0.0, 0.0, -1.5), {90, 90, 90}, &keyframe);
+    update.keyframes.push_back(keyframe);
+  };
+  add_keyframe(1, 1, {0.0, 0.0, 1.5});
+  add_keyframe(2, 1, {4.0, 0.0, 1.5});
+  add_keyframe(3, 1, {4.0, 4.0, 1.5});
+  add_keyframe(4, 2, {0.0, 4.0, 1.5});
+  add_keyframe(5, 2, {0.0, 2.0, 1.5});
+  update.loops.push_back({3, 1});
+  scene.Apply(std::move(update));
+  renderer.DrawProgress(scene, options.width, options.height);
+  const cv::Mat image = renderer.ReadImage(options.width, options.height);
+  const ProgressLayout layout = MakeProgressLayout(scene, options.width, options.height, options);
+  const auto pixel = [&](const Eigen::Vector3d& world) {
+    const std::optional<Eigen::Vector2d> at = layout.top_down.Project(world);
+    EXPECT_TRUE(at.has_value());
+    return at.value_or(Eigen::Vector2d::Zero());
+  };
+  const auto bgr = [](const Eigen::Vector3f& rgb) {
+    return cv::Vec3b(static_cast<uint8_t>(255 * rgb.z()), static_cast<uint8_t>(255 * rgb.y()),
+                     static_cast<uint8_t>(255 * rgb.x()));
+  };
+  const cv::Vec3b first = bgr(SessionColor(1));
+  const cv::Vec3b second = bgr(SessionColor(2));
+  const cv::Vec3b loop = bgr(Eigen::Vector3f(1.0f, 0.25f, 0.9f));
+  // Halfway along each session's steps, and along the loop 3 -> 1.
+  const Eigen::Vector2d step_1_2 = pixel({2.0, 0.0, 1.5});
+  const Eigen::Vector2d step_4_5 = pixel({0.0, 3.0, 1.5});
+  const Eigen::Vector2d loop_3_1 = pixel({2.0, 2.0, 1.5});
+  EXPECT_GT(PixelsNear(image, step_1_2, 2.0, first), 2);
+  EXPECT_EQ(PixelsNear(image, step_1_2, 2.0, second), 0);
+  EXPECT_GT(PixelsNear(image, step_4_5, 2.0, second), 2);
+  EXPECT_EQ(PixelsNear(image, step_4_5, 2.0, first), 0);
+  EXPECT_GT(PixelsNear(image, loop_3_1, 2.0, loop), 2);
+  // Sessions are not joined to one another: nothing between keyframe 3 and keyframe 4.
+  const Eigen::Vector2d between_sessions = pixel({2.0, 4.0, 1.5});
+  EXPECT_EQ(PixelsNear(image, between_sessions, 2.0, first), 0);
+  EXPECT_EQ(PixelsNear(image, between_sessions, 2.0, second), 0);
+}
+
 }  // namespace
 }  // namespace sightmap::render
