@@ -556,6 +556,74 @@ Intrinsics ReadCameraIntrinsicsTxt(const fs::path& path, int width, int height,
 
 // ------------------------------------------------------------------------------------------------
 
+namespace {
+
+// The listed frames of a TUM folder, paired depth to colour, with their ground truth.
+struct TumFrames {
+  std::vector<FolderFrame> frames;
+  size_t without_ground_truth = 0;
+};
+
+TumFrames ReadTumFrames(const fs::path& root, const std::vector<TimedFile>& colors,
+                        const std::vector<TimedFile>& depths,
+                        const std::vector<std::pair<size_t, size_t>>& pairs,
+                        const std::vector<GroundTruthSample>& ground_truth) {
+  TumFrames read;
+  read.frames.reserve(pairs.size());
+  for (const auto& [d, c] : pairs) {
+    FolderFrame frame;
+    frame.color_path = (root / colors[c].file).string();
+    frame.depth_path = (root / depths[d].file).string();
+    SIGHTMAP_CHECK(fs::is_regular_file(frame.color_path),
+                   (root / "rgb.txt").string()
+                       << ":" << colors[c].line << " names " << colors[c].file
+                       << ", which does not exist; restore the image or"
+                          " delete the line");
+    SIGHTMAP_CHECK(fs::is_regular_file(frame.depth_path),
+                   (root / "depth.txt").string()
+                       << ":" << depths[d].line << " names " << depths[d].file
+                       << ", which does not exist; restore the image or"
+                          " delete the line");
+    frame.timestamp_ns = depths[d].ns;
+    frame.world_from_cam = InterpolateGroundTruth(ground_truth, frame.timestamp_ns);
+    if (!frame.world_from_cam) ++read.without_ground_truth;
+    read.frames.push_back(std::move(frame));
+  }
+  return read;
+}
+
+// The nominal rate from the median interval between depth.txt's timestamps (0 with fewer than
+// two rising ones) [Hz].
+double TumNominalFps(const std::vector<TimedFile>& depths) {
+  std::vector<int64_t> intervals;
+  for (size_t i = 1; i < depths.size(); ++i) {
+    if (depths[i].ns > depths[i - 1].ns) intervals.push_back(depths[i].ns - depths[i - 1].ns);
+  }
+  if (intervals.empty()) return 0.0;
+  std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
+  return 1e9 / static_cast<double>(intervals[intervals.size() / 2]);
+}
+
+// TUM folders carry no intrinsics: --calib, else the TUM ROS default scaled to the images.
+void ApplyTumIntrinsics(const SourceOptions& options, SourceMetadata* metadata) {
+  const Intrinsics tum_default = {640, 480, 525.0, 525.0, 319.5, 239.5};
+  metadata->intrinsics = tum_default;
+  metadata->intrinsics_origin = "default (TUM ROS)";
+  if (ApplyCalibrationFile(options, metadata)) return;
+  std::string scaled;
+  if (metadata->color_width != tum_default.width || metadata->color_height != tum_default.height) {
+    metadata->intrinsics = tum_default.Scaled(metadata->color_width, metadata->color_height);
+    scaled = StrCat(", scaled to ", FormatIntrinsics(metadata->intrinsics));
+  }
+  metadata->notes.push_back(
+      StrCat("TUM folders carry no intrinsics: using the TUM ROS default ",
+             FormatIntrinsics(tum_default), scaled,
+             "; the freiburg1/2/3 cameras differ from it, so pass --calib FILE with the sequence's "
+             "camera to override."));
+}
+
+}  // namespace
+
 std::unique_ptr<RgbdSource> OpenTumFolder(const std::string& dir, const SourceOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   RequireFolder(dir, "TUM RGB-D",
@@ -580,40 +648,15 @@ std::unique_ptr<RgbdSource> OpenTumFolder(const std::string& dir, const SourceOp
                                                 << FormatMs(options.sync_tolerance_ns)
                                                 << "; check that rgb.txt and depth.txt belong to"
                                                    " one recording, or raise the sync tolerance");
-
   const fs::path ground_truth_file = root / "groundtruth.txt";
   const bool has_ground_truth_file = fs::is_regular_file(ground_truth_file);
-  const std::vector<GroundTruthSample> ground_truth = has_ground_truth_file
-                                                          ? ReadTumGroundTruth(ground_truth_file)
-                                                          : std::vector<GroundTruthSample>();
-
-  std::vector<FolderFrame> frames;
-  frames.reserve(pairs.size());
-  size_t without_ground_truth = 0;
-  for (const auto& [d, c] : pairs) {
-    FolderFrame frame;
-    frame.color_path = (root / colors[c].file).string();
-    frame.depth_path = (root / depths[d].file).string();
-    SIGHTMAP_CHECK(fs::is_regular_file(frame.color_path),
-                   (root / "rgb.txt").string()
-                       << ":" << colors[c].line << " names " << colors[c].file
-                       << ", which does not exist; restore the image or"
-                          " delete the line");
-    SIGHTMAP_CHECK(fs::is_regular_file(frame.depth_path),
-                   (root / "depth.txt").string()
-                       << ":" << depths[d].line << " names " << depths[d].file
-                       << ", which does not exist; restore the image or"
-                          " delete the line");
-    frame.timestamp_ns = depths[d].ns;
-    frame.world_from_cam = InterpolateGroundTruth(ground_truth, frame.timestamp_ns);
-    if (!frame.world_from_cam) ++without_ground_truth;
-    frames.push_back(std::move(frame));
-  }
+  TumFrames read = ReadTumFrames(root, colors, depths, pairs,
+                                 has_ground_truth_file ? ReadTumGroundTruth(ground_truth_file)
+                                                       : std::vector<GroundTruthSample>());
 
   SourceMetadata metadata =
-      FolderMetadata("tum", dir, "TUM RGB-D folder", frames, without_ground_truth);
+      FolderMetadata("tum", dir, "TUM RGB-D folder", read.frames, read.without_ground_truth);
   std::vector<std::string>& notes = metadata.notes;
-
   notes.push_back(
       "Depth PNGs hold 5000 units per metre (TUM convention); values are divided by 5 and rounded"
       " to millimetres, 0 stays \"no measurement\".");
@@ -629,98 +672,86 @@ std::unique_ptr<RgbdSource> OpenTumFolder(const std::string& dir, const SourceOp
                          " colour frames had no partner and are skipped."));
   notes.push_back(
       "Timestamps are the depth times from depth.txt, in nanoseconds since the Unix epoch.");
-
-  std::vector<int64_t> intervals;
-  for (size_t i = 1; i < depths.size(); ++i) {
-    if (depths[i].ns > depths[i - 1].ns) intervals.push_back(depths[i].ns - depths[i - 1].ns);
-  }
-  if (!intervals.empty()) {
-    std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
-    metadata.nominal_fps = 1e9 / static_cast<double>(intervals[intervals.size() / 2]);
+  if (const double fps = TumNominalFps(depths); fps > 0.0) {
+    metadata.nominal_fps = fps;
     notes.push_back(StrCat("Nominal rate ", metadata.nominal_fps,
                            " Hz from the median interval between depth.txt timestamps."));
   }
-
   if (has_ground_truth_file) {
     notes.push_back(
         StrCat("Ground truth: world_from_cam from groundtruth.txt, interpolated at each depth time "
                "(linear translation, slerp rotation) between poses at most ",
                FormatMs(kMaxGroundTruthGapNs), " apart.",
-               GroundTruthCountNote(without_ground_truth, frames.size(),
+               GroundTruthCountNote(read.without_ground_truth, read.frames.size(),
                                     "fall outside groundtruth.txt or in a gap")));
   } else {
     notes.push_back("No groundtruth.txt: frames carry no ground truth.");
   }
-
-  const Intrinsics tum_default = {640, 480, 525.0, 525.0, 319.5, 239.5};
-  metadata.intrinsics = tum_default;
-  metadata.intrinsics_origin = "default (TUM ROS)";
-  if (!ApplyCalibrationFile(options, &metadata)) {
-    std::string scaled;
-    if (metadata.color_width != tum_default.width || metadata.color_height != tum_default.height) {
-      metadata.intrinsics = tum_default.Scaled(metadata.color_width, metadata.color_height);
-      scaled = StrCat(", scaled to ", FormatIntrinsics(metadata.intrinsics));
-    }
-    notes.push_back(StrCat(
-        "TUM folders carry no intrinsics: using the TUM ROS default ",
-        FormatIntrinsics(tum_default), scaled,
-        "; the freiburg1/2/3 cameras differ from it, so pass --calib FILE with the sequence's "
-        "camera to override."));
-  }
+  ApplyTumIntrinsics(options, &metadata);
 
   return std::make_unique<FolderSource>(
-      std::move(metadata), std::move(frames), DepthEncoding::kTum5000PerMetre,
+      std::move(metadata), std::move(read.frames), DepthEncoding::kTum5000PerMetre,
       static_cast<int64_t>(unpaired_depth + unpaired_color), options.realtime);
 }
 
-std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
-                                                  const SourceOptions& options) {
-  SIGHTMAP_CHECK_OPTIONS(options);
-  RequireFolder(dir, "3DMatch", "pass 3dmatch:DIR with the folder of frame-NNNNNN.* files");
-  std::vector<std::string> notes;
+namespace {
 
+// A 3DMatch sequence: the folder that holds its frames and their files by number.
+struct ThreeDMatchSequence {
+  fs::path dir;
+  std::map<int64_t, ThreeDMatchFiles> files;
+};
+
+// `dir` itself, or its one seq-* subfolder (a scene folder); notes which. Throws when it holds
+// none, or several to choose from.
+ThreeDMatchSequence FindThreeDMatchSequence(const std::string& dir,
+                                            std::vector<std::string>* notes) {
   fs::path frames_dir = fs::absolute(fs::path(dir)).lexically_normal();
   if (!frames_dir.has_filename()) frames_dir = frames_dir.parent_path();
   std::map<int64_t, ThreeDMatchFiles> files = ScanThreeDMatchFrames(frames_dir);
-  if (files.empty()) {
-    // A scene folder: its sequences live in seq-* subfolders.
-    std::vector<fs::path> sequences;
-    std::error_code ec;
-    for (const fs::directory_entry& entry : fs::directory_iterator(frames_dir, ec)) {
-      if (entry.is_directory(ec) && entry.path().filename().string().rfind("seq-", 0) == 0 &&
-          !ScanThreeDMatchFrames(entry.path()).empty()) {
-        sequences.push_back(entry.path());
-      }
+  if (!files.empty()) return {frames_dir, std::move(files)};
+  std::vector<fs::path> sequences;
+  std::error_code ec;
+  for (const fs::directory_entry& entry : fs::directory_iterator(frames_dir, ec)) {
+    if (entry.is_directory(ec) && entry.path().filename().string().rfind("seq-", 0) == 0 &&
+        !ScanThreeDMatchFrames(entry.path()).empty()) {
+      sequences.push_back(entry.path());
     }
-    std::sort(sequences.begin(), sequences.end());
-    SIGHTMAP_CHECK(!sequences.empty(),
-                   "3DMatch folder " << dir
-                                     << " holds no frame-NNNNNN.color.png / frame-NNNNNN.depth.png"
-                                        " images, nor a seq-* folder with them; check the path");
-    if (sequences.size() > 1) {
-      std::ostringstream names;
-      for (size_t i = 0; i < sequences.size(); ++i) {
-        names << (i ? ", " : "") << sequences[i].filename().string();
-      }
-      SIGHTMAP_THROW(Error, "3DMatch folder "
-                                << dir << " holds " << sequences.size() << " sequences ("
-                                << names.str() << "); pass one of them, e.g. 3dmatch:"
-                                << (fs::path(dir) / sequences.front().filename()).string());
-    }
-    frames_dir = sequences.front();
-    files = ScanThreeDMatchFrames(frames_dir);
-    notes.push_back(
-        StrCat(dir, " holds one sequence, ", frames_dir.filename().string(), "; reading it."));
   }
+  std::sort(sequences.begin(), sequences.end());
+  SIGHTMAP_CHECK(!sequences.empty(),
+                 "3DMatch folder " << dir
+                                   << " holds no frame-NNNNNN.color.png / frame-NNNNNN.depth.png"
+                                      " images, nor a seq-* folder with them; check the path");
+  if (sequences.size() > 1) {
+    std::ostringstream names;
+    for (size_t i = 0; i < sequences.size(); ++i) {
+      names << (i ? ", " : "") << sequences[i].filename().string();
+    }
+    SIGHTMAP_THROW(Error, "3DMatch folder "
+                              << dir << " holds " << sequences.size() << " sequences ("
+                              << names.str() << "); pass one of them, e.g. 3dmatch:"
+                              << (fs::path(dir) / sequences.front().filename()).string());
+  }
+  notes->push_back(
+      StrCat(dir, " holds one sequence, ", sequences.front().filename().string(), "; reading it."));
+  return {sequences.front(), ScanThreeDMatchFrames(sequences.front())};
+}
 
+// A sequence's frames with both images, in number order, stamped N / 30 s, with their poses.
+struct ThreeDMatchFrames {
   std::vector<FolderFrame> frames;
-  std::vector<int64_t> numbers;
-  std::vector<std::string> incomplete;
+  std::vector<int64_t> numbers;         // each frame's N
+  std::vector<std::string> incomplete;  // an image of each frame that lacks its other one
   size_t without_pose_file = 0;
-  size_t invalid_pose = 0;
-  for (const auto& [number, frame_files] : files) {
+  size_t invalid_pose = 0;  // pose.txt with non-finite values
+};
+
+ThreeDMatchFrames ReadThreeDMatchFrames(const ThreeDMatchSequence& sequence) {
+  ThreeDMatchFrames read;
+  for (const auto& [number, frame_files] : sequence.files) {
     if (frame_files.color.empty() || frame_files.depth.empty()) {
-      incomplete.push_back(frame_files.color.empty() ? frame_files.depth : frame_files.color);
+      read.incomplete.push_back(frame_files.color.empty() ? frame_files.depth : frame_files.color);
       continue;
     }
     FolderFrame frame;
@@ -728,24 +759,25 @@ std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
     frame.depth_path = frame_files.depth;
     frame.timestamp_ns = number * kThreeDMatchFramePeriodNs;
     if (frame_files.pose.empty()) {
-      ++without_pose_file;
+      ++read.without_pose_file;
     } else {
       frame.world_from_cam = ReadThreeDMatchPose(frame_files.pose);
-      if (!frame.world_from_cam) ++invalid_pose;
+      if (!frame.world_from_cam) ++read.invalid_pose;
     }
-    frames.push_back(std::move(frame));
-    numbers.push_back(number);
+    read.frames.push_back(std::move(frame));
+    read.numbers.push_back(number);
   }
-  SIGHTMAP_CHECK(!frames.empty(), "3DMatch folder "
-                                      << frames_dir.string()
-                                      << " has no frame with both frame-N.color.png and"
-                                         " frame-N.depth.png; check the path");
+  SIGHTMAP_CHECK(!read.frames.empty(), "3DMatch folder "
+                                           << sequence.dir.string()
+                                           << " has no frame with both frame-N.color.png and"
+                                              " frame-N.depth.png; check the path");
+  return read;
+}
 
-  const size_t without_ground_truth = without_pose_file + invalid_pose;
-  SourceMetadata metadata =
-      FolderMetadata("3dmatch", dir, "3DMatch folder", frames, without_ground_truth);
-  metadata.nominal_fps = kThreeDMatchNominalFps;
-
+// The colour intrinsics from camera-intrinsics.txt in the sequence's folder or its parent (the
+// scene's), or from --calib; throws without either.
+void ApplyThreeDMatchIntrinsics(const fs::path& frames_dir, const SourceOptions& options,
+                                SourceMetadata* metadata) {
   fs::path intrinsics_file;
   for (const fs::path& candidate :
        {frames_dir / "camera-intrinsics.txt", frames_dir.parent_path() / "camera-intrinsics.txt"}) {
@@ -755,52 +787,73 @@ std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
     }
   }
   if (!intrinsics_file.empty()) {
-    metadata.intrinsics = ReadCameraIntrinsicsTxt(intrinsics_file, metadata.color_width,
-                                                  metadata.color_height, &notes);
-    metadata.intrinsics_origin = "camera-intrinsics.txt";
-    notes.push_back(StrCat("Colour intrinsics ", FormatIntrinsics(metadata.intrinsics), " from ",
-                           intrinsics_file.string(),
-                           "; the file gives no image size, so it is taken to be the images'."));
+    metadata->intrinsics = ReadCameraIntrinsicsTxt(intrinsics_file, metadata->color_width,
+                                                   metadata->color_height, &metadata->notes);
+    metadata->intrinsics_origin = "camera-intrinsics.txt";
+    metadata->notes.push_back(StrCat("Colour intrinsics ", FormatIntrinsics(metadata->intrinsics),
+                                     " from ", intrinsics_file.string(),
+                                     "; the file gives no image size, so it is taken to be the "
+                                     "images'."));
   }
-  metadata.notes = std::move(notes);
-  const bool calibrated = ApplyCalibrationFile(options, &metadata);
+  const bool calibrated = ApplyCalibrationFile(options, metadata);
   SIGHTMAP_CHECK(calibrated || !intrinsics_file.empty(),
                  "3DMatch folder " << frames_dir.string()
                                    << " has no camera-intrinsics.txt, in it or its parent; put the"
                                       " 3x3 camera matrix there (7-Scenes' Kinect is usually given"
                                       " fx = fy = 585, cx = 320, cy = 240) or pass --calib FILE");
+}
 
-  metadata.notes.push_back(
+// What the source says of its depth, timestamps, skipped frames and ground truth.
+void AddThreeDMatchNotes(const ThreeDMatchFrames& read, std::vector<std::string>* notes) {
+  notes->push_back(
       "Depth PNGs are millimetres as stored; 65535 (7-Scenes' marker for no measurement) becomes"
       " 0. Depth is taken as registered to colour.");
   std::string gaps;
+  const std::vector<int64_t>& numbers = read.numbers;
   if (numbers.back() - numbers.front() + 1 != static_cast<int64_t>(numbers.size())) {
     gaps = StrCat(" Frame numbers have gaps (", numbers.size(), " frames numbered ",
                   numbers.front(), " to ", numbers.back(), "), so the timestamps do too.");
   }
-  metadata.notes.push_back(StrCat(
+  notes->push_back(StrCat(
       "3DMatch folders have no timestamps: frame N is stamped N / 30 s (30 Hz nominal).", gaps));
-  if (!incomplete.empty()) {
-    metadata.notes.push_back(StrCat(incomplete.size(),
-                                    " frames lack their colour or depth image and are skipped"
-                                    " (first: ",
-                                    incomplete.front(), ")."));
+  if (!read.incomplete.empty()) {
+    notes->push_back(StrCat(read.incomplete.size(),
+                            " frames lack their colour or depth image and are skipped"
+                            " (first: ",
+                            read.incomplete.front(), ")."));
   }
+  const size_t without_ground_truth = read.without_pose_file + read.invalid_pose;
   if (without_ground_truth == 0) {
-    metadata.notes.push_back("Ground truth: world_from_cam from each frame's pose.txt.");
-  } else if (without_ground_truth == frames.size() && invalid_pose == 0) {
-    metadata.notes.push_back("No frame-N.pose.txt files: frames carry no ground truth.");
+    notes->push_back("Ground truth: world_from_cam from each frame's pose.txt.");
+  } else if (without_ground_truth == read.frames.size() && read.invalid_pose == 0) {
+    notes->push_back("No frame-N.pose.txt files: frames carry no ground truth.");
   } else {
-    metadata.notes.push_back(
+    notes->push_back(
         StrCat("Ground truth: world_from_cam from each frame's pose.txt.",
-               GroundTruthCountNote(without_pose_file, frames.size(), "have no pose.txt"),
-               GroundTruthCountNote(invalid_pose, frames.size(),
+               GroundTruthCountNote(read.without_pose_file, read.frames.size(), "have no pose.txt"),
+               GroundTruthCountNote(read.invalid_pose, read.frames.size(),
                                     "have a pose.txt with non-finite values (no pose)")));
   }
+}
 
-  return std::make_unique<FolderSource>(std::move(metadata), std::move(frames),
-                                        DepthEncoding::kMillimetres,
-                                        static_cast<int64_t>(incomplete.size()), options.realtime);
+}  // namespace
+
+std::unique_ptr<RgbdSource> OpenThreeDMatchFolder(const std::string& dir,
+                                                  const SourceOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  RequireFolder(dir, "3DMatch", "pass 3dmatch:DIR with the folder of frame-NNNNNN.* files");
+  std::vector<std::string> notes;
+  const ThreeDMatchSequence sequence = FindThreeDMatchSequence(dir, &notes);
+  ThreeDMatchFrames read = ReadThreeDMatchFrames(sequence);
+  SourceMetadata metadata = FolderMetadata("3dmatch", dir, "3DMatch folder", read.frames,
+                                           read.without_pose_file + read.invalid_pose);
+  metadata.nominal_fps = kThreeDMatchNominalFps;
+  metadata.notes = std::move(notes);
+  ApplyThreeDMatchIntrinsics(sequence.dir, options, &metadata);
+  AddThreeDMatchNotes(read, &metadata.notes);
+  const auto skipped = static_cast<int64_t>(read.incomplete.size());
+  return std::make_unique<FolderSource>(std::move(metadata), std::move(read.frames),
+                                        DepthEncoding::kMillimetres, skipped, options.realtime);
 }
 
 namespace {
