@@ -307,6 +307,7 @@ class OpenNiSource final : public RgbdSource {
     }
   }
 
+  // The streams' sizes and rate, mirroring, intrinsics and how depth is registered to colour.
   void DeriveGeometry() {
     const openni::VideoMode depth_mode = depth_.getVideoMode();
     const openni::VideoMode color_mode = color_.getVideoMode();
@@ -329,8 +330,23 @@ class OpenNiSource final : public RgbdSource {
           std::string(is_file_ ? "the recording was made" : "the device streams") +
           " mirrored: frames are flipped back left-right");
     }
+    IntrinsicsFromFieldsOfView();
+    const std::optional<Eigen::Isometry3d> color_from_depth = ApplyCalibration();
+    ChooseRegistration(color_from_depth);
+    if (metadata_.depth_width != metadata_.color_width ||
+        metadata_.depth_height != metadata_.color_height) {
+      metadata_.depth_resized_to_color = true;
+      metadata_.notes.push_back("depth is " + std::to_string(metadata_.depth_width) + "x" +
+                                std::to_string(metadata_.depth_height) + " and colour " +
+                                std::to_string(metadata_.color_width) + "x" +
+                                std::to_string(metadata_.color_height) +
+                                ": depth is mapped onto the colour image size");
+    }
+  }
 
-    // Fields of view: colour's when reported, else depth's, else the PrimeSense nominal one.
+  // Both cameras' intrinsics from the fields of view: colour's when reported, else depth's, else
+  // the PrimeSense nominal one.
+  void IntrinsicsFromFieldsOfView() {
     const auto depth_fov = FieldOfView(depth_);
     const auto color_fov = FieldOfView(color_);
     std::pair<double, double> nominal(kPrimeSenseHfovRad, kPrimeSenseVfovRad);
@@ -353,23 +369,28 @@ class OpenNiSource final : public RgbdSource {
           "the depth stream's (" +
           Fixed(depth_fov->first, 4) + " rad horizontal)");
     }
+  }
 
-    std::optional<Eigen::Isometry3d> color_from_depth;
-    if (!options_.calibration_file.empty()) {
-      const RgbdCalibration calibration = ReadCalibrationFile(options_.calibration_file);
-      if (calibration.color) {
-        metadata_.intrinsics =
-            calibration.color->Scaled(metadata_.color_width, metadata_.color_height);
-      }
-      if (calibration.depth) {
-        depth_intrinsics_ =
-            calibration.depth->Scaled(metadata_.depth_width, metadata_.depth_height);
-      }
-      color_from_depth = calibration.color_from_depth;
-      metadata_.intrinsics_origin = "calibration-file";
-      metadata_.notes.push_back("calibration from " + options_.calibration_file);
+  // A calibration file's intrinsics replace the fields of view's; returns its color_from_depth.
+  std::optional<Eigen::Isometry3d> ApplyCalibration() {
+    if (options_.calibration_file.empty()) return std::nullopt;
+    const RgbdCalibration calibration = ReadCalibrationFile(options_.calibration_file);
+    if (calibration.color) {
+      metadata_.intrinsics =
+          calibration.color->Scaled(metadata_.color_width, metadata_.color_height);
     }
+    if (calibration.depth) {
+      depth_intrinsics_ = calibration.depth->Scaled(metadata_.depth_width, metadata_.depth_height);
+    }
+    metadata_.intrinsics_origin = "calibration-file";
+    metadata_.notes.push_back("calibration from " + options_.calibration_file);
+    return calibration.color_from_depth;
+  }
 
+  // Depth the device (or the recording) registered to colour is used as it is, resized when the
+  // sizes differ; otherwise it is registered in software with the calibration file's
+  // color_from_depth (an explicit request to do so), or the PrimeSense-family model.
+  void ChooseRegistration(const std::optional<Eigen::Isometry3d>& color_from_depth) {
     registration_.color = metadata_.intrinsics;
     const bool recorded_registered = oni_info_.depth_registered_to_color.value_or(false);
     if (recorded_registered) {
@@ -380,7 +401,6 @@ class OpenNiSource final : public RgbdSource {
     const bool device_registered =
         recorded_registered ||
         device_.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
-    // A calibration file's color_from_depth is an explicit request to register in software.
     if (device_registered && !color_from_depth) {
       // Registered depth is already in the colour camera; only its size may differ.
       metadata_.registration = DepthRegistration::kDevice;
@@ -389,41 +409,32 @@ class OpenNiSource final : public RgbdSource {
       registration_.color_from_depth = Eigen::Isometry3d::Identity();
       reproject_ = metadata_.depth_width != metadata_.color_width ||
                    metadata_.depth_height != metadata_.color_height;
-    } else {
-      metadata_.registration = DepthRegistration::kSoftware;
-      registration_.depth = depth_intrinsics_;
-      if (color_from_depth) {
-        registration_.color_from_depth = *color_from_depth;
-        metadata_.notes.push_back(
-            "depth registered to colour in software with the calibration file's "
-            "color_from_depth");
-      } else {
-        // The PS1080 driver records the camera baseline [cm]; older files and other drivers don't.
-        double baseline_cm = 0.0;
-        const bool recorded = depth_.getProperty(XN_STREAM_PROPERTY_DCMOS_RCMOS_DISTANCE,
-                                                 &baseline_cm) == openni::STATUS_OK &&
-                              baseline_cm > 0.5 && baseline_cm < 10.0;
-        const double baseline_m = recorded ? baseline_cm * 1e-2 : kPrimeSenseBaselineM;
-        registration_.color_from_depth = PrimeSenseColorFromDepth(baseline_m);
-        metadata_.notes.push_back(
-            std::string(is_file_ ? "the recording's depth is not registered to colour"
-                                 : "the device cannot register depth to colour") +
-            ": registered in software with the PrimeSense-family model (parallel cameras, colour " +
-            Fixed(baseline_m * 100.0, 2) + " cm to the right of depth" +
-            (recorded ? ", baseline recorded by the driver" : ", nominal baseline") +
-            "); pass --calib to override");
-      }
-      reproject_ = true;
+      return;
     }
-    if (metadata_.depth_width != metadata_.color_width ||
-        metadata_.depth_height != metadata_.color_height) {
-      metadata_.depth_resized_to_color = true;
-      metadata_.notes.push_back("depth is " + std::to_string(metadata_.depth_width) + "x" +
-                                std::to_string(metadata_.depth_height) + " and colour " +
-                                std::to_string(metadata_.color_width) + "x" +
-                                std::to_string(metadata_.color_height) +
-                                ": depth is mapped onto the colour image size");
+    metadata_.registration = DepthRegistration::kSoftware;
+    registration_.depth = depth_intrinsics_;
+    reproject_ = true;
+    if (color_from_depth) {
+      registration_.color_from_depth = *color_from_depth;
+      metadata_.notes.push_back(
+          "depth registered to colour in software with the calibration file's "
+          "color_from_depth");
+      return;
     }
+    // The PS1080 driver records the camera baseline [cm]; older files and other drivers don't.
+    double baseline_cm = 0.0;
+    const bool recorded = depth_.getProperty(XN_STREAM_PROPERTY_DCMOS_RCMOS_DISTANCE,
+                                             &baseline_cm) == openni::STATUS_OK &&
+                          baseline_cm > 0.5 && baseline_cm < 10.0;
+    const double baseline_m = recorded ? baseline_cm * 1e-2 : kPrimeSenseBaselineM;
+    registration_.color_from_depth = PrimeSenseColorFromDepth(baseline_m);
+    metadata_.notes.push_back(
+        std::string(is_file_ ? "the recording's depth is not registered to colour"
+                             : "the device cannot register depth to colour") +
+        ": registered in software with the PrimeSense-family model (parallel cameras, colour " +
+        Fixed(baseline_m * 100.0, 2) + " cm to the right of depth" +
+        (recorded ? ", baseline recorded by the driver" : ", nominal baseline") +
+        "); pass --calib to override");
   }
 
   void Start() {
