@@ -63,6 +63,121 @@ bool GenerateOptions::Check(std::string* error) const {
   return simulator.Check(error) && query.Check(error);
 }
 
+namespace {
+
+// The frames as a TUM RGB-D folder: rgb/ and depth/ (5000 units per metre) with their lists and
+// groundtruth.txt; progress every 3 s. Returns how many.
+int64_t WriteFrames(Simulator& simulator, const fs::path& dir, const std::string& header,
+                    std::ostream* progress) {
+  std::ofstream rgb_list = OpenText(dir / "rgb.txt");
+  std::ofstream depth_list = OpenText(dir / "depth.txt");
+  rgb_list << "# color images\n" << header << "\n# timestamp filename\n";
+  depth_list << "# depth maps (16-bit PNG, 5000 per metre)\n"
+             << header << "\n# timestamp filename\n";
+  std::vector<StampedPose> groundtruth;
+  auto last_report = std::chrono::steady_clock::now();
+  for (int64_t i = 0; i < simulator.num_frames(); ++i) {
+    const RgbdFrame frame = simulator.RenderFrame(i);
+    const std::string stamp = TimestampText(frame.timestamp_ns);
+    WriteImage(dir / "rgb" / (stamp + ".png"), frame.color);
+    cv::Mat depth_tum;
+    frame.depth.convertTo(depth_tum, CV_16U, 5.0);  // mm -> 1/5000 m
+    WriteImage(dir / "depth" / (stamp + ".png"), depth_tum);
+    rgb_list << stamp << " rgb/" << stamp << ".png\n";
+    depth_list << stamp << " depth/" << stamp << ".png\n";
+    groundtruth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
+    const auto now = std::chrono::steady_clock::now();
+    if (progress != nullptr && now - last_report > std::chrono::seconds(3)) {
+      last_report = now;
+      *progress << "sim: frame " << (i + 1) << "/" << simulator.num_frames() << "\n" << std::flush;
+    }
+  }
+  SIGHTMAP_CHECK(rgb_list.good() && depth_list.good(),
+                 "cannot write the TUM lists in " << dir.string());
+  WriteTumTrajectory((dir / "groundtruth.txt").string(), groundtruth,
+                     "ground truth trajectory; " + header.substr(2));
+  return static_cast<int64_t>(groundtruth.size());
+}
+
+// calibration.json (the one camera for colour and depth) and appliances.json (the scene's labels).
+void WriteCalibrationAndAppliances(const Scene& scene, const Intrinsics& camera,
+                                   const fs::path& dir) {
+  capture::RgbdCalibration calibration;
+  calibration.color = camera;
+  calibration.depth = camera;
+  calibration.color_from_depth = Eigen::Isometry3d::Identity();
+  capture::WriteCalibrationFile((dir / "calibration.json").string(), calibration);
+  json appliances = json::array();
+  for (const Appliance& a : scene.appliances) {
+    json points = json::array();
+    for (const Eigen::Vector3d& p : a.points) points.push_back({p.x(), p.y(), p.z()});
+    appliances.push_back({{"id", a.id}, {"name", a.name}, {"type", a.type}, {"points", points}});
+  }
+  OpenText(dir / "appliances.json")
+      << json{{"scene", scene.name}, {"appliances", appliances}}.dump(1) << "\n";
+}
+
+// One photo's entry in queries.json: its truth and what it shows of each appliance.
+json QueryJson(const Scene& scene, const QueryPhoto& photo, const std::string& image) {
+  json types = json::object();
+  json details = json::array();
+  for (const ApplianceVisibility& v : photo.visibility) {
+    const std::string& appliance_name =
+        scene.appliances[static_cast<size_t>(v.appliance_id - 1)].name;
+    types[appliance_name] = ToString(v.type);
+    details.push_back({{"id", v.appliance_id},
+                       {"name", appliance_name},
+                       {"type", ToString(v.type)},
+                       {"footprint_px", v.footprint_px},
+                       {"in_image_px", v.in_image_px},
+                       {"visible_px", v.visible_px}});
+  }
+  return {{"image", image},
+          {"intrinsics", IntrinsicsJson(photo.intrinsics)},
+          {"world_from_cam", PoseJson(photo.world_from_cam)},
+          {"target", scene.appliances[static_cast<size_t>(photo.target_appliance - 1)].name},
+          {"with_occluder", photo.with_occluder},
+          {"types", types},
+          {"visibility", details}};
+}
+
+// The photos as queries/NNNN.jpg with queries/queries.json.
+void WriteQueries(const Scene& scene, const std::vector<QueryPhoto>& photos,
+                  const VisibilityThresholds& thresholds, const fs::path& dir) {
+  json queries = json::array();
+  for (const QueryPhoto& photo : photos) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%04d.jpg", photo.index);
+    WriteImage(dir / "queries" / name, photo.image, {cv::IMWRITE_JPEG_QUALITY, 92});
+    queries.push_back(QueryJson(scene, photo, std::string("queries/") + name));
+  }
+  const VisibilityThresholds& t = thresholds;
+  OpenText(dir / "queries" / "queries.json")
+      << json{{"thresholds",
+               {{"id_buffer_downscale", t.id_buffer_downscale},
+                {"min_pixels", t.min_pixels},
+                {"occluded_below", t.occluded_below},
+                {"visible_from", t.visible_from}}},
+              {"queries", queries}}
+             .dump(1)
+      << "\n";
+}
+
+// overview.png: the floor plan with the whole walk at 2 Hz (not just the written frames, sparse
+// at --fps 1) and the photos.
+void WriteOverview(const Simulator& simulator, const std::vector<QueryPhoto>& photos,
+                   const fs::path& dir) {
+  std::vector<Eigen::Isometry3d> walk;
+  const double duration_s =
+      static_cast<double>(simulator.TimestampOf(simulator.num_frames())) * 1e-9;
+  for (double time_s = 0.0; time_s <= duration_s; time_s += 0.5) {
+    walk.push_back(simulator.trajectory().WorldFromCam(time_s));
+  }
+  WriteImage(dir / "overview.png", DrawOverview(simulator.scene(), walk, photos));
+}
+
+}  // namespace
+
 GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* progress) {
   SIGHTMAP_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
@@ -76,106 +191,18 @@ GenerateSummary GenerateDataset(const GenerateOptions& options, std::ostream* pr
 
   Simulator simulator(options.simulator);
   const SimulatorOptions& so = options.simulator;
-  std::ofstream rgb_list = OpenText(dir / "rgb.txt");
-  std::ofstream depth_list = OpenText(dir / "depth.txt");
-  std::vector<StampedPose> groundtruth;
   const std::string header = std::string("# sightmap synthetic building: scene ") + so.scene +
                              ", trajectory " + ToString(so.trajectory) + ", session " +
                              std::to_string(so.session) + ", seed " + std::to_string(so.seed);
-  rgb_list << "# color images\n" << header << "\n# timestamp filename\n";
-  depth_list << "# depth maps (16-bit PNG, 5000 per metre)\n"
-             << header << "\n# timestamp filename\n";
-
-  auto last_report = start;
   GenerateSummary summary;
-  for (int64_t i = 0; i < simulator.num_frames(); ++i) {
-    const RgbdFrame frame = simulator.RenderFrame(i);
-    const std::string stamp = TimestampText(frame.timestamp_ns);
-    WriteImage(dir / "rgb" / (stamp + ".png"), frame.color);
-    cv::Mat depth_tum;
-    frame.depth.convertTo(depth_tum, CV_16U, 5.0);  // mm -> 1/5000 m
-    WriteImage(dir / "depth" / (stamp + ".png"), depth_tum);
-    rgb_list << stamp << " rgb/" << stamp << ".png\n";
-    depth_list << stamp << " depth/" << stamp << ".png\n";
-    groundtruth.push_back({frame.timestamp_ns, *frame.world_from_cam_gt});
-    ++summary.frames;
-    const auto now = std::chrono::steady_clock::now();
-    if (progress != nullptr && now - last_report > std::chrono::seconds(3)) {
-      last_report = now;
-      *progress << "sim: frame " << (i + 1) << "/" << simulator.num_frames() << "\n" << std::flush;
-    }
-  }
-  SIGHTMAP_CHECK(rgb_list.good() && depth_list.good(),
-                 "cannot write the TUM lists in " << dir.string());
-  WriteTumTrajectory((dir / "groundtruth.txt").string(), groundtruth,
-                     "ground truth trajectory; " + header.substr(2));
-
-  capture::RgbdCalibration calibration;
-  calibration.color = so.camera;
-  calibration.depth = so.camera;
-  calibration.color_from_depth = Eigen::Isometry3d::Identity();
-  capture::WriteCalibrationFile((dir / "calibration.json").string(), calibration);
-
-  const Scene& scene = simulator.scene();
-  json appliances = json::array();
-  for (const Appliance& a : scene.appliances) {
-    json points = json::array();
-    for (const Eigen::Vector3d& p : a.points) points.push_back({p.x(), p.y(), p.z()});
-    appliances.push_back({{"id", a.id}, {"name", a.name}, {"type", a.type}, {"points", points}});
-  }
-  OpenText(dir / "appliances.json")
-      << json{{"scene", scene.name}, {"appliances", appliances}}.dump(1) << "\n";
-
+  summary.frames = WriteFrames(simulator, dir, header, progress);
+  WriteCalibrationAndAppliances(simulator.scene(), so.camera, dir);
   if (progress != nullptr && options.queries > 0) {
     *progress << "sim: rendering " << options.queries << " phone photos\n" << std::flush;
   }
   const std::vector<QueryPhoto> photos = simulator.MakeQueries(options.queries, options.query);
-  json queries = json::array();
-  for (const QueryPhoto& photo : photos) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "%04d.jpg", photo.index);
-    WriteImage(dir / "queries" / name, photo.image, {cv::IMWRITE_JPEG_QUALITY, 92});
-    json types = json::object();
-    json details = json::array();
-    for (const ApplianceVisibility& v : photo.visibility) {
-      const std::string& appliance_name =
-          scene.appliances[static_cast<size_t>(v.appliance_id - 1)].name;
-      types[appliance_name] = ToString(v.type);
-      details.push_back({{"id", v.appliance_id},
-                         {"name", appliance_name},
-                         {"type", ToString(v.type)},
-                         {"footprint_px", v.footprint_px},
-                         {"in_image_px", v.in_image_px},
-                         {"visible_px", v.visible_px}});
-    }
-    queries.push_back(
-        {{"image", std::string("queries/") + name},
-         {"intrinsics", IntrinsicsJson(photo.intrinsics)},
-         {"world_from_cam", PoseJson(photo.world_from_cam)},
-         {"target", scene.appliances[static_cast<size_t>(photo.target_appliance - 1)].name},
-         {"with_occluder", photo.with_occluder},
-         {"types", types},
-         {"visibility", details}});
-  }
-  const VisibilityThresholds& t = options.query.thresholds;
-  OpenText(dir / "queries" / "queries.json")
-      << json{{"thresholds",
-               {{"id_buffer_downscale", t.id_buffer_downscale},
-                {"min_pixels", t.min_pixels},
-                {"occluded_below", t.occluded_below},
-                {"visible_from", t.visible_from}}},
-              {"queries", queries}}
-             .dump(1)
-      << "\n";
-
-  // The whole walk at 2 Hz, not just the written frames (sparse at --fps 1).
-  std::vector<Eigen::Isometry3d> walk;
-  const double duration_s =
-      static_cast<double>(simulator.TimestampOf(simulator.num_frames())) * 1e-9;
-  for (double time_s = 0.0; time_s <= duration_s; time_s += 0.5) {
-    walk.push_back(simulator.trajectory().WorldFromCam(time_s));
-  }
-  WriteImage(dir / "overview.png", DrawOverview(scene, walk, photos));
+  WriteQueries(simulator.scene(), photos, options.query.thresholds, dir);
+  WriteOverview(simulator, photos, dir);
   summary.queries = static_cast<int>(photos.size());
   summary.seconds = SecondsSince(start);
   summary.frames_per_second = summary.seconds > 0 ? summary.frames / summary.seconds : 0.0;
