@@ -1125,51 +1125,42 @@ std::optional<std::pair<std::string, std::vector<uint8_t>>> Model::LoadVocabular
   return std::make_pair(query.Text(0), query.Blob(1));
 }
 
-ModelSummary Model::Summary() const {
-  sqlite3* db = impl_->db;
-  ModelSummary summary;
-  summary.schema_version = impl_->schema_version;
-  auto count = [db](const std::string& sql) {
-    Statement query(db, sql);
-    query.Step();
-    return query.Int(0);
-  };
-  summary.sessions = count("SELECT count(*) FROM sessions");
-  summary.keyframes = count("SELECT count(*) FROM keyframes");
-  summary.labels = count("SELECT count(*) FROM labels");
-  summary.synthetic_views = count("SELECT count(*) FROM synthetic_views");
-  summary.synthetic_view_bytes = count(
-      "SELECT coalesce(sum(length(color_jpeg) + length(keypoints) + length(descriptors) + "
-      "length(cam_points)), 0) FROM synthetic_views");
-  summary.photo_feature_keyframes = count("SELECT count(*) FROM photo_features");
-  summary.photo_feature_bytes = count(
-      "SELECT coalesce(sum(length(keypoints) + length(descriptors) + length(cam_points)), 0) "
-      "FROM photo_features");
-  {
-    summary.inactive_links = count("SELECT count(*) FROM links WHERE active = 0");
-    Statement query(db, "SELECT type, count(*) FROM links WHERE active = 1 GROUP BY type");
-    while (query.Step()) {
-      switch (static_cast<LinkType>(query.Int(0))) {
-        case LinkType::kOdometry:
-          summary.odometry_links = query.Int(1);
-          break;
-        case LinkType::kLoopClosure:
-          summary.loop_closures = query.Int(1);
-          break;
-        case LinkType::kRelocalisation:
-          summary.relocalisation_links = query.Int(1);
-          break;
-        case LinkType::kUser:
-          summary.user_links = query.Int(1);
-          break;
-        case LinkType::kPrior:
-          summary.prior_links = query.Int(1);
-          break;
-      }
+namespace {
+
+int64_t CountOf(sqlite3* db, const std::string& sql) {
+  Statement query(db, sql);
+  query.Step();
+  return query.Int(0);
+}
+
+// The active links by type, and how many were switched off.
+void CountLinks(sqlite3* db, ModelSummary* summary) {
+  summary->inactive_links = CountOf(db, "SELECT count(*) FROM links WHERE active = 0");
+  Statement query(db, "SELECT type, count(*) FROM links WHERE active = 1 GROUP BY type");
+  while (query.Step()) {
+    switch (static_cast<LinkType>(query.Int(0))) {
+      case LinkType::kOdometry:
+        summary->odometry_links = query.Int(1);
+        break;
+      case LinkType::kLoopClosure:
+        summary->loop_closures = query.Int(1);
+        break;
+      case LinkType::kRelocalisation:
+        summary->relocalisation_links = query.Int(1);
+        break;
+      case LinkType::kUser:
+        summary->user_links = query.Int(1);
+        break;
+      case LinkType::kPrior:
+        summary->prior_links = query.Int(1);
+        break;
     }
   }
+}
 
-  // Segments: connected components of the pose graph (union-find over keyframe ids).
+// Segments: connected components of the pose graph (union-find over keyframe ids, every link
+// whether active or not), and the largest one's keyframes.
+void CountSegments(sqlite3* db, ModelSummary* summary) {
   std::vector<int64_t> ids;
   {
     Statement query(db, "SELECT id FROM keyframes ORDER BY id");
@@ -1194,18 +1185,21 @@ ModelSummary Model::Summary() const {
   }
   std::vector<int64_t> keyframes_in(parent.size(), 0);
   for (size_t i = 0; i < parent.size(); ++i) {
-    summary.segments += find(i) == i;
-    summary.largest_segment_keyframes =
-        std::max(summary.largest_segment_keyframes, ++keyframes_in[find(i)]);
+    summary->segments += find(i) == i;
+    summary->largest_segment_keyframes =
+        std::max(summary->largest_segment_keyframes, ++keyframes_in[find(i)]);
   }
+}
 
-  // Bounding box of camera positions and label points.
+// The bounding box of the camera positions and `labels`' points.
+void BoundCamerasAndLabels(sqlite3* db, const std::vector<LabelRecord>& labels,
+                           ModelSummary* summary) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   auto extend = [&](const Eigen::Vector3d& p) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
-    summary.has_bounding_box = true;
+    summary->has_bounding_box = true;
   };
   {
     Statement query(db, "SELECT tx, ty, tz FROM keyframes");
@@ -1213,16 +1207,39 @@ ModelSummary Model::Summary() const {
       extend(Eigen::Vector3d(query.Double(0), query.Double(1), query.Double(2)));
     }
   }
-  for (const LabelRecord& label : Labels()) {
+  for (const LabelRecord& label : labels) {
     for (const LabelPoint& point : label.points) extend(point.world);
   }
-  if (summary.has_bounding_box) {
-    summary.bbox_min = lo;
-    summary.bbox_max = hi;
+  if (summary->has_bounding_box) {
+    summary->bbox_min = lo;
+    summary->bbox_max = hi;
   }
+}
 
+}  // namespace
+
+ModelSummary Model::Summary() const {
+  sqlite3* db = impl_->db;
+  ModelSummary summary;
+  summary.schema_version = impl_->schema_version;
+  summary.sessions = CountOf(db, "SELECT count(*) FROM sessions");
+  summary.keyframes = CountOf(db, "SELECT count(*) FROM keyframes");
+  summary.labels = CountOf(db, "SELECT count(*) FROM labels");
+  summary.synthetic_views = CountOf(db, "SELECT count(*) FROM synthetic_views");
+  summary.synthetic_view_bytes =
+      CountOf(db,
+              "SELECT coalesce(sum(length(color_jpeg) + length(keypoints) + length(descriptors) + "
+              "length(cam_points)), 0) FROM synthetic_views");
+  summary.photo_feature_keyframes = CountOf(db, "SELECT count(*) FROM photo_features");
+  summary.photo_feature_bytes = CountOf(
+      db,
+      "SELECT coalesce(sum(length(keypoints) + length(descriptors) + length(cam_points)), 0) "
+      "FROM photo_features");
+  CountLinks(db, &summary);
+  CountSegments(db, &summary);
+  BoundCamerasAndLabels(db, Labels(), &summary);
   if (IsMemoryPath(impl_->path)) {
-    summary.size_bytes = count("PRAGMA page_count") * count("PRAGMA page_size");
+    summary.size_bytes = CountOf(db, "PRAGMA page_count") * CountOf(db, "PRAGMA page_size");
   } else {
     std::error_code ec;
     for (const std::string& file : {impl_->path, impl_->path + "-wal"}) {
