@@ -242,6 +242,49 @@ Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEn
   return solve;
 }
 
+// Solves, switches off the worst inconsistent loop edge (internal::WorstLoop), and solves again
+// until none is. Each solve starts from the poses `initial`, so the answer after switching an edge
+// off does not depend on where that edge had pulled the poses. Switches the edges off in `active`,
+// fills the summary's solve figures and rejected edges; returns the last solve (nothing moved when
+// it was not usable).
+Solve SolveSwitchingOffLoops(const std::vector<PoseGraphEdge>& edges,
+                             const internal::EdgeEnds& ends, const std::vector<bool>& selected,
+                             const std::vector<Matrix6d>& sqrt_information,
+                             const std::vector<PoseParameters>& initial,
+                             const std::vector<bool>& pinned, const PoseGraphOptions& options,
+                             std::vector<bool>* active, PoseGraphSummary* summary) {
+  while (true) {
+    std::vector<bool> solved(edges.size());
+    for (size_t e = 0; e < edges.size(); ++e) solved[e] = (*active)[e] && selected[e];
+    Solve solve = SolveEdges(edges, ends, solved, sqrt_information, initial, pinned, options);
+    if (!solve.anything) {
+      summary->converged = true;  // nothing to move
+      return solve;
+    }
+    if (summary->solves == 0) summary->initial_cost = solve.summary.initial_cost;
+    ++summary->solves;
+    summary->iterations += static_cast<int>(solve.summary.iterations.size());
+    summary->final_cost = solve.summary.final_cost;
+    summary->converged = solve.summary.termination_type == ceres::CONVERGENCE;
+    if (!solve.summary.IsSolutionUsable()) {
+      summary->usable = false;
+      solve.moved.assign(initial.size(), false);
+      solve.parameters = initial;
+      return solve;
+    }
+    std::vector<std::optional<double>> loop_chi2(edges.size());
+    for (size_t e = 0; e < edges.size(); ++e) {
+      if (solved[e] && IsLoopEdge(edges[e].type)) {
+        loop_chi2[e] =
+            Chi2(edges[e], solve.parameters[ends[e].first], solve.parameters[ends[e].second]);
+      }
+    }
+    const std::optional<size_t> worst = internal::WorstLoop(loop_chi2, options.max_loop_chi2);
+    if (!worst) return solve;
+    (*active)[*worst] = false;
+    summary->rejected_edges.push_back(*worst);
+  }
+}
 }  // namespace
 
 bool PoseGraphOptions::Check(std::string* error) const {
@@ -546,43 +589,10 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     if (border->empty()) return summary;
   }
 
-  // Solve, switch off the worst inconsistent loop edge, and solve again until none is. Each
-  // solve starts from the poses given, so the answer after switching an edge off does not depend
-  // on where that edge had pulled the poses.
-  std::vector<PoseParameters> parameters = initial;
-  std::vector<bool> moved(nodes.size(), false);
-  while (true) {
-    std::vector<bool> solved(edges_.size());
-    for (size_t e = 0; e < edges_.size(); ++e) solved[e] = active_[e] && selected[e];
-    Solve solve = SolveEdges(edges_, ends, solved, sqrt_information, initial, pinned, options);
-    parameters = std::move(solve.parameters);
-    moved = std::move(solve.moved);
-    if (!solve.anything) {
-      summary.converged = true;  // nothing to move
-      break;
-    }
-    if (summary.solves == 0) summary.initial_cost = solve.summary.initial_cost;
-    ++summary.solves;
-    summary.iterations += static_cast<int>(solve.summary.iterations.size());
-    summary.final_cost = solve.summary.final_cost;
-    summary.converged = solve.summary.termination_type == ceres::CONVERGENCE;
-    if (!solve.summary.IsSolutionUsable()) {
-      summary.usable = false;
-      moved.assign(nodes.size(), false);
-      parameters = initial;
-      break;
-    }
-    std::vector<std::optional<double>> loop_chi2(edges_.size());
-    for (size_t e = 0; e < edges_.size(); ++e) {
-      if (solved[e] && IsLoopEdge(edges_[e].type)) {
-        loop_chi2[e] = Chi2(edges_[e], parameters[ends[e].first], parameters[ends[e].second]);
-      }
-    }
-    const std::optional<size_t> worst = internal::WorstLoop(loop_chi2, options.max_loop_chi2);
-    if (!worst) break;
-    active_[*worst] = false;
-    summary.rejected_edges.push_back(*worst);
-  }
+  const Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
+                                             pinned, options, &active_, &summary);
+  const std::vector<PoseParameters>& parameters = solve.parameters;
+  const std::vector<bool>& moved = solve.moved;
 
   // Poses that did not take part keep their exact input (no round trip through a quaternion).
   for (size_t i = 0; i < nodes.size(); ++i) {
