@@ -141,6 +141,40 @@ struct MeshRenderer::Impl {
     const double ndc = 2.0 * window_depth - 1.0;
     return static_cast<float>(2.0 * f * n / ((f + n) - ndc * (f - n)));
   }
+
+  // The rendered colour and metric depth, and the no-depth mask (alpha below half where a
+  // material has no depth), rows top first.
+  RenderedView ReadBack(const Intrinsics& intrinsics) const {
+    gl.Finish();
+    const int w = intrinsics.width;
+    const int h = intrinsics.height;
+    cv::Mat bgra(h, w, CV_8UC4);
+    gl.ReadPixels(0, 0, w, h, GL_BGRA, GL_UNSIGNED_BYTE, bgra.data);
+    cv::Mat window_depth(h, w, CV_32F);
+    gl.ReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, window_depth.data);
+    SIGHTMAP_CHECK(gl.GetError() == GL_NO_ERROR, "OpenGL failed to read back the rendered image");
+
+    // GL rows start at the bottom.
+    cv::flip(bgra, bgra, 0);
+    cv::flip(window_depth, window_depth, 0);
+    RenderedView view;
+    view.color.create(h, w, CV_8UC3);
+    view.no_depth.create(h, w, CV_8U);
+    view.depth.create(h, w, CV_32F);
+    for (int v = 0; v < h; ++v) {
+      const cv::Vec4b* in = bgra.ptr<cv::Vec4b>(v);
+      const float* wd = window_depth.ptr<float>(v);
+      cv::Vec3b* out = view.color.ptr<cv::Vec3b>(v);
+      uint8_t* mask = view.no_depth.ptr<uint8_t>(v);
+      float* depth = view.depth.ptr<float>(v);
+      for (int u = 0; u < w; ++u) {
+        out[u] = cv::Vec3b(in[u][0], in[u][1], in[u][2]);
+        depth[u] = MetricDepth(wd[u]);
+        mask[u] = (depth[u] > 0.0f && in[u][3] < 128) ? 255 : 0;
+      }
+    }
+    return view;
+  }
 };
 
 MeshRenderer::MeshRenderer(const RenderOptions& options) {
@@ -215,14 +249,12 @@ void MeshRenderer::set_options(const RenderOptions& options) {
 const RenderOptions& MeshRenderer::options() const { return impl_->options; }
 OffscreenContext& MeshRenderer::context() { return impl_->context; }
 
-RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
-                                  const Eigen::Isometry3d& world_from_cam) {
-  Impl& impl = *impl_;
-  const GlApi& gl = impl.gl;
-  const RenderOptions& options = impl.options;
-  impl.Prepare(intrinsics, world_from_cam, options.background_rgb);
+namespace {
 
-  // Lights are given in world coordinates: set them with the world-to-eye modelview loaded.
+// The fixed-function lighting of RenderOptions: an ambient term and directional lights given in
+// world coordinates (set with the world-to-eye modelview loaded), lit on both sides, the
+// materials' colour as ambient and diffuse, no specular.
+void SetUpLighting(const GlApi& gl, const RenderOptions& options) {
   gl.Enable(GL_NORMALIZE);
   gl.ShadeModel(GL_SMOOTH);
   const GLfloat ambient[4] = {options.ambient, options.ambient, options.ambient, 1.0f};
@@ -248,10 +280,14 @@ RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
   gl.ColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
   gl.Enable(GL_COLOR_MATERIAL);
   gl.TexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+}
 
+// Each mesh with its material: colour (alpha carries the no-depth flag), lighting, texture.
+void DrawMeshes(const GlApi& gl, const std::vector<TriangleMesh>& meshes,
+                const std::vector<GLuint>& textures) {
   gl.EnableClientState(GL_VERTEX_ARRAY);
   gl.EnableClientState(GL_NORMAL_ARRAY);
-  for (const TriangleMesh& mesh : impl.meshes) {
+  for (const TriangleMesh& mesh : meshes) {
     if (mesh.positions.empty()) continue;
     const Material& m = mesh.material;
     // Alpha carries the no-depth flag to the read-back (blending is off, so it is stored as is).
@@ -264,7 +300,7 @@ RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
     }
     if (m.texture >= 0) {
       gl.Enable(GL_TEXTURE_2D);
-      gl.BindTexture(GL_TEXTURE_2D, impl.textures[static_cast<size_t>(m.texture)]);
+      gl.BindTexture(GL_TEXTURE_2D, textures[static_cast<size_t>(m.texture)]);
       gl.EnableClientState(GL_TEXTURE_COORD_ARRAY);
       gl.TexCoordPointer(2, GL_FLOAT, sizeof(Eigen::Vector2f), mesh.uvs.data());
     } else {
@@ -281,36 +317,18 @@ RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
   gl.Disable(GL_TEXTURE_2D);
   gl.Disable(GL_LIGHTING);
   gl.Disable(GL_COLOR_MATERIAL);
-  gl.Finish();
+}
 
-  const int w = intrinsics.width;
-  const int h = intrinsics.height;
-  cv::Mat bgra(h, w, CV_8UC4);
-  gl.ReadPixels(0, 0, w, h, GL_BGRA, GL_UNSIGNED_BYTE, bgra.data);
-  cv::Mat window_depth(h, w, CV_32F);
-  gl.ReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, window_depth.data);
-  SIGHTMAP_CHECK(gl.GetError() == GL_NO_ERROR, "OpenGL failed to read back the rendered image");
+}  // namespace
 
-  // GL rows start at the bottom.
-  cv::flip(bgra, bgra, 0);
-  cv::flip(window_depth, window_depth, 0);
-  RenderedView view;
-  view.color.create(h, w, CV_8UC3);
-  view.no_depth.create(h, w, CV_8U);
-  view.depth.create(h, w, CV_32F);
-  for (int v = 0; v < h; ++v) {
-    const cv::Vec4b* in = bgra.ptr<cv::Vec4b>(v);
-    const float* wd = window_depth.ptr<float>(v);
-    cv::Vec3b* out = view.color.ptr<cv::Vec3b>(v);
-    uint8_t* mask = view.no_depth.ptr<uint8_t>(v);
-    float* depth = view.depth.ptr<float>(v);
-    for (int u = 0; u < w; ++u) {
-      out[u] = cv::Vec3b(in[u][0], in[u][1], in[u][2]);
-      depth[u] = impl.MetricDepth(wd[u]);
-      mask[u] = (depth[u] > 0.0f && in[u][3] < 128) ? 255 : 0;
-    }
-  }
-  return view;
+RenderedView MeshRenderer::Render(const Intrinsics& intrinsics,
+                                  const Eigen::Isometry3d& world_from_cam) {
+  Impl& impl = *impl_;
+  const GlApi& gl = impl.gl;
+  impl.Prepare(intrinsics, world_from_cam, impl.options.background_rgb);
+  SetUpLighting(gl, impl.options);
+  DrawMeshes(gl, impl.meshes, impl.textures);
+  return impl.ReadBack(intrinsics);
 }
 
 cv::Mat MeshRenderer::RenderIds(const Intrinsics& intrinsics,
