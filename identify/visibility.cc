@@ -364,6 +364,114 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
   return sightings;
 }
 
+namespace {
+
+// Whether points seen from a pose are hidden: behind the occlusion cloud's surface (a z-buffer
+// drawn at the first question, so only when some label is in the view cone), or on the far side
+// of what the keyframes saw from one side only.
+class OcclusionTest {
+ public:
+  OcclusionTest(const OcclusionCloud* cloud, const Intrinsics& intrinsics,
+                const Eigen::Isometry3d& world_from_cam, const VisibilityOptions& options)
+      : cloud_(cloud),
+        intrinsics_(intrinsics),
+        world_from_cam_(world_from_cam),
+        options_(options),
+        cos_behind_(std::cos(DegToRad(options.behind_angle_deg))) {}
+
+  bool Occluded(const Eigen::Vector3d& cam_point, const PointSighting* sighting) {
+    if (cloud_ == nullptr || cloud_->world_points.empty()) return false;
+    const double surface = SurfaceDepth(cam_point);
+    const double z = cam_point.z();
+    const double margin = options_.margin_m + options_.margin_ratio * z;
+    if (surface < z - margin) return true;
+    if (!SeenFromBehind(cam_point, sighting)) return false;
+    if (surface < z - options_.behind_margin_m) return true;
+    return options_.behind_needs_own_surface && std::isfinite(surface) && surface > z + margin;
+  }
+
+ private:
+  // The z-buffer's depth at the point's pixel [m]; +infinity where the cloud shows nothing.
+  double SurfaceDepth(const Eigen::Vector3d& cam_point) {
+    if (zbuffer_.empty()) {
+      const int ds = options_.zbuffer_downscale;
+      small_ = intrinsics_.Scaled(std::max(1, (intrinsics_.width + ds - 1) / ds),
+                                  std::max(1, (intrinsics_.height + ds - 1) / ds));
+      zbuffer_ = RenderOcclusionDepth(*cloud_, small_, world_from_cam_, options_);
+    }
+    const Eigen::Vector2d pixel = small_.Project(cam_point);
+    const int u = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, small_.width - 1);
+    const int v = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, small_.height - 1);
+    return zbuffer_.at<float>(v, u);
+  }
+
+  // Whether the photo looks at the point from the side the keyframes did not see it from (when
+  // enough keyframes saw it, and mostly from one side).
+  bool SeenFromBehind(const Eigen::Vector3d& cam_point, const PointSighting* sighting) const {
+    if (sighting == nullptr || sighting->keyframes < options_.min_sighting_keyframes) return false;
+    const double one_sidedness = sighting->mean_ray.norm();
+    if (one_sidedness < options_.min_one_sidedness) return false;
+    const Eigen::Vector3d photo_ray = world_from_cam_.linear() * cam_point.normalized();
+    return photo_ray.dot(sighting->mean_ray) < cos_behind_ * one_sidedness;
+  }
+
+  const OcclusionCloud* cloud_;
+  const Intrinsics& intrinsics_;
+  const Eigen::Isometry3d& world_from_cam_;
+  const VisibilityOptions& options_;
+  const double cos_behind_;
+  cv::Mat zbuffer_;
+  Intrinsics small_;
+};
+
+// A label as the photo shows it: nothing when too few of its points lie in the image.
+std::optional<ApplianceInView> LabelInView(const store::LabelRecord& label,
+                                           const std::vector<PointSighting>* sightings,
+                                           const Intrinsics& intrinsics,
+                                           const Eigen::Isometry3d& cam_from_world,
+                                           const VisibilityOptions& options,
+                                           OcclusionTest* occlusion) {
+  if (label.points.empty()) return std::nullopt;
+  int in_view = 0;
+  int unoccluded = 0;
+  Eigen::Vector2d sum_visible = Eigen::Vector2d::Zero();
+  Eigen::Vector2d sum_in_view = Eigen::Vector2d::Zero();
+  double nearest = std::numeric_limits<double>::infinity();
+  for (size_t p = 0; p < label.points.size(); ++p) {
+    const Eigen::Vector3d cam_point = cam_from_world * label.points[p].world;
+    if (!(cam_point.z() > 0.0)) continue;
+    const Eigen::Vector2d pixel = intrinsics.Project(cam_point);
+    // Pixel centres at integers: the image spans [-0.5, size - 0.5).
+    if (!(pixel.x() >= -0.5 && pixel.x() < intrinsics.width - 0.5 && pixel.y() >= -0.5 &&
+          pixel.y() < intrinsics.height - 0.5)) {
+      continue;
+    }
+    ++in_view;
+    sum_in_view += pixel;
+    nearest = std::min(nearest, cam_point.norm());
+    if (!occlusion->Occluded(cam_point, sightings != nullptr ? &sightings->at(p) : nullptr)) {
+      ++unoccluded;
+      sum_visible += pixel;
+    }
+  }
+  if (in_view == 0 ||
+      in_view < options.min_in_view_share * static_cast<double>(label.points.size())) {
+    return std::nullopt;
+  }
+  ApplianceInView appliance;
+  appliance.name = label.name;
+  appliance.type = label.type;
+  appliance.distance_m = nearest;
+  appliance.occluded = unoccluded < options.min_unoccluded_share * in_view;
+  appliance.visible_share =
+      static_cast<double>(unoccluded) / static_cast<double>(label.points.size());
+  appliance.pixel =
+      appliance.occluded || unoccluded == 0 ? sum_in_view / in_view : sum_visible / unoccluded;
+  return appliance;
+}
+
+}  // namespace
+
 std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelRecord>& labels,
                                               const OcclusionCloud* cloud,
                                               const Intrinsics& intrinsics,
@@ -376,77 +484,13 @@ std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelReco
   std::vector<ApplianceInView> result;
   if (labels.empty()) return result;
   const Eigen::Isometry3d cam_from_world = world_from_cam.inverse();
-  const double cos_behind = std::cos(DegToRad(options.behind_angle_deg));
-
-  // The z-buffer, drawn only when some label is in the view cone.
-  cv::Mat zbuffer;
-  Intrinsics small;
-  auto occluded = [&](const Eigen::Vector3d& cam_point, const PointSighting* sighting) {
-    if (cloud == nullptr || cloud->world_points.empty()) return false;
-    if (zbuffer.empty()) {
-      const int ds = options.zbuffer_downscale;
-      small = intrinsics.Scaled(std::max(1, (intrinsics.width + ds - 1) / ds),
-                                std::max(1, (intrinsics.height + ds - 1) / ds));
-      zbuffer = RenderOcclusionDepth(*cloud, small, world_from_cam, options);
-    }
-    const Eigen::Vector2d pixel = small.Project(cam_point);
-    const int u = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, small.width - 1);
-    const int v = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, small.height - 1);
-    const double surface = zbuffer.at<float>(v, u);
-    const double z = cam_point.z();
-    const double margin = options.margin_m + options.margin_ratio * z;
-    if (surface < z - margin) return true;
-    if (sighting == nullptr || sighting->keyframes < options.min_sighting_keyframes) return false;
-    const double one_sidedness = sighting->mean_ray.norm();
-    if (one_sidedness < options.min_one_sidedness) return false;
-    const Eigen::Vector3d photo_ray = world_from_cam.linear() * cam_point.normalized();
-    const bool from_behind = photo_ray.dot(sighting->mean_ray) < cos_behind * one_sidedness;
-    if (!from_behind) return false;
-    if (surface < z - options.behind_margin_m) return true;
-    return options.behind_needs_own_surface && std::isfinite(surface) && surface > z + margin;
-  };
-
+  OcclusionTest occlusion(cloud, intrinsics, world_from_cam, options);
   for (size_t l = 0; l < labels.size(); ++l) {
-    const store::LabelRecord& label = labels[l];
-    if (label.points.empty()) continue;
-    int in_view = 0;
-    int unoccluded = 0;
-    Eigen::Vector2d sum_visible = Eigen::Vector2d::Zero();
-    Eigen::Vector2d sum_in_view = Eigen::Vector2d::Zero();
-    double nearest = std::numeric_limits<double>::infinity();
-    for (size_t p = 0; p < label.points.size(); ++p) {
-      const store::LabelPoint& point = label.points[p];
-      const PointSighting* sighting = sightings != nullptr ? &(*sightings)[l].at(p) : nullptr;
-      const Eigen::Vector3d cam_point = cam_from_world * point.world;
-      if (!(cam_point.z() > 0.0)) continue;
-      const Eigen::Vector2d pixel = intrinsics.Project(cam_point);
-      // Pixel centres at integers: the image spans [-0.5, size - 0.5).
-      if (!(pixel.x() >= -0.5 && pixel.x() < intrinsics.width - 0.5 && pixel.y() >= -0.5 &&
-            pixel.y() < intrinsics.height - 0.5)) {
-        continue;
-      }
-      ++in_view;
-      sum_in_view += pixel;
-      nearest = std::min(nearest, cam_point.norm());
-      if (!occluded(cam_point, sighting)) {
-        ++unoccluded;
-        sum_visible += pixel;
-      }
+    if (std::optional<ApplianceInView> appliance =
+            LabelInView(labels[l], sightings != nullptr ? &(*sightings)[l] : nullptr, intrinsics,
+                        cam_from_world, options, &occlusion)) {
+      result.push_back(std::move(*appliance));
     }
-    if (in_view == 0 ||
-        in_view < options.min_in_view_share * static_cast<double>(label.points.size())) {
-      continue;
-    }
-    ApplianceInView appliance;
-    appliance.name = label.name;
-    appliance.type = label.type;
-    appliance.distance_m = nearest;
-    appliance.occluded = unoccluded < options.min_unoccluded_share * in_view;
-    appliance.visible_share =
-        static_cast<double>(unoccluded) / static_cast<double>(label.points.size());
-    appliance.pixel =
-        appliance.occluded || unoccluded == 0 ? sum_in_view / in_view : sum_visible / unoccluded;
-    result.push_back(std::move(appliance));
   }
   std::stable_sort(result.begin(), result.end(),
                    [](const ApplianceInView& a, const ApplianceInView& b) {
