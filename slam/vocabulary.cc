@@ -42,19 +42,18 @@ void CheckBinaryDescriptors(const cv::Mat& descriptors, const char* what) {
 uint64_t DrawIndex(std::mt19937_64& rng, uint64_t n) { return rng() % n; }
 double DrawUnit(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
-// k-majority clustering of descriptors[members] into at most k clusters, k-means++ seeded.
-// Returns the centres of the non-empty clusters and each cluster's members.
-void KMajority(const std::vector<Descriptor>& descriptors, const std::vector<uint32_t>& members,
-               int k, int iterations, std::mt19937_64& rng, std::vector<Descriptor>* centres,
-               std::vector<std::vector<uint32_t>>* clusters) {
+// k-means++ seeding: the first centre drawn uniformly, each next one with probability
+// proportional to its squared distance to the nearest centre chosen so far; fewer than k when
+// every descriptor equals a centre.
+std::vector<Descriptor> SeedCentres(const std::vector<Descriptor>& descriptors,
+                                    const std::vector<uint32_t>& members, int k,
+                                    std::mt19937_64& rng) {
   const size_t n = members.size();
-  centres->clear();
-  // k-means++: each next centre drawn with probability proportional to its squared distance to
-  // the nearest centre chosen so far.
+  std::vector<Descriptor> centres;
   std::vector<int> nearest(n, std::numeric_limits<int>::max());
-  centres->push_back(descriptors[members[DrawIndex(rng, n)]]);
-  while (static_cast<int>(centres->size()) < k) {
-    const Descriptor& last = centres->back();
+  centres.push_back(descriptors[members[DrawIndex(rng, n)]]);
+  while (static_cast<int>(centres.size()) < k) {
+    const Descriptor& last = centres.back();
     double total = 0.0;
     for (size_t i = 0; i < n; ++i) {
       nearest[i] = std::min(nearest[i], Hamming256(descriptors[members[i]].data(), last.data()));
@@ -70,73 +69,101 @@ void KMajority(const std::vector<Descriptor>& descriptors, const std::vector<uin
       chosen = i;
       if (sum > target) break;
     }
-    centres->push_back(descriptors[members[chosen]]);
+    centres.push_back(descriptors[members[chosen]]);
   }
+  return centres;
+}
 
-  const int num_centres = static_cast<int>(centres->size());
-  std::vector<int> assignment(n, -1);
-  auto assign = [&]() {
-    bool changed = false;
-    for (size_t i = 0; i < n; ++i) {
-      const uint64_t* d = descriptors[members[i]].data();
-      int best = 0;
-      int best_distance = Hamming256(d, (*centres)[0].data());
-      for (int c = 1; c < num_centres; ++c) {
-        const int distance = Hamming256(d, (*centres)[c].data());
-        if (distance < best_distance) {
-          best_distance = distance;
-          best = c;
-        }
-      }
-      if (assignment[i] != best) {
-        assignment[i] = best;
-        changed = true;
+// Each member's nearest centre (the first of equals) into `assignment`; whether any changed.
+bool AssignToNearest(const std::vector<Descriptor>& descriptors,
+                     const std::vector<uint32_t>& members, const std::vector<Descriptor>& centres,
+                     std::vector<int>* assignment) {
+  bool changed = false;
+  for (size_t i = 0; i < members.size(); ++i) {
+    const uint64_t* d = descriptors[members[i]].data();
+    int best = 0;
+    int best_distance = Hamming256(d, centres[0].data());
+    for (size_t c = 1; c < centres.size(); ++c) {
+      const int distance = Hamming256(d, centres[c].data());
+      if (distance < best_distance) {
+        best_distance = distance;
+        best = static_cast<int>(c);
       }
     }
-    return changed;
-  };
-  // Centre = bitwise majority of its members (a bit is set when more than half have it); an
-  // empty cluster keeps its centre.
-  auto update = [&]() {
-    std::vector<std::array<int, 256>> counts(num_centres);
-    std::vector<int> sizes(num_centres, 0);
-    for (auto& c : counts) c.fill(0);
-    for (size_t i = 0; i < n; ++i) {
-      std::array<int, 256>& count = counts[assignment[i]];
-      ++sizes[assignment[i]];
-      const Descriptor& d = descriptors[members[i]];
-      for (int w = 0; w < 4; ++w) {
-        for (uint64_t bits = d[w]; bits != 0; bits &= bits - 1) {
-          ++count[w * 64 + __builtin_ctzll(bits)];
-        }
+    if ((*assignment)[i] != best) {
+      (*assignment)[i] = best;
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+// Each centre becomes the bitwise majority of its members (a bit is set when more than half have
+// it); an empty cluster keeps its centre.
+void MajorityCentres(const std::vector<Descriptor>& descriptors,
+                     const std::vector<uint32_t>& members, const std::vector<int>& assignment,
+                     std::vector<Descriptor>* centres) {
+  const size_t num_centres = centres->size();
+  std::vector<std::array<int, 256>> counts(num_centres);
+  std::vector<int> sizes(num_centres, 0);
+  for (auto& c : counts) c.fill(0);
+  for (size_t i = 0; i < members.size(); ++i) {
+    std::array<int, 256>& count = counts[assignment[i]];
+    ++sizes[assignment[i]];
+    const Descriptor& d = descriptors[members[i]];
+    for (int w = 0; w < 4; ++w) {
+      for (uint64_t bits = d[w]; bits != 0; bits &= bits - 1) {
+        ++count[w * 64 + __builtin_ctzll(bits)];
       }
     }
-    for (int c = 0; c < num_centres; ++c) {
-      if (sizes[c] == 0) continue;
-      Descriptor centre = {0, 0, 0, 0};
-      for (int bit = 0; bit < 256; ++bit) {
-        if (2 * counts[c][bit] > sizes[c]) centre[bit / 64] |= uint64_t{1} << (bit % 64);
-      }
-      (*centres)[c] = centre;
+  }
+  for (size_t c = 0; c < num_centres; ++c) {
+    if (sizes[c] == 0) continue;
+    Descriptor centre = {0, 0, 0, 0};
+    for (int bit = 0; bit < 256; ++bit) {
+      if (2 * counts[c][bit] > sizes[c]) centre[bit / 64] |= uint64_t{1} << (bit % 64);
     }
-  };
+    (*centres)[c] = centre;
+  }
+}
+
+// k-majority clustering of descriptors[members] into at most k clusters, k-means++ seeded.
+// Returns the centres of the non-empty clusters and each cluster's members.
+void KMajority(const std::vector<Descriptor>& descriptors, const std::vector<uint32_t>& members,
+               int k, int iterations, std::mt19937_64& rng, std::vector<Descriptor>* centres,
+               std::vector<std::vector<uint32_t>>* clusters) {
+  *centres = SeedCentres(descriptors, members, k, rng);
+  std::vector<int> assignment(members.size(), -1);
   // Ends on an assignment, so each member sits with its nearest centre, as WordOf descends.
-  assign();
+  AssignToNearest(descriptors, members, *centres, &assignment);
   for (int iteration = 1; iteration < iterations; ++iteration) {
-    update();
-    if (!assign()) break;
+    MajorityCentres(descriptors, members, assignment, centres);
+    if (!AssignToNearest(descriptors, members, *centres, &assignment)) break;
   }
-
-  std::vector<std::vector<uint32_t>> all(num_centres);
-  for (size_t i = 0; i < n; ++i) all[assignment[i]].push_back(members[i]);
+  std::vector<std::vector<uint32_t>> all(centres->size());
+  for (size_t i = 0; i < members.size(); ++i) all[assignment[i]].push_back(members[i]);
   std::vector<Descriptor> kept;
   clusters->clear();
-  for (int c = 0; c < num_centres; ++c) {
+  for (size_t c = 0; c < centres->size(); ++c) {
     if (all[c].empty()) continue;
     kept.push_back((*centres)[c]);
     clusters->push_back(std::move(all[c]));
   }
   *centres = std::move(kept);
+}
+
+// The indices of the descriptors to cluster: all, or a uniform subset of `keep` of them (a partial
+// Fisher-Yates shuffle), in index order.
+std::vector<uint32_t> TrainingSubset(size_t total, size_t keep, std::mt19937_64& rng) {
+  std::vector<uint32_t> members(total);
+  for (size_t i = 0; i < total; ++i) members[i] = static_cast<uint32_t>(i);
+  if (total <= keep) return members;
+  for (size_t i = 0; i < keep; ++i) {
+    std::swap(members[i], members[i + DrawIndex(rng, total - i)]);
+  }
+  members.resize(keep);
+  std::sort(members.begin(), members.end());
+  return members;
 }
 
 // Serialisation helpers: little-endian, bounds-checked reads.
@@ -256,29 +283,29 @@ Vocabulary Vocabulary::Train(const std::vector<cv::Mat>& descriptors_per_image,
     for (int r = 0; r < image.rows; ++r) descriptors.push_back(Load(image.ptr<uint8_t>(r)));
   }
   std::mt19937_64 rng(options.seed);
-  std::vector<uint32_t> root_members(total);
-  for (size_t i = 0; i < total; ++i) root_members[i] = static_cast<uint32_t>(i);
-  const size_t keep = static_cast<size_t>(options.max_training_descriptors);
-  if (total > keep) {
-    // Partial Fisher-Yates: a uniform subset of `keep` descriptors.
-    for (size_t i = 0; i < keep; ++i) {
-      std::swap(root_members[i], root_members[i + DrawIndex(rng, total - i)]);
-    }
-    root_members.resize(keep);
-    std::sort(root_members.begin(), root_members.end());
-  }
+  std::vector<uint32_t> root_members =
+      TrainingSubset(total, static_cast<size_t>(options.max_training_descriptors), rng);
 
   Vocabulary vocabulary;
   vocabulary.branching_ = options.branching;
   vocabulary.depth_ = options.depth;
-  vocabulary.nodes_.emplace_back();  // the root; its descriptor is never compared
+  vocabulary.BuildTree(descriptors, std::move(root_members), options, rng);
+  vocabulary.ComputeIdf(descriptors_per_image, images_with_descriptors);
+  return vocabulary;
+}
+
+void Vocabulary::BuildTree(const std::vector<Descriptor>& descriptors,
+                           std::vector<uint32_t> members, const VocabularyOptions& options,
+                           std::mt19937_64& rng) {
+  nodes_.clear();
+  nodes_.emplace_back();  // the root; its descriptor is never compared
   struct Pending {
     uint32_t node;
     int level;
     std::vector<uint32_t> members;
   };
   std::deque<Pending> queue;
-  queue.push_back({0, 0, std::move(root_members)});
+  queue.push_back({0, 0, std::move(members)});
   std::vector<Descriptor> centres;
   std::vector<std::vector<uint32_t>> clusters;
   while (!queue.empty()) {
@@ -292,28 +319,32 @@ Vocabulary Vocabulary::Train(const std::vector<cv::Mat>& descriptors_per_image,
     KMajority(descriptors, pending.members, options.branching, options.kmeans_iterations, rng,
               &centres, &clusters);
     if (clusters.size() < 2) continue;  // all descriptors alike: nothing to split
-    const uint32_t first = static_cast<uint32_t>(vocabulary.nodes_.size());
-    vocabulary.nodes_[pending.node].first_child = first;
-    vocabulary.nodes_[pending.node].num_children = static_cast<uint32_t>(clusters.size());
+    const uint32_t first = static_cast<uint32_t>(nodes_.size());
+    nodes_[pending.node].first_child = first;
+    nodes_[pending.node].num_children = static_cast<uint32_t>(clusters.size());
     for (size_t c = 0; c < clusters.size(); ++c) {
       Node child;
       std::memcpy(child.descriptor, centres[c].data(), kDescriptorBytes);
-      vocabulary.nodes_.push_back(child);
+      nodes_.push_back(child);
       queue.push_back(
           {first + static_cast<uint32_t>(c), pending.level + 1, std::move(clusters[c])});
     }
   }
-  for (Node& node : vocabulary.nodes_) {
-    if (node.num_children == 0) node.word = vocabulary.num_words_++;
+  num_words_ = 0;
+  for (Node& node : nodes_) {
+    if (node.num_children == 0) node.word = num_words_++;
   }
+}
 
-  // idf over every descriptor of every image, not only the clustered subset.
-  std::vector<int> images_with_word(vocabulary.num_words_, 0);
-  std::vector<int> last_image(vocabulary.num_words_, -1);
+void Vocabulary::ComputeIdf(const std::vector<cv::Mat>& descriptors_per_image,
+                            int images_with_descriptors) {
+  // Over every descriptor of every image, not only the clustered subset.
+  std::vector<int> images_with_word(num_words_, 0);
+  std::vector<int> last_image(num_words_, -1);
   int image_index = 0;
   for (const cv::Mat& image : descriptors_per_image) {
     for (int r = 0; r < image.rows; ++r) {
-      const int word = vocabulary.WordOf(image.ptr<uint8_t>(r));
+      const int word = WordOf(image.ptr<uint8_t>(r));
       if (last_image[word] != image_index) {
         last_image[word] = image_index;
         ++images_with_word[word];
@@ -321,13 +352,12 @@ Vocabulary Vocabulary::Train(const std::vector<cv::Mat>& descriptors_per_image,
     }
     ++image_index;
   }
-  vocabulary.num_training_images_ = images_with_descriptors;
-  vocabulary.idf_.resize(vocabulary.num_words_);
-  for (int w = 0; w < vocabulary.num_words_; ++w) {
-    vocabulary.idf_[w] = static_cast<float>(
+  num_training_images_ = images_with_descriptors;
+  idf_.resize(num_words_);
+  for (int w = 0; w < num_words_; ++w) {
+    idf_[w] = static_cast<float>(
         std::log(static_cast<double>(images_with_descriptors) / std::max(images_with_word[w], 1)));
   }
-  return vocabulary;
 }
 
 float Vocabulary::WordWeight(int word) const {

@@ -4,7 +4,9 @@
 // photo localisation compare.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -89,6 +91,12 @@ class Vocabulary {
 
   // The node `descriptor` reaches after at most `max_levels` descents (an index into nodes_).
   uint32_t Descend(const uint64_t descriptor[4], int max_levels) const;
+  // Train's stages: the tree of words by hierarchical k-majority of descriptors[members] (breadth
+  // first, numbering the leaves as words), then each word's idf over every training image.
+  void BuildTree(const std::vector<std::array<uint64_t, 4>>& descriptors,
+                 std::vector<uint32_t> members, const VocabularyOptions& options,
+                 std::mt19937_64& rng);
+  void ComputeIdf(const std::vector<cv::Mat>& descriptors_per_image, int images_with_descriptors);
 
   int branching_ = 0;
   int depth_ = 0;
