@@ -242,6 +242,178 @@ KeyframeFeed TrackedFrames(sim::Simulator& simulator, const TrackerOptions& opti
   };
 }
 
+// A wrong link between two distant keyframes, "keyframe `id` is where an early keyframe was",
+// injected once keyframe `id`'s segment reaches 30 keyframes back: its ends must lie in one
+// segment (across segments it would join them, not bend them), the earliest keyframe of this
+// one's segment. Returns the link's ends, or nothing when the segment is still too short.
+std::optional<std::pair<int64_t, int64_t>> InjectFalseLoop(
+    Mapper& mapper, int64_t id, const std::vector<Eigen::Isometry3d>& truths) {
+  int64_t from = -1;
+  for (int64_t k = 0; k + 30 <= id; ++k) {
+    if (mapper.SegmentOf(k) == mapper.SegmentOf(id)) {
+      from = k;
+      break;
+    }
+  }
+  if (from < 0) return std::nullopt;
+  MapperLink link;
+  link.from = from;
+  link.to = id;
+  link.to_in_from = Eigen::Isometry3d::Identity();
+  link.information = mapper.Links().back().information;
+  link.type = LinkType::kLoopClosure;
+  const KeyframeReport injected = mapper.AddExternalLink(link);
+  const Eigen::Isometry3d apart =
+      truths[static_cast<size_t>(from)].inverse() * truths[static_cast<size_t>(id)];
+  std::fprintf(stderr,
+               "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
+               static_cast<long long>(from), static_cast<long long>(id), apart.translation().norm(),
+               RotationAngleDeg(apart), injected.links_rejected > 0 ? "rejected" : "kept");
+  return std::make_pair(from, id);
+}
+
+// Every accepted loop (not the injected one) against ground truth: those more than 10 cm or 3
+// degrees off are false.
+void CountLoops(const std::optional<std::pair<int64_t, int64_t>>& injected, RunResult* run) {
+  for (const MapperLink& link : run->links) {
+    // Priors are the motion model's guesses, not place recognition's claims.
+    if (link.type == LinkType::kOdometry || link.type == LinkType::kPrior || !link.active) {
+      continue;
+    }
+    if (injected && link.from == injected->first && link.to == injected->second) continue;
+    ++run->loops;
+    const Eigen::Isometry3d link_truth = TruthOf(link, run->ground_truth);
+    const Eigen::Isometry3d error = link_truth.inverse() * link.to_in_from;
+    const double error_m = error.translation().norm();
+    const double error_deg = RotationAngleDeg(error);
+    if (error_m > 0.10 || error_deg > 3.0) {
+      ++run->false_loops;
+      std::fprintf(stderr, "FALSE loop %lld -> %lld: %.3f m, %.2f deg off\n",
+                   static_cast<long long>(link.from), static_cast<long long>(link.to), error_m,
+                   error_deg);
+    }
+  }
+}
+
+// The largest part of the map, and its ATE aligned on its own.
+void MeasureLargestPart(const Mapper& mapper, RunResult* run) {
+  std::map<int, std::vector<StampedPose>> parts;
+  for (size_t i = 0; i < run->estimate.size(); ++i) {
+    parts[mapper.SegmentOf(static_cast<int64_t>(i))].push_back(run->estimate[i]);
+  }
+  for (const auto& [segment, poses] : parts) {
+    if (static_cast<int>(poses.size()) > run->largest_keyframes) {
+      run->largest_keyframes = static_cast<int>(poses.size());
+      if (poses.size() >= 3) run->largest_error = EvaluateTrajectory(run->ground_truth, poses);
+    }
+  }
+}
+
+// The mapper's stage times: percentiles, and how the cost per keyframe grows with the map.
+void PrintStageTimes(const RunResult& run, const std::vector<MapperStageTimes>& times,
+                     const Mapper& mapper, size_t lap_length) {
+  auto column = [&times](double MapperStageTimes::*field, size_t from, size_t to) {
+    std::vector<double> values;
+    for (size_t i = from; i < std::min(to, times.size()); ++i) values.push_back(times[i].*field);
+    return values;
+  };
+  const size_t n = times.size();
+  std::printf("keyframes           %d in %.1f s of mapping: %.1f keyframes/s\n", run.keyframes,
+              run.mapping_s, run.keyframes / run.mapping_s);
+  std::printf("%-20s %9s %9s %9s\n", "stage [ms]", "p50", "p95", "max");
+  const std::pair<const char*, double MapperStageTimes::*> stages[] = {
+      {"features", &MapperStageTimes::features_s},
+      {"matching", &MapperStageTimes::matching_s},
+      {"ransac+refine", &MapperStageTimes::ransac_s},
+      {"verification", &MapperStageTimes::verification_s},
+      {"dense refinement", &MapperStageTimes::dense_s},
+      {"place recognition", &MapperStageTimes::place_recognition_s},
+      {"optimisation", &MapperStageTimes::optimisation_s},
+      {"total", &MapperStageTimes::total_s}};
+  for (const auto& [name, field] : stages) {
+    const std::vector<double> values = column(field, 0, n);
+    std::printf("%-20s %9.2f %9.2f %9.2f\n", name, 1e3 * Percentile(values, 0.5),
+                1e3 * Percentile(values, 0.95),
+                1e3 * *std::max_element(values.begin(), values.end()));
+  }
+  if (n >= 300) {
+    const double early = Median(column(&MapperStageTimes::total_s, 100, 200));
+    const double late = Median(column(&MapperStageTimes::total_s, n - 100, n));
+    std::printf("median per keyframe  %.1f ms at keyframes 100-200, %.1f ms at %zu-%zu (x%.2f)\n",
+                1e3 * early, 1e3 * late, n - 100, n, late / early);
+    // Which stage grows: the mean of each over keyframes [from, to) (a median hides stages
+    // that run on some keyframes only).
+    const auto mean = [](size_t from, size_t to, const auto& value_of) {
+      double sum = 0.0;
+      for (size_t i = from; i < to; ++i) sum += value_of(i);
+      return sum / static_cast<double>(to - from);
+    };
+    std::printf("  mean per stage [ms] at 100-200 -> last 100:");
+    for (const auto& [name, field] : stages) {
+      const auto stage_ms = [&times, field = field](size_t i) { return 1e3 * (times[i].*field); };
+      std::printf(" %s %.1f->%.1f,", name, mean(100, 200, stage_ms), mean(n - 100, n, stage_ms));
+    }
+    std::printf("\n");
+    if (lap_length >= 200 && n >= 2 * lap_length) {
+      // The same frames on the first lap and the last: what the map's size alone costs.
+      const size_t last_lap = n - lap_length;
+      const double first = Median(column(&MapperStageTimes::total_s, 100, 200));
+      const double again =
+          Median(column(&MapperStageTimes::total_s, last_lap + 100, last_lap + 200));
+      std::printf(
+          "same frames 100-200  median %.1f ms on lap 1 (keyframes 100-200), %.1f ms on lap %zu "
+          "(keyframes %zu-%zu): x%.2f\n",
+          1e3 * first, 1e3 * again, n / lap_length, last_lap + 100, last_lap + 200, again / first);
+    }
+    const auto registrations = [&times](size_t i) {
+      return static_cast<double>(times[i].registrations);
+    };
+    const auto points = [&mapper](size_t i) {
+      return static_cast<double>(mapper.FeaturesOf(static_cast<int64_t>(i)).NumPoints());
+    };
+    // Matching is quadratic in the 3D keypoints in view: a richer scene costs more per pair.
+    std::printf(
+        "  registrations per keyframe, mean: %.2f at 100-200 -> %.2f; 3D keypoints %.0f -> "
+        "%.0f\n",
+        mean(100, 200, registrations), mean(n - 100, n, registrations), mean(100, 200, points),
+        mean(n - 100, n, points));
+  }
+}
+
+// The run's figures: optimisations, memory, parts, loops, ATE and its sources, RPE.
+void PrintRun(const RunResult& run) {
+  std::printf(
+      "optimisations       %d over the whole part, %d near a loop that agreed, the final one "
+      "%.0f ms\n",
+      run.optimisations, run.local_optimisations, 1e3 * run.final_optimisation_s);
+  std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
+  std::printf("segments            %d\n", run.segments);
+  std::printf(
+      "loops               %d accepted, %d rejected by the pose graph, %d false "
+      "(> 10 cm or > 3 deg from ground truth)\n",
+      run.loops, run.loops_rejected, run.false_loops);
+  std::printf("ATE                 rmse %.4f m, mean %.4f, median %.4f, max %.4f (%d poses)\n",
+              run.error.ate_rmse_m, run.error.ate_mean_m, run.error.ate_median_m,
+              run.error.ate_max_m, run.error.matched_poses);
+  const ErrorSources sources = FindErrorSources(run.error);
+  const ErrorConcentration& concentration = sources.concentration;
+  std::printf(
+      "ATE sources         Sim(3) scale %.5f (rmse %.4f m after it); the worst %d poses hold "
+      "%.0f%% of the squared error (rmse %.4f m without them); worst 10 s:",
+      run.error.sim3_scale, run.error.sim3_ate_rmse_m, concentration.worst_poses,
+      100.0 * concentration.worst_share, concentration.rest_rmse_m);
+  for (const ErrorStretch& stretch : sources.stretches) {
+    std::printf(" t %.0f-%.0f s %.3f m (max %.3f)", stretch.start_s, stretch.end_s, stretch.mean_m,
+                stretch.max_m);
+  }
+  std::printf("\n");
+  std::printf("RPE                 %.4f m/m, %.3f deg/m\n", run.error.rpe_trans_per_m,
+              run.error.rpe_rot_deg_per_m);
+  std::printf("largest part        %d keyframes, ATE rmse %.4f m, max %.4f aligned on its own\n",
+              run.largest_keyframes, run.largest_error.ate_rmse_m, run.largest_error.ate_max_m);
+  PrintLinkCalibration(run);
+}
+
 // `lap_length` > 0: the frames are one walk of that many frames repeated (--laps).
 RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOptions& options,
               int false_loop_at, bool verbose, size_t lap_length = 0) {
@@ -249,8 +421,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   std::vector<MapperStageTimes> times;
   std::vector<Eigen::Isometry3d> truths;  // by keyframe id
   RunResult run;
-  int64_t false_from = -1;
-  int64_t false_to = -1;
+  std::optional<std::pair<int64_t, int64_t>> injected;
   Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
   for (size_t i = 0;; ++i) {
     const std::optional<KeyframeReport> next = feed(mapper, &truth);
@@ -269,35 +440,9 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
                    report.links_rejected > 0 ? ", a link rejected" : "",
                    report.odometry_failure.c_str());
     }
-    // The first keyframe from false_loop_at on whose segment reaches 30 keyframes back.
-    if (false_loop_at >= 0 && static_cast<int>(i) >= false_loop_at && false_from < 0) {
-      // A wrong link between two distant keyframes: "this keyframe is where keyframe i/2 was".
-      // Its ends must lie in one segment (across segments it would join them, not bend them): the
-      // earliest keyframe of this one's segment, at least 30 keyframes back.
-      int64_t from = -1;
-      for (int64_t k = 0; k + 30 <= static_cast<int64_t>(i); ++k) {
-        if (mapper.SegmentOf(k) == mapper.SegmentOf(static_cast<int64_t>(i))) {
-          from = k;
-          break;
-        }
-      }
-      if (from < 0) continue;
-      MapperLink link;
-      false_from = from;
-      false_to = static_cast<int64_t>(i);
-      link.from = false_from;
-      link.to = false_to;
-      link.to_in_from = Eigen::Isometry3d::Identity();
-      link.information = mapper.Links().back().information;
-      link.type = LinkType::kLoopClosure;
-      const KeyframeReport injected = mapper.AddExternalLink(link);
-      run.false_loop_injected = true;
-      std::fprintf(stderr,
-                   "false loop %lld -> %lld injected (ground truth: %.2f m, %.1f deg apart): %s\n",
-                   static_cast<long long>(false_from), static_cast<long long>(false_to),
-                   (truths[static_cast<size_t>(from)].inverse() * truth).translation().norm(),
-                   RotationAngleDeg(truths[static_cast<size_t>(from)].inverse() * truth),
-                   injected.links_rejected > 0 ? "rejected" : "kept");
+    if (false_loop_at >= 0 && static_cast<int>(i) >= false_loop_at && !injected) {
+      injected = InjectFalseLoop(mapper, static_cast<int64_t>(i), truths);
+      run.false_loop_injected = injected.has_value();
     }
   }
   // As `sightmap map` ends a capture.
@@ -306,146 +451,17 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   run.final_optimisation_s = whole.times.optimisation_s;
   run.keyframes = static_cast<int>(mapper.NumKeyframes());
   run.segments = mapper.NumSegments();
-
-  std::vector<StampedPose> ground_truth;
-  const std::vector<StampedPose> trajectory = mapper.Trajectory();
+  run.estimate = mapper.Trajectory();
   for (size_t i = 0; i < truths.size(); ++i) {
-    ground_truth.push_back({trajectory[i].timestamp_ns, truths[i]});
+    run.ground_truth.push_back({run.estimate[i].timestamp_ns, truths[i]});
   }
-  run.error = EvaluateTrajectory(ground_truth, trajectory);
-  run.estimate = trajectory;
-  run.ground_truth = ground_truth;
+  run.error = EvaluateTrajectory(run.ground_truth, run.estimate);
   run.links = mapper.Links();
-
-  // Every accepted loop against ground truth.
-  for (const MapperLink& link : mapper.Links()) {
-    // Priors are the motion model's guesses, not place recognition's claims.
-    if (link.type == LinkType::kOdometry || link.type == LinkType::kPrior || !link.active) {
-      continue;
-    }
-    if (link.from == false_from && link.to == false_to) continue;
-    ++run.loops;
-    const Eigen::Isometry3d link_truth = TruthOf(link, run.ground_truth);
-    const Eigen::Isometry3d error = link_truth.inverse() * link.to_in_from;
-    const double error_m = error.translation().norm();
-    const double error_deg = RotationAngleDeg(error);
-    if (error_m > 0.10 || error_deg > 3.0) {
-      ++run.false_loops;
-      std::fprintf(stderr, "FALSE loop %lld -> %lld: %.3f m, %.2f deg off\n",
-                   static_cast<long long>(link.from), static_cast<long long>(link.to), error_m,
-                   error_deg);
-    }
-  }
-  std::map<int, std::vector<StampedPose>> parts;
-  const std::vector<StampedPose> estimate = mapper.Trajectory();
-  for (size_t i = 0; i < estimate.size(); ++i) {
-    parts[mapper.SegmentOf(static_cast<int64_t>(i))].push_back(estimate[i]);
-  }
-  for (const auto& [segment, poses] : parts) {
-    if (static_cast<int>(poses.size()) > run.largest_keyframes) {
-      run.largest_keyframes = static_cast<int>(poses.size());
-      if (poses.size() >= 3) run.largest_error = EvaluateTrajectory(ground_truth, poses);
-    }
-  }
-
+  CountLoops(injected, &run);
+  MeasureLargestPart(mapper, &run);
   if (verbose) {
-    auto column = [&times](double MapperStageTimes::*field, size_t from, size_t to) {
-      std::vector<double> values;
-      for (size_t i = from; i < std::min(to, times.size()); ++i) values.push_back(times[i].*field);
-      return values;
-    };
-    const size_t n = times.size();
-    std::printf("keyframes           %d in %.1f s of mapping: %.1f keyframes/s\n", run.keyframes,
-                run.mapping_s, run.keyframes / run.mapping_s);
-    std::printf("%-20s %9s %9s %9s\n", "stage [ms]", "p50", "p95", "max");
-    const std::pair<const char*, double MapperStageTimes::*> stages[] = {
-        {"features", &MapperStageTimes::features_s},
-        {"matching", &MapperStageTimes::matching_s},
-        {"ransac+refine", &MapperStageTimes::ransac_s},
-        {"verification", &MapperStageTimes::verification_s},
-        {"dense refinement", &MapperStageTimes::dense_s},
-        {"place recognition", &MapperStageTimes::place_recognition_s},
-        {"optimisation", &MapperStageTimes::optimisation_s},
-        {"total", &MapperStageTimes::total_s}};
-    for (const auto& [name, field] : stages) {
-      const std::vector<double> values = column(field, 0, n);
-      std::printf("%-20s %9.2f %9.2f %9.2f\n", name, 1e3 * Percentile(values, 0.5),
-                  1e3 * Percentile(values, 0.95),
-                  1e3 * *std::max_element(values.begin(), values.end()));
-    }
-    if (n >= 300) {
-      const double early = Median(column(&MapperStageTimes::total_s, 100, 200));
-      const double late = Median(column(&MapperStageTimes::total_s, n - 100, n));
-      std::printf("median per keyframe  %.1f ms at keyframes 100-200, %.1f ms at %zu-%zu (x%.2f)\n",
-                  1e3 * early, 1e3 * late, n - 100, n, late / early);
-      // Which stage grows: the mean of each over keyframes [from, to) (a median hides stages
-      // that run on some keyframes only).
-      const auto mean = [](size_t from, size_t to, const auto& value_of) {
-        double sum = 0.0;
-        for (size_t i = from; i < to; ++i) sum += value_of(i);
-        return sum / static_cast<double>(to - from);
-      };
-      std::printf("  mean per stage [ms] at 100-200 -> last 100:");
-      for (const auto& [name, field] : stages) {
-        const auto stage_ms = [&times, field = field](size_t i) { return 1e3 * (times[i].*field); };
-        std::printf(" %s %.1f->%.1f,", name, mean(100, 200, stage_ms), mean(n - 100, n, stage_ms));
-      }
-      std::printf("\n");
-      if (lap_length >= 200 && n >= 2 * lap_length) {
-        // The same frames on the first lap and the last: what the map's size alone costs.
-        const size_t last_lap = n - lap_length;
-        const double first = Median(column(&MapperStageTimes::total_s, 100, 200));
-        const double again =
-            Median(column(&MapperStageTimes::total_s, last_lap + 100, last_lap + 200));
-        std::printf(
-            "same frames 100-200  median %.1f ms on lap 1 (keyframes 100-200), %.1f ms on lap %zu "
-            "(keyframes %zu-%zu): x%.2f\n",
-            1e3 * first, 1e3 * again, n / lap_length, last_lap + 100, last_lap + 200,
-            again / first);
-      }
-      const auto registrations = [&times](size_t i) {
-        return static_cast<double>(times[i].registrations);
-      };
-      const auto points = [&mapper](size_t i) {
-        return static_cast<double>(mapper.FeaturesOf(static_cast<int64_t>(i)).NumPoints());
-      };
-      // Matching is quadratic in the 3D keypoints in view: a richer scene costs more per pair.
-      std::printf(
-          "  registrations per keyframe, mean: %.2f at 100-200 -> %.2f; 3D keypoints %.0f -> "
-          "%.0f\n",
-          mean(100, 200, registrations), mean(n - 100, n, registrations), mean(100, 200, points),
-          mean(n - 100, n, points));
-    }
-    std::printf(
-        "optimisations       %d over the whole part, %d near a loop that agreed, the final one "
-        "%.0f ms\n",
-        run.optimisations, run.local_optimisations, 1e3 * run.final_optimisation_s);
-    std::printf("peak RSS            %.0f MiB\n", PeakRssMiB());
-    std::printf("segments            %d\n", run.segments);
-    std::printf(
-        "loops               %d accepted, %d rejected by the pose graph, %d false "
-        "(> 10 cm or > 3 deg from ground truth)\n",
-        run.loops, run.loops_rejected, run.false_loops);
-    std::printf("ATE                 rmse %.4f m, mean %.4f, median %.4f, max %.4f (%d poses)\n",
-                run.error.ate_rmse_m, run.error.ate_mean_m, run.error.ate_median_m,
-                run.error.ate_max_m, run.error.matched_poses);
-    const ErrorSources sources = FindErrorSources(run.error);
-    const ErrorConcentration& concentration = sources.concentration;
-    std::printf(
-        "ATE sources         Sim(3) scale %.5f (rmse %.4f m after it); the worst %d poses hold "
-        "%.0f%% of the squared error (rmse %.4f m without them); worst 10 s:",
-        run.error.sim3_scale, run.error.sim3_ate_rmse_m, concentration.worst_poses,
-        100.0 * concentration.worst_share, concentration.rest_rmse_m);
-    for (const ErrorStretch& stretch : sources.stretches) {
-      std::printf(" t %.0f-%.0f s %.3f m (max %.3f)", stretch.start_s, stretch.end_s,
-                  stretch.mean_m, stretch.max_m);
-    }
-    std::printf("\n");
-    std::printf("RPE                 %.4f m/m, %.3f deg/m\n", run.error.rpe_trans_per_m,
-                run.error.rpe_rot_deg_per_m);
-    std::printf("largest part        %d keyframes, ATE rmse %.4f m, max %.4f aligned on its own\n",
-                run.largest_keyframes, run.largest_error.ate_rmse_m, run.largest_error.ate_max_m);
-    PrintLinkCalibration(run);
+    PrintStageTimes(run, times, mapper, lap_length);
+    PrintRun(run);
   }
   return run;
 }
