@@ -16,7 +16,6 @@
 //   in locator_test), where exhaustive matching has none.
 // - min_inlier_share: right poses held 0.021-0.09 of the place's projected points, wrong ones
 //   from 0.009.
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -31,6 +30,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/peak_memory.h"
 #include "core/rotation.h"
 #include "core/timing.h"
 #include "identify/identify_eval.h"
@@ -366,9 +366,7 @@ int Run(int argc, char** argv) {
                 mean(large_retrieval) / mean(small_retrieval));
     if (!keep) fs::remove(large_path);
   }
-  struct rusage usage {};
-  getrusage(RUSAGE_SELF, &usage);
-  std::printf("peak RSS %.0f MiB\n", usage.ru_maxrss / 1024.0);
+  std::printf("peak RSS %.0f MiB\n", PeakRssMiB());
   if (!keep) fs::remove(model_path);
   return 0;
 }

@@ -1,7 +1,5 @@
 #include "mapping/mapping_session.h"
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <exception>
@@ -15,6 +13,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "core/peak_memory.h"
 #include "core/statistics.h"
 #include "core/timing.h"
 #include "mapping/capture_stage.h"
@@ -33,12 +32,6 @@ TimestampNs WallClockNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
-}
-
-double PeakRssMiB() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB on Linux
 }
 
 }  // namespace

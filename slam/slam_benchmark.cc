@@ -8,7 +8,6 @@
 //   slam_benchmark --frames 150 --overlap   (what consecutive 1 Hz frames share, by ground truth)
 //   slam_benchmark --frames 1500 --fps 5 --overlap   (the same walk at 5 Hz, every frame mapped)
 //   slam_benchmark --frames 600 --laps 4   (the same 600 frames four times: cost against map size)
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -28,7 +27,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
+#include "core/peak_memory.h"
 #include "core/rotation.h"
+#include "core/statistics.h"
 #include "core/timing.h"
 #include "core/tum_format.h"
 #include "sim/simulator.h"
@@ -48,20 +49,7 @@ struct Frame {
   Eigen::Isometry3d world_from_cam_gt;
 };
 
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const size_t index = static_cast<size_t>(std::lround(p * (values.size() - 1)));
-  return values[index];
-}
-
 double Median(const std::vector<double>& values) { return Percentile(values, 0.5); }
-
-double PeakRssMiB() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
-}
 
 struct RunResult {
   TrajectoryError error;

@@ -4,7 +4,6 @@
 //    is present, else synthetic ones) and prints keyframes/s and bytes per keyframe;
 // 2. builds a model of `--large` small keyframes and prints the time to open it, list its
 //    keyframes, summarise it and update every pose in one transaction.
-#include <sys/resource.h>
 
 #include <chrono>
 #include <cstdio>
@@ -16,6 +15,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/peak_memory.h"
 #include "core/timing.h"
 #include "store/model.h"
 #include "store/synthetic_model.h"
@@ -182,8 +182,6 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;
   }
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  std::printf("peak RSS %.0f MB\n", usage.ru_maxrss / 1024.0);
+  std::printf("peak RSS %.0f MiB\n", sightmap::PeakRssMiB());
   return 0;
 }
