@@ -155,104 +155,108 @@ class ViewCoverage {
   std::vector<View> views_;
 };
 
-int Run(int argc, char** argv) {
-  CLI::App app("Locate timings per stage and retrieval scaling (issue 9)", "locate_benchmark");
+struct BenchmarkArgs {
   int keyframes = 600;
   int photos = 100;
   int large_factor = 5;
   std::string dir = (fs::temp_directory_path() / "sightmap-locate-benchmark").string();
   bool keep = false;
-  app.add_option("--keyframes", keyframes, "1 Hz keyframes of the walk in the model");
-  app.add_option("--photos", photos, "session-2 phone photos located");
-  app.add_option("--large-factor", large_factor, "the larger model's size / the model's");
-  app.add_option("--dir", dir, "folder for the models (reused when they exist)");
-  app.add_flag("--keep", keep, "keep the models for the next run");
   int vocabulary_keyframes = 30;
-  app.add_option("--vocabulary-keyframes", vocabulary_keyframes,
-                 "keyframes the vocabulary is trained from (0 = all; the mapper uses 30)");
   LocatorOptions locator_options;
-  app.add_option("--max-side", locator_options.max_image_side_px, "photo side for features [px]");
-  app.add_option("--photo-features", locator_options.features.max_features, "features per photo");
-  app.add_option("--candidates", locator_options.retrieval_candidates, "retrieval candidates");
-  app.add_option("--neighbours", locator_options.max_neighbours, "neighbours per candidate");
-  app.add_option("--neighbour-radius", locator_options.neighbour_radius_m, "[m]");
-  app.add_option("--node-level", locator_options.match_node_level,
-                 "vocabulary level whose nodes bound matching (0 = exhaustive)");
-  app.add_option("--ratio", locator_options.match_ratio, "descriptor ratio test");
-  app.add_option("--reprojection", locator_options.pnp_reprojection_px, "PnP threshold [px]");
-  app.add_option("--min-inliers", locator_options.min_inliers, "inliers to count as matched");
-  app.add_option("--confident-inliers", locator_options.confident_inliers,
-                 "inliers that end the search");
-  app.add_option("--places", locator_options.max_places, "places verified per photo");
-  app.add_option("--min-cells", locator_options.min_inlier_cells, "grid cells inliers cover");
-  app.add_option("--runner-up-ratio", locator_options.min_inlier_ratio_over_runner_up,
-                 "inliers over a disagreeing runner-up's");
-  app.add_option("--min-share", locator_options.min_inlier_share, "inliers / projected points");
-  app.add_option("--guided-rounds", locator_options.guided_rounds, "guided matching rounds");
-  app.add_option("--occlusion-margin", locator_options.occlusion_margin_m,
-                 "occlusion margin at the camera [m]");
-  app.add_option("--occlusion-margin-ratio", locator_options.occlusion_margin_ratio,
-                 "occlusion margin per metre of depth");
   bool coverage = false;
-  app.add_flag("--coverage", coverage,
-               "measure, by ground truth, how much of each photo's view the walk saw");
   bool estimate = false;
-  app.add_flag("--estimate-intrinsics", estimate, "locate without the photos' intrinsics");
-  CLI11_PARSE(app, argc, argv);
+};
 
-  fs::create_directories(dir);
-  const std::string model_path = (fs::path(dir) / ("walk-" + std::to_string(keyframes) + "-v" +
-                                                   std::to_string(vocabulary_keyframes) + ".db"));
+void Declare(CLI::App& app, BenchmarkArgs* args) {
+  app.add_option("--keyframes", args->keyframes, "1 Hz keyframes of the walk in the model");
+  app.add_option("--photos", args->photos, "session-2 phone photos located");
+  app.add_option("--large-factor", args->large_factor, "the larger model's size / the model's");
+  app.add_option("--dir", args->dir, "folder for the models (reused when they exist)");
+  app.add_flag("--keep", args->keep, "keep the models for the next run");
+  app.add_option("--vocabulary-keyframes", args->vocabulary_keyframes,
+                 "keyframes the vocabulary is trained from (0 = all; the mapper uses 30)");
+  LocatorOptions& options = args->locator_options;
+  app.add_option("--max-side", options.max_image_side_px, "photo side for features [px]");
+  app.add_option("--photo-features", options.features.max_features, "features per photo");
+  app.add_option("--candidates", options.retrieval_candidates, "retrieval candidates");
+  app.add_option("--neighbours", options.max_neighbours, "neighbours per candidate");
+  app.add_option("--neighbour-radius", options.neighbour_radius_m, "[m]");
+  app.add_option("--node-level", options.match_node_level,
+                 "vocabulary level whose nodes bound matching (0 = exhaustive)");
+  app.add_option("--ratio", options.match_ratio, "descriptor ratio test");
+  app.add_option("--reprojection", options.pnp_reprojection_px, "PnP threshold [px]");
+  app.add_option("--min-inliers", options.min_inliers, "inliers to count as matched");
+  app.add_option("--confident-inliers", options.confident_inliers, "inliers that end the search");
+  app.add_option("--places", options.max_places, "places verified per photo");
+  app.add_option("--min-cells", options.min_inlier_cells, "grid cells inliers cover");
+  app.add_option("--runner-up-ratio", options.min_inlier_ratio_over_runner_up,
+                 "inliers over a disagreeing runner-up's");
+  app.add_option("--min-share", options.min_inlier_share, "inliers / projected points");
+  app.add_option("--guided-rounds", options.guided_rounds, "guided matching rounds");
+  app.add_option("--occlusion-margin", options.occlusion_margin_m,
+                 "occlusion margin at the camera [m]");
+  app.add_option("--occlusion-margin-ratio", options.occlusion_margin_ratio,
+                 "occlusion margin per metre of depth");
+  app.add_flag("--coverage", args->coverage,
+               "measure, by ground truth, how much of each photo's view the walk saw");
+  app.add_flag("--estimate-intrinsics", args->estimate, "locate without the photos' intrinsics");
+}
+
+// The ground-truth model of the walk in args.dir, built when it is not there yet.
+std::string OpenOrBuildModel(const BenchmarkArgs& args) {
+  fs::create_directories(args.dir);
+  const std::string model_path =
+      (fs::path(args.dir) / ("walk-" + std::to_string(args.keyframes) + "-v" +
+                             std::to_string(args.vocabulary_keyframes) + ".db"));
   if (!fs::exists(model_path)) {
     SimModelOptions options;
-    options.keyframes = keyframes;
-    options.vocabulary_keyframes = vocabulary_keyframes;
-    std::printf("building a %d-keyframe ground-truth model of the office walk...\n", keyframes);
+    options.keyframes = args.keyframes;
+    options.vocabulary_keyframes = args.vocabulary_keyframes;
+    std::printf("building a %d-keyframe ground-truth model of the office walk...\n",
+                args.keyframes);
     std::fflush(stdout);
     const SimModelSummary summary = BuildSimulatorModel(model_path, options);
     std::printf("  %d keyframes, %d labels in %.1f s\n", summary.keyframes, summary.labels,
                 summary.seconds);
   }
-  store::ModelOptions read_only;
-  read_only.read_only = true;
-  const store::Model model =
-      store::Model::Open(model_path);  // writable: upgrades a kept older model
-  auto start = std::chrono::steady_clock::now();
-  const Locator locator(model, locator_options);
-  std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
-              locator.NumKeyframes(), locator.NumOcclusionVoxels(), SecondsSince(start));
+  return model_path;
+}
 
-  sim::Simulator simulator(PhotoSessionOptions());
-  start = std::chrono::steady_clock::now();
-  const std::vector<sim::QueryPhoto> queries = simulator.MakeQueries(photos, sim::QueryOptions());
-  std::printf("%d session-2 photos rendered in %.1f s\n", photos, SecondsSince(start));
-
-  // The ground truth and the answers as `sightmap eval identify` scores them.
+// Each photo located, as `sightmap eval identify` scores the answers, with the pose errors, the
+// photos of places the walk saw and (with a ViewCoverage) matches per band of the view seen.
+struct LocateFigures {
   std::vector<QueryTruth> truths;
   std::vector<PhotoAnswer> answers;
-  std::vector<double> position_mm, rotation_deg;
+  std::vector<double> position_mm;
+  std::vector<double> rotation_deg;
   int wrong = 0;  // matched more than 0.3 m from the truth
   int seen_photos = 0;
   int seen_matched = 0;
+  // Per coverage band [0, 10%), [10, 25%), [25, 50%), [50, 100%]: photos and matched photos.
+  static constexpr double kBandEdges[] = {0.0, 0.10, 0.25, 0.50, 1.01};
+  int band_photos[4] = {0, 0, 0, 0};
+  int band_matched[4] = {0, 0, 0, 0};
+};
+
+LocateFigures LocatePhotos(const Locator& locator, const store::Model& model,
+                           const sim::Simulator& simulator,
+                           const std::vector<sim::QueryPhoto>& queries, const BenchmarkArgs& args) {
+  LocateFigures figures;
   std::vector<Eigen::Isometry3d> keyframes_world_from_cam;
   for (const store::KeyframeInfo& info : model.Keyframes()) {
     keyframes_world_from_cam.push_back(info.world_from_cam);
   }
   std::optional<ViewCoverage> view_coverage;
-  if (coverage) view_coverage.emplace(model, 40.0, 2.0);
-  // Per coverage band [0, 10%), [10, 25%), [25, 50%), [50, 100%]: photos and matched photos.
-  const double band_edges[] = {0.0, 0.10, 0.25, 0.50, 1.01};
-  int band_photos[4] = {0, 0, 0, 0};
-  int band_matched[4] = {0, 0, 0, 0};
+  if (args.coverage) view_coverage.emplace(model, 40.0, 2.0);
   for (const sim::QueryPhoto& photo : queries) {
     const LocateResult result =
-        locator.Locate(photo.image, estimate ? std::nullopt : std::optional(photo.intrinsics));
+        locator.Locate(photo.image, args.estimate ? std::nullopt : std::optional(photo.intrinsics));
     if (view_coverage) {
       const double share = view_coverage->Of(photo);
       for (int b = 0; b < 4; ++b) {
-        if (share >= band_edges[b] && share < band_edges[b + 1]) {
-          ++band_photos[b];
-          band_matched[b] += result.matched;
+        if (share >= LocateFigures::kBandEdges[b] && share < LocateFigures::kBandEdges[b + 1]) {
+          ++figures.band_photos[b];
+          figures.band_matched[b] += result.matched;
         }
       }
       std::printf("  photo %3d: %2.0f%% of its view seen by the walk from within 40 deg, 2x\n",
@@ -264,11 +268,11 @@ int Run(int argc, char** argv) {
           [simulator.scene().appliances[static_cast<size_t>(visibility.appliance_id - 1)].name] =
           ParseTruthType(sim::ToString(visibility.type));
     }
-    truths.push_back(std::move(truth));
-    answers.push_back(ToPhotoAnswer(result));
+    figures.truths.push_back(std::move(truth));
+    figures.answers.push_back(ToPhotoAnswer(result));
     const bool seen = WalkSawPlace(keyframes_world_from_cam, photo.world_from_cam);
-    seen_photos += seen;
-    if (seen && result.matched) ++seen_matched;
+    figures.seen_photos += seen;
+    if (seen && result.matched) ++figures.seen_matched;
     if (!result.matched) {
       std::printf("  photo %3d not matched%s: %s\n", photo.index, seen ? " (seen)" : "",
                   result.reason.c_str());
@@ -276,41 +280,44 @@ int Run(int argc, char** argv) {
     }
     const double error_m =
         (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm();
-    wrong += error_m > 0.3;
+    figures.wrong += error_m > 0.3;
     std::printf(
         "  photo %3d %s by %.2f m%s: %d inliers of %d matches, runner-up %d, %d projected, %d "
         "cells\n",
         photo.index, error_m > 0.3 ? "WRONG" : "right", error_m, seen ? " (seen)" : "",
         result.inliers, result.matches, result.runner_up_inliers, result.projected_points,
         result.inlier_cells);
-    position_mm.push_back(
-        1e3 * (result.world_from_cam.translation() - photo.world_from_cam.translation()).norm());
-    rotation_deg.push_back(
+    figures.position_mm.push_back(1e3 * error_m);
+    figures.rotation_deg.push_back(
         RotationAngleDeg(result.world_from_cam.linear(), photo.world_from_cam.linear()));
   }
-  const IdentifyEvaluation evaluation = EvaluateIdentification(truths, answers);
-  auto line = [&](const char* stage) {
+  return figures;
+}
+
+void PrintFigures(const LocateFigures& figures, size_t num_photos, size_t num_keyframes,
+                  bool coverage) {
+  const IdentifyEvaluation evaluation = EvaluateIdentification(figures.truths, figures.answers);
+  std::fflush(stdout);
+  std::printf("\nlocate, %zu photos of 1280x960 against %zu keyframes (one thread):\n", num_photos,
+              num_keyframes);
+  for (const char* stage : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
     const StageTiming& s = evaluation.stages.at(stage);
     std::printf("  %-11s median %7.1f ms  p95 %7.1f ms  mean %7.1f ms\n", stage, s.median_ms,
                 s.p95_ms, s.mean_ms);
-  };
-  std::fflush(stdout);
-  std::printf("\nlocate, %zu photos of 1280x960 against %zu keyframes (one thread):\n",
-              queries.size(), locator.NumKeyframes());
-  for (const char* stage : {"features", "retrieval", "matching", "pnp", "visibility", "total"}) {
-    line(stage);
   }
+  const std::vector<double>& position_mm = figures.position_mm;
+  const std::vector<double>& rotation_deg = figures.rotation_deg;
   std::printf(
       "matched %d of %zu (%.1f%%); position error median %.1f mm p95 %.1f mm max %.1f mm; "
       "rotation median %.2f deg p95 %.2f deg max %.2f deg\n",
-      evaluation.matched_photos, queries.size(), 100.0 * evaluation.matched_ratio,
+      evaluation.matched_photos, num_photos, 100.0 * evaluation.matched_ratio,
       Percentile(position_mm, 0.5), Percentile(position_mm, 0.95), Percentile(position_mm, 1.0),
       Percentile(rotation_deg, 0.5), Percentile(rotation_deg, 0.95), Percentile(rotation_deg, 1.0));
-  std::printf("wrong poses (> 0.3 m): %d\n", wrong);
+  std::printf("wrong poses (> 0.3 m): %d\n", figures.wrong);
   std::printf(
       "photos of places the walk saw (a keyframe within 1.5 m and 40 deg): %d, matched "
       "%d\n",
-      seen_photos, seen_matched);
+      figures.seen_photos, figures.seen_matched);
   std::printf(
       "recall >= 0.8: %d of %d photos (%.1f%%); precision >= 0.8: %d of %d (%.1f%%); "
       "occluded reported visible: %d of %d (%.1f%%)\n",
@@ -319,55 +326,82 @@ int Run(int argc, char** argv) {
       evaluation.precision_defined_photos, 100.0 * evaluation.precision_ge_0_8_ratio,
       evaluation.occluded_identified, evaluation.occluded_instances,
       100.0 * evaluation.occluded_false_positive_ratio);
-
-  if (view_coverage) {
-    std::printf(
-        "\nshare of the photo's view some keyframe saw from within 40 deg and a distance factor "
-        "of 2:\n");
-    for (int b = 0; b < 4; ++b) {
-      std::printf("  %3.0f-%3.0f%%: %3d photos, %3d matched\n", 100.0 * band_edges[b],
-                  std::min(100.0, 100.0 * band_edges[b + 1]), band_photos[b], band_matched[b]);
-    }
+  if (!coverage) return;
+  std::printf(
+      "\nshare of the photo's view some keyframe saw from within 40 deg and a distance factor "
+      "of 2:\n");
+  for (int b = 0; b < 4; ++b) {
+    std::printf("  %3.0f-%3.0f%%: %3d photos, %3d matched\n", 100.0 * LocateFigures::kBandEdges[b],
+                std::min(100.0, 100.0 * LocateFigures::kBandEdges[b + 1]), figures.band_photos[b],
+                figures.band_matched[b]);
   }
+}
 
-  // Retrieval scaling.
-  if (large_factor > 1) {
-    const std::string large_path = (fs::path(dir) / ("walk-" + std::to_string(keyframes) + "-x" +
-                                                     std::to_string(large_factor) + ".db"));
-    if (!fs::exists(large_path)) {
-      start = std::chrono::steady_clock::now();
-      ReplicateModel(model, large_path, large_factor);
-      std::printf("\nreplicated model written in %.1f s\n", SecondsSince(start));
-      std::fflush(stdout);
-    }
-    const store::Model large_model = store::Model::Open(large_path, read_only);
-    const Locator large(large_model, locator_options);
-    std::vector<double> small_retrieval, large_retrieval;
-    // Interleaved, so both see the same machine load.
-    for (const sim::QueryPhoto& photo : queries) {
-      small_retrieval.push_back(locator.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
-      large_retrieval.push_back(large.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
-    }
-    const auto mean = [](const std::vector<double>& ms) {
-      return std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
-    };
-    std::printf("\nretrieval (%s), %zu photos:\n",
-                locator_options.retrieval == LocatorOptions::Retrieval::kVotes
-                    ? "bag-of-words shortlist re-ranked by votes"
-                    : "bag of words + inverted index",
-                queries.size());
-    for (const auto& [keyframe_count, ms] : {std::pair(locator.NumKeyframes(), small_retrieval),
-                                             std::pair(large.NumKeyframes(), large_retrieval)}) {
-      std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n", keyframe_count,
-                  Percentile(ms, 0.5), Percentile(ms, 0.95), mean(ms));
-    }
-    std::printf("  ratio of medians %.2f, of means %.2f\n",
-                Percentile(large_retrieval, 0.5) / Percentile(small_retrieval, 0.5),
-                mean(large_retrieval) / mean(small_retrieval));
-    if (!keep) fs::remove(large_path);
+// Retrieval from the model and from one `large_factor` times its size, interleaved so both see
+// the same machine load.
+void MeasureRetrievalScaling(const store::Model& model, const Locator& locator,
+                             const std::vector<sim::QueryPhoto>& queries,
+                             const BenchmarkArgs& args) {
+  const std::string large_path =
+      (fs::path(args.dir) / ("walk-" + std::to_string(args.keyframes) + "-x" +
+                             std::to_string(args.large_factor) + ".db"));
+  if (!fs::exists(large_path)) {
+    const auto start = std::chrono::steady_clock::now();
+    ReplicateModel(model, large_path, args.large_factor);
+    std::printf("\nreplicated model written in %.1f s\n", SecondsSince(start));
+    std::fflush(stdout);
   }
+  store::ModelOptions read_only;
+  read_only.read_only = true;
+  const store::Model large_model = store::Model::Open(large_path, read_only);
+  const Locator large(large_model, args.locator_options);
+  std::vector<double> small_retrieval, large_retrieval;
+  for (const sim::QueryPhoto& photo : queries) {
+    small_retrieval.push_back(locator.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
+    large_retrieval.push_back(large.Locate(photo.image, photo.intrinsics).timings.retrieval_ms);
+  }
+  const auto mean = [](const std::vector<double>& ms) {
+    return std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
+  };
+  std::printf("\nretrieval (%s), %zu photos:\n",
+              args.locator_options.retrieval == LocatorOptions::Retrieval::kVotes
+                  ? "bag-of-words shortlist re-ranked by votes"
+                  : "bag of words + inverted index",
+              queries.size());
+  for (const auto& [keyframe_count, ms] : {std::pair(locator.NumKeyframes(), small_retrieval),
+                                           std::pair(large.NumKeyframes(), large_retrieval)}) {
+    std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n", keyframe_count,
+                Percentile(ms, 0.5), Percentile(ms, 0.95), mean(ms));
+  }
+  std::printf("  ratio of medians %.2f, of means %.2f\n",
+              Percentile(large_retrieval, 0.5) / Percentile(small_retrieval, 0.5),
+              mean(large_retrieval) / mean(small_retrieval));
+  if (!args.keep) fs::remove(large_path);
+}
+
+int Run(int argc, char** argv) {
+  CLI::App app("Locate timings per stage and retrieval scaling (issue 9)", "locate_benchmark");
+  BenchmarkArgs args;
+  Declare(app, &args);
+  CLI11_PARSE(app, argc, argv);
+
+  const std::string model_path = OpenOrBuildModel(args);
+  const store::Model model = store::Model::Open(model_path);  // writable: upgrades a kept model
+  auto start = std::chrono::steady_clock::now();
+  const Locator locator(model, args.locator_options);
+  std::printf("locator loaded: %zu keyframes, %zu occlusion voxels in %.1f s\n",
+              locator.NumKeyframes(), locator.NumOcclusionVoxels(), SecondsSince(start));
+  sim::Simulator simulator(PhotoSessionOptions());
+  start = std::chrono::steady_clock::now();
+  const std::vector<sim::QueryPhoto> queries =
+      simulator.MakeQueries(args.photos, sim::QueryOptions());
+  std::printf("%d session-2 photos rendered in %.1f s\n", args.photos, SecondsSince(start));
+
+  const LocateFigures figures = LocatePhotos(locator, model, simulator, queries, args);
+  PrintFigures(figures, queries.size(), locator.NumKeyframes(), args.coverage);
+  if (args.large_factor > 1) MeasureRetrievalScaling(model, locator, queries, args);
   std::printf("peak RSS %.0f MiB\n", PeakRssMiB());
-  if (!keep) fs::remove(model_path);
+  if (!args.keep) fs::remove(model_path);
   return 0;
 }
 
