@@ -235,6 +235,29 @@ void NoteResumed(const MappingOptions& options, const RestoredModel& restored, i
            << "\n";
 }
 
+// Where a resumed replay of the same source continues: after the last frame the model stored
+// from it (a live sensor's clock restarts, so never for one), and from the newest keyframe's frame
+// when that was the last stored one (the camera is where it left it).
+struct ContinuePoint {
+  std::optional<TimestampNs> after;
+  std::optional<RgbdFrame> from;
+};
+
+ContinuePoint FindContinuePoint(const MappingOptions& options, const capture::SourceMetadata& meta,
+                                const store::Model& model, const RestoredModel& restored,
+                                bool resumed, slam::Mapper* mapper, std::ostream* notices) {
+  ContinuePoint point;
+  if (!resumed || !options.continue_replay || meta.kind == "openni") return point;
+  point.after = LastStoredTimestamp(model, options.source);
+  if (!point.after) return point;
+  NoteContinued(options, *point.after, notices);
+  if (*point.after == restored.last_timestamp_ns) {
+    mapper->ContinueWalk();
+    point.from = NewestKeyframeFrame(model, restored);
+  }
+  return point;
+}
+
 // The figures of the map, its tracking and its accuracy, once every stage has ended.
 void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage& track,
                bool tracked, const CaptureStage& capture, const store::Model& model,
@@ -423,21 +446,11 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   if (summary.resumed) {
     NoteResumed(options_, restored, summary.interrupted_sessions_marked, notices);
   }
-  // A live sensor's clock restarts; a replay's frames keep their times.
-  std::optional<TimestampNs> continue_after;
-  std::optional<RgbdFrame> continue_from;
-  if (summary.resumed && options_.continue_replay && meta.kind != "openni") {
-    continue_after = LastStoredTimestamp(model, options_.source);
-  }
-  if (continue_after) {
-    summary.continued_after_s = 1e-9 * static_cast<double>(*continue_after);
-    NoteContinued(options_, *continue_after, notices);
-    // The camera is where the last stored frame left it.
-    if (*continue_after == restored.last_timestamp_ns) {
-      mapper->ContinueWalk();
-      continue_from = NewestKeyframeFrame(model, restored);
-    }
-  }
+  ContinuePoint resume =
+      FindContinuePoint(options_, meta, model, restored, summary.resumed, mapper.get(), notices);
+  const std::optional<TimestampNs> continue_after = resume.after;
+  std::optional<RgbdFrame> continue_from = std::move(resume.from);
+  if (continue_after) summary.continued_after_s = 1e-9 * static_cast<double>(*continue_after);
 
   summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;
   const SessionId session = model.BeginSession(MakeSessionRecord(options_, meta));
