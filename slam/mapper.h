@@ -369,8 +369,9 @@ class Mapper {
                                            KeyframeReport* report) const;
   // The link of a tracked (or guessed) motion from the last keyframe to keyframe `id`.
   MapperLink TrackedMotionLink(int64_t id, const KeyframeMotion& motion, bool refined) const;
-  // The new keyframe's initial pose from its links: the tracked motion's, else the first
-  // registered link's, else the last keyframe's.
+  // The new keyframe's initial pose: where a measured motion (registered or dense) puts it, else
+  // the first registered link's, else where the motion model guessed (`predicted`), else the last
+  // keyframe's.
   Eigen::Isometry3d PlaceKeyframe(const std::vector<MapperLink>& registered,
                                   const KeyframeMotion* motion,
                                   const Eigen::Isometry3d& predicted) const;
@@ -378,8 +379,8 @@ class Mapper {
   // one was asked for.
   void AssignSegment(const std::vector<MapperLink>& odometry, const KeyframeMotion* motion,
                      Keyframe* keyframe, KeyframeReport* report);
-  // Trains the vocabulary once enough keyframes are in, then searches places for loops and
-  // relocalisation and, without either, nearby keyframes; true when relocalised.
+  // Without a vocabulary, trains one once enough keyframes are in; with one, searches places for a
+  // loop or a relocalisation and, without either, nearby keyframes. True when relocalised.
   bool RecognisePlace(Keyframe& keyframe, KeyframeReport* report);
   // Whether a registration's pose for a keyframe placed on the motion model lies within the
   // blind_link_* bounds of the model's pose after blind_s seconds.
