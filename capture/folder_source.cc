@@ -710,15 +710,19 @@ ThreeDMatchSequence FindThreeDMatchSequence(const std::string& dir,
   if (!frames_dir.has_filename()) frames_dir = frames_dir.parent_path();
   std::map<int64_t, ThreeDMatchFiles> files = ScanThreeDMatchFrames(frames_dir);
   if (!files.empty()) return {frames_dir, std::move(files)};
-  std::vector<fs::path> sequences;
+  // Each seq-* subfolder with frames, scanned once.
+  std::vector<ThreeDMatchSequence> sequences;
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(frames_dir, ec)) {
-    if (entry.is_directory(ec) && entry.path().filename().string().rfind("seq-", 0) == 0 &&
-        !ScanThreeDMatchFrames(entry.path()).empty()) {
-      sequences.push_back(entry.path());
+    if (!entry.is_directory(ec) || entry.path().filename().string().rfind("seq-", 0) != 0) {
+      continue;
     }
+    std::map<int64_t, ThreeDMatchFiles> sequence_files = ScanThreeDMatchFrames(entry.path());
+    if (!sequence_files.empty()) sequences.push_back({entry.path(), std::move(sequence_files)});
   }
-  std::sort(sequences.begin(), sequences.end());
+  std::sort(
+      sequences.begin(), sequences.end(),
+      [](const ThreeDMatchSequence& a, const ThreeDMatchSequence& b) { return a.dir < b.dir; });
   SIGHTMAP_CHECK(!sequences.empty(),
                  "3DMatch folder " << dir
                                    << " holds no frame-NNNNNN.color.png / frame-NNNNNN.depth.png"
@@ -726,16 +730,16 @@ ThreeDMatchSequence FindThreeDMatchSequence(const std::string& dir,
   if (sequences.size() > 1) {
     std::ostringstream names;
     for (size_t i = 0; i < sequences.size(); ++i) {
-      names << (i ? ", " : "") << sequences[i].filename().string();
+      names << (i ? ", " : "") << sequences[i].dir.filename().string();
     }
     SIGHTMAP_THROW(Error, "3DMatch folder "
                               << dir << " holds " << sequences.size() << " sequences ("
                               << names.str() << "); pass one of them, e.g. 3dmatch:"
-                              << (fs::path(dir) / sequences.front().filename()).string());
+                              << (fs::path(dir) / sequences.front().dir.filename()).string());
   }
-  notes->push_back(
-      StrCat(dir, " holds one sequence, ", sequences.front().filename().string(), "; reading it."));
-  return {sequences.front(), ScanThreeDMatchFrames(sequences.front())};
+  notes->push_back(StrCat(dir, " holds one sequence, ", sequences.front().dir.filename().string(),
+                          "; reading it."));
+  return std::move(sequences.front());
 }
 
 // A sequence's frames with both images, in number order, stamped N / 30 s, with their poses.

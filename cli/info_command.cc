@@ -44,10 +44,7 @@ nlohmann::json InfoJson(const store::Model& model, const store::ModelSummary& su
   out["loop_closures"] = summary.loop_closures;
   out["segments"] = summary.segments;
   out["largest_segment_keyframes"] = summary.largest_segment_keyframes;
-  out["largest_part_ratio"] = summary.keyframes > 0
-                                  ? static_cast<double>(summary.largest_segment_keyframes) /
-                                        static_cast<double>(summary.keyframes)
-                                  : 0.0;
+  out["largest_part_ratio"] = summary.LargestPartRatio();
   out["prior_links"] = summary.prior_links;
   out["labels"] = summary.labels;
   out["synthetic_views"] = summary.synthetic_views;

@@ -268,10 +268,7 @@ void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage
   summary->loops = mapper.NumLoopClosures();
   summary->segments = mapper.NumSegments();
   summary->largest_segment_keyframes = model_summary.largest_segment_keyframes;
-  summary->largest_part_ratio = model_summary.keyframes > 0
-                                    ? static_cast<double>(model_summary.largest_segment_keyframes) /
-                                          static_cast<double>(model_summary.keyframes)
-                                    : 0.0;
+  summary->largest_part_ratio = model_summary.LargestPartRatio();
   summary->prior_links = model_summary.prior_links;
   summary->model_bytes = model_summary.size_bytes;
   const TrackStageReport& tracking = track.report();

@@ -179,6 +179,12 @@ struct ModelSummary {
   // Connected parts of the pose graph: a new one starts when tracking was lost and not recovered.
   int64_t segments = 0;
   int64_t largest_segment_keyframes = 0;  // keyframes in the largest part
+  // The largest part's share of the keyframes (0 without keyframes).
+  double LargestPartRatio() const {
+    return keyframes > 0
+               ? static_cast<double>(largest_segment_keyframes) / static_cast<double>(keyframes)
+               : 0.0;
+  }
   int64_t labels = 0;
   int64_t synthetic_views = 0;
   // Their stored bytes (image, keypoints, descriptors, points), a share of size_bytes.
