@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <sstream>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -541,6 +542,18 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
     }
   }
   return candidates;
+}
+
+std::vector<slam::PlaceCandidate> MergeCandidates(const std::vector<slam::PlaceCandidate>& first,
+                                                  const std::vector<slam::PlaceCandidate>& then) {
+  std::vector<slam::PlaceCandidate> merged;
+  std::unordered_set<int64_t> ids;
+  for (const std::vector<slam::PlaceCandidate>* list : {&first, &then}) {
+    for (const slam::PlaceCandidate& candidate : *list) {
+      if (ids.insert(candidate.id).second) merged.push_back(candidate);
+    }
+  }
+  return merged;
 }
 
 std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,

@@ -123,6 +123,11 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
     const slam::Vocabulary& vocabulary, const slam::PlaceIndex& index, const slam::VoteIndex& votes,
     const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options);
 
+// Stage 2b: the candidates of `first`, then those of `then` not among them, each in its order (a
+// second retrieval's candidates tried before the first's).
+std::vector<slam::PlaceCandidate> MergeCandidates(const std::vector<slam::PlaceCandidate>& first,
+                                                  const std::vector<slam::PlaceCandidate>& then);
+
 // Stage 3: candidates grouped into places. A candidate within place_radius_m of an earlier
 // place's head and looking within place_max_angle_deg of it joins that place (same part of the
 // building, similar view), so each place is matched once against its keyframes' and their

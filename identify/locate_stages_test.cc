@@ -120,6 +120,20 @@ TEST(RetrieveCandidatesTest, VotesReRankTheBagOfWordsShortlist) {
   EXPECT_DOUBLE_EQ(by_votes[0].score, 30.0 / 130.0);
 }
 
+TEST(MergeCandidatesTest, TheFirstListsCandidatesComeFirstAndEachKeyframeOnce) {
+  const std::vector<slam::PlaceCandidate> vlad = {{7, 0.3}, {2, 0.2}, {7, 0.1}};
+  const std::vector<slam::PlaceCandidate> orb = {{2, 0.9}, {5, 0.8}, {1, 0.7}};
+  const std::vector<slam::PlaceCandidate> merged = MergeCandidates(vlad, orb);
+  ASSERT_EQ(merged.size(), 4u);
+  EXPECT_EQ(merged[0].id, 7);
+  EXPECT_EQ(merged[1].id, 2);
+  EXPECT_DOUBLE_EQ(merged[1].score, 0.2);  // the first list's entry, not the later duplicate
+  EXPECT_EQ(merged[2].id, 5);
+  EXPECT_EQ(merged[3].id, 1);
+  EXPECT_EQ(MergeCandidates({}, orb).size(), 3u);
+  EXPECT_TRUE(MergeCandidates({}, {}).empty());
+}
+
 TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxPlaces) {
   LocatorOptions options;
   options.place_radius_m = 2.0;

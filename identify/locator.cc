@@ -40,6 +40,10 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "sift_max_distance and sift_guided_max_distance must be positive";
   else if (second_look_max_places < 1)
     why << "second_look_max_places must be positive";
+  else if (vlad.candidates < 1)
+    why << "vlad.candidates must be positive";
+  else if (!vlad.codebook.Check(error))
+    return false;
   else if (place_threads < 0)
     why << "place_threads must not be negative";
   else if (retrieval_candidates < 1)
@@ -119,6 +123,25 @@ double MsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
+// The keyframes' RootSIFT (a synthetic view's slot has none) indexed by slot for the second look,
+// with a codebook trained on them; empty when no keyframe has enough to train on.
+slam::VladIndex IndexRootSift(const std::vector<LocatorKeyframe>& sift_keyframes,
+                              const slam::VladOptions& options) {
+  std::vector<cv::Mat> descriptors;
+  for (const LocatorKeyframe& keyframe : sift_keyframes)
+    descriptors.push_back(keyframe.descriptors);
+  size_t sampled = 0;
+  for (const cv::Mat& rows : descriptors) {
+    sampled += static_cast<size_t>((rows.rows + options.sample_step - 1) / options.sample_step);
+  }
+  if (sampled < static_cast<size_t>(options.centres)) return {};
+  slam::VladIndex index = slam::VladIndex::Train(descriptors, options);
+  for (size_t slot = 0; slot < descriptors.size(); ++slot) {
+    index.Add(static_cast<int64_t>(slot), descriptors[slot]);
+  }
+  return index;
+}
+
 // The keyframe as the view check compares it, from its grey image decoded at the smallest scale
 // at least as wide as the thumbnail; null with the check off or without a colour image and depth
 // of the keyframe's size.
@@ -176,6 +199,8 @@ struct Locator::Impl {
   // LocatorOptions::Retrieval::kBagOfWords, and the twin check's) and descriptors (with kVotes).
   slam::PlaceIndex index;
   slam::VoteIndex votes;
+  // Over sift_keyframes' RootSIFT, by slot; empty unless second_look_retrieval is vlad.
+  slam::VladIndex vlad;
   size_t num_synthetic_views = 0;  // the last ones of `keyframes`
   size_t num_sift_extracted = 0;
   OcclusionCloud cloud;
@@ -215,7 +240,8 @@ struct Locator::Impl {
 
   // Stage 3-6 again with RootSIFT, for a photo ORB could not place: the photo's RootSIFT (from
   // `sift_ahead` when it was extracted ahead, else now) matched against sift_keyframes at the
-  // same candidates, at most second_look_max_places. Its search when it placed the photo or found
+  // same candidates (after VLAD's with second_look_retrieval vlad), at most
+  // second_look_max_places. Its search when it placed the photo or found
   // it ambiguous, else nothing (ORB's refusal stands). Times and the second look's flags go to
   // `result`.
   std::optional<Search> SecondLook(const cv::Mat& photo, const PreparedPhoto& prepared,
@@ -367,7 +393,14 @@ std::optional<Locator::Impl::Search> Locator::Impl::SecondLook(
   result->timings.features_ms += timed.ms;
   std::optional<Search> answered;
   if (!sift.refusal) {
-    Search again = SearchPlaces(&sift, candidates, sift_keyframes, options.second_look_max_places,
+    std::vector<slam::PlaceCandidate> tried = candidates;
+    if (!vlad.empty()) {
+      const Clock::time_point stage = Clock::now();
+      tried = MergeCandidates(vlad.Rank(sift.features.descriptors, options.vlad.candidates),
+                              candidates);
+      result->timings.retrieval_ms += MsSince(stage);
+    }
+    Search again = SearchPlaces(&sift, tried, sift_keyframes, options.second_look_max_places,
                                 &result->timings);
     const Decision& decision = again.decision;
     if (decision.winner >= 0 ||
@@ -644,6 +677,9 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options,
                                                    "map it again with ORB features");
   FindNeighbours(options, &impl_->keyframes);
   if (with_sift) FindNeighbours(options, &impl_->sift_keyframes);
+  if (with_sift && options.second_look_retrieval == LocatorOptions::SecondLookRetrieval::kVlad) {
+    impl_->vlad = IndexRootSift(impl_->sift_keyframes, options.vlad.codebook);
+  }
   impl_->num_sift_extracted = static_cast<size_t>(sift_extracted);
   impl_->cloud = cloud.Build(impl_->sighting_views);
   ReloadLabels(model);
@@ -892,6 +928,9 @@ const std::pair<LocatorOptions::Matcher, const char*> kMatcherNames[] = {
     {LocatorOptions::Matcher::kOrb, "orb"},
     {LocatorOptions::Matcher::kRootSift, "rootsift"},
     {LocatorOptions::Matcher::kOrbThenRootSift, "orb_then_rootsift"}};
+const std::pair<LocatorOptions::SecondLookRetrieval, const char*> kSecondLookRetrievalNames[] = {
+    {LocatorOptions::SecondLookRetrieval::kOrb, "orb"},
+    {LocatorOptions::SecondLookRetrieval::kVlad, "vlad"}};
 const std::pair<LocatorOptions::Retrieval, const char*> kRetrievalNames[] = {
     {LocatorOptions::Retrieval::kVotes, "votes"},
     {LocatorOptions::Retrieval::kBagOfWords, "bag_of_words"}};
@@ -911,14 +950,23 @@ void from_json(const nlohmann::json& json, LocatorOptions::Matcher& matcher) {
   options_json::ReadEnum(json, matcher, kMatcherNames);
 }
 
+void to_json(nlohmann::json& json, const LocatorOptions::SecondLookRetrieval& retrieval) {
+  options_json::WriteEnum(json, retrieval, kSecondLookRetrievalNames);
+}
+void from_json(const nlohmann::json& json, LocatorOptions::SecondLookRetrieval& retrieval) {
+  options_json::ReadEnum(json, retrieval, kSecondLookRetrievalNames);
+}
+
+SIGHTMAP_OPTIONS_JSON(LocatorOptions::Vlad, candidates, codebook)
+
 SIGHTMAP_OPTIONS_JSON(
     LocatorOptions, features, matcher, sift_features, sift_image_side_px, sift_photo_features,
-    sift_max_distance, sift_guided_max_distance, second_look_max_places, place_threads,
-    extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval, vote_shortlist,
-    vote_max_hamming, place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
-    neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio, same_point_m,
-    max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
-    guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
+    sift_max_distance, sift_guided_max_distance, second_look_max_places, second_look_retrieval,
+    vlad, place_threads, extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval,
+    vote_shortlist, vote_max_hamming, place_radius_m, place_max_angle_deg, max_places,
+    neighbour_radius_m, neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
+    same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
+    min_ransac_inliers, guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
     min_inlier_cells_few_detail, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
     same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
     twin_min_matches, twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,

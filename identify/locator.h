@@ -18,6 +18,7 @@
 #include "identify/photo.h"
 #include "identify/view_agreement.h"
 #include "slam/features.h"
+#include "slam/vlad_index.h"
 #include "store/model.h"
 
 namespace sightmap::identify {
@@ -33,11 +34,12 @@ struct LocatorOptions {
   // What photos are matched with: the ORB features above; RootSIFT (sift_photo_features), which
   // holds up better across the viewpoint and scale changes between a person's photo and the walk's
   // keyframes; or ORB first and RootSIFT for a photo ORB could not place. ORB ranks the
-  // keyframes in every case (the vocabulary is ORB's). Keyframes' RootSIFT features are those the
-  // model stores, else extracted from their stored images when the model is loaded.
-  // ORB then RootSIFT by default: on 200 session-2 photos it placed 8 more against the survey
-  // model (115 -> 123, wrong 4 -> 4) and the hand-held one (90 -> 98, wrong 0 -> 0) than ORB alone;
-  // RootSIFT alone placed as many as ORB (115, 2 wrong) at twice the median time.
+  // keyframes (the vocabulary is ORB's), but for the second look's VLAD candidates (below).
+  // Keyframes' RootSIFT features are those the model stores, else extracted from their stored
+  // images when the model is loaded. ORB then RootSIFT by default: on 200 session-2 photos it
+  // placed 8 more against the survey model (115 -> 123, wrong 4 -> 4) and the hand-held one (90 ->
+  // 98, wrong 0 -> 0) than ORB alone; RootSIFT alone placed as many as ORB (115, 2 wrong) at twice
+  // the median time.
   enum class Matcher { kOrb, kRootSift, kOrbThenRootSift };
   Matcher matcher = Matcher::kOrbThenRootSift;
   // The keyframes' RootSIFT, for a model that does not store it (as `map` stores it).
@@ -65,6 +67,22 @@ struct LocatorOptions {
   double sift_guided_max_distance = 0.6;
   // RootSIFT's second look (orb_then_rootsift) verifies at most this many places.
   int second_look_max_places = 6;
+  // Which keyframes the second look tries: those ORB ranked (`orb`), or first the vlad.candidates
+  // whose RootSIFT looks most like the photo's by VLAD (slam/vlad_index.h, its codebook trained on
+  // the model's keyframes when the model is loaded: `vlad`), then ORB's. A photo ORB could not
+  // place mostly shows its view from farther, nearer or another angle than the walk did, where
+  // ORB's words fail and RootSIFT holds. VLAD by default: on 200 session-2 photos, matched
+  // 146 -> 153 against the survey walk's SLAM model (wrong 5 -> 5; covered photos 75.4 -> 79.5%)
+  // and 118 -> 124 against the hand-held walk's (wrong 2 -> 3: a window whose view of the street
+  // repeats in another room's); locate median / p95 +6% / +10%, loading +1 s for the codebook and
+  // 32 KB a keyframe (README "Retrieval for the second look").
+  enum class SecondLookRetrieval { kOrb, kVlad };
+  SecondLookRetrieval second_look_retrieval = SecondLookRetrieval::kVlad;
+  struct Vlad {
+    int candidates = 10;         // tried before ORB's [keyframes]
+    slam::VladOptions codebook;  // centres 64: vectors of 32 KB a keyframe
+  };
+  Vlad vlad;
   // After the first place (most photos are certain after it), places are matched and verified
   // this many at once, on OpenCV's threads; 0: as many as OpenCV has (the cores). The answer
   // does not depend on it: verdicts count in order up to the first certain one.
@@ -354,7 +372,9 @@ class Locator {
   // Reads the model's keyframes (features, poses, depth for the occlusion cloud), its synthetic
   // views (with use_synthetic_views), vocabulary and labels. A model without a vocabulary (fewer
   // keyframes than the mapper trains one on) gets one trained from its keyframes, and a model of at
-  // most retrieval_candidates keyframes verifies every one of them. Throws Error with one line when
+  // most retrieval_candidates keyframes verifies every one of them. With second_look_retrieval
+  // vlad the keyframes' RootSIFT codebook is trained here (about 1 s for 1,342 keyframes; none for
+  // a model with fewer RootSIFT rows than centres x sample_step). Throws Error with one line when
   // the model has no keyframe. `progress`, when given, is called on the constructing thread only:
   // after each keyframe it reads, every 0.2 s while it waits for the other loading thread, and
   // last with loaded == total (a building's model takes seconds).

@@ -20,7 +20,8 @@ namespace {
 const std::map<std::string, std::string> kOtherEnumName = {{"type", "sift"},
                                                            {"choice", "headless"},
                                                            {"matcher", "rootsift"},
-                                                           {"retrieval", "bag_of_words"}};
+                                                           {"retrieval", "bag_of_words"},
+                                                           {"second_look_retrieval", "orb"}};
 
 // `json` with every leaf changed: whole numbers + 1, other numbers x 1.5 + 0.25, flags flipped,
 // strings extended, enums to another name.
@@ -51,13 +52,15 @@ nlohmann::json ChangeEveryLeaf(const nlohmann::json& json, const std::string& ke
 template <typename Options>
 class OptionsJson : public ::testing::Test {};
 
-using AllOptions = ::testing::Types<
-    capture::SourceOptions, capture::KeyframeSamplerOptions, slam::FeatureOptions,
-    slam::MatchOptions, slam::RegistrationOptions, slam::PoseGraphOptions, slam::VocabularyOptions,
-    slam::DenseAlignmentOptions, slam::TrackerOptions, slam::MapperOptions, store::ModelOptions,
-    store::PlyExportOptions, mapping::TrackStageOptions, mapping::MapViewFeedOptions,
-    mapping::MappingOptions, identify::LocatorOptions, identify::PixelLabelOptions,
-    identify::LabelViewOptions, cli::LocateServerOptions, cli::LabelServiceOptions>;
+using AllOptions =
+    ::testing::Types<capture::SourceOptions, capture::KeyframeSamplerOptions, slam::FeatureOptions,
+                     slam::MatchOptions, slam::RegistrationOptions, slam::PoseGraphOptions,
+                     slam::VocabularyOptions, slam::DenseAlignmentOptions, slam::TrackerOptions,
+                     slam::MapperOptions, slam::VladOptions, store::ModelOptions,
+                     store::PlyExportOptions, mapping::TrackStageOptions,
+                     mapping::MapViewFeedOptions, mapping::MappingOptions, identify::LocatorOptions,
+                     identify::PixelLabelOptions, identify::LabelViewOptions,
+                     cli::LocateServerOptions, cli::LabelServiceOptions>;
 TYPED_TEST_SUITE(OptionsJson, AllOptions);
 
 TYPED_TEST(OptionsJson, EveryFieldReadsBackWhatWasWritten) {
