@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <numeric>
 #include <optional>
 #include <string>
@@ -188,6 +189,13 @@ void Declare(CLI::App& app, BenchmarkArgs* args) {
   app.add_option("--min-inliers", options.min_inliers, "inliers to count as matched");
   app.add_option("--confident-inliers", options.confident_inliers, "inliers that end the search");
   app.add_option("--places", options.max_places, "places verified per photo");
+  app.add_option("--second-look-retrieval", options.second_look_retrieval,
+                 "keyframes RootSIFT's second look tries first: vlad or orb")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, LocatorOptions::SecondLookRetrieval>{
+              {"vlad", LocatorOptions::SecondLookRetrieval::kVlad},
+              {"orb", LocatorOptions::SecondLookRetrieval::kOrb}},
+          CLI::ignore_case));
   app.add_option("--min-cells", options.min_inlier_cells, "grid cells inliers cover");
   app.add_option("--runner-up-ratio", options.min_inlier_ratio_over_runner_up,
                  "inliers over a disagreeing runner-up's");
@@ -363,11 +371,15 @@ void MeasureRetrievalScaling(const store::Model& model, const Locator& locator,
   const auto mean = [](const std::vector<double>& ms) {
     return std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
   };
-  std::printf("\nretrieval (%s), %zu photos:\n",
-              args.locator_options.retrieval == LocatorOptions::Retrieval::kVotes
-                  ? "bag-of-words shortlist re-ranked by votes"
-                  : "bag of words + inverted index",
-              queries.size());
+  std::printf(
+      "\nretrieval (%s; second look: %s), %zu photos:\n",
+      args.locator_options.retrieval == LocatorOptions::Retrieval::kVotes
+          ? "bag-of-words shortlist re-ranked by votes"
+          : "bag of words + inverted index",
+      args.locator_options.second_look_retrieval == LocatorOptions::SecondLookRetrieval::kVlad
+          ? "VLAD first"
+          : "ORB's candidates",
+      queries.size());
   for (const auto& [keyframe_count, ms] : {std::pair(locator.NumKeyframes(), small_retrieval),
                                            std::pair(large.NumKeyframes(), large_retrieval)}) {
     std::printf("  %5zu keyframes: median %.2f ms  p95 %.2f ms  mean %.2f ms\n", keyframe_count,

@@ -34,7 +34,7 @@ struct LocatorOptions {
   // What photos are matched with: the ORB features above; RootSIFT (sift_photo_features), which
   // holds up better across the viewpoint and scale changes between a person's photo and the walk's
   // keyframes; or ORB first and RootSIFT for a photo ORB could not place. ORB ranks the
-  // keyframes (the vocabulary is ORB's), but for the second look's VLAD candidates (below).
+  // keyframes (the vocabulary is ORB's), but for the second look's optional VLAD candidates.
   // Keyframes' RootSIFT features are those the model stores, else extracted from their stored
   // images when the model is loaded. ORB then RootSIFT by default: on 200 session-2 photos it
   // placed 8 more against the survey model (115 -> 123, wrong 4 -> 4) and the hand-held one (90 ->
@@ -71,13 +71,15 @@ struct LocatorOptions {
   // whose RootSIFT looks most like the photo's by VLAD (slam/vlad_index.h, its codebook trained on
   // the model's keyframes when the model is loaded: `vlad`), then ORB's. A photo ORB could not
   // place mostly shows its view from farther, nearer or another angle than the walk did, where
-  // ORB's words fail and RootSIFT holds. VLAD by default: on 200 session-2 photos, matched
-  // 146 -> 153 against the survey walk's SLAM model (wrong 5 -> 5; covered photos 75.4 -> 79.5%)
-  // and 118 -> 124 against the hand-held walk's (wrong 2 -> 3: a window whose view of the street
-  // repeats in another room's); locate median / p95 +6% / +10%, loading +1 s for the codebook and
-  // 32 KB a keyframe (README "Retrieval for the second look").
+  // ORB's words fail and RootSIFT holds. ORB's by default: on 200 session-2 photos VLAD's placed
+  // 146 -> 153 against the survey walk's SLAM model with no more wrong poses (covered photos
+  // 75.4 -> 79.5%), but 118 -> 124 with wrong 2 -> 3 against the hand-held walk's, and in
+  // locate_benchmark's 60 photos 39 -> 41 with one more wrong (an ambiguous photo whose runner-up
+  // place VLAD's places pushed out): about 1 in 10 of the answers it adds is wrong, against 1 in
+  // 35-40 of the others. Loading +1 s for the codebook, 32 KB a keyframe, locate median / p95
+  // +6% / +10% (README "Retrieval for the second look").
   enum class SecondLookRetrieval { kOrb, kVlad };
-  SecondLookRetrieval second_look_retrieval = SecondLookRetrieval::kVlad;
+  SecondLookRetrieval second_look_retrieval = SecondLookRetrieval::kOrb;
   struct Vlad {
     int candidates = 10;         // tried before ORB's [keyframes]
     slam::VladOptions codebook;  // centres 64: vectors of 32 KB a keyframe

@@ -329,6 +329,45 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
   EXPECT_GE(by_sift, static_cast<int>(0.40 * static_cast<double>(seen_photos_->size())));
 }
 
+// VLAD's look-alikes tried first by the second look (second_look_retrieval vlad): ORB's answers
+// stand, the photos ORB could not place get the second look as before, and what it places is
+// right.
+TEST_F(LocatorTest, VladLookAlikesFirstLeaveOrbsAnswersAndPlaceNothingWrong) {
+  LocatorOptions vlad_first;
+  vlad_first.second_look_retrieval = LocatorOptions::SecondLookRetrieval::kVlad;
+  const Locator vlad(*model_, vlad_first);
+  LocatorOptions orb_first;
+  orb_first.second_look_retrieval = LocatorOptions::SecondLookRetrieval::kOrb;
+  const Locator orb(*model_, orb_first);
+  int by_orb = 0;
+  int by_vlad = 0;
+  int second_looks = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult before = orb.Locate(photo.image, photo.intrinsics);
+    const LocateResult after = vlad.Locate(photo.image, photo.intrinsics);
+    EXPECT_EQ(after.second_look, before.second_look) << photo.index;
+    if (!before.second_look) {
+      EXPECT_EQ(after.matched, before.matched) << photo.index;
+      EXPECT_EQ(after.keyframe, before.keyframe) << photo.index;
+      EXPECT_EQ(after.inliers, before.inliers) << photo.index;
+    }
+    if (after.matched) {
+      EXPECT_LT(PositionError(after.world_from_cam, photo.world_from_cam), 0.5) << photo.index;
+      EXPECT_LT(RotationAngleDeg(after.world_from_cam.linear(), photo.world_from_cam.linear()),
+                10.0)
+          << photo.index;
+    }
+    by_orb += before.matched ? 1 : 0;
+    by_vlad += after.matched ? 1 : 0;
+    second_looks += after.second_look ? 1 : 0;
+  }
+  std::printf(
+      "of %zu seen photos: %d second looks; placed %d with ORB's candidates, %d VLAD's first\n",
+      seen_photos_->size(), second_looks, by_orb, by_vlad);
+  EXPECT_GE(second_looks, 3);
+  EXPECT_GE(by_vlad, by_orb - 1);
+}
+
 TEST_F(LocatorTest, NoiseAndABlankWallAreNotMatchedAndSayWhy) {
   cv::Mat noise(960, 1280, CV_8UC3);
   cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));

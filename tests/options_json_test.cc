@@ -21,7 +21,7 @@ const std::map<std::string, std::string> kOtherEnumName = {{"type", "sift"},
                                                            {"choice", "headless"},
                                                            {"matcher", "rootsift"},
                                                            {"retrieval", "bag_of_words"},
-                                                           {"second_look_retrieval", "orb"}};
+                                                           {"second_look_retrieval", "vlad"}};
 
 // `json` with every leaf changed: whole numbers + 1, other numbers x 1.5 + 0.25, flags flipped,
 // strings extended, enums to another name.
