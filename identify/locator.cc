@@ -130,11 +130,9 @@ slam::VladIndex IndexRootSift(const std::vector<LocatorKeyframe>& sift_keyframes
   std::vector<cv::Mat> descriptors;
   for (const LocatorKeyframe& keyframe : sift_keyframes)
     descriptors.push_back(keyframe.descriptors);
-  size_t sampled = 0;
-  for (const cv::Mat& rows : descriptors) {
-    sampled += static_cast<size_t>((rows.rows + options.sample_step - 1) / options.sample_step);
+  if (slam::VladIndex::SampledRows(descriptors, options) < static_cast<size_t>(options.centres)) {
+    return {};
   }
-  if (sampled < static_cast<size_t>(options.centres)) return {};
   slam::VladIndex index = slam::VladIndex::Train(descriptors, options);
   for (size_t slot = 0; slot < descriptors.size(); ++slot) {
     index.Add(static_cast<int64_t>(slot), descriptors[slot]);

@@ -34,6 +34,13 @@ double PositionError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.translation() - b.translation()).norm();
 }
 
+// A matched photo's pose must be right: within 0.5 m and 10 degrees of the truth.
+void ExpectRightPose(const LocateResult& result, const sim::QueryPhoto& photo) {
+  EXPECT_LT(PositionError(result.world_from_cam, photo.world_from_cam), 0.5) << photo.index;
+  EXPECT_LT(RotationAngleDeg(result.world_from_cam.linear(), photo.world_from_cam.linear()), 10.0)
+      << photo.index;
+}
+
 double Median(std::vector<double> values) {
   std::sort(values.begin(), values.end());
   return values.empty() ? 0.0 : values[values.size() / 2];
@@ -294,11 +301,7 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
     const LocateResult both = locator_->Locate(photo.image, photo.intrinsics);
     const LocateResult alone = sift.Locate(photo.image, photo.intrinsics);
     for (const LocateResult* result : {&first, &both, &alone}) {
-      if (!result->matched) continue;
-      EXPECT_LT(PositionError(result->world_from_cam, photo.world_from_cam), 0.5) << photo.index;
-      EXPECT_LT(RotationAngleDeg(result->world_from_cam.linear(), photo.world_from_cam.linear()),
-                10.0)
-          << photo.index;
+      if (result->matched) ExpectRightPose(*result, photo);
     }
     // ORB's answer stands whenever it places the photo.
     if (first.matched) {
@@ -351,12 +354,7 @@ TEST_F(LocatorTest, VladLookAlikesFirstLeaveOrbsAnswersAndPlaceNothingWrong) {
       EXPECT_EQ(after.keyframe, before.keyframe) << photo.index;
       EXPECT_EQ(after.inliers, before.inliers) << photo.index;
     }
-    if (after.matched) {
-      EXPECT_LT(PositionError(after.world_from_cam, photo.world_from_cam), 0.5) << photo.index;
-      EXPECT_LT(RotationAngleDeg(after.world_from_cam.linear(), photo.world_from_cam.linear()),
-                10.0)
-          << photo.index;
-    }
+    if (after.matched) ExpectRightPose(after, photo);
     by_orb += before.matched ? 1 : 0;
     by_vlad += after.matched ? 1 : 0;
     second_looks += after.second_look ? 1 : 0;

@@ -12,14 +12,20 @@ namespace {
 
 constexpr int kRootSiftColumns = 128;
 
-// RootSIFT bytes as unit-scale floats; throws for rows of another kind.
-cv::Mat ToFloatRows(const cv::Mat& descriptors, const char* what) {
-  if (descriptors.empty()) return cv::Mat(0, kRootSiftColumns, CV_32F);
-  if (descriptors.type() != CV_8U || descriptors.cols != kRootSiftColumns) {
+// Throws for rows that are not RootSIFT bytes; an empty matrix passes.
+void CheckRootSiftRows(const cv::Mat& descriptors, const char* what) {
+  if (!descriptors.empty() &&
+      (descriptors.type() != CV_8U || descriptors.cols != kRootSiftColumns)) {
     SIGHTMAP_THROW(InvalidArgument, "VladIndex: " << what
                                                   << " descriptors are not RootSIFT bytes (CV_8U, "
                                                   << kRootSiftColumns << " columns)");
   }
+}
+
+// RootSIFT bytes as unit-scale floats; throws for rows of another kind.
+cv::Mat ToFloatRows(const cv::Mat& descriptors, const char* what) {
+  CheckRootSiftRows(descriptors, what);
+  if (descriptors.empty()) return cv::Mat(0, kRootSiftColumns, CV_32F);
   cv::Mat rows;
   descriptors.convertTo(rows, CV_32F, 1.0 / kRootSiftScale);
   return rows;
@@ -42,16 +48,26 @@ bool VladOptions::Check(std::string* error) const {
 
 SIGHTMAP_OPTIONS_JSON(VladOptions, centres, sample_step, kmeans_iterations, seed)
 
-VladIndex VladIndex::Train(const std::vector<cv::Mat>& descriptors, const VladOptions& options) {
+size_t VladIndex::SampledRows(const std::vector<cv::Mat>& descriptors, const VladOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
+  size_t rows = 0;
+  for (const cv::Mat& image : descriptors) {
+    rows += static_cast<size_t>((image.rows + options.sample_step - 1) / options.sample_step);
+  }
+  return rows;
+}
+
+VladIndex VladIndex::Train(const std::vector<cv::Mat>& descriptors, const VladOptions& options) {
+  for (const cv::Mat& image : descriptors) CheckRootSiftRows(image, "training");
+  const size_t sampled = SampledRows(descriptors, options);
+  if (sampled < static_cast<size_t>(options.centres)) {
+    SIGHTMAP_THROW(InvalidArgument, "VladIndex: " << sampled << " sampled descriptors for "
+                                                  << options.centres << " centres");
+  }
   cv::Mat sample;
   for (const cv::Mat& image : descriptors) {
     const cv::Mat rows = ToFloatRows(image, "training");
     for (int r = 0; r < rows.rows; r += options.sample_step) sample.push_back(rows.row(r));
-  }
-  if (sample.rows < options.centres) {
-    SIGHTMAP_THROW(InvalidArgument, "VladIndex: " << sample.rows << " sampled descriptors for "
-                                                  << options.centres << " centres");
   }
   VladIndex index;
   cv::Mat assignment;

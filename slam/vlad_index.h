@@ -46,6 +46,9 @@ class VladIndex {
   // the model stores them) of several images. Throws InvalidArgument for invalid options,
   // descriptors that are not RootSIFT bytes, or fewer sampled rows than centres.
   static VladIndex Train(const std::vector<cv::Mat>& descriptors, const VladOptions& options);
+  // The rows Train samples from these images (every sample_step-th of each): Train needs at least
+  // options.centres.
+  static size_t SampledRows(const std::vector<cv::Mat>& descriptors, const VladOptions& options);
 
   bool empty() const { return centres_.empty(); }
   size_t size() const { return ids_.size(); }

@@ -126,6 +126,7 @@ TEST(VladIndex, RefusesWhatItCannotIndex) {
   EXPECT_THROW(VladIndex().Encode(walk.images[0]), InvalidArgument);
   const cv::Mat orb(10, 32, CV_8U, cv::Scalar(1));
   EXPECT_THROW(VladIndex::Train({orb}, SmallCodebook()), InvalidArgument);
+  EXPECT_EQ(VladIndex::SampledRows(walk.images, SmallCodebook()), 6u * 60u);  // every 2nd of 120
   VladOptions many = SmallCodebook();
   many.centres = 1000;  // more centres than sampled descriptors
   EXPECT_THROW(VladIndex::Train(walk.images, many), InvalidArgument);
