@@ -445,9 +445,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   }
   ContinuePoint resume =
       FindContinuePoint(options_, meta, model, restored, summary.resumed, mapper.get(), notices);
-  const std::optional<TimestampNs> continue_after = resume.after;
-  std::optional<RgbdFrame> continue_from = std::move(resume.from);
-  if (continue_after) summary.continued_after_s = 1e-9 * static_cast<double>(*continue_after);
+  if (resume.after) summary.continued_after_s = 1e-9 * static_cast<double>(*resume.after);
 
   summary.session_number = static_cast<int64_t>(model.Sessions().size()) + 1;
   const SessionId session = model.BeginSession(MakeSessionRecord(options_, meta));
@@ -466,8 +464,8 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   WriteStage writer(&model, view.get(), static_cast<int>(summary.session_number),
                     restored.store_ids, static_cast<size_t>(options_.write_queue_capacity),
                     std::move(photo_features), live ? 0 : options_.replay_write_nice_increment);
-  TrackStage track(camera, tracking, &frames, &keyframes, std::move(continue_from));
-  CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track, continue_after),
+  TrackStage track(camera, tracking, &frames, &keyframes, std::move(resume.from));
+  CaptureStage capture(source.get(), CaptureOptions(options_, live, tracking.track, resume.after),
                        &frames, view.get());
   MapStage map(mapper.get(), session, camera,
                {options_.anchor_to_ground_truth, options_.ground_truth_poses}, restored);
@@ -490,7 +488,7 @@ MappingSummary MappingSession::Run(std::ostream* notices) {
   }
   EndSession(pipeline, &model, session, map_error, summary.reason);
   try {
-    CheckFramesCame(options_, capture, summary.reason, continue_after);
+    CheckFramesCame(options_, capture, summary.reason, resume.after);
   } catch (const Error&) {
     // A run that mapped nothing leaves no empty session behind: `info` would count it.
     model.DeleteEmptySession(session);
