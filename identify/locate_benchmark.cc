@@ -200,6 +200,8 @@ void Declare(CLI::App& app, BenchmarkArgs* args) {
   app.add_option("--runner-up-ratio", options.min_inlier_ratio_over_runner_up,
                  "inliers over a disagreeing runner-up's");
   app.add_option("--min-share", options.min_inlier_share, "inliers / projected points");
+  app.add_option("--min-view-agreement", options.min_view_agreement,
+                 "view check's least agreement (0 = off)");
   app.add_option("--guided-rounds", options.guided_rounds, "guided matching rounds");
   app.add_option("--occlusion-margin", options.occlusion_margin_m,
                  "occlusion margin at the camera [m]");

@@ -638,7 +638,7 @@ TEST(DecideTest, APoseWhoseViewWasUnlikeThePhotoIsNoRival) {
   EXPECT_NE(decision.refusal->reason.find("(90 inliers) fits details that repeat elsewhere"),
             std::string::npos)
       << decision.refusal->reason;
-  EXPECT_NE(decision.refusal->reason.find("agreement 0.12, 0.40 needed"), std::string::npos)
+  EXPECT_NE(decision.refusal->reason.find("agreement 0.12, 0.55 needed"), std::string::npos)
       << decision.refusal->reason;
 }
 
