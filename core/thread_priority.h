@@ -3,6 +3,8 @@
 // priority than the stages whose latency the user sees.
 #pragma once
 
+#include <string>
+
 namespace sightmap {
 
 // Raises the calling thread's nice value by `increment` (capped at 19), which lowers its share of
@@ -14,5 +16,11 @@ bool LowerThisThreadsPriority(int increment);
 
 // The calling thread's nice value (0 by default, 19 the lowest priority).
 int ThisThreadsNice();
+
+// Raises to `nice` (capped at 19) the nice value of each of this process's threads whose name
+// (/proc/self/task/TID/comm) starts with `name_prefix` and runs at a lower one: for threads a
+// library starts at its creator's priority, such as Mesa's llvmpipe rasteriser threads. Best
+// effort; returns how many threads it changed.
+int LowerThreadsNamed(const std::string& name_prefix, int nice);
 
 }  // namespace sightmap

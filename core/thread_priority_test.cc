@@ -1,7 +1,11 @@
 #include "core/thread_priority.h"
 
+#include <pthread.h>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -59,6 +63,42 @@ TEST(ThreadPriorityTest, OpenCVsWorkersKeepTheirPriorityWhenALoweredThreadRunsPa
   if (cv::getNumThreads() > 1) {
     EXPECT_GT(nice_by_thread.size(), 1u);
   }
+}
+
+TEST(ThreadPriorityTest, LowersTheThreadsOfAName) {
+  const int main_nice = ThisThreadsNice();
+  std::mutex mutex;
+  std::condition_variable measure;
+  bool go = false;
+  std::atomic<int> named_threads{0};
+  const auto run = [&](const char* name, int* nice) {
+    pthread_setname_np(pthread_self(), name);
+    ++named_threads;
+    std::unique_lock<std::mutex> lock(mutex);
+    measure.wait(lock, [&] { return go; });
+    *nice = ThisThreadsNice();
+  };
+  int named_nice = -100;
+  int other_nice = -100;
+  std::thread named([&] { run("rasterpipe-0", &named_nice); });
+  std::thread other([&] { run("sightmap-other", &other_nice); });
+  while (named_threads < 2) std::this_thread::yield();
+  const int target = std::min(19, main_nice + 4);
+  const int lowered = LowerThreadsNamed("rasterpipe-", main_nice + 4);
+  const int raised_back = LowerThreadsNamed("rasterpipe-", main_nice + 2);
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    go = true;
+  }
+  measure.notify_all();
+  named.join();
+  other.join();
+  EXPECT_EQ(lowered, target > main_nice ? 1 : 0);
+  EXPECT_EQ(raised_back, 0);  // a nice value is only ever raised
+  EXPECT_EQ(named_nice, target);
+  EXPECT_EQ(other_nice, main_nice);
+  EXPECT_EQ(ThisThreadsNice(), main_nice);
+  EXPECT_EQ(LowerThreadsNamed("no-such-thread-", 19), 0);
 }
 
 }  // namespace
