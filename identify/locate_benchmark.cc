@@ -18,11 +18,11 @@
 //   from 0.009.
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <map>
 #include <numeric>
 #include <optional>
 #include <string>
@@ -31,6 +31,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/check.h"
+#include "core/options_json.h"
 #include "core/peak_memory.h"
 #include "core/rotation.h"
 #include "core/timing.h"
@@ -189,13 +191,20 @@ void Declare(CLI::App& app, BenchmarkArgs* args) {
   app.add_option("--min-inliers", options.min_inliers, "inliers to count as matched");
   app.add_option("--confident-inliers", options.confident_inliers, "inliers that end the search");
   app.add_option("--places", options.max_places, "places verified per photo");
-  app.add_option("--second-look-retrieval", options.second_look_retrieval,
-                 "keyframes RootSIFT's second look tries first: vlad or orb")
-      ->transform(CLI::CheckedTransformer(
-          std::map<std::string, LocatorOptions::SecondLookRetrieval>{
-              {"vlad", LocatorOptions::SecondLookRetrieval::kVlad},
-              {"orb", LocatorOptions::SecondLookRetrieval::kOrb}},
-          CLI::ignore_case));
+  // Read as `--config` reads it, so the names are the locator's own.
+  app.add_option_function<std::string>(
+      "--second-look-retrieval",
+      [&options](std::string name) {
+        std::transform(name.begin(), name.end(), name.begin(),
+                       [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+        try {
+          options_json::ParseInto(nlohmann::json{{"second_look_retrieval", name}}.dump(),
+                                  "--second-look-retrieval", options);
+        } catch (const Error& e) {
+          throw CLI::ValidationError(e.what());
+        }
+      },
+      "keyframes RootSIFT's second look tries first: vlad or orb");
   app.add_option("--min-cells", options.min_inlier_cells, "grid cells inliers cover");
   app.add_option("--runner-up-ratio", options.min_inlier_ratio_over_runner_up,
                  "inliers over a disagreeing runner-up's");
