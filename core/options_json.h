@@ -211,3 +211,24 @@ struct adl_serializer<Eigen::Matrix<Scalar, Rows, 1>> {
     ::sightmap::options_json::CheckKeys(json, #__VA_ARGS__);                                  \
     NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(SIGHTMAP_OPTIONS_JSON_READ_FIELD, __VA_ARGS__))  \
   }
+
+#define SIGHTMAP_OPTIONS_JSON_UNPAREN(...) __VA_ARGS__
+#define SIGHTMAP_OPTIONS_JSON_STRING(...) #__VA_ARGS__
+// The same for a struct of more than 63 fields (the most nlohmann's paste macro takes), its fields
+// in two parenthesised lists: SIGHTMAP_OPTIONS_JSON_LONG(FooOptions, (a, b, ...), (c, d, ...)).
+#define SIGHTMAP_OPTIONS_JSON_LONG(Type, first, second)                                     \
+  void to_json(nlohmann::json& json, const Type& options) {                                 \
+    json = nlohmann::json::object();                                                        \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(SIGHTMAP_OPTIONS_JSON_WRITE_FIELD,             \
+                                             SIGHTMAP_OPTIONS_JSON_UNPAREN first))          \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(SIGHTMAP_OPTIONS_JSON_WRITE_FIELD,             \
+                                             SIGHTMAP_OPTIONS_JSON_UNPAREN second))         \
+  }                                                                                         \
+  void from_json(const nlohmann::json& json, Type& options) {                               \
+    ::sightmap::options_json::CheckKeys(                                                    \
+        json, SIGHTMAP_OPTIONS_JSON_STRING first ", " SIGHTMAP_OPTIONS_JSON_STRING second); \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(SIGHTMAP_OPTIONS_JSON_READ_FIELD,              \
+                                             SIGHTMAP_OPTIONS_JSON_UNPAREN first))          \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(SIGHTMAP_OPTIONS_JSON_READ_FIELD,              \
+                                             SIGHTMAP_OPTIONS_JSON_UNPAREN second))         \
+  }

@@ -36,6 +36,14 @@ struct OuterOptions {
 };
 SIGHTMAP_OPTIONS_JSON(OuterOptions, name, enabled, seed, start_frame, levels, shape, up, inner)
 
+// A struct listed in two parts, as one of more than 63 fields must be.
+struct SplitOptions {
+  int first = 1;
+  double second_m = 2.0;
+  bool third = false;
+};
+SIGHTMAP_OPTIONS_JSON_LONG(SplitOptions, (first, second_m), (third))
+
 // The message of the error reading `text` into default options.
 std::string ReadError(const std::string& text) {
   OuterOptions options;
@@ -103,6 +111,25 @@ TEST(OptionsJson, NamesTheFullPathOfAnUnknownKeyAndGuessesTheTypo) {
   EXPECT_EQ(ReadError(R"({"inner": {"scale": 1}})"),
             "config.json: inner.scale: unknown option; did you mean scale_m?");
   EXPECT_EQ(ReadError(R"({"colour": "red"})"), "config.json: colour: unknown option");
+}
+
+TEST(OptionsJson, AStructListedInTwoPartsReadsAndWritesBothAndKnowsEveryKey) {
+  SplitOptions options;
+  options.first = 5;
+  options.third = true;
+  nlohmann::json json = options;
+  EXPECT_EQ(json, nlohmann::json::parse(R"({"first": 5, "second_m": 2.0, "third": true})"));
+  SplitOptions read;
+  options_json::ParseInto(R"({"second_m": 4.5, "third": true})", "config.json", read);
+  EXPECT_EQ(read.first, 1);
+  EXPECT_EQ(read.second_m, 4.5);
+  EXPECT_TRUE(read.third);
+  try {
+    options_json::ParseInto(R"({"thrid": true})", "config.json", read);
+    FAIL() << "an unknown key was read";
+  } catch (const InvalidArgument& e) {
+    EXPECT_STREQ(e.what(), "config.json: thrid: unknown option; did you mean third?");
+  }
 }
 
 TEST(OptionsJson, RefusesWhatNlohmannWouldQuietlyConvert) {
