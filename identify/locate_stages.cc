@@ -638,24 +638,253 @@ std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alik
   return GroupPlaces(twins, keyframes, grouping);
 }
 
-PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
-                        const std::vector<LocatorKeyframe>& keyframes,
-                        const LocatorOptions& options) {
+namespace {
+
+// Offset votes bucketed into cubes of twice the cluster radius: the votes within the radius of a
+// point lie in the 2 x 2 x 2 cubes around the corner of its cube it is nearest to.
+class OffsetGrid {
+ public:
+  OffsetGrid(const std::vector<Eigen::Vector3d>& offsets, double radius)
+      : offsets_(offsets), radius_(radius) {
+    for (size_t i = 0; i < offsets.size(); ++i) {
+      cells_[KeyOf((offsets[i] / (2.0 * radius_)).array().floor())].push_back(i);
+    }
+  }
+
+  // Calls visit(j) for every vote j within `radius` (at most the grid's) of `centre` whose
+  // `taken` flag is false.
+  template <typename Visit>
+  void ForEachNear(const Eigen::Vector3d& centre, double radius, const std::vector<bool>& taken,
+                   Visit visit) const {
+    const Eigen::Array3d scaled = centre.array() / (2.0 * radius_);
+    const Eigen::Array3d base = scaled.floor();
+    Eigen::Array3d toward;  // -1 or +1 an axis: the nearer neighbour
+    for (int axis = 0; axis < 3; ++axis) toward[axis] = scaled[axis] - base[axis] < 0.5 ? -1 : 1;
+    const double radius_sq = radius * radius;
+    for (int corner = 0; corner < 8; ++corner) {
+      const Eigen::Array3d cell(base.x() + ((corner & 1) ? toward.x() : 0.0),
+                                base.y() + ((corner & 2) ? toward.y() : 0.0),
+                                base.z() + ((corner & 4) ? toward.z() : 0.0));
+      const auto found = cells_.find(KeyOf(cell));
+      if (found == cells_.end()) continue;
+      for (size_t j : found->second) {
+        if (!taken[j] && (offsets_[j] - centre).squaredNorm() <= radius_sq) visit(j);
+      }
+    }
+  }
+
+  std::vector<size_t> Near(const Eigen::Vector3d& centre, const std::vector<bool>& taken) const {
+    std::vector<size_t> near;
+    ForEachNear(centre, radius_, taken, [&near](size_t j) { near.push_back(j); });
+    return near;
+  }
+  int CountNear(const Eigen::Vector3d& centre, const std::vector<bool>& taken) const {
+    int count = 0;
+    ForEachNear(centre, radius_, taken, [&count](size_t) { ++count; });
+    return count;
+  }
+
+ private:
+  static int64_t KeyOf(const Eigen::Array3d& cell) {
+    // 21 bits an axis: +-1 million cells, far beyond any building at centimetre radii.
+    auto axis = [](double v) { return static_cast<int64_t>(v) & ((int64_t{1} << 21) - 1); };
+    return axis(cell.x()) << 42 | axis(cell.y()) << 21 | axis(cell.z());
+  }
+
+  const std::vector<Eigen::Vector3d>& offsets_;
+  double radius_;
+  std::unordered_map<int64_t, std::vector<size_t>> cells_;
+};
+
+int DistinctOwners(const std::vector<size_t>& members, const std::vector<int>& owner) {
+  std::vector<int> owners;
+  for (size_t j : members) owners.push_back(owner[j]);
+  std::sort(owners.begin(), owners.end());
+  return static_cast<int>(std::unique(owners.begin(), owners.end()) - owners.begin());
+}
+
+Eigen::Vector3d MedianOffset(const std::vector<Eigen::Vector3d>& offsets,
+                             const std::vector<size_t>& members) {
+  Eigen::Vector3d median;
+  for (int axis = 0; axis < 3; ++axis) {
+    std::vector<double> values;
+    for (size_t j : members) values.push_back(offsets[j][axis]);
+    std::nth_element(values.begin(),
+                     values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+    median[axis] = values[values.size() / 2];
+  }
+  return median;
+}
+
+}  // namespace
+
+std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
+                                    const std::vector<slam::PlaceCandidate>& look_alikes,
+                                    const std::vector<LocatorKeyframe>& keyframes,
+                                    const LocatorOptions& options) {
+  const cv::Mat& query = winner.inlier_descriptors;
+  SIGHTMAP_CHECK(static_cast<size_t>(query.rows) == winner.inlier_points.size(),
+                 "the winner holds " << query.rows << " inlier descriptors and "
+                                     << winner.inlier_points.size() << " inlier points");
+  std::vector<Eigen::Vector3d> offsets;
+  std::vector<int> owner;  // the winner's inlier voting
+  if (options.copies.offsets <= 0 || query.empty()) return {};
+  const double max_distance = GuidedMaxDistance(query, options);
+  // At most max_voters inliers vote, evenly spread over them: matching is most of the stage's time,
+  // and a few hundred find a copy as well as a thousand do.
+  const int step = std::max(
+      1, (query.rows + options.copies.max_voters - 1) / std::max(1, options.copies.max_voters));
+  cv::Mat voters;
+  std::vector<int> voter_row;
+  for (int r = 0; r < query.rows; r += step) {
+    voters.push_back(query.row(r));
+    voter_row.push_back(r);
+  }
+  int searched = 0;
+  for (const slam::PlaceCandidate& candidate : look_alikes) {
+    if (searched >= options.copies.look_alikes) break;
+    const size_t slot = static_cast<size_t>(candidate.id);
+    SIGHTMAP_CHECK(candidate.id >= 0 && slot < keyframes.size(),
+                   "look-alike " << candidate.id << " is not a keyframe slot");
+    const LocatorKeyframe& look_alike = keyframes[slot];
+    if (look_alike.descriptors.empty() || look_alike.descriptors.cols != query.cols ||
+        look_alike.descriptors.type() != query.type()) {
+      continue;
+    }
+    ++searched;
+    for (const std::vector<cv::DMatch>& nearest : KNearest(voters, look_alike.descriptors, 2)) {
+      for (const cv::DMatch& match : nearest) {
+        if (match.distance > max_distance) continue;
+        const int row = voter_row[static_cast<size_t>(match.queryIdx)];
+        const cv::Point3f& a = winner.inlier_points[static_cast<size_t>(row)];
+        const cv::Point3f& b = look_alike.world_points[static_cast<size_t>(match.trainIdx)];
+        const Eigen::Vector3d offset(b.x - a.x, b.y - a.y, b.z - a.z);
+        if (offset.norm() <= options.same_pose_m) continue;
+        offsets.push_back(offset);
+        owner.push_back(row);
+      }
+    }
+  }
+  std::vector<CopyOffset> copies;
+  const OffsetGrid grid(offsets, options.copies.cluster_m);
+  std::vector<bool> taken(offsets.size(), false);
+  // A mode whose votes come from too few distinct inliers is set aside and counts as a round.
+  // Per vote, the votes around it (not distinct voters: an inlier votes once a look-alike, and
+  // the count is the cheaper; distinct voters decide the support below). Counted once, then
+  // again only around what a round takes.
+  std::vector<int> around(offsets.size());
+  for (size_t i = 0; i < offsets.size(); ++i) around[i] = grid.CountNear(offsets[i], taken);
+  for (int round = 0; round < 2 * options.copies.offsets &&
+                      static_cast<int>(copies.size()) < options.copies.offsets;
+       ++round) {
+    size_t best = offsets.size();
+    int most = 0;
+    for (size_t i = 0; i < offsets.size(); ++i) {
+      if (!taken[i] && around[i] > most) {
+        most = around[i];
+        best = i;
+      }
+    }
+    if (best == offsets.size() || most < options.copies.min_support) break;
+    std::vector<size_t> members = grid.Near(offsets[best], taken);
+    CopyOffset copy;
+    copy.offset = MedianOffset(offsets, members);
+    // Around the median: the cluster may have been found off its centre.
+    std::vector<size_t> centred = grid.Near(copy.offset, taken);
+    if (!centred.empty()) {
+      members = std::move(centred);
+      copy.offset = MedianOffset(offsets, members);
+    }
+    copy.support = DistinctOwners(members, owner);
+    for (size_t j : members) taken[j] = true;
+    // The votes whose neighbourhood lost some: those within the radius of a taken one.
+    std::vector<size_t> stale;
+    for (size_t j : members) {
+      grid.ForEachNear(offsets[j], options.copies.cluster_m, taken,
+                       [&stale](size_t k) { stale.push_back(k); });
+    }
+    std::sort(stale.begin(), stale.end());
+    stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
+    for (size_t k : stale) around[k] = grid.CountNear(offsets[k], taken);
+    if (copy.support >= options.copies.min_support) copies.push_back(copy);
+  }
+  return copies;
+}
+
+Place PlaceSeeing(const Eigen::Isometry3d& world_from_cam, const Eigen::Vector3d& target,
+                  const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options) {
+  const Eigen::Vector3d direction = world_from_cam.linear().col(2);
+  const double min_cos = std::cos(DegToRad(options.place_max_angle_deg));
+  const double radius_sq = options.neighbour_radius_m * options.neighbour_radius_m;
+  std::vector<std::pair<int, size_t>> seeing;  // points near the target, slot
+  for (size_t slot = 0; slot < keyframes.size(); ++slot) {
+    const LocatorKeyframe& keyframe = keyframes[slot];
+    if ((keyframe.world_from_cam.translation() - world_from_cam.translation()).norm() >
+            options.copies.place_radius_m ||
+        keyframe.view_direction.dot(direction) < min_cos) {
+      continue;
+    }
+    int near = 0;
+    for (const cv::Point3f& p : keyframe.world_points) {
+      if ((Eigen::Vector3d(p.x, p.y, p.z) - target).squaredNorm() <= radius_sq) ++near;
+    }
+    if (near >= options.min_inliers) seeing.emplace_back(near, slot);
+  }
+  std::sort(seeing.begin(), seeing.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
+  Place place;
+  const size_t size = std::min(seeing.size(), static_cast<size_t>(options.max_neighbours) + 1);
+  for (size_t i = 0; i < size; ++i) place.slots.push_back(seeing[i].second);
+  if (!place.slots.empty()) place.head = place.slots.front();
+  return place;
+}
+
+namespace {
+
+// The model side of a place's matches: every 3D feature of its keyframes, their descriptors
+// (vconcat'ed, empty without points) and keyframes; and their vocabulary nodes when asked.
+PlaceMatches PlacePoints(const Place& place, const std::vector<LocatorKeyframe>& keyframes,
+                         std::vector<int>* model_nodes) {
   PlaceMatches matches;
-  const bool bounded = !photo.nodes.empty();
   std::vector<cv::Mat> blocks;
-  std::vector<int> model_nodes;
   for (size_t s : place.slots) {
     const LocatorKeyframe& member = keyframes[s];
     if (member.world_points.empty()) continue;
     blocks.push_back(member.descriptors);
     matches.model_points.insert(matches.model_points.end(), member.world_points.begin(),
                                 member.world_points.end());
-    if (bounded) model_nodes.insert(model_nodes.end(), member.nodes.begin(), member.nodes.end());
+    if (model_nodes)
+      model_nodes->insert(model_nodes->end(), member.nodes.begin(), member.nodes.end());
     matches.model_slots.insert(matches.model_slots.end(), member.world_points.size(), s);
   }
+  if (!blocks.empty()) cv::vconcat(blocks, matches.model_descriptors);
+  return matches;
+}
+
+}  // namespace
+
+PlaceMatches MatchPlaceFrom(const PreparedPhoto& photo, const Place& place,
+                            const std::vector<LocatorKeyframe>& keyframes,
+                            const PoseHypothesis& pose, const LocatorOptions& options) {
+  PlaceMatches matches = PlacePoints(place, keyframes, /*model_nodes=*/nullptr);
+  if (matches.model_points.empty() || photo.features.descriptors.empty()) return matches;
+  LocatorOptions wide = options;
+  wide.guided_radius_px = options.copies.search_radius_px;
+  int projected = 0;
+  GuidedMatch(photo.features.descriptors, photo.points, photo.grid, matches.model_descriptors,
+              matches.model_points, pose, GuidedMaxDistance(matches.model_descriptors, options),
+              wide, &matches.object, &matches.image, &matches.object_model, &projected);
+  return matches;
+}
+
+PlaceMatches MatchPlace(const PreparedPhoto& photo, const Place& place,
+                        const std::vector<LocatorKeyframe>& keyframes,
+                        const LocatorOptions& options) {
+  const bool bounded = !photo.nodes.empty();
+  std::vector<int> model_nodes;
+  PlaceMatches matches = PlacePoints(place, keyframes, bounded ? &model_nodes : nullptr);
   if (matches.model_points.size() < 2 || photo.features.descriptors.empty()) return matches;
-  cv::vconcat(blocks, matches.model_descriptors);
   const cv::Mat& query = photo.features.descriptors;
   std::vector<std::vector<cv::DMatch>> knn;
   if (bounded) {
@@ -780,6 +1009,7 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
     const int row = (*object_model)[i];
     const cv::Point3f& point = matches.model_points[static_cast<size_t>(row)];
     verdict.inlier_centroid += Eigen::Vector3d(point.x, point.y, point.z);
+    verdict.inlier_points.push_back(point);
     matches.model_descriptors.row(row).copyTo(verdict.inlier_descriptors.row(k));
   }
   if (verdict.inliers > 0) verdict.inlier_centroid /= verdict.inliers;
@@ -883,11 +1113,58 @@ Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
 
 }  // namespace
 
+namespace {
+
+bool PosesDisagree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+                   const LocatorOptions& options) {
+  return (a.translation() - b.translation()).norm() > options.same_pose_m ||
+         RotationAngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
+}
+
+// The view check's score, or -1 when it could not judge (a pose it cannot judge cannot lead).
+double JudgedScore(const PlaceVerdict& verdict) {
+  return verdict.agreement.judged ? verdict.agreement.Score() : -1.0;
+}
+
+}  // namespace
+
+std::optional<Decision> DecideAmongCopies(const std::vector<PlaceVerdict>& verdicts,
+                                          size_t best_index, const LocatorOptions& options) {
+  SIGHTMAP_CHECK(best_index < verdicts.size(),
+                 "verdict " << best_index << " of " << verdicts.size());
+  const PlaceVerdict& best = verdicts[best_index];
+  std::vector<const PlaceVerdict*> rivals = {&best};
+  for (const PlaceVerdict& verdict : verdicts) {
+    if (&verdict != &best && verdict.accepted && (verdict.copy || best.copy) &&
+        PosesDisagree(best.pose.world_from_cam, verdict.pose.world_from_cam, options)) {
+      rivals.push_back(&verdict);
+    }
+  }
+  if (rivals.size() == 1) return std::nullopt;
+  std::stable_sort(rivals.begin(), rivals.end(), [](const PlaceVerdict* a, const PlaceVerdict* b) {
+    return JudgedScore(*a) > JudgedScore(*b);
+  });
+  const PlaceVerdict& leader = *rivals[0];
+  const PlaceVerdict& second = *rivals[1];
+  Decision decision;
+  decision.runner_up_inliers = second.inliers;
+  decision.runner_up_pose = second.pose.world_from_cam;
+  if (JudgedScore(leader) >= 0.0 &&
+      JudgedScore(leader) >= JudgedScore(second) + options.copies.min_agreement_lead) {
+    decision.winner = static_cast<int>(&leader - verdicts.data());
+    return decision;
+  }
+  std::ostringstream why;
+  why << std::fixed << std::setprecision(1) << "the building has a copy of what the photo shows "
+      << (leader.pose.world_from_cam.translation() - second.pose.world_from_cam.translation())
+             .norm()
+      << " m away, and the photo looks like both (" << leader.inliers << " and " << second.inliers
+      << " inliers): the view is ambiguous; include something that tells them apart.";
+  decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
+  return decision;
+}
+
 Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options) {
-  auto disagree = [&options](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-    return (a.translation() - b.translation()).norm() > options.same_pose_m ||
-           RotationAngleDeg(a.linear(), b.linear()) > options.same_pose_deg;
-  };
   Decision decision;
   const PlaceVerdict* winner = MostInliers(verdicts, /*accepted_only=*/true);
   if (winner == nullptr) {
@@ -896,6 +1173,10 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   }
   decision.winner = static_cast<int>(winner - verdicts.data());
   const PlaceVerdict& best = *winner;
+  if (std::optional<Decision> among_copies =
+          DecideAmongCopies(verdicts, static_cast<size_t>(decision.winner), options)) {
+    return *among_copies;
+  }
   // The strongest pose elsewhere, accepted or not: a pose the checks refused still fits the photo,
   // and when it has the inliers the view is as ambiguous as with an accepted one (measured on 200
   // photos: one wrong pose fewer, the same right ones). Not one whose view is unlike the photo:
@@ -903,10 +1184,10 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   const PlaceVerdict* runner_up = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
     if (&verdict == &best || !verdict.pose.valid || verdict.inliers < options.min_inliers ||
-        verdict.looks_different) {
+        verdict.looks_different || verdict.copy) {
       continue;
     }
-    if (!disagree(best.pose.world_from_cam, verdict.pose.world_from_cam)) continue;
+    if (!PosesDisagree(best.pose.world_from_cam, verdict.pose.world_from_cam, options)) continue;
     if (runner_up == nullptr || verdict.inliers > runner_up->inliers) runner_up = &verdict;
   }
   if (runner_up == nullptr) return decision;

@@ -180,16 +180,20 @@ struct PlaceVerdict {
   // The mean of the inliers' model points (world): which things the pose explains the photo with
   // [m].
   Eigen::Vector3d inlier_centroid = Eigen::Vector3d::Zero();
-  size_t verified_slot = 0;   // the place's keyframe holding most inliers
-  double rotation_deg = 0.0;  // from the verified keyframe's view
-  int cells = 0;              // of a 4x4 grid holding an inlier
-  int required_cells = 0;     // RequiredInlierCells for the photo
+  std::vector<cv::Point3f> inlier_points;  // per inlier, its model point (world) [m]
+  size_t verified_slot = 0;                // the place's keyframe holding most inliers
+  double rotation_deg = 0.0;               // from the verified keyframe's view
+  int cells = 0;                           // of a 4x4 grid holding an inlier
+  int required_cells = 0;                  // RequiredInlierCells for the photo
   // The view check, made only on a pose every other check accepted.
   ViewAgreement agreement;
   bool looks_different = false;  // judged, and scored below min_view_agreement
   // Made, not judged, and fewer inliers than min_inliers_unchecked: a weak pose nothing confirms.
   bool unconfirmed = false;
   bool accepted = false;  // valid and every check passed
+  // Verified from the winner's pose moved by a copy offset (CopyOffsets): a copy of what the
+  // winner matched elsewhere.
+  bool copy = false;
 };
 // PnP RANSAC for each intrinsics candidate (with the focal refined when estimated), the best
 // grown by guided matching, then the checks: min_inliers, the paper's 90 deg from the keyframe
@@ -229,6 +233,40 @@ std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alik
 double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
                         const LocatorOptions& options, int* matches);
 
+// Stage 5c: copies of what the winner matched, moved along the building (the same desk twice in
+// a row, 2.2 m apart). TwinPlaces finds a copy only where a keyframe saw it from about where the
+// winner's keyframe saw the original; a photo of a copy the walk passed at another angle verifies
+// against the original, a copy's width off, and nothing contradicts it. The winner's inliers'
+// model descriptors are matched (nearest two within guided_max_distance, or
+// sift_guided_max_distance) to the first copies.look_alikes of `look_alikes`; each match to a point
+// more than same_pose_m away votes for the offset between the two points. An offset with votes
+// from at least copies.min_support of the winner's inliers within copies.cluster_m of it is a copy,
+// refined to the median of those votes; its votes are then set aside and the next is sought, up to
+// copies.offsets copies, most support first. Copies turned against the original (mirrored rooms)
+// are not found here: TwinPlaces and the view check answer for those.
+struct CopyOffset {
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // the copy's points minus the original's [m]
+  int support = 0;                                   // the winner's inliers voting for it
+};
+std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
+                                    const std::vector<slam::PlaceCandidate>& look_alikes,
+                                    const std::vector<LocatorKeyframe>& keyframes,
+                                    const LocatorOptions& options);
+
+// The keyframes that see `target` from near a pose: within copies.place_radius_m of
+// `world_from_cam`, looking within place_max_angle_deg of it, holding at least min_inliers points
+// within neighbour_radius_m of `target`; the max_neighbours + 1 holding most, the head first. An
+// empty place when none does.
+Place PlaceSeeing(const Eigen::Isometry3d& world_from_cam, const Eigen::Vector3d& target,
+                  const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options);
+
+// Stage 4 from a rough pose (a copy's): the place's 3D points projected with `pose` each take the
+// nearest-descriptor photo keypoint within copies.search_radius_px (if within guided_max_distance),
+// the correspondences VerifyPlace then fits a pose to.
+PlaceMatches MatchPlaceFrom(const PreparedPhoto& photo, const Place& place,
+                            const std::vector<LocatorKeyframe>& keyframes,
+                            const PoseHypothesis& pose, const LocatorOptions& options);
+
 // Stage 6: the answer from the verdicts, in the order the places were tried. The accepted
 // verdict with most inliers wins unless the disagreeing pose with most inliers (more than
 // same_pose_m or same_pose_deg away, accepted or refused with min_inliers, but not one whose view
@@ -237,7 +275,7 @@ double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
 // photo with other things (less than min_unique_inlier_share of the winner's inliers lie in cells
 // of the 8x8 grid the runner-up's leave empty, and the two inlier centroids lie more than
 // same_pose_m apart: a copy elsewhere, not the same things seen with another focal length): then
-// the photo is ambiguous.
+// the photo is ambiguous. Copies (PlaceVerdict::copy) are decided apart: DecideAmongCopies.
 struct Decision {
   int winner = -1;  // index into the verdicts, -1 when not matched
   int runner_up_inliers = 0;
@@ -245,6 +283,13 @@ struct Decision {
   std::optional<Refusal> refusal;  // when not matched: ambiguous, unseen view, few matches, ...
 };
 Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options);
+// The part of Decide for copies: when accepted verdicts disagree with the one of most inliers
+// (verdicts[best_index]) and either is a copy's, inlier counts say only which copy the walk saw
+// better from the photo's side; their surroundings tell them apart. The one whose view check scored
+// highest wins when it leads every other by copies.min_agreement_lead, else the photo is ambiguous;
+// nullopt without such rivals.
+std::optional<Decision> DecideAmongCopies(const std::vector<PlaceVerdict>& verdicts,
+                                          size_t best_index, const LocatorOptions& options);
 
 // Stage 7 for a photo not matched: when matching failed (an unknown place, an unseen view, few
 // matches, matches in one corner, a view unlike the photo) on a photo whose features fill at most

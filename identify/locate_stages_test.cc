@@ -256,6 +256,127 @@ TEST(TwinPlacesTest, ACopySeenFromAnotherAngleIsATwinWithFewerMatchesThanAPoseNe
   EXPECT_NE(error.find("twin_min_matches"), std::string::npos) << error;
 }
 
+// A winner whose inliers are 60 things on a desk about (0, 0, 2), with their descriptors.
+PlaceVerdict DeskWinner(std::mt19937* rng) {
+  PlaceVerdict winner;
+  winner.pose.valid = true;
+  winner.inliers = 60;
+  winner.inlier_descriptors = RandomDescriptors(60, rng);
+  std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+  for (int i = 0; i < 60; ++i) winner.inlier_points.emplace_back(u(*rng), u(*rng), 2.0f + u(*rng));
+  return winner;
+}
+
+// A keyframe holding `count` of the winner's things from `first` on (their descriptors with 6 bits
+// flipped) moved by `offset` with up to `noise_m` of error each, and 40 unrelated features.
+LocatorKeyframe CopyOf(const PlaceVerdict& winner, int first, int count,
+                       const Eigen::Vector3f& offset, float noise_m, std::mt19937* rng) {
+  LocatorKeyframe keyframe = KeyframeAt(offset.cast<double>(), 0, 0);
+  keyframe.descriptors = cv::Mat(0, 32, CV_8U);
+  std::uniform_real_distribution<float> noise(-noise_m, noise_m);
+  for (int i = first; i < first + count; ++i) {
+    keyframe.descriptors.push_back(Flipped(winner.inlier_descriptors.row(i), 6));
+    const cv::Point3f& p = winner.inlier_points[static_cast<size_t>(i)];
+    keyframe.world_points.emplace_back(p.x + offset.x() + noise(*rng),
+                                       p.y + offset.y() + noise(*rng),
+                                       p.z + offset.z() + noise(*rng));
+  }
+  keyframe.descriptors.push_back(RandomDescriptors(40, rng));
+  std::uniform_real_distribution<float> anywhere(-10.0f, 10.0f);
+  for (int i = 0; i < 40; ++i)
+    keyframe.world_points.emplace_back(anywhere(*rng), anywhere(*rng), 1.0f);
+  return keyframe;
+}
+
+TEST(CopyOffsetsTest, AThingRepeatedAlongTheBuildingVotesForItsOffsetMostSupportFirst) {
+  std::mt19937 rng(21);
+  LocatorOptions options;  // min_support 8, cluster 5 cm
+  const PlaceVerdict winner = DeskWinner(&rng);
+  const std::vector<LocatorKeyframe> keyframes = {
+      // The winner's own desk seen again: its matches join the same points, no vote.
+      CopyOf(winner, 0, 60, Eigen::Vector3f::Zero(), 0.01f, &rng),
+      // The identical desk 2.2 m along, 20 of its things matched, mapped within 1 cm.
+      CopyOf(winner, 10, 20, {0.0f, 2.2f, 0.0f}, 0.01f, &rng),
+      // More of the same desk from another keyframe: the same inliers vote again.
+      CopyOf(winner, 15, 10, {0.0f, 2.2f, 0.0f}, 0.01f, &rng),
+      // A box like one on the desk, 5 m away: 12 things.
+      CopyOf(winner, 40, 12, {5.0f, 0.0f, 0.0f}, 0.01f, &rng),
+      // Four things like the desk's, scattered: no offset has enough voters.
+      CopyOf(winner, 52, 1, {3.0f, -4.0f, 0.0f}, 0.0f, &rng),
+      CopyOf(winner, 53, 1, {-6.0f, 1.0f, 0.0f}, 0.0f, &rng),
+  };
+  const std::vector<slam::PlaceCandidate> look_alikes = {{0, 0.9}, {1, 0.5}, {2, 0.4},
+                                                         {3, 0.3}, {4, 0.2}, {5, 0.1}};
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, look_alikes, keyframes, options);
+  ASSERT_EQ(copies.size(), 2u);
+  EXPECT_LT((copies[0].offset - Eigen::Vector3d(0, 2.2, 0)).norm(), 0.01);
+  EXPECT_EQ(copies[0].support, 20);  // distinct inliers: the second keyframe's are among them
+  EXPECT_LT((copies[1].offset - Eigen::Vector3d(5, 0, 0)).norm(), 0.01);
+  EXPECT_EQ(copies[1].support, 12);
+
+  // Support below the bar, look-alikes cut off, one copy asked for, the check off.
+  options.copies.min_support = 13;
+  EXPECT_EQ(CopyOffsets(winner, look_alikes, keyframes, options).size(), 1u);
+  options.copies.min_support = 8;
+  options.copies.look_alikes = 1;
+  EXPECT_TRUE(CopyOffsets(winner, look_alikes, keyframes, options).empty());
+  options.copies.look_alikes = 20;
+  options.copies.offsets = 1;
+  ASSERT_EQ(CopyOffsets(winner, look_alikes, keyframes, options).size(), 1u);
+  options.copies.offsets = 0;
+  EXPECT_TRUE(CopyOffsets(winner, look_alikes, keyframes, options).empty());
+  // Every other inlier voting halves the support.
+  options.copies.offsets = 3;
+  options.copies.max_voters = 30;
+  const std::vector<CopyOffset> sampled = CopyOffsets(winner, look_alikes, keyframes, options);
+  ASSERT_GE(sampled.size(), 1u);
+  EXPECT_EQ(sampled[0].support, 10);
+}
+
+TEST(CopyOffsetsTest, MappingErrorBeyondTheClusterRadiusScattersTheVotes) {
+  std::mt19937 rng(22);
+  LocatorOptions options;
+  const PlaceVerdict winner = DeskWinner(&rng);
+  // The same 20 things, each mapped up to 20 cm off: few agree within 5 cm.
+  const std::vector<LocatorKeyframe> keyframes = {
+      CopyOf(winner, 0, 20, {0.0f, 2.2f, 0.0f}, 0.2f, &rng)};
+  EXPECT_TRUE(CopyOffsets(winner, {{0, 0.5}}, keyframes, options).empty());
+  options.copies.cluster_m = 0.4;
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, {{0, 0.5}}, keyframes, options);
+  ASSERT_EQ(copies.size(), 1u);
+  EXPECT_LT((copies[0].offset - Eigen::Vector3d(0, 2.2, 0)).norm(), 0.1);
+  // A winner without its inlier points is a caller's error.
+  PlaceVerdict broken = winner;
+  broken.inlier_points.pop_back();
+  EXPECT_THROW(CopyOffsets(broken, {{0, 0.5}}, keyframes, options), Error);
+}
+
+TEST(PlaceSeeingTest, KeyframesNearThePoseThatSeeTheTargetHoldingMostOfItFirst) {
+  LocatorOptions options;  // min_inliers 25, neighbour_radius_m 1, place_max_angle_deg
+  auto seeing = [](const Eigen::Vector3d& at, double yaw_deg, int near_target, int elsewhere) {
+    LocatorKeyframe keyframe = KeyframeAt(at, yaw_deg, 0);
+    for (int i = 0; i < near_target; ++i) keyframe.world_points.emplace_back(0.01f * i, 0.0f, 3.0f);
+    for (int i = 0; i < elsewhere; ++i) keyframe.world_points.emplace_back(9.0f, 9.0f, 0.0f);
+    keyframe.descriptors = cv::Mat::zeros(near_target + elsewhere, 32, CV_8U);
+    return keyframe;
+  };
+  const std::vector<LocatorKeyframe> keyframes = {
+      seeing({0.5, 0, 0}, 0, 30, 50),   // 0: near, the same way, 30 of the target
+      seeing({-0.5, 0, 0}, 10, 60, 0),  // 1: near, 60 of it
+      seeing({6, 0, 0}, 0, 90, 0),      // 2: beyond place_radius_m
+      seeing({0, 0.5, 0}, 180, 90, 0),  // 3: looking the other way
+      seeing({0, -0.5, 0}, 0, 10, 90),  // 4: too little of the target
+  };
+  const Eigen::Isometry3d pose = PoseAt({0, 0, 0}, 0);
+  Place place = PlaceSeeing(pose, Eigen::Vector3d(0.1, 0, 3), keyframes, options);
+  EXPECT_EQ(place.head, 1u);
+  EXPECT_EQ(place.slots, (std::vector<size_t>{1, 0}));
+  options.max_neighbours = 0;
+  place = PlaceSeeing(pose, Eigen::Vector3d(0.1, 0, 3), keyframes, options);
+  EXPECT_EQ(place.slots, (std::vector<size_t>{1}));
+  EXPECT_TRUE(PlaceSeeing(pose, Eigen::Vector3d(4, 4, 3), keyframes, options).slots.empty());
+}
+
 // A place of two keyframes over random descriptors, and a photo holding some of them.
 class MatchPlaceTest : public ::testing::Test {
  protected:
@@ -410,6 +531,30 @@ TEST_F(VerifyPlaceTest, TrueMatchesGiveThePhotosPoseAndPassEveryCheck) {
   EXPECT_EQ(verdict.verified_slot, 0u);
   // Guided matching saw every place point that lands in the photo.
   EXPECT_EQ(verdict.projected, static_cast<int>(matches.object.size()));
+}
+
+TEST_F(VerifyPlaceTest, FromAPoseCentimetresOffTheWideSearchFindsThePointsAndTheTruePose) {
+  LocatorOptions options;  // copies.search_radius_px 40
+  // A copy's offset is known to a few centimetres: 8 cm across at 2-5 m is 8-20 px here, beyond
+  // guided matching's 8 px window.
+  PoseHypothesis rough;
+  rough.valid = true;
+  rough.intrinsics = intrinsics_;
+  rough.world_from_cam = photo_from_world_.inverse();
+  rough.world_from_cam.pretranslate(Eigen::Vector3d(0.08, 0.0, 0.0));
+  const PlaceMatches wide = MatchPlaceFrom(photo_, place_, keyframes_, rough, options);
+  EXPECT_EQ(wide.model_points.size(), keyframes_[0].world_points.size());
+  EXPECT_GT(wide.object.size(), 0.9 * photo_.points.size());
+  const PlaceVerdict verdict = VerifyPlace(photo_, place_, wide, keyframes_, options);
+  ASSERT_TRUE(verdict.pose.valid);
+  EXPECT_TRUE(verdict.accepted);
+  EXPECT_LT((verdict.pose.world_from_cam.translation() - photo_from_world_.inverse().translation())
+                .norm(),
+            1e-3);
+  // Within guided matching's own window most points are missed.
+  options.copies.search_radius_px = options.guided_radius_px;
+  const PlaceMatches narrow = MatchPlaceFrom(photo_, place_, keyframes_, rough, options);
+  EXPECT_LT(narrow.object.size(), wide.object.size() / 2);
 }
 
 TEST_F(VerifyPlaceTest, APoseTurnedFarFromItsKeyframeIsRefusedAsThePaperSays) {
@@ -670,6 +815,55 @@ TEST(DecideTest, MoreInliersOnTheSamePartOfThePhotoAsTheRunnerUpAreAmbiguous) {
       {VerdictIn(30, {9, 10, 17, 18}, {0, 0, 0}), VerdictIn(10, {9, 10, 17, 18}, {0.2, 0, 0})},
       options);
   EXPECT_EQ(decision.winner, 0);
+}
+
+// A verdict that passed every check with the view check's score `agreement` (< 0: not judged).
+PlaceVerdict Judged(int inliers, const Eigen::Vector3d& position, double agreement, bool copy) {
+  PlaceVerdict verdict = Verdict(inliers, position, /*accepted=*/true);
+  verdict.agreement.judged = agreement >= 0.0;
+  verdict.agreement.global_ncc = verdict.agreement.cell_median_ncc = std::max(0.0, agreement);
+  verdict.copy = copy;
+  return verdict;
+}
+
+TEST(DecideTest, BetweenCopiesTheViewCheckDecidesNotTheInliers) {
+  const LocatorOptions options;  // copies.min_agreement_lead 0.05
+  // The desk the walk saw well, its surroundings like the photo's; the copy 2.2 m along, seen from
+  // another side, its surroundings not: the winner stands, the copy reported as runner-up.
+  Decision decision =
+      Decide({Judged(400, {0, 0, 0}, 0.95, false), Judged(60, {0, 2.2, 0}, 0.60, true)}, options);
+  EXPECT_EQ(decision.winner, 0);
+  EXPECT_EQ(decision.runner_up_inliers, 60);
+  // The other way round: fewer inliers on the copy, but its surroundings are the photo's.
+  decision =
+      Decide({Judged(424, {0, 0, 0}, 0.67, false), Judged(244, {0, 2.2, 0}, 0.94, true)}, options);
+  EXPECT_EQ(decision.winner, 1);
+  EXPECT_EQ(decision.runner_up_inliers, 424);
+  // Alike within the lead: ambiguous, whatever the counts.
+  decision =
+      Decide({Judged(371, {0, 0, 0}, 0.89, false), Judged(69, {0, 2.2, 0}, 0.90, true)}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  EXPECT_NE(decision.refusal->reason.find("a copy of what the photo shows 2.2 m away"),
+            std::string::npos)
+      << decision.refusal->reason;
+  // A copy the view check could not judge does not lead, and a refused copy is no rival: nor
+  // is it a runner-up to the count rules (its 300 inliers would make the photo ambiguous).
+  decision =
+      Decide({Judged(400, {0, 0, 0}, 0.8, false), Judged(90, {0, 2.2, 0}, -1.0, true)}, options);
+  EXPECT_EQ(decision.winner, 0);
+  PlaceVerdict refused = Judged(300, {0, 2.2, 0}, 0.3, true);
+  refused.accepted = false;
+  decision = Decide({Judged(400, {0, 0, 0}, 0.8, false), refused}, options);
+  EXPECT_EQ(decision.winner, 0);
+  EXPECT_EQ(decision.runner_up_inliers, 0);
+  // Without copies the count rules stand as before.
+  EXPECT_FALSE(
+      DecideAmongCopies({Judged(400, {0, 0, 0}, 0.8, false), Verdict(300, {0, 2.2, 0}, true)}, 0,
+                        options)
+          .has_value());
+  EXPECT_THROW(DecideAmongCopies({}, 0, options), Error);
 }
 
 TEST(ExplainBareViewTest, FailedMatchingOnAPhotoOfFewDetailCellsAsksForMoreOfTheRoom) {

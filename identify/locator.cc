@@ -70,6 +70,11 @@ bool LocatorOptions::Check(std::string* error) const {
            !(twin_max_shared_share >= 0.0 && twin_max_shared_share <= 1.0))
     why << "twin_places must not be negative, twin_min_matches positive, twin_max_shared_share "
            "in [0, 1]";
+  else if (copies.offsets < 0 || copies.look_alikes < 1 || copies.max_voters < 1 ||
+           !(copies.cluster_m > 0.0) || copies.min_support < 3 || !(copies.place_radius_m > 0.0) ||
+           !(copies.search_radius_px > 0.0) || !(copies.min_agreement_lead >= 0.0))
+    why << "copies: offsets and min_agreement_lead must not be negative, look_alikes, max_voters, "
+           "cluster_m, place_radius_m and search_radius_px positive, min_support at least 3";
   else if (!(max_rotation_from_keyframe_deg > 0.0 && max_rotation_from_keyframe_deg <= 180.0))
     why << "max_rotation_from_keyframe_deg must be in (0, 180]";
   else if (!(place_radius_m >= 0.0) || !(place_max_angle_deg >= 0.0) || max_places < 1)
@@ -216,13 +221,25 @@ struct Locator::Impl {
     return labels;
   }
 
+  // The keyframes that look like what the winner matched: its inliers' model descriptors (a
+  // RootSIFT winner's keyframe's ORB features) ranked by bag of words.
+  std::vector<slam::PlaceCandidate> LookAlikes(const PlaceVerdict& winner,
+                                               const std::vector<LocatorKeyframe>& matched) const;
   // Stage 5b strung together: the places elsewhere that look like the winner's verified keyframe
   // (TwinPlaces), each matched and verified against the photo with the winner's camera (the photo
   // was taken with one). Their verdicts, for Decide with the rest.
   std::vector<PlaceVerdict> VerifyTwins(const PreparedPhoto& photo, const PlaceVerdict& winner,
+                                        const std::vector<slam::PlaceCandidate>& look_alikes,
                                         const std::vector<Place>& tried,
                                         const std::vector<LocatorKeyframe>& matched,
                                         LocateTimings* timings) const;
+  // Stage 5c strung together: the winner's pose moved by each copy offset (CopyOffsets), matched
+  // from there against the keyframes that see the copy (PlaceSeeing, MatchPlaceFrom) and verified
+  // with the winner's camera. Their verdicts, for Decide with the rest.
+  std::vector<PlaceVerdict> VerifyCopies(const PreparedPhoto& photo, const PlaceVerdict& winner,
+                                         const std::vector<slam::PlaceCandidate>& look_alikes,
+                                         const std::vector<LocatorKeyframe>& matched,
+                                         LocateTimings* timings) const;
 
   // Stages 3-6 for one matcher: the candidates grouped into places, each matched against
   // `matched` (keyframes or sift_keyframes) and verified until one is certain, the twin check,
@@ -315,12 +332,8 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(
   return verdicts;
 }
 
-std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
-                                                     const PlaceVerdict& winner,
-                                                     const std::vector<Place>& tried,
-                                                     const std::vector<LocatorKeyframe>& matched,
-                                                     LocateTimings* timings) const {
-  Clock::time_point stage = Clock::now();
+std::vector<slam::PlaceCandidate> Locator::Impl::LookAlikes(
+    const PlaceVerdict& winner, const std::vector<LocatorKeyframe>& matched) const {
   // The vocabulary is ORB's: RootSIFT inliers ask with their keyframe's ORB features. Ranked by
   // bag of words whatever options.retrieval: the query is the model's own descriptors, not a
   // photo's, and on 200 session-2 photos votes found fewer twins (every keyframe ranked by votes
@@ -328,16 +341,55 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(const PreparedPhoto& photo,
   // bag of words; survey 136 and 3, 137 and 3).
   const cv::Mat& query = &matched == &keyframes ? winner.inlier_descriptors
                                                 : keyframes[winner.verified_slot].descriptors;
+  return RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords, vocabulary, index, votes,
+                            keyframes, options);
+}
+
+std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(
+    const PreparedPhoto& photo, const PlaceVerdict& winner,
+    const std::vector<slam::PlaceCandidate>& look_alikes, const std::vector<Place>& tried,
+    const std::vector<LocatorKeyframe>& matched, LocateTimings* timings) const {
+  const Clock::time_point stage = Clock::now();
   const std::vector<Place> twins =
-      TwinPlaces(RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords, vocabulary,
-                                    index, votes, keyframes, options),
-                 winner.verified_slot, tried, matched, options);
+      TwinPlaces(look_alikes, winner.verified_slot, tried, matched, options);
   timings->retrieval_ms += MsSince(stage);
   if (twins.empty()) return {};
   PreparedPhoto same_camera = photo;
   same_camera.feature_candidates = {winner.pose.intrinsics};
   same_camera.intrinsics_given = true;
   return VerifyPlaces(same_camera, twins, matched, /*until_certain=*/false, timings);
+}
+
+std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
+    const PreparedPhoto& photo, const PlaceVerdict& winner,
+    const std::vector<slam::PlaceCandidate>& look_alikes,
+    const std::vector<LocatorKeyframe>& matched, LocateTimings* timings) const {
+  Clock::time_point stage = Clock::now();
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, look_alikes, matched, options);
+  timings->matching_ms += MsSince(stage);
+  PreparedPhoto same_camera = photo;
+  same_camera.feature_candidates = {winner.pose.intrinsics};
+  same_camera.intrinsics_given = true;
+  std::vector<PlaceVerdict> verdicts;
+  for (const CopyOffset& copy : copies) {
+    stage = Clock::now();
+    PoseHypothesis moved = winner.pose;
+    moved.world_from_cam.pretranslate(copy.offset);
+    moved.inliers.clear();
+    const Place place =
+        PlaceSeeing(moved.world_from_cam, winner.inlier_centroid + copy.offset, matched, options);
+    if (place.slots.empty()) {
+      timings->matching_ms += MsSince(stage);
+      continue;
+    }
+    const PlaceMatches matches = MatchPlaceFrom(same_camera, place, matched, moved, options);
+    timings->matching_ms += MsSince(stage);
+    stage = Clock::now();
+    verdicts.push_back(VerifyPlace(same_camera, place, matches, matched, options));
+    verdicts.back().copy = true;
+    timings->pnp_ms += MsSince(stage);
+  }
+  return verdicts;
 }
 
 Locator::Impl::Search Locator::Impl::SearchPlaces(
@@ -364,16 +416,31 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
       VerifyPlaces(*photo, places, matched, /*until_certain=*/true, timings, first_refused);
   std::vector<PlaceVerdict>& verdicts = search.verdicts;
   search.decision = Decide(verdicts, options);
-  if (search.decision.winner >= 0 && options.twin_places > 0) {
+  if (search.decision.winner < 0 || (options.twin_places <= 0 && options.copies.offsets <= 0)) {
+    return search;
+  }
+  // The winner's look-alikes elsewhere: twins seen as the winner's keyframe saw it, and copies
+  // moved along the building; verified against the photo and decided with the rest.
+  // A copy: the verdicts grow below.
+  const PlaceVerdict winner = verdicts[static_cast<size_t>(search.decision.winner)];
+  const Clock::time_point looking = Clock::now();
+  const std::vector<slam::PlaceCandidate> look_alikes = LookAlikes(winner, matched);
+  timings->retrieval_ms += MsSince(looking);
+  std::vector<PlaceVerdict> others;
+  if (options.twin_places > 0) {
     const std::vector<Place> tried(places.begin(),
                                    places.begin() + static_cast<std::ptrdiff_t>(verdicts.size()));
-    std::vector<PlaceVerdict> twins = VerifyTwins(
-        *photo, verdicts[static_cast<size_t>(search.decision.winner)], tried, matched, timings);
-    if (!twins.empty()) {
-      verdicts.insert(verdicts.end(), std::make_move_iterator(twins.begin()),
-                      std::make_move_iterator(twins.end()));
-      search.decision = Decide(verdicts, options);
-    }
+    others = VerifyTwins(*photo, winner, look_alikes, tried, matched, timings);
+  }
+  if (options.copies.offsets > 0) {
+    std::vector<PlaceVerdict> copies = VerifyCopies(*photo, winner, look_alikes, matched, timings);
+    others.insert(others.end(), std::make_move_iterator(copies.begin()),
+                  std::make_move_iterator(copies.end()));
+  }
+  if (!others.empty()) {
+    verdicts.insert(verdicts.end(), std::make_move_iterator(others.begin()),
+                    std::make_move_iterator(others.end()));
+    search.decision = Decide(verdicts, options);
   }
   return search;
 }
@@ -957,20 +1024,25 @@ void from_json(const nlohmann::json& json, LocatorOptions::SecondLookRetrieval& 
 
 SIGHTMAP_OPTIONS_JSON(LocatorOptions::Vlad, candidates, codebook)
 
-SIGHTMAP_OPTIONS_JSON(
-    LocatorOptions, features, matcher, sift_features, sift_image_side_px, sift_photo_features,
-    sift_max_distance, sift_guided_max_distance, second_look_max_places, second_look_retrieval,
-    vlad, place_threads, extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval,
-    vote_shortlist, vote_max_hamming, place_radius_m, place_max_angle_deg, max_places,
-    neighbour_radius_m, neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
-    same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
-    min_ransac_inliers, guided_radius_px, guided_max_distance, guided_rounds, min_inlier_cells,
-    min_inlier_cells_few_detail, bare_view_max_detail_cells, min_inlier_share, same_pose_m,
-    same_pose_deg, min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places,
-    twin_min_matches, twin_max_shared_share, confident_inliers, max_rotation_from_keyframe_deg,
-    min_view_agreement, min_inliers_unchecked, view_agreement, focal_candidates_35mm,
-    refine_estimated_focal, occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-    occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
-    occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views)
+SIGHTMAP_OPTIONS_JSON(LocatorOptions::Copies, offsets, look_alikes, max_voters, cluster_m,
+                      min_support, place_radius_m, search_radius_px, min_agreement_lead)
+
+SIGHTMAP_OPTIONS_JSON_LONG(
+    LocatorOptions,
+    (features, matcher, sift_features, sift_image_side_px, sift_photo_features, sift_max_distance,
+     sift_guided_max_distance, second_look_max_places, second_look_retrieval, vlad, place_threads,
+     extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval, vote_shortlist,
+     vote_max_hamming, place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
+     neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio, same_point_m,
+     max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
+     guided_radius_px),
+    (guided_max_distance, guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
+     bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
+     min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places, twin_min_matches,
+     twin_max_shared_share, copies, confident_inliers, max_rotation_from_keyframe_deg,
+     min_view_agreement, min_inliers_unchecked, view_agreement, focal_candidates_35mm,
+     refine_estimated_focal, occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
+     occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
+     occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views))
 
 }  // namespace sightmap::identify
