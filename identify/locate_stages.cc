@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
@@ -718,8 +719,49 @@ Eigen::Vector3d MedianOffset(const std::vector<Eigen::Vector3d>& offsets,
 
 }  // namespace
 
-std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
-                                    const std::vector<slam::PlaceCandidate>& look_alikes,
+std::vector<size_t> KeyframesAround(const Eigen::Vector3d& centre, const std::vector<size_t>& skip,
+                                    const std::vector<LocatorKeyframe>& keyframes,
+                                    const LocatorOptions& options) {
+  std::vector<size_t> near;
+  for (size_t slot = 0; slot < keyframes.size(); ++slot) {
+    if (keyframes[slot].world_points.empty() ||
+        (keyframes[slot].world_from_cam.translation() - centre).norm() > options.copies.around_m ||
+        std::find(skip.begin(), skip.end(), slot) != skip.end()) {
+      continue;
+    }
+    near.push_back(slot);
+  }
+  // Farthest first in position and view direction (a turn of 1 radian counting as 1 m), from
+  // the keyframe nearest the centre.
+  auto apart = [&keyframes](size_t a, size_t b) {
+    return (keyframes[a].world_from_cam.translation() - keyframes[b].world_from_cam.translation())
+               .norm() +
+           (keyframes[a].view_direction - keyframes[b].view_direction).norm();
+  };
+  std::vector<size_t> chosen;
+  if (near.empty() || options.copies.around_keyframes <= 0) return chosen;
+  chosen.push_back(*std::min_element(near.begin(), near.end(), [&](size_t a, size_t b) {
+    return (keyframes[a].world_from_cam.translation() - centre).norm() <
+           (keyframes[b].world_from_cam.translation() - centre).norm();
+  }));
+  std::vector<double> nearest_chosen(near.size(), std::numeric_limits<double>::infinity());
+  while (static_cast<int>(chosen.size()) < options.copies.around_keyframes) {
+    size_t next = near.size();
+    double farthest = 0.0;
+    for (size_t i = 0; i < near.size(); ++i) {
+      nearest_chosen[i] = std::min(nearest_chosen[i], apart(near[i], chosen.back()));
+      if (nearest_chosen[i] > farthest) {
+        farthest = nearest_chosen[i];
+        next = i;
+      }
+    }
+    if (next == near.size()) break;  // every keyframe chosen
+    chosen.push_back(near[next]);
+  }
+  return chosen;
+}
+
+std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner, const std::vector<size_t>& searched,
                                     const std::vector<LocatorKeyframe>& keyframes,
                                     const LocatorOptions& options) {
   const cv::Mat& query = winner.inlier_descriptors;
@@ -740,18 +782,13 @@ std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
     voters.push_back(query.row(r));
     voter_row.push_back(r);
   }
-  int searched = 0;
-  for (const slam::PlaceCandidate& candidate : look_alikes) {
-    if (searched >= options.copies.look_alikes) break;
-    const size_t slot = static_cast<size_t>(candidate.id);
-    SIGHTMAP_CHECK(candidate.id >= 0 && slot < keyframes.size(),
-                   "look-alike " << candidate.id << " is not a keyframe slot");
+  for (size_t slot : searched) {
+    SIGHTMAP_CHECK(slot < keyframes.size(), "keyframe " << slot << " is not a keyframe slot");
     const LocatorKeyframe& look_alike = keyframes[slot];
     if (look_alike.descriptors.empty() || look_alike.descriptors.cols != query.cols ||
         look_alike.descriptors.type() != query.type()) {
       continue;
     }
-    ++searched;
     for (const std::vector<cv::DMatch>& nearest : KNearest(voters, look_alike.descriptors, 2)) {
       for (const cv::DMatch& match : nearest) {
         if (match.distance > max_distance) continue;
@@ -768,15 +805,15 @@ std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
   std::vector<CopyOffset> copies;
   const OffsetGrid grid(offsets, options.copies.cluster_m);
   std::vector<bool> taken(offsets.size(), false);
-  // A mode whose votes come from too few distinct inliers is set aside and counts as a round.
   // Per vote, the votes around it (not distinct voters: an inlier votes once a look-alike, and
   // the count is the cheaper; distinct voters decide the support below). Counted once, then
   // again only around what a round takes.
   std::vector<int> around(offsets.size());
   for (size_t i = 0; i < offsets.size(); ++i) around[i] = grid.CountNear(offsets[i], taken);
-  for (int round = 0; round < 2 * options.copies.offsets &&
-                      static_cast<int>(copies.size()) < options.copies.offsets;
-       ++round) {
+  // Modes are found by votes, most first, but kept by distinct voters: three times as many
+  // modes as copies are asked are weighed (a mode whose votes come from too few inliers counts
+  // too), and the best supported kept.
+  for (int round = 0; round < 3 * options.copies.offsets; ++round) {
     size_t best = offsets.size();
     int most = 0;
     for (size_t i = 0; i < offsets.size(); ++i) {
@@ -807,6 +844,11 @@ std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
     stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
     for (size_t k : stale) around[k] = grid.CountNear(offsets[k], taken);
     if (copy.support >= options.copies.min_support) copies.push_back(copy);
+  }
+  std::stable_sort(copies.begin(), copies.end(),
+                   [](const CopyOffset& a, const CopyOffset& b) { return a.support > b.support; });
+  if (static_cast<int>(copies.size()) > options.copies.offsets) {
+    copies.resize(static_cast<size_t>(options.copies.offsets));
   }
   return copies;
 }

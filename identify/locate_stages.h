@@ -237,19 +237,28 @@ double SharedPointShare(const LocatorKeyframe& a, const LocatorKeyframe& b,
 // a row, 2.2 m apart). TwinPlaces finds a copy only where a keyframe saw it from about where the
 // winner's keyframe saw the original; a photo of a copy the walk passed at another angle verifies
 // against the original, a copy's width off, and nothing contradicts it. The winner's inliers'
-// model descriptors are matched (nearest two within guided_max_distance, or
-// sift_guided_max_distance) to the first copies.look_alikes of `look_alikes`; each match to a point
-// more than same_pose_m away votes for the offset between the two points. An offset with votes
-// from at least copies.min_support of the winner's inliers within copies.cluster_m of it is a copy,
-// refined to the median of those votes; its votes are then set aside and the next is sought, up to
-// copies.offsets copies, most support first. Copies turned against the original (mirrored rooms)
-// are not found here: TwinPlaces and the view check answer for those.
+// model descriptors (at most copies.max_voters of them) are matched (nearest two within
+// guided_max_distance, or sift_guided_max_distance) to the `searched` keyframes' features; each
+// match to a point more than same_pose_m away votes for the offset between the two points. An
+// offset with votes from at least copies.min_support of the winner's inliers within
+// copies.cluster_m of it is a copy, refined to the median of those votes; its votes are then set
+// aside and the next is sought, up to copies.offsets copies, most support first. Copies turned
+// against the original (mirrored rooms) are not found here: TwinPlaces and the view check answer
+// for those.
 struct CopyOffset {
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // the copy's points minus the original's [m]
   int support = 0;                                   // the winner's inliers voting for it
 };
-std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner,
-                                    const std::vector<slam::PlaceCandidate>& look_alikes,
+std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner, const std::vector<size_t>& searched,
+                                    const std::vector<LocatorKeyframe>& keyframes,
+                                    const LocatorOptions& options);
+
+// The keyframes CopyOffsets searches besides the look-alikes: copies along a room are seen from
+// every side the walk passed, most of them unlike the winner's view. Of the keyframes with points
+// within copies.around_m of `centre` (the winner's inliers') and not in `skip`, up to
+// copies.around_keyframes spread farthest-first over position and view direction (a radian
+// counting as a metre), from the one nearest the centre.
+std::vector<size_t> KeyframesAround(const Eigen::Vector3d& centre, const std::vector<size_t>& skip,
                                     const std::vector<LocatorKeyframe>& keyframes,
                                     const LocatorOptions& options);
 

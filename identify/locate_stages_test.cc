@@ -305,30 +305,29 @@ TEST(CopyOffsetsTest, AThingRepeatedAlongTheBuildingVotesForItsOffsetMostSupport
       CopyOf(winner, 52, 1, {3.0f, -4.0f, 0.0f}, 0.0f, &rng),
       CopyOf(winner, 53, 1, {-6.0f, 1.0f, 0.0f}, 0.0f, &rng),
   };
-  const std::vector<slam::PlaceCandidate> look_alikes = {{0, 0.9}, {1, 0.5}, {2, 0.4},
-                                                         {3, 0.3}, {4, 0.2}, {5, 0.1}};
-  const std::vector<CopyOffset> copies = CopyOffsets(winner, look_alikes, keyframes, options);
+  const std::vector<size_t> searched = {0, 1, 2, 3, 4, 5};
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, searched, keyframes, options);
   ASSERT_EQ(copies.size(), 2u);
   EXPECT_LT((copies[0].offset - Eigen::Vector3d(0, 2.2, 0)).norm(), 0.01);
   EXPECT_EQ(copies[0].support, 20);  // distinct inliers: the second keyframe's are among them
   EXPECT_LT((copies[1].offset - Eigen::Vector3d(5, 0, 0)).norm(), 0.01);
   EXPECT_EQ(copies[1].support, 12);
 
-  // Support below the bar, look-alikes cut off, one copy asked for, the check off.
+  // Support below the bar, only keyframes without the copies searched, one copy asked for, the
+  // check off.
   options.copies.min_support = 13;
-  EXPECT_EQ(CopyOffsets(winner, look_alikes, keyframes, options).size(), 1u);
+  EXPECT_EQ(CopyOffsets(winner, searched, keyframes, options).size(), 1u);
   options.copies.min_support = 8;
-  options.copies.look_alikes = 1;
-  EXPECT_TRUE(CopyOffsets(winner, look_alikes, keyframes, options).empty());
-  options.copies.look_alikes = 20;
+  EXPECT_TRUE(CopyOffsets(winner, {0, 4, 5}, keyframes, options).empty());
+  EXPECT_THROW(CopyOffsets(winner, {0, 6}, keyframes, options), Error);
   options.copies.offsets = 1;
-  ASSERT_EQ(CopyOffsets(winner, look_alikes, keyframes, options).size(), 1u);
+  ASSERT_EQ(CopyOffsets(winner, searched, keyframes, options).size(), 1u);
   options.copies.offsets = 0;
-  EXPECT_TRUE(CopyOffsets(winner, look_alikes, keyframes, options).empty());
+  EXPECT_TRUE(CopyOffsets(winner, searched, keyframes, options).empty());
   // Every other inlier voting halves the support.
   options.copies.offsets = 3;
   options.copies.max_voters = 30;
-  const std::vector<CopyOffset> sampled = CopyOffsets(winner, look_alikes, keyframes, options);
+  const std::vector<CopyOffset> sampled = CopyOffsets(winner, searched, keyframes, options);
   ASSERT_GE(sampled.size(), 1u);
   EXPECT_EQ(sampled[0].support, 10);
 }
@@ -340,15 +339,52 @@ TEST(CopyOffsetsTest, MappingErrorBeyondTheClusterRadiusScattersTheVotes) {
   // The same 20 things, each mapped up to 20 cm off: few agree within 5 cm.
   const std::vector<LocatorKeyframe> keyframes = {
       CopyOf(winner, 0, 20, {0.0f, 2.2f, 0.0f}, 0.2f, &rng)};
-  EXPECT_TRUE(CopyOffsets(winner, {{0, 0.5}}, keyframes, options).empty());
+  EXPECT_TRUE(CopyOffsets(winner, {0}, keyframes, options).empty());
   options.copies.cluster_m = 0.4;
-  const std::vector<CopyOffset> copies = CopyOffsets(winner, {{0, 0.5}}, keyframes, options);
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, {0}, keyframes, options);
   ASSERT_EQ(copies.size(), 1u);
   EXPECT_LT((copies[0].offset - Eigen::Vector3d(0, 2.2, 0)).norm(), 0.1);
   // A winner without its inlier points is a caller's error.
   PlaceVerdict broken = winner;
   broken.inlier_points.pop_back();
-  EXPECT_THROW(CopyOffsets(broken, {{0, 0.5}}, keyframes, options), Error);
+  EXPECT_THROW(CopyOffsets(broken, {0}, keyframes, options), Error);
+}
+
+TEST(CopyOffsetsTest, TheBestSupportedCopiesAreKeptNotTheMostVoted) {
+  std::mt19937 rng(23);
+  LocatorOptions options;
+  options.copies.offsets = 1;
+  const PlaceVerdict winner = DeskWinner(&rng);
+  // Ten things seen by four keyframes 3 m off (40 votes) against 20 things seen once 2.2 m off.
+  std::vector<LocatorKeyframe> keyframes;
+  for (int k = 0; k < 4; ++k)
+    keyframes.push_back(CopyOf(winner, 0, 10, {3.0f, 0.0f, 0.0f}, 0.0f, &rng));
+  keyframes.push_back(CopyOf(winner, 20, 20, {0.0f, 2.2f, 0.0f}, 0.0f, &rng));
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, {0, 1, 2, 3, 4}, keyframes, options);
+  ASSERT_EQ(copies.size(), 1u);
+  EXPECT_LT((copies[0].offset - Eigen::Vector3d(0, 2.2, 0)).norm(), 1e-4);
+  EXPECT_EQ(copies[0].support, 20);
+}
+
+TEST(KeyframesAroundTest, SpreadOverPositionAndDirectionFromTheNearestSkippingTheGiven) {
+  LocatorOptions options;  // around_m 5
+  options.copies.around_keyframes = 3;
+  const std::vector<LocatorKeyframe> keyframes = {
+      KeyframeAt({0.2, 0, 0}, 0),    // 0: nearest the centre
+      KeyframeAt({0.3, 0, 0}, 0),    // 1: next to 0, the same way
+      KeyframeAt({0.3, 0, 0}, 180),  // 2: there, turned round
+      KeyframeAt({4, 0, 0}, 0),      // 3: across the room
+      KeyframeAt({9, 0, 0}, 0),      // 4: beyond around_m
+      KeyframeAt({1, 0, 0}, 0, 0),   // 5: no points
+      KeyframeAt({-3, 0, 0}, 90),    // 6: skipped
+  };
+  std::vector<size_t> chosen = KeyframesAround(Eigen::Vector3d::Zero(), {6}, keyframes, options);
+  EXPECT_EQ(chosen, (std::vector<size_t>{0, 3, 2}));
+  options.copies.around_keyframes = 10;
+  chosen = KeyframesAround(Eigen::Vector3d::Zero(), {6}, keyframes, options);
+  EXPECT_EQ(chosen, (std::vector<size_t>{0, 3, 2, 1}));
+  options.copies.around_keyframes = 0;
+  EXPECT_TRUE(KeyframesAround(Eigen::Vector3d::Zero(), {}, keyframes, options).empty());
 }
 
 TEST(PlaceSeeingTest, KeyframesNearThePoseThatSeeTheTargetHoldingMostOfItFirst) {

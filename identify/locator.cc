@@ -70,11 +70,13 @@ bool LocatorOptions::Check(std::string* error) const {
            !(twin_max_shared_share >= 0.0 && twin_max_shared_share <= 1.0))
     why << "twin_places must not be negative, twin_min_matches positive, twin_max_shared_share "
            "in [0, 1]";
-  else if (copies.offsets < 0 || copies.look_alikes < 1 || copies.max_voters < 1 ||
-           !(copies.cluster_m > 0.0) || copies.min_support < 3 || !(copies.place_radius_m > 0.0) ||
+  else if (copies.offsets < 0 || copies.look_alikes < 0 || copies.around_keyframes < 0 ||
+           !(copies.around_m > 0.0) || copies.max_voters < 1 || !(copies.cluster_m > 0.0) ||
+           copies.min_support < 3 || !(copies.place_radius_m > 0.0) ||
            !(copies.search_radius_px > 0.0) || !(copies.min_agreement_lead >= 0.0))
-    why << "copies: offsets and min_agreement_lead must not be negative, look_alikes, max_voters, "
-           "cluster_m, place_radius_m and search_radius_px positive, min_support at least 3";
+    why << "copies: offsets, look_alikes, around_keyframes and min_agreement_lead must not be "
+           "negative, around_m, max_voters, cluster_m, place_radius_m and search_radius_px "
+           "positive, min_support at least 3";
   else if (!(max_rotation_from_keyframe_deg > 0.0 && max_rotation_from_keyframe_deg <= 180.0))
     why << "max_rotation_from_keyframe_deg must be in (0, 180]";
   else if (!(place_radius_m >= 0.0) || !(place_max_angle_deg >= 0.0) || max_places < 1)
@@ -365,7 +367,22 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
     const std::vector<slam::PlaceCandidate>& look_alikes,
     const std::vector<LocatorKeyframe>& matched, LocateTimings* timings) const {
   Clock::time_point stage = Clock::now();
-  const std::vector<CopyOffset> copies = CopyOffsets(winner, look_alikes, matched, options);
+  // The first look-alikes and keyframes spread around the winner's things, each once; the
+  // winner's own keyframe and its neighbours see the same points and vote for nothing.
+  std::vector<size_t> own = matched[winner.verified_slot].neighbours;
+  own.push_back(winner.verified_slot);
+  std::vector<size_t> searched;
+  for (const slam::PlaceCandidate& look_alike : look_alikes) {
+    if (static_cast<int>(searched.size()) >= options.copies.look_alikes) break;
+    const size_t slot = static_cast<size_t>(look_alike.id);
+    if (std::find(own.begin(), own.end(), slot) == own.end()) searched.push_back(slot);
+  }
+  std::vector<size_t> skip = own;
+  skip.insert(skip.end(), searched.begin(), searched.end());
+  const std::vector<size_t> around =
+      KeyframesAround(winner.inlier_centroid, skip, matched, options);
+  searched.insert(searched.end(), around.begin(), around.end());
+  const std::vector<CopyOffset> copies = CopyOffsets(winner, searched, matched, options);
   timings->matching_ms += MsSince(stage);
   PreparedPhoto same_camera = photo;
   same_camera.feature_candidates = {winner.pose.intrinsics};
@@ -1024,8 +1041,9 @@ void from_json(const nlohmann::json& json, LocatorOptions::SecondLookRetrieval& 
 
 SIGHTMAP_OPTIONS_JSON(LocatorOptions::Vlad, candidates, codebook)
 
-SIGHTMAP_OPTIONS_JSON(LocatorOptions::Copies, offsets, look_alikes, max_voters, cluster_m,
-                      min_support, place_radius_m, search_radius_px, min_agreement_lead)
+SIGHTMAP_OPTIONS_JSON(LocatorOptions::Copies, offsets, look_alikes, around_m, around_keyframes,
+                      max_voters, cluster_m, min_support, place_radius_m, search_radius_px,
+                      min_agreement_lead)
 
 SIGHTMAP_OPTIONS_JSON_LONG(
     LocatorOptions,

@@ -209,19 +209,24 @@ struct LocatorOptions {
   double twin_max_shared_share = 0.5;
   // Copies moved along the building (the same desk twice in a row, 2.2 m apart; CopyOffsets in
   // locate_stages.h): the winner's inliers' descriptors are matched to `look_alikes` look-alike
-  // keyframes, and matches to points more than same_pose_m away vote for the offset between the
+  // keyframes (not the winner's own) and `around_keyframes` spread within around_m of its
+  // inliers, and matches to points more than same_pose_m away vote for the offset between the
   // two; offsets within cluster_m of each other voted by at least min_support inliers are a copy.
   // The winner's pose moved by each of the `offsets` best offsets is verified against the
   // keyframes that see the copy (within place_radius_m of the moved pose), its photo keypoints
   // searched within search_radius_px of the moved points (the offset is known to a few
   // centimetres: tens of pixels at a desk's distance), and decided with the rest; 0 `offsets`
   // turns the check off. On the survey model's photo 82 (the wrong one of two desks 2.2 m apart)
-  // 5 cm found the offset to 1 cm from 20 inliers where 15 cm merged it with another, 10 cm off,
-  // and 10 look-alikes missed it. Over three SLAM models' 200 photos each: wrong answers 8 -> 6,
-  // the same 373 answers, locate median +12-16 ms (README "Copies moved along the building").
+  // 5 cm found the offset to 1 cm from 20 inliers where 15 cm merged it with another, 10 cm off.
+  // Without keyframes around the winner a hand-held photo of the other desk found no offset to it
+  // (the walk passed that desk from sides unlike the winner's view). Over three SLAM models' 200
+  // photos each: wrong answers 8 -> 5, the same 373 answers, locate median +14-20 ms, p95 the
+  // same (README "Copies moved along the building").
   struct Copies {
     int offsets = 3;
     int look_alikes = 20;            // [keyframes]
+    double around_m = 5.0;           // KeyframesAround [m]
+    int around_keyframes = 10;       // [keyframes]
     int max_voters = 600;            // of the winner's inliers, evenly spread [inliers]
     double cluster_m = 0.05;         // [m]
     int min_support = 8;             // [inliers]
