@@ -769,7 +769,7 @@ std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner, const std::vecto
                  "the winner holds " << query.rows << " inlier descriptors and "
                                      << winner.inlier_points.size() << " inlier points");
   std::vector<Eigen::Vector3d> offsets;
-  std::vector<int> owner;  // the winner's inlier voting
+  std::vector<int> owner;  // per vote, the row of the winner's inlier that cast it
   if (options.copies.offsets <= 0 || query.empty()) return {};
   const double max_distance = GuidedMaxDistance(query, options);
   // At most max_voters inliers vote, evenly spread over them: matching is most of the stage's time,
