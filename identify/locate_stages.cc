@@ -724,7 +724,7 @@ std::vector<size_t> KeyframesAround(const Eigen::Vector3d& centre, const std::ve
                                     const LocatorOptions& options) {
   std::vector<size_t> near;
   for (size_t slot = 0; slot < keyframes.size(); ++slot) {
-    if (keyframes[slot].world_points.empty() ||
+    if (keyframes[slot].world_points.empty() || keyframes[slot].synthetic_view.valid() ||
         (keyframes[slot].world_from_cam.translation() - centre).norm() > options.copies.around_m ||
         std::find(skip.begin(), skip.end(), slot) != skip.end()) {
       continue;
@@ -861,7 +861,8 @@ Place PlaceSeeing(const Eigen::Isometry3d& world_from_cam, const Eigen::Vector3d
   std::vector<std::pair<int, size_t>> seeing;  // points near the target, slot
   for (size_t slot = 0; slot < keyframes.size(); ++slot) {
     const LocatorKeyframe& keyframe = keyframes[slot];
-    if ((keyframe.world_from_cam.translation() - world_from_cam.translation()).norm() >
+    if (keyframe.synthetic_view.valid() ||
+        (keyframe.world_from_cam.translation() - world_from_cam.translation()).norm() >
             options.copies.place_radius_m ||
         keyframe.view_direction.dot(direction) < min_cos) {
       continue;

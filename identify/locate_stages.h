@@ -254,15 +254,17 @@ std::vector<CopyOffset> CopyOffsets(const PlaceVerdict& winner, const std::vecto
                                     const LocatorOptions& options);
 
 // The keyframes CopyOffsets searches besides the look-alikes: copies along a room are seen from
-// every side the walk passed, most of them unlike the winner's view. Of the keyframes with points
-// within copies.around_m of `centre` (the winner's inliers') and not in `skip`, up to
+// every side the walk passed, most of them unlike the winner's view. Of the real keyframes (not
+// synthetic views, which crowd round the appliances) with points within copies.around_m of
+// `centre` (the winner's inliers') and not in `skip`, up to
 // copies.around_keyframes spread farthest-first over position and view direction (a radian
 // counting as a metre), from the one nearest the centre.
 std::vector<size_t> KeyframesAround(const Eigen::Vector3d& centre, const std::vector<size_t>& skip,
                                     const std::vector<LocatorKeyframe>& keyframes,
                                     const LocatorOptions& options);
 
-// The keyframes that see `target` from near a pose: within copies.place_radius_m of
+// The real keyframes (a copy is judged by the view check, which needs their thumbnails) that
+// see `target` from near a pose: within copies.place_radius_m of
 // `world_from_cam`, looking within place_max_angle_deg of it, holding at least min_inliers points
 // within neighbour_radius_m of `target`; the max_neighbours + 1 holding most, the head first. An
 // empty place when none does.

@@ -369,7 +369,7 @@ TEST(CopyOffsetsTest, TheBestSupportedCopiesAreKeptNotTheMostVoted) {
 TEST(KeyframesAroundTest, SpreadOverPositionAndDirectionFromTheNearestSkippingTheGiven) {
   LocatorOptions options;  // around_m 5
   options.copies.around_keyframes = 3;
-  const std::vector<LocatorKeyframe> keyframes = {
+  std::vector<LocatorKeyframe> keyframes = {
       KeyframeAt({0.2, 0, 0}, 0),    // 0: nearest the centre
       KeyframeAt({0.3, 0, 0}, 0),    // 1: next to 0, the same way
       KeyframeAt({0.3, 0, 0}, 180),  // 2: there, turned round
@@ -377,7 +377,9 @@ TEST(KeyframesAroundTest, SpreadOverPositionAndDirectionFromTheNearestSkippingTh
       KeyframeAt({9, 0, 0}, 0),      // 4: beyond around_m
       KeyframeAt({1, 0, 0}, 0, 0),   // 5: no points
       KeyframeAt({-3, 0, 0}, 90),    // 6: skipped
+      KeyframeAt({-4, 0, 0}, 180),   // 7: a synthetic view
   };
+  keyframes[7].synthetic_view = SyntheticViewId(1);
   std::vector<size_t> chosen = KeyframesAround(Eigen::Vector3d::Zero(), {6}, keyframes, options);
   EXPECT_EQ(chosen, (std::vector<size_t>{0, 3, 2}));
   options.copies.around_keyframes = 10;
@@ -396,13 +398,15 @@ TEST(PlaceSeeingTest, KeyframesNearThePoseThatSeeTheTargetHoldingMostOfItFirst) 
     keyframe.descriptors = cv::Mat::zeros(near_target + elsewhere, 32, CV_8U);
     return keyframe;
   };
-  const std::vector<LocatorKeyframe> keyframes = {
+  std::vector<LocatorKeyframe> keyframes = {
       seeing({0.5, 0, 0}, 0, 30, 50),   // 0: near, the same way, 30 of the target
       seeing({-0.5, 0, 0}, 10, 60, 0),  // 1: near, 60 of it
       seeing({6, 0, 0}, 0, 90, 0),      // 2: beyond place_radius_m
       seeing({0, 0.5, 0}, 180, 90, 0),  // 3: looking the other way
       seeing({0, -0.5, 0}, 0, 10, 90),  // 4: too little of the target
+      seeing({0, 0, 0}, 0, 200, 0),     // 5: a synthetic view
   };
+  keyframes[5].synthetic_view = SyntheticViewId(1);
   const Eigen::Isometry3d pose = PoseAt({0, 0, 0}, 0);
   Place place = PlaceSeeing(pose, Eigen::Vector3d(0.1, 0, 3), keyframes, options);
   EXPECT_EQ(place.head, 1u);
