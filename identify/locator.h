@@ -373,7 +373,7 @@ struct LocateResult {
   std::vector<ApplianceInView> appliances;
   LocateTimings timings;
   // Bag-of-words candidates verified by PnP, and features found on the photo.
-  int candidates_tried = 0;  // places verified (groups of nearby candidates; the twins too)
+  int candidates_tried = 0;  // places verified (groups of nearby candidates; twins, copies too)
   // Inliers of the best pose that disagrees with the answer's (0 when none).
   int runner_up_inliers = 0;
   // The winning place's 3D points (one per keyframe that has it) that the pose projects into the
