@@ -1154,10 +1154,6 @@ Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
   return Refusal{UnmatchedReason::kFewMatches, why.str()};
 }
 
-}  // namespace
-
-namespace {
-
 bool PosesDisagree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
                    const LocatorOptions& options) {
   return (a.translation() - b.translation()).norm() > options.same_pose_m ||

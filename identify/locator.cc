@@ -228,8 +228,8 @@ struct Locator::Impl {
   std::vector<slam::PlaceCandidate> LookAlikes(const PlaceVerdict& winner,
                                                const std::vector<LocatorKeyframe>& matched) const;
   // Stage 5b strung together: the places elsewhere that look like the winner's verified keyframe
-  // (TwinPlaces), each matched and verified against the photo with the winner's camera (the photo
-  // was taken with one). Their verdicts, for Decide with the rest.
+  // (TwinPlaces), each matched and verified against `photo` (prepared with the winner's camera
+  // only: the photo was taken with one). Their verdicts, for Decide with the rest.
   std::vector<PlaceVerdict> VerifyTwins(const PreparedPhoto& photo, const PlaceVerdict& winner,
                                         const std::vector<slam::PlaceCandidate>& look_alikes,
                                         const std::vector<Place>& tried,
@@ -237,7 +237,7 @@ struct Locator::Impl {
                                         LocateTimings* timings) const;
   // Stage 5c strung together: the winner's pose moved by each copy offset (CopyOffsets), matched
   // from there against the keyframes that see the copy (PlaceSeeing, MatchPlaceFrom) and verified
-  // with the winner's camera. Their verdicts, for Decide with the rest.
+  // against `photo` (as VerifyTwins'). Their verdicts, for Decide with the rest.
   std::vector<PlaceVerdict> VerifyCopies(const PreparedPhoto& photo, const PlaceVerdict& winner,
                                          const std::vector<slam::PlaceCandidate>& look_alikes,
                                          const std::vector<LocatorKeyframe>& matched,
@@ -356,10 +356,7 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(
       TwinPlaces(look_alikes, winner.verified_slot, tried, matched, options);
   timings->retrieval_ms += MsSince(stage);
   if (twins.empty()) return {};
-  PreparedPhoto same_camera = photo;
-  same_camera.feature_candidates = {winner.pose.intrinsics};
-  same_camera.intrinsics_given = true;
-  return VerifyPlaces(same_camera, twins, matched, /*until_certain=*/false, timings);
+  return VerifyPlaces(photo, twins, matched, /*until_certain=*/false, timings);
 }
 
 std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
@@ -384,9 +381,6 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
   searched.insert(searched.end(), around.begin(), around.end());
   const std::vector<CopyOffset> copies = CopyOffsets(winner, searched, matched, options);
   timings->matching_ms += MsSince(stage);
-  PreparedPhoto same_camera = photo;
-  same_camera.feature_candidates = {winner.pose.intrinsics};
-  same_camera.intrinsics_given = true;
   std::vector<PlaceVerdict> verdicts;
   for (const CopyOffset& copy : copies) {
     stage = Clock::now();
@@ -399,10 +393,10 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
       timings->matching_ms += MsSince(stage);
       continue;
     }
-    const PlaceMatches matches = MatchPlaceFrom(same_camera, place, matched, moved, options);
+    const PlaceMatches matches = MatchPlaceFrom(photo, place, matched, moved, options);
     timings->matching_ms += MsSince(stage);
     stage = Clock::now();
-    verdicts.push_back(VerifyPlace(same_camera, place, matches, matched, options));
+    verdicts.push_back(VerifyPlace(photo, place, matches, matched, options));
     verdicts.back().copy = true;
     timings->pnp_ms += MsSince(stage);
   }
@@ -437,9 +431,12 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
     return search;
   }
   // The winner's look-alikes elsewhere: twins seen as the winner's keyframe saw it, and copies
-  // moved along the building; verified against the photo and decided with the rest.
-  // A copy: the verdicts grow below.
+  // moved along the building, verified against the photo with the winner's camera (it was taken
+  // with one) and decided with the rest. The winner is copied: the verdicts grow below.
   const PlaceVerdict winner = verdicts[static_cast<size_t>(search.decision.winner)];
+  PreparedPhoto same_camera = *photo;
+  same_camera.feature_candidates = {winner.pose.intrinsics};
+  same_camera.intrinsics_given = true;
   const Clock::time_point looking = Clock::now();
   const std::vector<slam::PlaceCandidate> look_alikes = LookAlikes(winner, matched);
   timings->retrieval_ms += MsSince(looking);
@@ -447,10 +444,11 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   if (options.twin_places > 0) {
     const std::vector<Place> tried(places.begin(),
                                    places.begin() + static_cast<std::ptrdiff_t>(verdicts.size()));
-    others = VerifyTwins(*photo, winner, look_alikes, tried, matched, timings);
+    others = VerifyTwins(same_camera, winner, look_alikes, tried, matched, timings);
   }
   if (options.copies.offsets > 0) {
-    std::vector<PlaceVerdict> copies = VerifyCopies(*photo, winner, look_alikes, matched, timings);
+    std::vector<PlaceVerdict> copies =
+        VerifyCopies(same_camera, winner, look_alikes, matched, timings);
     others.insert(others.end(), std::make_move_iterator(copies.begin()),
                   std::make_move_iterator(copies.end()));
   }
