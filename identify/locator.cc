@@ -107,8 +107,10 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "occlusion_max_hole_px must not be negative";
   else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0)
     why << "occlusion margins must not be negative";
-  else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0) || min_inliers_unchecked < 0)
-    why << "min_view_agreement must be in [0, 1], min_inliers_unchecked not negative";
+  else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0) || min_inliers_unchecked < 0 ||
+           second_look_min_inliers_unchecked < 0)
+    why << "min_view_agreement must be in [0, 1], min_inliers_unchecked and "
+           "second_look_min_inliers_unchecked not negative";
   else if (!view_agreement.Check(error))
     return false;
   else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
@@ -195,6 +197,8 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
 
 struct Locator::Impl {
   LocatorOptions options;
+  // `options` with the second look's min_inliers_unchecked, for verifying against sift_keyframes.
+  LocatorOptions second_look_options;
   std::vector<LocatorKeyframe> keyframes;  // ORB's
   // The same slots with RootSIFT features (synthetic views without any); empty with the ORB
   // matcher.
@@ -242,6 +246,12 @@ struct Locator::Impl {
                                          const std::vector<slam::PlaceCandidate>& look_alikes,
                                          const std::vector<LocatorKeyframe>& matched,
                                          LocateTimings* timings) const;
+
+  // The options a pose verified against `matched` is checked and decided with: the second
+  // look's when `matched` is sift_keyframes.
+  const LocatorOptions& VerifyingOptions(const std::vector<LocatorKeyframe>& matched) const {
+    return &matched == &sift_keyframes ? second_look_options : options;
+  }
 
   // Stages 3-6 for one matcher: the candidates grouped into places, each matched against
   // `matched` (keyframes or sift_keyframes) and verified until one is certain, the twin check,
@@ -303,7 +313,7 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(
           const PlaceMatches matches = MatchPlace(photo, place, matched, options);
           slot.matching_ms = MsSince(stage);
           stage = Clock::now();
-          slot.verdict = VerifyPlace(photo, place, matches, matched, options);
+          slot.verdict = VerifyPlace(photo, place, matches, matched, VerifyingOptions(matched));
           slot.pnp_ms = MsSince(stage);
         } catch (...) {
           slot.error = std::current_exception();
@@ -396,7 +406,7 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
     const PlaceMatches matches = MatchPlaceFrom(photo, place, matched, moved, options);
     timings->matching_ms += MsSince(stage);
     stage = Clock::now();
-    verdicts.push_back(VerifyPlace(photo, place, matches, matched, options));
+    verdicts.push_back(VerifyPlace(photo, place, matches, matched, VerifyingOptions(matched)));
     verdicts.back().copy = true;
     timings->pnp_ms += MsSince(stage);
   }
@@ -426,7 +436,7 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   search.verdicts =
       VerifyPlaces(*photo, places, matched, /*until_certain=*/true, timings, first_refused);
   std::vector<PlaceVerdict>& verdicts = search.verdicts;
-  search.decision = Decide(verdicts, options);
+  search.decision = Decide(verdicts, VerifyingOptions(matched));
   if (search.decision.winner < 0 || (options.twin_places <= 0 && options.copies.offsets <= 0)) {
     return search;
   }
@@ -455,7 +465,7 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   if (!others.empty()) {
     verdicts.insert(verdicts.end(), std::make_move_iterator(others.begin()),
                     std::make_move_iterator(others.end()));
-    search.decision = Decide(verdicts, options);
+    search.decision = Decide(verdicts, VerifyingOptions(matched));
   }
   return search;
 }
@@ -702,6 +712,8 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options,
   SIGHTMAP_CHECK_OPTIONS(options);
   impl_->votes = slam::VoteIndex(options.vote_max_hamming);
   impl_->options = options;
+  impl_->second_look_options = options;
+  impl_->second_look_options.min_inliers_unchecked = options.second_look_min_inliers_unchecked;
   const std::vector<store::KeyframeInfo> infos = model.Keyframes();
   SIGHTMAP_CHECK(!infos.empty(), "the model " << model.path()
                                               << " has no keyframes: map a building into it "
@@ -1056,9 +1068,10 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
      min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places, twin_min_matches,
      twin_max_shared_share, copies, confident_inliers, max_rotation_from_keyframe_deg,
-     min_view_agreement, min_inliers_unchecked, view_agreement, focal_candidates_35mm,
-     refine_estimated_focal, occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-     occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
-     occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views))
+     min_view_agreement, min_inliers_unchecked, second_look_min_inliers_unchecked, view_agreement,
+     focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
+     occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
+     occlusion_max_hole_px, occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share,
+     use_synthetic_views))
 
 }  // namespace sightmap::identify

@@ -332,6 +332,41 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
   EXPECT_GE(by_sift, static_cast<int>(0.40 * static_cast<double>(seen_photos_->size())));
 }
 
+// A pose RootSIFT's second look found must pass the view check (second_look_min_inliers_unchecked
+// defaults to every pose): with a check that can never judge, ORB's answers of
+// min_inliers_unchecked inliers and more stand and the second look places nothing, unless
+// second_look_min_inliers_unchecked lets such poses through.
+TEST_F(LocatorTest, SecondLookPosesTheViewCheckCannotJudgeAreRefused) {
+  LocatorOptions blind;
+  blind.view_agreement.min_samples = 1 << 30;
+  const Locator strict(*model_, blind);
+  blind.second_look_min_inliers_unchecked = 0;
+  const Locator lenient(*model_, blind);
+  int by_first = 0;
+  int by_second_look = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult refused = strict.Locate(photo.image, photo.intrinsics);
+    const LocateResult let_through = lenient.Locate(photo.image, photo.intrinsics);
+    EXPECT_FALSE(refused.view_agreement.has_value()) << photo.index;
+    EXPECT_FALSE(refused.matched && refused.answered_by_second_look) << photo.index;
+    if (refused.matched) {
+      EXPECT_GE(refused.inliers, blind.min_inliers_unchecked) << photo.index;
+      EXPECT_EQ(let_through.keyframe, refused.keyframe) << photo.index;
+      ++by_first;
+    }
+    if (!let_through.second_look) {
+      EXPECT_EQ(let_through.matched, refused.matched) << photo.index;
+    }
+    by_second_look += let_through.matched && let_through.answered_by_second_look ? 1 : 0;
+  }
+  std::printf(
+      "of %zu seen photos, the view check never judging: %d placed by ORB, %d more by "
+      "RootSIFT when its unjudged poses are let through\n",
+      seen_photos_->size(), by_first, by_second_look);
+  EXPECT_GE(by_first, 1);
+  EXPECT_GE(by_second_look, 1);
+}
+
 // VLAD's look-alikes tried first by the second look (second_look_retrieval vlad): ORB's answers
 // stand, the photos ORB could not place get the second look as before, and what it places is
 // right.
