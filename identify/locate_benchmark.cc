@@ -11,6 +11,9 @@
 // - features, retrieval_candidates, max_places: 3000 features, 20 candidates and 6 places matched
 //   39 of 100 photos, against 35 with 1500, 10 and 4; 5000, 40 and 12 matched 40, and 40
 //   candidates with 12 places matched the same 39 at about twice the matching time.
+// - reserve_candidates: 40 in reserve with 12 places matched 128 of 200 photos with 3 poses
+//   beyond 0.3 m, as 20 candidates and 6 places did (2026-11-30); 60 candidates grouped alike 126
+//   with 4 (the SLAM models' figures are in locator.h).
 // - match_node_level: level 2 (about 100 nodes) cut matching to 1/30 (p95 of the whole locate
 //   404 -> 184 ms), but verified poses went wrong by 0.7 m (1 of 100 photos) and 2.6 m (1 of 17
 //   in locator_test), where exhaustive matching has none.
@@ -182,6 +185,8 @@ void Declare(CLI::App& app, BenchmarkArgs* args) {
   app.add_option("--max-side", options.max_image_side_px, "photo side for features [px]");
   app.add_option("--photo-features", options.features.max_features, "features per photo");
   app.add_option("--candidates", options.retrieval_candidates, "retrieval candidates");
+  app.add_option("--reserve", options.reserve_candidates,
+                 "retrieval candidates after those that only make places of their own");
   app.add_option("--neighbours", options.max_neighbours, "neighbours per candidate");
   app.add_option("--neighbour-radius", options.neighbour_radius_m, "[m]");
   app.add_option("--node-level", options.match_node_level,

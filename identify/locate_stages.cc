@@ -513,9 +513,10 @@ PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
 }
 
 std::vector<slam::PlaceCandidate> RetrieveCandidates(
-    const cv::Mat& descriptors, LocatorOptions::Retrieval method,
+    const cv::Mat& descriptors, LocatorOptions::Retrieval method, int count,
     const slam::Vocabulary& vocabulary, const slam::PlaceIndex& index, const slam::VoteIndex& votes,
     const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options) {
+  SIGHTMAP_CHECK(count >= 1, "RetrieveCandidates: count " << count << " must be positive");
   std::vector<slam::PlaceCandidate> candidates;
   if (!vocabulary.empty()) {
     std::vector<int> words;
@@ -523,16 +524,16 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
     if (method == LocatorOptions::Retrieval::kVotes) {
       std::vector<int64_t> shortlist;
       for (const slam::PlaceCandidate& c :
-           index.Query(bow, std::max(options.vote_shortlist, options.retrieval_candidates))) {
+           index.Query(bow, std::max(options.vote_shortlist, count))) {
         shortlist.push_back(c.id);
       }
-      candidates = votes.Rank(descriptors, words, shortlist, options.retrieval_candidates);
+      candidates = votes.Rank(descriptors, words, shortlist, count);
     } else {
-      candidates = index.Query(bow, options.retrieval_candidates);
+      candidates = index.Query(bow, count);
     }
   }
   // Without a vocabulary (a model with one keyframe of features) there is nothing to rank by.
-  if (vocabulary.empty() || keyframes.size() <= static_cast<size_t>(options.retrieval_candidates)) {
+  if (vocabulary.empty() || keyframes.size() <= static_cast<size_t>(count)) {
     for (size_t slot = 0; slot < keyframes.size(); ++slot) {
       const bool listed = std::any_of(
           candidates.begin(), candidates.end(),
@@ -558,24 +559,33 @@ std::vector<slam::PlaceCandidate> MergeCandidates(const std::vector<slam::PlaceC
 }
 
 std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,
-                               const std::vector<LocatorKeyframe>& keyframes,
+                               size_t reserve_from, const std::vector<LocatorKeyframe>& keyframes,
                                const LocatorOptions& options) {
   const double place_cos = std::cos(DegToRad(options.place_max_angle_deg));
   std::vector<Place> places;
-  for (const slam::PlaceCandidate& candidate : candidates) {
+  size_t first_places = 0;  // places candidates before reserve_from made
+  for (size_t c = 0; c < candidates.size(); ++c) {
+    const slam::PlaceCandidate& candidate = candidates[c];
     const size_t slot = static_cast<size_t>(candidate.id);
     SIGHTMAP_CHECK(candidate.id >= 0 && slot < keyframes.size(),
                    "retrieval candidate " << candidate.id << " is not a keyframe slot");
     const LocatorKeyframe& keyframe = keyframes[slot];
+    const bool reserve = c >= reserve_from;
+    if (c == reserve_from) first_places = places.size();
     Place* joined = nullptr;
-    for (Place& place : places) {
-      const LocatorKeyframe& head = keyframes[place.head];
+    for (size_t p = 0; p < places.size(); ++p) {
+      const LocatorKeyframe& head = keyframes[places[p].head];
       if ((head.world_from_cam.translation() - keyframe.world_from_cam.translation()).norm() <=
               options.place_radius_m &&
           head.view_direction.dot(keyframe.view_direction) >= place_cos) {
-        joined = &place;
+        joined = &places[p];
         break;
       }
+    }
+    // A reserve candidate seeing what a first place sees adds nothing that place lacks.
+    if (reserve && joined != nullptr &&
+        static_cast<size_t>(joined - places.data()) < first_places) {
+      continue;
     }
     if (joined == nullptr) {
       if (static_cast<int>(places.size()) >= options.max_places) continue;
@@ -636,7 +646,7 @@ std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alik
   }
   LocatorOptions grouping = options;
   grouping.max_places = options.twin_places;
-  return GroupPlaces(twins, keyframes, grouping);
+  return GroupPlaces(twins, twins.size(), keyframes, grouping);
 }
 
 namespace {

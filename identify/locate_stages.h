@@ -113,13 +113,13 @@ PreparedPhoto RootSiftSeed(const PreparedPhoto& orb);
 PreparedPhoto RootSiftPhoto(const cv::Mat& photo, const PreparedPhoto& orb,
                             const LocatorOptions& options);
 
-// Stage 2: retrieval. The best candidates for the photo's descriptors by the method named: the
-// bag-of-words `index`'s, or its best vote_shortlist re-ranked by `votes`; best first. In a model
-// of no more keyframes than retrieval_candidates, or without a vocabulary, every keyframe holding
-// 3D points is a candidate too (a few keyframes are cheaper to verify than to rank, and a
-// vocabulary trained on them ranks poorly).
+// Stage 2: retrieval. The best `count` candidates for the photo's descriptors by the method
+// named: the bag-of-words `index`'s, or its best vote_shortlist re-ranked by `votes`; best first.
+// In a model of no more keyframes than retrieval_candidates, or without a vocabulary, every
+// keyframe holding 3D points is a candidate too (a few keyframes are cheaper to verify than to
+// rank, and a vocabulary trained on them ranks poorly).
 std::vector<slam::PlaceCandidate> RetrieveCandidates(
-    const cv::Mat& descriptors, LocatorOptions::Retrieval method,
+    const cv::Mat& descriptors, LocatorOptions::Retrieval method, int count,
     const slam::Vocabulary& vocabulary, const slam::PlaceIndex& index, const slam::VoteIndex& votes,
     const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options);
 
@@ -137,8 +137,10 @@ struct Place {
   size_t head = 0;            // the best-scoring candidate's slot
   std::vector<size_t> slots;  // candidates and their neighbours, each once
 };
+// Candidates from `reserve_from` on (the reserve_candidates after retrieval_candidates) never
+// join a place an earlier candidate made: they only make places of their own.
 std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,
-                               const std::vector<LocatorKeyframe>& keyframes,
+                               size_t reserve_from, const std::vector<LocatorKeyframe>& keyframes,
                                const LocatorOptions& options);
 
 // Stage 4: 2D-3D matches of the photo against the union of a place's keyframes.

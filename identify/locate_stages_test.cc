@@ -69,7 +69,7 @@ TEST(RetrieveCandidatesTest, WithoutAVocabularyEveryKeyframeWithPointsIsACandida
       KeyframeAt({0, 0, 0}, 0), KeyframeAt({1, 0, 0}, 0, 0), KeyframeAt({2, 0, 0}, 0)};
   std::mt19937 rng(1);
   const std::vector<slam::PlaceCandidate> candidates = RetrieveCandidates(
-      RandomDescriptors(50, &rng), LocatorOptions::Retrieval::kVotes, slam::Vocabulary(),
+      RandomDescriptors(50, &rng), LocatorOptions::Retrieval::kVotes, 20, slam::Vocabulary(),
       slam::PlaceIndex(), slam::VoteIndex(), keyframes, options);
   ASSERT_EQ(candidates.size(), 2u);
   EXPECT_EQ(candidates[0].id, 0);
@@ -79,7 +79,6 @@ TEST(RetrieveCandidatesTest, WithoutAVocabularyEveryKeyframeWithPointsIsACandida
 // Votes re-rank the bag of words' shortlist; bag of words alone keeps its order.
 TEST(RetrieveCandidatesTest, VotesReRankTheBagOfWordsShortlist) {
   LocatorOptions options;
-  options.retrieval_candidates = 1;  // fewer than the keyframes: ranked, not all taken
   options.vote_shortlist = 3;
   const std::vector<LocatorKeyframe> keyframes = {
       KeyframeAt({0, 0, 0}, 0), KeyframeAt({1, 0, 0}, 0), KeyframeAt({2, 0, 0}, 0)};
@@ -109,11 +108,12 @@ TEST(RetrieveCandidatesTest, VotesReRankTheBagOfWordsShortlist) {
     index.Add(i, vocabulary.Transform(images[static_cast<size_t>(i)], &words));
     votes.Add(i, images[static_cast<size_t>(i)], words);
   }
-  const auto by_words = RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords,
+  // One candidate, fewer than the keyframes: ranked, not all taken.
+  const auto by_words = RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords, 1,
                                            vocabulary, index, votes, keyframes, options);
   ASSERT_EQ(by_words.size(), 1u);
   EXPECT_EQ(by_words[0].id, 1);
-  const auto by_votes = RetrieveCandidates(query, LocatorOptions::Retrieval::kVotes, vocabulary,
+  const auto by_votes = RetrieveCandidates(query, LocatorOptions::Retrieval::kVotes, 1, vocabulary,
                                            index, votes, keyframes, options);
   ASSERT_EQ(by_votes.size(), 1u);
   EXPECT_EQ(by_votes[0].id, 2);
@@ -148,7 +148,7 @@ TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxP
   };
   keyframes[0].neighbours = {4};
   const std::vector<slam::PlaceCandidate> candidates = {{0, 0.9}, {1, 0.8}, {2, 0.7}, {3, 0.6}};
-  const std::vector<Place> places = GroupPlaces(candidates, keyframes, options);
+  const std::vector<Place> places = GroupPlaces(candidates, candidates.size(), keyframes, options);
   ASSERT_EQ(places.size(), 2u);
   EXPECT_EQ(places[0].head, 0u);
   EXPECT_EQ(places[0].slots, (std::vector<size_t>{0, 4, 2}));
@@ -156,9 +156,40 @@ TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxP
   EXPECT_EQ(places[1].slots, (std::vector<size_t>{1}));
 
   options.max_places = 3;
-  EXPECT_EQ(GroupPlaces(candidates, keyframes, options).size(), 3u);
+  EXPECT_EQ(GroupPlaces(candidates, candidates.size(), keyframes, options).size(), 3u);
   // A candidate that is not a keyframe slot is a programming error, not a photo's fault.
-  EXPECT_THROW(GroupPlaces({{7, 0.5}}, keyframes, options), Error);
+  EXPECT_THROW(GroupPlaces({{7, 0.5}}, 1, keyframes, options), Error);
+}
+
+// Reserve candidates (from reserve_from on) make places of their own after the first ones' and
+// join only those: a first place does not grow with keyframes retrieved after it.
+TEST(GroupPlacesTest, ReserveCandidatesOnlyMakePlacesOfTheirOwn) {
+  LocatorOptions options;
+  options.place_radius_m = 2.0;
+  options.place_max_angle_deg = 60.0;
+  options.max_places = 3;
+  const std::vector<LocatorKeyframe> keyframes = {
+      KeyframeAt({0, 0, 0}, 0),    // 0: first candidate
+      KeyframeAt({1, 0, 0}, 20),   // 1: reserve, sees 0's place: skipped
+      KeyframeAt({9, 0, 0}, 0),    // 2: reserve, elsewhere: a place of its own
+      KeyframeAt({9.5, 0, 0}, 0),  // 3: reserve, joins 2's place
+      KeyframeAt({20, 0, 0}, 0),   // 4: reserve, a third place
+      KeyframeAt({30, 0, 0}, 0),   // 5: reserve, over the cap
+  };
+  const std::vector<slam::PlaceCandidate> candidates = {{0, 0.9}, {1, 0.8}, {2, 0.7},
+                                                        {3, 0.6}, {4, 0.5}, {5, 0.4}};
+  const std::vector<Place> places = GroupPlaces(candidates, 1, keyframes, options);
+  ASSERT_EQ(places.size(), 3u);
+  EXPECT_EQ(places[0].slots, (std::vector<size_t>{0}));
+  EXPECT_EQ(places[1].slots, (std::vector<size_t>{2, 3}));
+  EXPECT_EQ(places[2].slots, (std::vector<size_t>{4}));
+  // The same candidates all first: 1 joins 0's place.
+  const std::vector<Place> all_first =
+      GroupPlaces(candidates, candidates.size(), keyframes, options);
+  ASSERT_EQ(all_first.size(), 3u);
+  EXPECT_EQ(all_first[0].slots, (std::vector<size_t>{0, 1}));
+  // Every candidate in reserve: grouped as first ones are.
+  EXPECT_EQ(GroupPlaces(candidates, 0, keyframes, options)[0].slots, (std::vector<size_t>{0, 1}));
 }
 
 TEST(SharedPointShareTest, TheSameThingsSeenAgainShareTheirPointsACopyElsewhereDoesNot) {

@@ -46,8 +46,8 @@ bool LocatorOptions::Check(std::string* error) const {
     return false;
   else if (place_threads < 0)
     why << "place_threads must not be negative";
-  else if (retrieval_candidates < 1)
-    why << "retrieval_candidates must be at least 1";
+  else if (retrieval_candidates < 1 || reserve_candidates < 0)
+    why << "retrieval_candidates must be at least 1, reserve_candidates not negative";
   else if (vote_shortlist < 1 || vote_max_hamming < 0 || vote_max_hamming > 256)
     why << "vote_shortlist must be positive, vote_max_hamming in [0, 256]";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
@@ -253,16 +253,16 @@ struct Locator::Impl {
     return &matched == &sift_keyframes ? second_look_options : options;
   }
 
-  // Stages 3-6 for one matcher: the candidates grouped into places, each matched against
-  // `matched` (keyframes or sift_keyframes) and verified until one is certain, the twin check,
-  // the decision.
+  // Stages 3-6 for one matcher: the candidates grouped into places (those from `reserve_from` on
+  // as GroupPlaces' reserve), each matched against `matched` (keyframes or sift_keyframes) and
+  // verified until one is certain, the twin check, the decision.
   struct Search {
     std::vector<PlaceVerdict> verdicts;
     Decision decision;
   };
   Search SearchPlaces(PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
-                      const std::vector<LocatorKeyframe>& matched, int max_places,
-                      LocateTimings* timings,
+                      size_t reserve_from, const std::vector<LocatorKeyframe>& matched,
+                      int max_places, LocateTimings* timings,
                       const std::function<void()>& first_refused = {}) const;
 
   // Stage 3-6 again with RootSIFT, for a photo ORB could not place: the photo's RootSIFT (from
@@ -353,8 +353,9 @@ std::vector<slam::PlaceCandidate> Locator::Impl::LookAlikes(
   // bag of words; survey 136 and 3, 137 and 3).
   const cv::Mat& query = &matched == &keyframes ? winner.inlier_descriptors
                                                 : keyframes[winner.verified_slot].descriptors;
-  return RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords, vocabulary, index, votes,
-                            keyframes, options);
+  return RetrieveCandidates(query, LocatorOptions::Retrieval::kBagOfWords,
+                            options.retrieval_candidates, vocabulary, index, votes, keyframes,
+                            options);
 }
 
 std::vector<PlaceVerdict> Locator::Impl::VerifyTwins(
@@ -414,12 +415,12 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
 }
 
 Locator::Impl::Search Locator::Impl::SearchPlaces(
-    PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates,
+    PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates, size_t reserve_from,
     const std::vector<LocatorKeyframe>& matched, int max_places, LocateTimings* timings,
     const std::function<void()>& first_refused) const {
   LocatorOptions grouping = options;
   grouping.max_places = max_places;
-  const std::vector<Place> places = GroupPlaces(candidates, matched, grouping);
+  const std::vector<Place> places = GroupPlaces(candidates, reserve_from, matched, grouping);
   // Vocabulary nodes only for ORB matching bounded by them; exhaustive matching needs none.
   Clock::time_point stage = Clock::now();
   if (options.match_node_level > 0 && !vocabulary.empty() && &matched == &keyframes &&
@@ -483,15 +484,20 @@ std::optional<Locator::Impl::Search> Locator::Impl::SecondLook(
   result->timings.features_ms += timed.ms;
   std::optional<Search> answered;
   if (!sift.refusal) {
-    std::vector<slam::PlaceCandidate> tried = candidates;
+    // ORB's first candidates, after VLAD's when it ranks, then ORB's reserve.
+    const auto first_end = candidates.begin() +
+                           std::min<std::ptrdiff_t>(options.retrieval_candidates,
+                                                    static_cast<std::ptrdiff_t>(candidates.size()));
+    std::vector<slam::PlaceCandidate> tried(candidates.begin(), first_end);
     if (!vlad.empty()) {
       const Clock::time_point stage = Clock::now();
-      tried = MergeCandidates(vlad.Rank(sift.features.descriptors, options.vlad.candidates),
-                              candidates);
+      tried = MergeCandidates(vlad.Rank(sift.features.descriptors, options.vlad.candidates), tried);
       result->timings.retrieval_ms += MsSince(stage);
     }
-    Search again = SearchPlaces(&sift, tried, sift_keyframes, options.second_look_max_places,
-                                &result->timings);
+    const size_t reserve_from = tried.size();
+    tried = MergeCandidates(tried, std::vector<slam::PlaceCandidate>(first_end, candidates.end()));
+    Search again = SearchPlaces(&sift, tried, reserve_from, sift_keyframes,
+                                options.second_look_max_places, &result->timings);
     const Decision& decision = again.decision;
     if (decision.winner >= 0 ||
         (decision.refusal && decision.refusal->code == UnmatchedReason::kAmbiguous)) {
@@ -831,8 +837,9 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
 
   stage = Clock::now();
   const std::vector<slam::PlaceCandidate> candidates =
-      RetrieveCandidates(prepared.retrieval_descriptors, options.retrieval, impl_->vocabulary,
-                         impl_->index, impl_->votes, impl_->keyframes, options);
+      RetrieveCandidates(prepared.retrieval_descriptors, options.retrieval,
+                         options.retrieval_candidates + options.reserve_candidates,
+                         impl_->vocabulary, impl_->index, impl_->votes, impl_->keyframes, options);
   result.timings.retrieval_ms = MsSince(stage);
   if (candidates.empty()) {
     return finish({UnmatchedReason::kUnknownPlace,
@@ -849,8 +856,9 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     sift_ahead = std::async(std::launch::async, ExtractRootSiftTimed, std::cref(photo),
                             RootSiftSeed(prepared), std::cref(options));
   };
-  Impl::Search search = impl_->SearchPlaces(&prepared, candidates, *matched, options.max_places,
-                                            &result.timings, extract_sift_ahead);
+  Impl::Search search =
+      impl_->SearchPlaces(&prepared, candidates, static_cast<size_t>(options.retrieval_candidates),
+                          *matched, options.max_places, &result.timings, extract_sift_ahead);
   // A photo ORB could not place (not one two places fit) gets a second look with RootSIFT; its
   // answer stands when it places the photo or finds it ambiguous.
   const auto retry_code =
@@ -1059,11 +1067,11 @@ SIGHTMAP_OPTIONS_JSON_LONG(
     LocatorOptions,
     (features, matcher, sift_features, sift_image_side_px, sift_photo_features, sift_max_distance,
      sift_guided_max_distance, second_look_max_places, second_look_retrieval, vlad, place_threads,
-     extract_sift_ahead, max_image_side_px, retrieval_candidates, retrieval, vote_shortlist,
-     vote_max_hamming, place_radius_m, place_max_angle_deg, max_places, neighbour_radius_m,
-     neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio, same_point_m,
-     max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers, min_ransac_inliers,
-     guided_radius_px),
+     extract_sift_ahead, max_image_side_px, retrieval_candidates, reserve_candidates, retrieval,
+     vote_shortlist, vote_max_hamming, place_radius_m, place_max_angle_deg, max_places,
+     neighbour_radius_m, neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
+     same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
+     min_ransac_inliers, guided_radius_px),
     (guided_max_distance, guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
      bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
      min_inlier_ratio_over_runner_up, min_unique_inlier_share, twin_places, twin_min_matches,

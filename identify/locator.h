@@ -98,9 +98,17 @@ struct LocatorOptions {
   // detail at about half its size) [px]; the answer's pixels are in the original image.
   int max_image_side_px = 960;
   // Retrieval: keyframes taken from the inverted index, best bag-of-words score first, each
-  // verified by PnP; the best verified pose wins. More candidates cost matching time without
-  // matching more photos (locate_benchmark.cc).
+  // verified by PnP; the best verified pose wins. The first retrieval_candidates group into places
+  // (GroupPlaces); the next reserve_candidates only make places of their own after those, up to
+  // max_places: the office repeats its desks and rooms, and the right place is often ranked below
+  // look-alikes. On 200 session-2 photos against three SLAM models (survey, hand-held seeds 11 and
+  // 23), 20 candidates and 6 places gave 142 / 116 / 114 matched with 1 / 1 / 2 wrong; 12 places
+  // 143 / 118 / 115 with 1 / 0 / 2; and 40 in reserve 144 / 119 / 114 with 1 / 0 / 1 (the locate
+  // median +7-9 ms, p95 160 -> 215-230 ms on a Zen 5). 60 candidates grouped alike answered 6 more
+  // there but lost 2 of 128 against a 600-keyframe ground-truth model (locate_benchmark
+  // --photos 200), whose first places grew with keyframes farther from what the photos show.
   int retrieval_candidates = 20;
+  int reserve_candidates = 40;
   // How the keyframes are ranked: by bag-of-words scores (slam::PlaceIndex, the SLAM loop
   // detector's), or the bag of words' best vote_shortlist re-ranked by votes: the photo
   // descriptors that find a descriptor of their visual word within vote_max_hamming bits in the
@@ -118,7 +126,7 @@ struct LocatorOptions {
   // against the photo, at most max_places places per photo [m], [deg].
   double place_radius_m = 2.0;
   double place_max_angle_deg = 60.0;
-  int max_places = 6;
+  int max_places = 12;
   // Keyframes whose position lies within this distance of a candidate's and whose viewing direction
   // differs by less than neighbour_max_angle_deg join its 2D-3D matching [m], [deg].
   double neighbour_radius_m = 1.0;
