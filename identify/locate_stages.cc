@@ -1079,19 +1079,20 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                      verdict.cells >= verdict.required_cells &&
                      !HasLowInlierShare(verdict, options);
   verdict.pose = std::move(found);
-  // Last, and only for a pose the cheaper checks accepted: the keyframe's pixels must line up with
-  // the photo's.
+  // Last: the keyframe's pixels must line up with the photo's. Measured on a pose the cheaper
+  // checks refused too, when it holds min_inliers: such a pose still makes the photo ambiguous
+  // (Decide), unless its view is unlike the photo.
   const LocatorKeyframe& verified = keyframes[verdict.verified_slot];
-  if (verdict.accepted && options.min_view_agreement > 0.0 && verified.thumbnail &&
-      !photo.agreement_image.empty()) {
+  if (verdict.inliers >= options.min_inliers && options.min_view_agreement > 0.0 &&
+      verified.thumbnail && !photo.agreement_image.empty()) {
     verdict.agreement = MeasureViewAgreement(photo.agreement_image, verdict.pose.intrinsics,
                                              verdict.pose.world_from_cam, *verified.thumbnail,
                                              verified.world_from_cam, options.view_agreement);
     verdict.looks_different =
         verdict.agreement.judged && verdict.agreement.Score() < options.min_view_agreement;
-    verdict.unconfirmed =
-        !verdict.agreement.judged && verdict.inliers < options.min_inliers_unchecked;
-    verdict.accepted = !verdict.looks_different && !verdict.unconfirmed;
+    verdict.unconfirmed = verdict.accepted && !verdict.agreement.judged &&
+                          verdict.inliers < options.min_inliers_unchecked;
+    verdict.accepted = verdict.accepted && !verdict.looks_different && !verdict.unconfirmed;
   }
   return verdict;
 }
@@ -1175,6 +1176,23 @@ double JudgedScore(const PlaceVerdict& verdict) {
   return verdict.agreement.judged ? verdict.agreement.Score() : -1.0;
 }
 
+// Of two poses that both passed or may pass (`best` is accepted), the one whose view check
+// scores ambiguity_min_agreement_lead above the other's; null when either was not judged, the
+// lead is smaller, or the leader is a `runner_up` a check refused.
+const PlaceVerdict* ViewLeader(const PlaceVerdict& best, const PlaceVerdict& runner_up,
+                               const LocatorOptions& options) {
+  if (options.ambiguity_min_agreement_lead <= 0.0 || !best.agreement.judged ||
+      !runner_up.agreement.judged) {
+    return nullptr;
+  }
+  const double lead = options.ambiguity_min_agreement_lead;
+  if (best.agreement.Score() >= runner_up.agreement.Score() + lead) return &best;
+  if (runner_up.accepted && runner_up.agreement.Score() >= best.agreement.Score() + lead) {
+    return &runner_up;
+  }
+  return nullptr;
+}
+
 }  // namespace
 
 std::optional<Decision> DecideAmongCopies(const std::vector<PlaceVerdict>& verdicts,
@@ -1249,6 +1267,16 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   why << std::fixed << std::setprecision(1);
   if (static_cast<double>(best.inliers) <
       options.min_inlier_ratio_over_runner_up * runner_up->inliers) {
+    // About as many inliers: the one that looks clearly more like the photo wins (the runner-up
+    // only when it passed every check).
+    if (const PlaceVerdict* leader = ViewLeader(best, *runner_up, options)) {
+      if (leader == runner_up) {
+        decision.winner = static_cast<int>(runner_up - verdicts.data());
+        decision.runner_up_inliers = best.inliers;
+        decision.runner_up_pose = best.pose.world_from_cam;
+      }
+      return decision;
+    }
     why << "two places fit the photo about as well (" << best.inliers << " and "
         << runner_up->inliers << " inliers, " << apart_m << " m apart): the view is ambiguous.";
   } else if (UniqueInlierShare(best, *runner_up) < options.min_unique_inlier_share &&

@@ -187,10 +187,11 @@ struct PlaceVerdict {
   double rotation_deg = 0.0;               // from the verified keyframe's view
   int cells = 0;                           // of a 4x4 grid holding an inlier
   int required_cells = 0;                  // RequiredInlierCells for the photo
-  // The view check, made only on a pose every other check accepted.
+  // The view check, made on a pose of min_inliers or more, whatever the other checks said.
   ViewAgreement agreement;
   bool looks_different = false;  // judged, and scored below min_view_agreement
-  // Made, not judged, and fewer inliers than min_inliers_unchecked: a weak pose nothing confirms.
+  // Accepted by the other checks, not judged, and fewer inliers than min_inliers_unchecked: a weak
+  // pose nothing confirms.
   bool unconfirmed = false;
   bool accepted = false;  // valid and every check passed
   // Verified from the winner's pose moved by a copy offset (CopyOffsets): a copy of what the
@@ -201,7 +202,8 @@ struct PlaceVerdict {
 // grown by guided matching, then the checks: min_inliers, the paper's 90 deg from the keyframe
 // the inliers came from, min_inlier_cells, min_inlier_share of the projected points, and last
 // min_view_agreement against that keyframe's thumbnail (when it has one; a pose under
-// min_inliers_unchecked inliers the check cannot judge is refused).
+// min_inliers_unchecked inliers the check cannot judge is refused). The view check is measured
+// on every pose of min_inliers, one the other checks refused too: Decide asks it of rivals.
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);

@@ -717,6 +717,32 @@ TEST_F(VerifyPlaceTest, APoseWhoseViewIsUnlikeThePhotoIsRefusedLast) {
   EXPECT_TRUE(VerifyPlace(photo_, place_, matches, keyframes_, options).accepted);
 }
 
+// A pose a cheaper check refused is view-checked too (Decide asks whether it looks like the
+// photo before letting it make the photo ambiguous), and stays refused whatever its score.
+TEST_F(VerifyPlaceTest, APoseACheaperCheckRefusedIsViewCheckedAndStaysRefused) {
+  LocatorOptions options;
+  SeeWall(testing::TexturedWall(), options.view_agreement);
+  const PlaceMatches matches = MatchPlace(photo_, place_, keyframes_, options);
+  options.max_rotation_from_keyframe_deg = -1.0;  // the paper's check refuses every pose
+  PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  ASSERT_GE(verdict.inliers, options.min_inliers);
+  EXPECT_FALSE(verdict.accepted);
+  EXPECT_TRUE(verdict.agreement.judged);
+  EXPECT_GT(verdict.agreement.Score(), 0.9);
+  EXPECT_FALSE(verdict.looks_different);
+  EXPECT_FALSE(verdict.unconfirmed);
+  // Of another wall: refused, and its view unlike the photo.
+  PhotographWall(testing::TexturedWall(3.0, /*seed=*/9), options.view_agreement);
+  verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_FALSE(verdict.accepted);
+  EXPECT_TRUE(verdict.looks_different);
+  // Fewer inliers than a pose needs: not measured.
+  options.min_inliers = verdict.inliers + 1;
+  verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
+  EXPECT_FALSE(verdict.agreement.judged);
+  EXPECT_FALSE(verdict.looks_different);
+}
+
 TEST_F(VerifyPlaceTest, AWeakPoseTheViewCheckCannotJudgeIsRefused) {
   LocatorOptions options;
   // The keyframe's depth lies beyond what the check uses (a wall 8 m away): nothing to compare.
@@ -935,6 +961,43 @@ TEST(DecideTest, BetweenCopiesTheViewCheckDecidesNotTheInliers) {
                         options)
           .has_value());
   EXPECT_THROW(DecideAmongCopies({}, 0, options), Error);
+}
+
+TEST(DecideTest, BetweenPlacesThatFitAboutAsWellTheViewCheckDecidesWhenOneLeadsClearly) {
+  LocatorOptions options;  // ambiguity_min_agreement_lead 0.05
+  // Ceiling tiles one tile apart: 144 and 139 inliers, the runner-up's surroundings the photo's.
+  Decision decision =
+      Decide({Judged(144, {0, 0, 0}, 0.77, false), Judged(139, {0.8, 0, 0}, 0.89, false)}, options);
+  EXPECT_EQ(decision.winner, 1);
+  EXPECT_EQ(decision.runner_up_inliers, 144);
+  EXPECT_TRUE(decision.runner_up_pose.translation().isApprox(Eigen::Vector3d::Zero()));
+  // The winner by inliers leads the view too: it stands.
+  decision =
+      Decide({Judged(57, {0, 0, 0}, 0.93, false), Judged(57, {3, 0, 0}, 0.73, false)}, options);
+  EXPECT_EQ(decision.winner, 0);
+  // Within the lead, or one not judged: ambiguous as before.
+  decision =
+      Decide({Judged(31, {0, 0, 0}, 0.94, false), Judged(26, {6, 0, 0}, 0.97, false)}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  decision =
+      Decide({Judged(100, {0, 0, 0}, -1.0, false), Judged(90, {4, 0, 0}, 0.9, false)}, options);
+  EXPECT_EQ(decision.winner, -1);
+  // A refused runner-up that looks more like the photo does not win: the photo stays ambiguous.
+  PlaceVerdict refused = Judged(110, {4, 0, 0}, 0.95, false);
+  refused.accepted = false;
+  decision = Decide({Judged(100, {0, 0, 0}, 0.6, false), refused}, options);
+  EXPECT_EQ(decision.winner, -1);
+  // Led by it, the accepted one stands.
+  refused.agreement.global_ncc = refused.agreement.cell_median_ncc = 0.7;
+  decision = Decide({Judged(100, {0, 0, 0}, 0.9, false), refused}, options);
+  EXPECT_EQ(decision.winner, 0);
+  // Off: ambiguous whatever the views.
+  options.ambiguity_min_agreement_lead = 0.0;
+  decision =
+      Decide({Judged(144, {0, 0, 0}, 0.77, false), Judged(139, {0.8, 0, 0}, 0.89, false)}, options);
+  EXPECT_EQ(decision.winner, -1);
 }
 
 TEST(ExplainBareViewTest, FailedMatchingOnAPhotoOfFewDetailCellsAsksForMoreOfTheRoom) {
