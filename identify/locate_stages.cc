@@ -1176,20 +1176,20 @@ double JudgedScore(const PlaceVerdict& verdict) {
   return verdict.agreement.judged ? verdict.agreement.Score() : -1.0;
 }
 
+// Whether `a` was judged and its view check scores at least `lead` above `b`'s.
+bool ViewLeads(const PlaceVerdict& a, const PlaceVerdict& b, double lead) {
+  return JudgedScore(a) >= 0.0 && JudgedScore(a) >= JudgedScore(b) + lead;
+}
+
 // Of two poses that both passed or may pass (`best` is accepted), the one whose view check
 // scores ambiguity_min_agreement_lead above the other's; null when either was not judged, the
 // lead is smaller, or the leader is a `runner_up` a check refused.
 const PlaceVerdict* ViewLeader(const PlaceVerdict& best, const PlaceVerdict& runner_up,
                                const LocatorOptions& options) {
-  if (options.ambiguity_min_agreement_lead <= 0.0 || !best.agreement.judged ||
-      !runner_up.agreement.judged) {
-    return nullptr;
-  }
   const double lead = options.ambiguity_min_agreement_lead;
-  if (best.agreement.Score() >= runner_up.agreement.Score() + lead) return &best;
-  if (runner_up.accepted && runner_up.agreement.Score() >= best.agreement.Score() + lead) {
-    return &runner_up;
-  }
+  if (lead <= 0.0 || !best.agreement.judged || !runner_up.agreement.judged) return nullptr;
+  if (ViewLeads(best, runner_up, lead)) return &best;
+  if (runner_up.accepted && ViewLeads(runner_up, best, lead)) return &runner_up;
   return nullptr;
 }
 
@@ -1216,8 +1216,7 @@ std::optional<Decision> DecideAmongCopies(const std::vector<PlaceVerdict>& verdi
   Decision decision;
   decision.runner_up_inliers = second.inliers;
   decision.runner_up_pose = second.pose.world_from_cam;
-  if (JudgedScore(leader) >= 0.0 &&
-      JudgedScore(leader) >= JudgedScore(second) + options.copies.min_agreement_lead) {
+  if (ViewLeads(leader, second, options.copies.min_agreement_lead)) {
     decision.winner = static_cast<int>(&leader - verdicts.data());
     return decision;
   }
