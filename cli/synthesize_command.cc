@@ -1,7 +1,9 @@
-// sightmap synthesize MODEL [--json] [--all-sectors] [--clear] [--images DIR]: renders views of
-// each labelled appliance from the open directions the walk missed (synthesis/view_synthesis.h) and
+// sightmap synthesize MODEL [--json] [--all-sectors] [--grid M] [--clear] [--images DIR]: renders
+// views of each labelled appliance from the open directions the walk missed (and from a grid of
+// free floor) (synthesis/view_synthesis.h) and
 // stores them as synthetic views, which `locate` and `serve` match photos against; mapping never
 // reads them.
+#include <cstdlib>
 #include <iomanip>
 #include <iostream>
 
@@ -33,6 +35,16 @@ int RunSynthesize(int argc, char** argv) {
   bool all_sectors = false;
   app.add_flag("--all-sectors", all_sectors,
                "also render the open directions keyframes saw (default: only those they missed)");
+  app.add_option("--grid", options.grid_step_m,
+                 "also render from standpoints on a grid of free floor this far apart, towards "
+                 "each label in reach the walk did not see from there [m] (default 0: none)")
+      ->check(CLI::Validator(
+          [](const std::string& text) {
+            const double step = std::strtod(text.c_str(), nullptr);
+            return step == 0.0 || step >= 0.1 ? std::string()
+                                              : "must be 0 (no grid) or at least 0.1 m";
+          },
+          "M"));
   std::string images_dir;
   app.add_option("--images", images_dir,
                  "also write each stored view as DIR/view-ID.png, to look at what was rendered");
@@ -69,7 +81,12 @@ int RunSynthesize(int argc, char** argv) {
   }
   std::cout << "standpoints    " << report.standpoints << " around " << report.labels
             << " labels (open directions " << (options.missing_sectors_only ? "not seen" : "all")
-            << ")\n"
+            << ")";
+  if (options.grid_step_m > 0.0) {
+    std::cout << ", " << report.grid_standpoints << " of them on a " << options.grid_step_m
+              << " m grid of free floor";
+  }
+  std::cout << "\n"
             << "written        " << report.written << " synthetic views, " << std::fixed
             << std::setprecision(1) << report.bytes / 1e6 << " MB";
   if (report.deleted > 0) std::cout << " (replacing " << report.deleted << ")";

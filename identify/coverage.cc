@@ -400,6 +400,8 @@ SIGHTMAP_OPTIONS_JSON(CoverageOptions, sectors, min_distance_m, max_distance_m, 
                       cell_m, free_space_pixel_step, free_space_margin_m, max_depth_m,
                       label_clearance_m, view)
 
+SIGHTMAP_OPTIONS_JSON(ViewSeenOptions, max_angle_deg, max_distance_ratio)
+
 bool ViewSeenOptions::Check(std::string* error) const {
   if (!(max_angle_deg > 0.0 && max_angle_deg <= 180.0)) {
     *error = "max_angle_deg must be in (0, 180]";

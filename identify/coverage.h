@@ -129,6 +129,8 @@ struct ViewSeenOptions {
   double max_distance_ratio = 2.0;
   bool Check(std::string* error) const;
 };
+void to_json(nlohmann::json& json, const ViewSeenOptions& options);
+void from_json(const nlohmann::json& json, ViewSeenOptions& options);
 bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,
                  const std::vector<store::KeyframeInfo>& keyframes,
                  const ViewSeenOptions& options = ViewSeenOptions());

@@ -30,6 +30,47 @@ double DepthAt(const cv::Mat& depth_mm, const Eigen::Vector2d& pixel) {
   return depth_mm.at<uint16_t>(v, u) / 1000.0;
 }
 
+// The floor plan's cell under floor coordinates `at`, kUnknown outside the plan.
+uint8_t PlanCell(const identify::FloorPlan& plan, const Eigen::Vector2d& at) {
+  const Eigen::Vector2d cell = (at - plan.origin) / plan.cell_m;
+  const int col = static_cast<int>(std::floor(cell.x()));
+  const int row = static_cast<int>(std::floor(cell.y()));
+  if (plan.cells.empty() || col < 0 || row < 0 || col >= plan.cells.cols ||
+      row >= plan.cells.rows) {
+    return identify::FloorPlan::kUnknown;
+  }
+  return plan.cells.at<uint8_t>(row, col);
+}
+
+// Whether a person fits at `at`: its cell crossed by the keyframes' depth, and no surface within
+// `clearance_m` of it.
+bool PersonFits(const identify::FloorPlan& plan, const Eigen::Vector2d& at, double clearance_m) {
+  if (PlanCell(plan, at) != identify::FloorPlan::kFree) return false;
+  const double step = 0.5 * plan.cell_m;
+  for (double dy = -clearance_m; dy <= clearance_m; dy += step) {
+    for (double dx = -clearance_m; dx <= clearance_m; dx += step) {
+      if (dx * dx + dy * dy > clearance_m * clearance_m) continue;
+      if (PlanCell(plan, at + Eigen::Vector2d(dx, dy)) == identify::FloorPlan::kSurface) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+// Whether the floor plan's cells from `from` towards `to` are free, but the last `clearance_m`
+// (the appliance's own surface and the wall it hangs on).
+bool InPlainSight(const identify::FloorPlan& plan, const Eigen::Vector2d& from,
+                  const Eigen::Vector2d& to, double clearance_m) {
+  const Eigen::Vector2d sight = to - from;
+  const double length = sight.norm();
+  const double step = 0.5 * plan.cell_m;
+  for (double t = 0.0; t < length - clearance_m; t += step) {
+    if (PlanCell(plan, from + (t / length) * sight) != identify::FloorPlan::kFree) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 bool ViewSynthesisOptions::Check(std::string* error) const {
@@ -43,6 +84,10 @@ bool ViewSynthesisOptions::Check(std::string* error) const {
   if (!(max_pitch_deg > 0.0 && max_pitch_deg <= 90.0)) {
     return fail("max_pitch_deg must be in (0, 90]");
   }
+  if (!(grid_step_m >= 0.0)) return fail("grid_step_m must be >= 0 (0: no grid)");
+  if (grid_step_m > 0.0 && grid_step_m < 0.1) return fail("grid_step_m must be 0 or >= 0.1");
+  if (!(grid_clearance_m >= 0.0)) return fail("grid_clearance_m must be >= 0");
+  if (!grid_seen.Check(&why)) return fail("grid_seen: " + why);
   if (max_sources < 1) return fail("max_sources must be >= 1");
   if (!(max_source_angle_deg > 0.0 && max_source_angle_deg <= 180.0)) {
     return fail("max_source_angle_deg must be in (0, 180]");
@@ -94,6 +139,53 @@ std::vector<Standpoint> PlanStandpoints(const identify::ModelCoverage& coverage,
         standpoint.target = label.centre;
         standpoint.world_from_cam = LookAt(eye, label.centre, coverage.up);
         standpoint.bearing_deg = bearing_deg;
+        standpoint.distance_m = distance;
+        standpoints.push_back(std::move(standpoint));
+      }
+    }
+  }
+  return standpoints;
+}
+
+std::vector<Standpoint> PlanGridStandpoints(const identify::ModelCoverage& coverage,
+                                            const std::vector<store::KeyframeInfo>& keyframes,
+                                            const ViewSynthesisOptions& options) {
+  std::vector<Standpoint> standpoints;
+  const identify::FloorPlan& plan = coverage.floor;
+  if (!(options.grid_step_m > 0.0) || plan.cells.empty()) return standpoints;
+  const double step = options.grid_step_m;
+  const Eigen::Vector2d lo = plan.origin;
+  const Eigen::Vector2d hi =
+      plan.origin + plan.cell_m * Eigen::Vector2d(plan.cells.cols, plan.cells.rows);
+  const auto floor_of = [&coverage](const Eigen::Vector3d& world) {
+    return Eigen::Vector2d(world.dot(coverage.floor_x), world.dot(coverage.floor_y));
+  };
+  const identify::CoverageOptions& band = options.coverage;
+  // Grid points on multiples of the step, so a model's grid does not move with its plan's extent.
+  for (double y = std::ceil(lo.y() / step) * step; y < hi.y(); y += step) {
+    for (double x = std::ceil(lo.x() / step) * step; x < hi.x(); x += step) {
+      const Eigen::Vector2d at(x, y);
+      if (!PersonFits(plan, at, options.grid_clearance_m)) continue;
+      const Eigen::Vector3d eye =
+          x * coverage.floor_x + y * coverage.floor_y + coverage.eye_height_m * coverage.up;
+      for (const identify::LabelCoverage& label : coverage.labels) {
+        const Eigen::Vector2d label_at = floor_of(label.centre);
+        const double distance = (label_at - at).norm();
+        if (distance < band.min_distance_m || distance > band.max_distance_m) continue;
+        const double sine = std::abs((label.centre - eye).normalized().dot(coverage.up));
+        if (RadToDeg(std::asin(std::min(1.0, sine))) > options.max_pitch_deg) continue;
+        if (!InPlainSight(plan, at, label_at, band.label_clearance_m)) continue;
+        const Eigen::Isometry3d world_from_cam = LookAt(eye, label.centre, coverage.up);
+        if (identify::ViewWasSeen(world_from_cam, label.centre, keyframes, options.grid_seen)) {
+          continue;
+        }
+        Standpoint standpoint;
+        standpoint.label = label.id;
+        standpoint.label_name = label.name;
+        standpoint.target = label.centre;
+        standpoint.world_from_cam = world_from_cam;
+        standpoint.bearing_deg =
+            FloorBearingDeg(eye - label.centre, coverage.floor_x, coverage.floor_y);
         standpoint.distance_m = distance;
         standpoints.push_back(std::move(standpoint));
       }
@@ -370,9 +462,13 @@ ViewSynthesizer::Result ViewSynthesizer::Synthesize(const Eigen::Isometry3d& wor
 }
 
 nlohmann::json ToJson(const SynthesisReport& report) {
-  return {{"labels", report.labels},   {"standpoints", report.standpoints},
-          {"written", report.written}, {"refused", report.refused},
-          {"deleted", report.deleted}, {"bytes", report.bytes},
+  return {{"labels", report.labels},
+          {"standpoints", report.standpoints},
+          {"grid_standpoints", report.grid_standpoints},
+          {"written", report.written},
+          {"refused", report.refused},
+          {"deleted", report.deleted},
+          {"bytes", report.bytes},
           {"seconds", report.seconds}};
 }
 
@@ -385,11 +481,14 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
                               << " has no labels: views are rendered around labelled appliances, "
                                  "so label them first ('sightmap label')");
   const identify::ModelCoverage coverage = identify::ComputeCoverage(model, options.coverage);
-  const std::vector<Standpoint> standpoints = PlanStandpoints(coverage, options);
+  std::vector<Standpoint> standpoints = PlanStandpoints(coverage, options);
+  const std::vector<Standpoint> on_grid = PlanGridStandpoints(coverage, model.Keyframes(), options);
+  standpoints.insert(standpoints.end(), on_grid.begin(), on_grid.end());
   ViewSynthesizer synthesizer(model, options);
   SynthesisReport report;
   report.labels = static_cast<int>(coverage.labels.size());
   report.standpoints = static_cast<int>(standpoints.size());
+  report.grid_standpoints = static_cast<int>(on_grid.size());
   // The previous run's views stay until this run's are written: a run killed half-way leaves
   // both, and the next run replaces both. A new view's id exceeds every stored one (SQLite row
   // ids), so the old views are those before the first new one.
@@ -423,7 +522,8 @@ SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions&
 }
 
 SIGHTMAP_OPTIONS_JSON(ViewSynthesisOptions, missing_sectors_only, coverage, max_pitch_deg,
-                      max_sources, max_source_angle_deg, mesh_step_px, max_edge_depth_ratio,
-                      max_depth_m, composite_depth_ratio, min_drawn_share, min_features, features)
+                      grid_step_m, grid_clearance_m, grid_seen, max_sources, max_source_angle_deg,
+                      mesh_step_px, max_edge_depth_ratio, max_depth_m, composite_depth_ratio,
+                      min_drawn_share, min_features, features)
 
 }  // namespace sightmap::synthesis

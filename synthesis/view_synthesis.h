@@ -41,6 +41,15 @@ struct ViewSynthesisOptions {
   // A standpoint looking up or down more steeply than this at its label is skipped: nobody
   // photographs a ceiling light straight up, and the walk's keyframes hardly saw the ceiling [deg].
   double max_pitch_deg = 60.0;
+  // Standpoints on a grid of free floor as well, not only around labels: every grid_step_m over
+  // the coverage floor plan where a person fits (the cell crossed by the keyframes' depth, no
+  // surface within grid_clearance_m at eye height), looking at each label whose distance lies in
+  // the coverage distance band, in plain sight over the floor plan, and that no keyframe saw from
+  // a similar view (ViewWasSeen with grid_seen: the walk's own view matches a photo taken there).
+  // 0 turns the grid off [m], [m].
+  double grid_step_m = 0.0;
+  double grid_clearance_m = 0.3;
+  identify::ViewSeenOptions grid_seen;
 
   // Sources: keyframes that saw the label (its centre inside the image, not hidden behind their
   // depth), the smallest angle between their line of sight to it and the standpoint's first, at
@@ -88,6 +97,12 @@ struct Standpoint {
 // of each label.
 std::vector<Standpoint> PlanStandpoints(const identify::ModelCoverage& coverage,
                                         const ViewSynthesisOptions& options);
+
+// The grid standpoints (grid_step_m above; none when it is 0): at eye height on the floor plan's
+// free cells, each looking at a label the keyframes (their poses) did not see from there.
+std::vector<Standpoint> PlanGridStandpoints(const identify::ModelCoverage& coverage,
+                                            const std::vector<store::KeyframeInfo>& keyframes,
+                                            const ViewSynthesisOptions& options);
 
 // A keyframe's depth [mm] as triangles in the world, textured with its colour image (texture
 // handle `texture`), unlit so the colour is the keyframe's.
@@ -144,6 +159,7 @@ class ViewSynthesizer {
 struct SynthesisReport {
   int labels = 0;
   int standpoints = 0;
+  int grid_standpoints = 0;  // of those, on the free-floor grid
   int written = 0;
   int refused = 0;
   int64_t deleted = 0;  // synthetic views the run replaced
@@ -151,14 +167,15 @@ struct SynthesisReport {
   double seconds = 0.0;
   std::vector<std::string> refusals;  // one line per refused standpoint
 };
-// {"labels", "standpoints", "written", "refused", "deleted", "bytes", "seconds"}.
+// {"labels", "standpoints", "grid_standpoints", "written", "refused", "deleted", "bytes",
+// "seconds"}.
 nlohmann::json ToJson(const SynthesisReport& report);
 
 // Replaces the model's synthetic views with views rendered at the standpoints of its current
-// coverage. Each view is committed on its own and the previous views are removed only at the end,
-// so a killed run leaves the previous views and those written so far (the next run replaces all).
-// `progress` (optional) gets the standpoints done and their total. Throws Error when the model
-// has no labels or no keyframes.
+// coverage (PlanStandpoints, then PlanGridStandpoints). Each view is committed on its own and the
+// previous views are removed only at the end, so a killed run leaves the previous views and those
+// written so far (the next run replaces all). `progress` (optional) gets the standpoints done and
+// their total. Throws Error when the model has no labels or no keyframes.
 SynthesisReport SynthesizeViews(store::Model& model, const ViewSynthesisOptions& options,
                                 const std::function<void(int, int)>& progress = nullptr);
 

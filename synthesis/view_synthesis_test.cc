@@ -93,6 +93,68 @@ TEST(PlanStandpoints, OneViewPerOpenDistanceOfEachMissingSectorAtEyeHeight) {
   EXPECT_DOUBLE_EQ(standpoints[0].distance_m, 2.5);
 }
 
+// A room 8 m square of free floor, a wall across it at x = 4.0-4.2 m, a desk by (3, 6), a label
+// on the west side, and one keyframe that saw it from the south.
+TEST(PlanGridStandpoints, FreeFloorInPlainSightOfALabelTheWalkDidNotSeeFromThere) {
+  identify::ModelCoverage coverage;
+  coverage.eye_height_m = 1.4;
+  identify::FloorPlan& plan = coverage.floor;
+  plan.cell_m = 0.2;
+  plan.cells = cv::Mat(40, 40, CV_8UC1, cv::Scalar(identify::FloorPlan::kFree));
+  plan.cells.col(20).setTo(identify::FloorPlan::kSurface);
+  // A desk corner 0.28 m from the grid point (3, 6), off its line of sight to the label.
+  plan.cells.at<uint8_t>(31, 16) = identify::FloorPlan::kSurface;
+  identify::LabelCoverage label;
+  label.id = LabelId(5);
+  label.name = "switch";
+  label.centre = Eigen::Vector3d(1.0, 4.0, 1.5);
+  coverage.labels.push_back(label);
+  store::KeyframeInfo keyframe;
+  keyframe.intrinsics = SmallCamera();
+  keyframe.world_from_cam =
+      LookAt(Eigen::Vector3d(1.0, 1.5, 1.4), label.centre, Eigen::Vector3d::UnitZ());
+
+  ViewSynthesisOptions options;
+  EXPECT_TRUE(PlanGridStandpoints(coverage, {keyframe}, options).empty());  // off by default
+  options.grid_step_m = 1.0;
+  const std::vector<Standpoint> standpoints = PlanGridStandpoints(coverage, {keyframe}, options);
+  ASSERT_FALSE(standpoints.empty());
+  std::vector<Eigen::Vector2d> at;
+  for (const Standpoint& standpoint : standpoints) {
+    EXPECT_EQ(standpoint.label, LabelId(5));
+    EXPECT_EQ(standpoint.label_name, "switch");
+    const Eigen::Vector3d eye = standpoint.world_from_cam.translation();
+    EXPECT_NEAR(eye.z(), 1.4, 1e-12);
+    EXPECT_NEAR(eye.x(), std::round(eye.x()), 1e-9);  // on the 1 m grid
+    EXPECT_NEAR(eye.y(), std::round(eye.y()), 1e-9);
+    EXPECT_LT(eye.x(), 4.0);  // the wall hides the label beyond it
+    const double distance = (eye - label.centre).head<2>().norm();
+    EXPECT_NEAR(standpoint.distance_m, distance, 1e-9);
+    EXPECT_GE(distance, options.coverage.min_distance_m);
+    EXPECT_LE(distance, options.coverage.max_distance_m);
+    const Eigen::Vector3d in_cam = standpoint.world_from_cam.inverse() * label.centre;
+    EXPECT_NEAR(in_cam.head<2>().norm(), 0.0, 1e-9);  // looking at the label
+    at.push_back(eye.head<2>());
+  }
+  const auto planned = [&at](double x, double y) {
+    return std::any_of(at.begin(), at.end(), [&](const Eigen::Vector2d& p) {
+      return (p - Eigen::Vector2d(x, y)).norm() < 1e-9;
+    });
+  };
+  EXPECT_TRUE(planned(3.0, 4.0));   // from the east: 90 deg from the keyframe's view
+  EXPECT_TRUE(planned(1.0, 7.0));   // from the north, 3 m
+  EXPECT_TRUE(planned(3.0, 3.0));   // 63 deg from the keyframe's view
+  EXPECT_FALSE(planned(1.0, 2.0));  // the keyframe's own view
+  EXPECT_FALSE(planned(2.0, 2.0));  // 27 deg from it, at a similar distance
+  EXPECT_FALSE(planned(3.0, 6.0));  // nobody fits beside the desk
+  EXPECT_FALSE(planned(5.0, 4.0));  // behind the wall
+  EXPECT_FALSE(planned(1.0, 4.0));  // at the label
+
+  // Without the keyframe, its view is planned too.
+  const std::vector<Standpoint> unseen = PlanGridStandpoints(coverage, {}, options);
+  EXPECT_GT(unseen.size(), standpoints.size());
+}
+
 TEST(KeyframeMesh, TrianglesFollowTheDepthAndStopAtItsEdges) {
   const Intrinsics k = SmallCamera();
   // Left half a wall at 2 m, right half one at 3 m (a depth edge), top rows without depth.
@@ -188,6 +250,16 @@ TEST(ViewSynthesisOptions, AreChecked) {
   options = ViewSynthesisOptions();
   options.min_drawn_share = 1.5;
   EXPECT_FALSE(options.Check(&why));
+  options = ViewSynthesisOptions();
+  options.grid_step_m = -1.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("grid_step_m"), std::string::npos);
+  options.grid_step_m = 0.05;  // a view every 5 cm: thousands of near-copies
+  EXPECT_FALSE(options.Check(&why));
+  options = ViewSynthesisOptions();
+  options.grid_seen.max_angle_deg = 0.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("grid_seen"), std::string::npos);
 }
 
 // The office walk with ground-truth poses, every appliance labelled: one model for the suite.

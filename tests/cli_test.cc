@@ -299,10 +299,11 @@ TEST(Cli, SynthesizeReportsItsViewsAndRefusesAModelWithoutLabels) {
   const CommandResult run = Sightmap("synthesize " + path + " --all-sectors --json");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const nlohmann::json report = nlohmann::json::parse(run.out);
-  for (const char* key :
-       {"labels", "standpoints", "written", "refused", "deleted", "bytes", "seconds"}) {
+  for (const char* key : {"labels", "standpoints", "grid_standpoints", "written", "refused",
+                          "deleted", "bytes", "seconds"}) {
     EXPECT_TRUE(report.contains(key)) << key;
   }
+  EXPECT_EQ(report.at("grid_standpoints"), 0);  // no grid unless asked
   EXPECT_EQ(report.at("labels"), 2);
   EXPECT_EQ(report.at("written").get<int>() + report.at("refused").get<int>(),
             report.at("standpoints").get<int>());
@@ -320,6 +321,8 @@ TEST(Cli, SynthesizeReportsItsViewsAndRefusesAModelWithoutLabels) {
   const CommandResult after = Sightmap("info " + path + " --json");
   EXPECT_EQ(nlohmann::json::parse(after.out).at("synthetic_views"), 0);
 
+  ExpectOneLineError(Sightmap("synthesize " + path + " --grid -1"), 2, "--grid");
+  ExpectOneLineError(Sightmap("synthesize " + path + " --grid 0.01"), 2, "at least 0.1 m");
   ExpectOneLineError(Sightmap("synthesize"), 2, "MODEL");
   ExpectOneLineError(Sightmap("synthesize /no/such/model.db"), 1, "/no/such/model.db");
   const std::string unlabelled = testing::MakeTempDir("cli_synthesize_bare") + "/model.db";
