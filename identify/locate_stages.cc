@@ -221,7 +221,7 @@ std::vector<std::vector<cv::DMatch>> KnnWithinNodes(const cv::Mat& query,
 }
 
 // Each model point projected with the hypothesis' pose takes the photo keypoint within
-// guided_radius_px whose descriptor is nearest (if within guided_max_distance); a photo keypoint
+// `radius_px` whose descriptor is nearest (if within guided_max_distance); a photo keypoint
 // claimed by several model points (the same point in several keyframes) keeps the nearest.
 // `model_index` receives each correspondence's row in `model_points`.
 // Comparing descriptors is most of its work: the popcnt clone serves CPUs with the instruction.
@@ -229,7 +229,7 @@ __attribute__((target_clones("popcnt", "default"))) void GuidedMatch(
     const cv::Mat& photo_descriptors, const std::vector<cv::Point2f>& photo_points,
     const PhotoGrid& grid, const cv::Mat& model_descriptors,
     const std::vector<cv::Point3f>& model_points, const PoseHypothesis& hypothesis,
-    int max_distance, const LocatorOptions& options, std::vector<cv::Point3f>* object,
+    int max_distance, double radius_px, std::vector<cv::Point3f>* object,
     std::vector<cv::Point2f>* image, std::vector<int>* model_index, int* projected) {
   *projected = 0;
   object->clear();
@@ -244,7 +244,7 @@ __attribute__((target_clones("popcnt", "default"))) void GuidedMatch(
   cv::Rodrigues(rvec, rotation);
   std::vector<int> best_model(photo_points.size(), -1);
   std::vector<int> best_distance(photo_points.size(), max_distance + 1);
-  const double radius_sq = options.guided_radius_px * options.guided_radius_px;
+  const double radius_sq = radius_px * radius_px;
   for (size_t m = 0; m < model_points.size(); ++m) {
     const cv::Point3f& w = model_points[m];
     const cv::Vec3d p = rotation * cv::Vec3d(w.x, w.y, w.z) + tvec;
@@ -256,7 +256,7 @@ __attribute__((target_clones("popcnt", "default"))) void GuidedMatch(
     const uint8_t* model_row = model_descriptors.ptr<uint8_t>(static_cast<int>(m));
     int nearest = -1;
     int nearest_distance = max_distance + 1;
-    grid.ForEachNear(uv, options.guided_radius_px, [&](int i) {
+    grid.ForEachNear(uv, radius_px, [&](int i) {
       const cv::Point2f d = photo_points[static_cast<size_t>(i)] - uv;
       if (d.x * d.x + d.y * d.y > radius_sq) return;
       const int distance =
@@ -559,7 +559,8 @@ std::vector<slam::PlaceCandidate> MergeCandidates(const std::vector<slam::PlaceC
 }
 
 std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,
-                               size_t reserve_from, const std::vector<LocatorKeyframe>& keyframes,
+                               size_t reserve_from, int max_places,
+                               const std::vector<LocatorKeyframe>& keyframes,
                                const LocatorOptions& options) {
   const double place_cos = std::cos(DegToRad(options.place_max_angle_deg));
   std::vector<Place> places;
@@ -588,7 +589,7 @@ std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidat
       continue;
     }
     if (joined == nullptr) {
-      if (static_cast<int>(places.size()) >= options.max_places) continue;
+      if (static_cast<int>(places.size()) >= max_places) continue;
       places.push_back(Place{slot, {}});
       joined = &places.back();
     }
@@ -644,9 +645,7 @@ std::vector<Place> TwinPlaces(const std::vector<slam::PlaceCandidate>& look_alik
       twins.push_back(candidate);
     }
   }
-  LocatorOptions grouping = options;
-  grouping.max_places = options.twin_places;
-  return GroupPlaces(twins, twins.size(), keyframes, grouping);
+  return GroupPlaces(twins, twins.size(), options.twin_places, keyframes, options);
 }
 
 namespace {
@@ -922,12 +921,11 @@ PlaceMatches MatchPlaceFrom(const PreparedPhoto& photo, const Place& place,
                             const PoseHypothesis& pose, const LocatorOptions& options) {
   PlaceMatches matches = PlacePoints(place, keyframes, /*model_nodes=*/nullptr);
   if (matches.model_points.empty() || photo.features.descriptors.empty()) return matches;
-  LocatorOptions wide = options;
-  wide.guided_radius_px = options.copies.search_radius_px;
   int projected = 0;
   GuidedMatch(photo.features.descriptors, photo.points, photo.grid, matches.model_descriptors,
               matches.model_points, pose, GuidedMaxDistance(matches.model_descriptors, options),
-              wide, &matches.object, &matches.image, &matches.object_model, &projected);
+              options.copies.search_radius_px, &matches.object, &matches.image,
+              &matches.object_model, &projected);
   return matches;
 }
 
@@ -1037,8 +1035,8 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
     for (int round = 0; round < options.guided_rounds; ++round) {
       GuidedMatch(photo.features.descriptors, photo.points, photo.grid, matches.model_descriptors,
                   matches.model_points, found,
-                  GuidedMaxDistance(matches.model_descriptors, options), options, &guided_object,
-                  &guided_image, &guided_model, &verdict.projected);
+                  GuidedMaxDistance(matches.model_descriptors, options), options.guided_radius_px,
+                  &guided_object, &guided_image, &guided_model, &verdict.projected);
       if (!RefineOn(guided_object, guided_image, options, &found)) break;
       verdict.matches = static_cast<int>(guided_object.size());
       // The inliers now index the guided correspondences.

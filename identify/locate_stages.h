@@ -131,8 +131,9 @@ std::vector<slam::PlaceCandidate> MergeCandidates(const std::vector<slam::PlaceC
 // Stage 3: candidates grouped into places. A candidate within place_radius_m of an earlier
 // place's head and looking within place_max_angle_deg of it joins that place (same part of the
 // building, similar view), so each place is matched once against its keyframes' and their
-// neighbours' 3D features rather than keyframe by keyframe. At most max_places, in the order of
-// their best candidate.
+// neighbours' 3D features rather than keyframe by keyframe. At most `max_places` (the first
+// look's max_places, the second look's second_look_max_places, the twins' twin_places), in the
+// order of their best candidate.
 struct Place {
   size_t head = 0;            // the best-scoring candidate's slot
   std::vector<size_t> slots;  // candidates and their neighbours, each once
@@ -140,7 +141,8 @@ struct Place {
 // Candidates from `reserve_from` on (the reserve_candidates after retrieval_candidates) never
 // join a place an earlier candidate made: they only make places of their own.
 std::vector<Place> GroupPlaces(const std::vector<slam::PlaceCandidate>& candidates,
-                               size_t reserve_from, const std::vector<LocatorKeyframe>& keyframes,
+                               size_t reserve_from, int max_places,
+                               const std::vector<LocatorKeyframe>& keyframes,
                                const LocatorOptions& options);
 
 // Stage 4: 2D-3D matches of the photo against the union of a place's keyframes.

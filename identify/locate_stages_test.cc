@@ -148,7 +148,8 @@ TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxP
   };
   keyframes[0].neighbours = {4};
   const std::vector<slam::PlaceCandidate> candidates = {{0, 0.9}, {1, 0.8}, {2, 0.7}, {3, 0.6}};
-  const std::vector<Place> places = GroupPlaces(candidates, candidates.size(), keyframes, options);
+  const std::vector<Place> places =
+      GroupPlaces(candidates, candidates.size(), options.max_places, keyframes, options);
   ASSERT_EQ(places.size(), 2u);
   EXPECT_EQ(places[0].head, 0u);
   EXPECT_EQ(places[0].slots, (std::vector<size_t>{0, 4, 2}));
@@ -156,9 +157,11 @@ TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxP
   EXPECT_EQ(places[1].slots, (std::vector<size_t>{1}));
 
   options.max_places = 3;
-  EXPECT_EQ(GroupPlaces(candidates, candidates.size(), keyframes, options).size(), 3u);
+  EXPECT_EQ(
+      GroupPlaces(candidates, candidates.size(), options.max_places, keyframes, options).size(),
+      3u);
   // A candidate that is not a keyframe slot is a programming error, not a photo's fault.
-  EXPECT_THROW(GroupPlaces({{7, 0.5}}, 1, keyframes, options), Error);
+  EXPECT_THROW(GroupPlaces({{7, 0.5}}, 1, options.max_places, keyframes, options), Error);
 }
 
 // Reserve candidates (from reserve_from on) make places of their own after the first ones' and
@@ -178,18 +181,20 @@ TEST(GroupPlacesTest, ReserveCandidatesOnlyMakePlacesOfTheirOwn) {
   };
   const std::vector<slam::PlaceCandidate> candidates = {{0, 0.9}, {1, 0.8}, {2, 0.7},
                                                         {3, 0.6}, {4, 0.5}, {5, 0.4}};
-  const std::vector<Place> places = GroupPlaces(candidates, 1, keyframes, options);
+  const std::vector<Place> places =
+      GroupPlaces(candidates, 1, options.max_places, keyframes, options);
   ASSERT_EQ(places.size(), 3u);
   EXPECT_EQ(places[0].slots, (std::vector<size_t>{0}));
   EXPECT_EQ(places[1].slots, (std::vector<size_t>{2, 3}));
   EXPECT_EQ(places[2].slots, (std::vector<size_t>{4}));
   // The same candidates all first: 1 joins 0's place.
   const std::vector<Place> all_first =
-      GroupPlaces(candidates, candidates.size(), keyframes, options);
+      GroupPlaces(candidates, candidates.size(), options.max_places, keyframes, options);
   ASSERT_EQ(all_first.size(), 3u);
   EXPECT_EQ(all_first[0].slots, (std::vector<size_t>{0, 1}));
   // Every candidate in reserve: grouped as first ones are.
-  EXPECT_EQ(GroupPlaces(candidates, 0, keyframes, options)[0].slots, (std::vector<size_t>{0, 1}));
+  EXPECT_EQ(GroupPlaces(candidates, 0, options.max_places, keyframes, options)[0].slots,
+            (std::vector<size_t>{0, 1}));
 }
 
 TEST(SharedPointShareTest, TheSameThingsSeenAgainShareTheirPointsACopyElsewhereDoesNot) {

@@ -420,9 +420,8 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
     PreparedPhoto* photo, const std::vector<slam::PlaceCandidate>& candidates, size_t reserve_from,
     const std::vector<LocatorKeyframe>& matched, int max_places, LocateTimings* timings,
     const std::function<void()>& first_refused) const {
-  LocatorOptions grouping = options;
-  grouping.max_places = max_places;
-  const std::vector<Place> places = GroupPlaces(candidates, reserve_from, matched, grouping);
+  const std::vector<Place> places =
+      GroupPlaces(candidates, reserve_from, max_places, matched, options);
   // Vocabulary nodes only for ORB matching bounded by them; exhaustive matching needs none.
   Clock::time_point stage = Clock::now();
   if (options.match_node_level > 0 && !vocabulary.empty() && &matched == &keyframes &&
