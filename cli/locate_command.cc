@@ -50,6 +50,30 @@ Intrinsics ParseIntrinsics(const std::string& text, int width, int height) {
   return k;
 }
 
+// "<heading>N in view[, M hidden behind a surface][, nearest first:]", then one line each.
+void PrintAppliances(const char* heading,
+                     const std::vector<identify::ApplianceInView>& appliances) {
+  int visible = 0;
+  for (const identify::ApplianceInView& appliance : appliances) visible += !appliance.occluded;
+  std::cout << heading << visible << " in view";
+  if (visible != static_cast<int>(appliances.size())) {
+    std::cout << ", " << appliances.size() - static_cast<size_t>(visible)
+              << " hidden behind a surface";
+  }
+  std::cout << (appliances.empty() ? "\n" : ", nearest first:\n");
+  for (const identify::ApplianceInView& appliance : appliances) {
+    std::cout << "  " << std::left << std::setw(22) << appliance.name << std::setw(14)
+              << appliance.type << std::right << std::setprecision(2) << std::setw(6)
+              << appliance.distance_m << " m  ";
+    if (appliance.occluded) {
+      std::cout << "occluded\n";
+    } else {
+      std::cout << std::setprecision(0) << "pixel (" << appliance.pixel.x() << ", "
+                << appliance.pixel.y() << ")\n";
+    }
+  }
+}
+
 void PrintHuman(const identify::LocateResult& result, const std::string& photo_path) {
   std::cout << std::fixed;
   if (!result.matched) {
@@ -68,27 +92,14 @@ void PrintHuman(const identify::LocateResult& result, const std::string& photo_p
   std::cout << std::setprecision(1) << "intrinsics     fx " << k.fx << " fy " << k.fy << " cx "
             << k.cx << " cy " << k.cy << " at " << k.width << "x" << k.height << " ("
             << ToString(result.intrinsics_source) << ")\n";
-  if (result.matched) {
-    int visible = 0;
-    for (const identify::ApplianceInView& appliance : result.appliances)
-      visible += !appliance.occluded;
-    std::cout << "appliances     " << visible << " in view";
-    if (visible != static_cast<int>(result.appliances.size())) {
-      std::cout << ", " << result.appliances.size() - static_cast<size_t>(visible)
-                << " hidden behind a surface";
-    }
-    std::cout << (result.appliances.empty() ? "\n" : ", nearest first:\n");
-    for (const identify::ApplianceInView& appliance : result.appliances) {
-      std::cout << "  " << std::left << std::setw(22) << appliance.name << std::setw(14)
-                << appliance.type << std::right << std::setprecision(2) << std::setw(6)
-                << appliance.distance_m << " m  ";
-      if (appliance.occluded) {
-        std::cout << "occluded\n";
-      } else {
-        std::cout << std::setprecision(0) << "pixel (" << appliance.pixel.x() << ", "
-                  << appliance.pixel.y() << ")\n";
-      }
-    }
+  if (result.matched) PrintAppliances("appliances     ", result.appliances);
+  for (size_t p = 0; p < result.possible_places.size(); ++p) {
+    const identify::PossiblePlace& place = result.possible_places[p];
+    const Eigen::Vector3d t = place.world_from_cam.translation();
+    std::cout << "possible place " << p + 1 << " (keyframe " << place.keyframe.value() << ", "
+              << place.inliers << " PnP inliers) at " << std::setprecision(3) << t.x() << " "
+              << t.y() << " " << t.z() << " m\n";
+    PrintAppliances("  appliances   ", place.appliances);
   }
   const identify::LocateTimings& t = result.timings;
   std::cout << std::setprecision(1) << "time           " << t.total_ms << " ms (features "

@@ -1225,6 +1225,8 @@ std::optional<Decision> DecideAmongCopies(const std::vector<PlaceVerdict>& verdi
       << " m away, and the photo looks like both (" << leader.inliers << " and " << second.inliers
       << " inliers): the view is ambiguous; include something that tells them apart.";
   decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
+  decision.ambiguous = {static_cast<int>(&leader - verdicts.data()),
+                        static_cast<int>(&second - verdicts.data())};
   return decision;
 }
 
@@ -1288,6 +1290,7 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
     return decision;
   }
   decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
+  decision.ambiguous = {decision.winner, static_cast<int>(runner_up - verdicts.data())};
   decision.winner = -1;
   return decision;
 }

@@ -298,6 +298,9 @@ struct Decision {
   int runner_up_inliers = 0;
   Eigen::Isometry3d runner_up_pose = Eigen::Isometry3d::Identity();
   std::optional<Refusal> refusal;  // when not matched: ambiguous, unseen view, few matches, ...
+  // When ambiguous: the two verdicts that fit about as well (indices into the verdicts), the
+  // leader first: the one of most inliers, or between copies the one the view check scored higher.
+  std::vector<int> ambiguous;
 };
 Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options);
 // The part of Decide for copies: when accepted verdicts disagree with the one of most inliers

@@ -818,10 +818,13 @@ TEST(DecideTest, TwoPlacesThatFitAboutAsWellAreAmbiguous) {
   EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
   EXPECT_EQ(decision.runner_up_inliers, 80);
   EXPECT_NE(decision.refusal->reason.find("4.0 m apart"), std::string::npos);
+  // Both are named, the one of most inliers (the answer it would have been) first.
+  EXPECT_EQ(decision.ambiguous, (std::vector<int>{1, 0}));
   // Far enough ahead, the winner stands, and the runner-up is reported.
   decision = Decide({Verdict(60, {0, 0, 0}, true), Verdict(100, {4, 0, 0}, true)}, options);
   EXPECT_EQ(decision.winner, 1);
   EXPECT_EQ(decision.runner_up_inliers, 60);
+  EXPECT_TRUE(decision.ambiguous.empty());
 }
 
 TEST(DecideTest, ARefusedPoseWithEnoughInliersStillMakesThePhotoAmbiguous) {
@@ -950,6 +953,7 @@ TEST(DecideTest, BetweenCopiesTheViewCheckDecidesNotTheInliers) {
   EXPECT_NE(decision.refusal->reason.find("a copy of what the photo shows 2.2 m away"),
             std::string::npos)
       << decision.refusal->reason;
+  EXPECT_EQ(decision.ambiguous, (std::vector<int>{1, 0}));  // the view check's leader first
   // A copy the view check could not judge does not lead, and a refused copy is no rival: nor
   // is it a runner-up to the count rules (its 300 inliers would make the photo ambiguous).
   decision =

@@ -249,6 +249,35 @@ struct Locator::Impl {
                                          const std::vector<LocatorKeyframe>& matched,
                                          LocateTimings* timings) const;
 
+  // The labelled appliances in view from a pose (the photo's intrinsics at its full size).
+  std::vector<ApplianceInView> AppliancesSeenFrom(const Eigen::Isometry3d& world_from_cam,
+                                                  const Intrinsics& intrinsics) const {
+    const auto current = CurrentLabels();
+    return AppliancesInView(current->labels, &cloud, intrinsics, world_from_cam,
+                            ToVisibilityOptions(options), &current->sightings);
+  }
+  // The places an ambiguous decision names, each with what is in view from it; empty unless the
+  // decision is ambiguous. `photo_size` is the photo's full size.
+  std::vector<PossiblePlace> PossiblePlaces(const std::vector<PlaceVerdict>& verdicts,
+                                            const Decision& decision,
+                                            const std::vector<LocatorKeyframe>& matched,
+                                            const cv::Size& photo_size) const {
+    std::vector<PossiblePlace> places;
+    if (!decision.refusal || decision.refusal->code != UnmatchedReason::kAmbiguous) return places;
+    for (const int v : decision.ambiguous) {
+      const PlaceVerdict& verdict = verdicts[static_cast<size_t>(v)];
+      PossiblePlace place;
+      place.world_from_cam = verdict.pose.world_from_cam;
+      place.inliers = verdict.inliers;
+      place.keyframe = matched[verdict.verified_slot].id;
+      place.appliances =
+          AppliancesSeenFrom(place.world_from_cam,
+                             verdict.pose.intrinsics.Scaled(photo_size.width, photo_size.height));
+      places.push_back(std::move(place));
+    }
+    return places;
+  }
+
   // The options a pose verified against `matched` is checked and decided with: the second
   // look's when `matched` is sift_keyframes.
   const LocatorOptions& VerifyingOptions(const std::vector<LocatorKeyframe>& matched) const {
@@ -881,6 +910,9 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
       result.refused_world_from_cam = would_be->pose.world_from_cam;
       result.refused_inliers = would_be->inliers;
     }
+    stage = Clock::now();
+    result.possible_places = impl_->PossiblePlaces(verdicts, decision, *matched, photo.size());
+    result.timings.visibility_ms = MsSince(stage);
     return finish(*decision.refusal);
   }
   const PlaceVerdict& best = verdicts[static_cast<size_t>(decision.winner)];
@@ -896,10 +928,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   result.intrinsics = best.pose.intrinsics.Scaled(photo.cols, photo.rows);
 
   stage = Clock::now();
-  const auto labels = impl_->CurrentLabels();
-  result.appliances =
-      AppliancesInView(labels->labels, &impl_->cloud, result.intrinsics, result.world_from_cam,
-                       ToVisibilityOptions(options), &labels->sightings);
+  result.appliances = impl_->AppliancesSeenFrom(result.world_from_cam, result.intrinsics);
   result.timings.visibility_ms = MsSince(stage);
   result.timings.total_ms = MsSince(start);
   return result;
@@ -963,6 +992,32 @@ const char* Advice(UnmatchedReason reason) {
   return "";
 }
 
+namespace {
+
+// {"world_from_cam": {"position", "quaternion_xyzw"}}.
+nlohmann::json PoseJson(const Eigen::Isometry3d& world_from_cam) {
+  const Eigen::Vector3d t = world_from_cam.translation();
+  const Eigen::Quaterniond q(world_from_cam.linear());
+  return {
+      {"world_from_cam",
+       {{"position", {t.x(), t.y(), t.z()}}, {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}}}};
+}
+
+nlohmann::json AppliancesJson(const std::vector<ApplianceInView>& appliances) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const ApplianceInView& appliance : appliances) {
+    out.push_back({{"name", appliance.name},
+                   {"type", appliance.type},
+                   {"pixel", {appliance.pixel.x(), appliance.pixel.y()}},
+                   {"distance_m", appliance.distance_m},
+                   {"visible", !appliance.occluded},
+                   {"visible_share", appliance.visible_share}});
+  }
+  return out;
+}
+
+}  // namespace
+
 nlohmann::json ToJson(const LocateResult& result) {
   nlohmann::json out;
   out["matched"] = result.matched;
@@ -972,11 +1027,7 @@ nlohmann::json ToJson(const LocateResult& result) {
     out["advice"] = Advice(result.reason_code);
   }
   if (result.matched) {
-    const Eigen::Vector3d t = result.world_from_cam.translation();
-    const Eigen::Quaterniond q(result.world_from_cam.linear());
-    out["pose"] = {
-        {"world_from_cam",
-         {{"position", {t.x(), t.y(), t.z()}}, {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}}}};
+    out["pose"] = PoseJson(result.world_from_cam);
     out["keyframe"] = result.keyframe.value();
     if (result.synthetic_view.valid()) out["synthetic_view"] = result.synthetic_view.value();
   } else {
@@ -992,16 +1043,15 @@ nlohmann::json ToJson(const LocateResult& result) {
                        {"width", result.intrinsics.width},
                        {"height", result.intrinsics.height},
                        {"source", ToString(result.intrinsics_source)}};
-  nlohmann::json appliances = nlohmann::json::array();
-  for (const ApplianceInView& appliance : result.appliances) {
-    appliances.push_back({{"name", appliance.name},
-                          {"type", appliance.type},
-                          {"pixel", {appliance.pixel.x(), appliance.pixel.y()}},
-                          {"distance_m", appliance.distance_m},
-                          {"visible", !appliance.occluded},
-                          {"visible_share", appliance.visible_share}});
+  out["appliances"] = AppliancesJson(result.appliances);
+  nlohmann::json possible = nlohmann::json::array();
+  for (const PossiblePlace& place : result.possible_places) {
+    possible.push_back({{"pose", PoseJson(place.world_from_cam)},
+                        {"inliers", place.inliers},
+                        {"keyframe", place.keyframe.value()},
+                        {"appliances", AppliancesJson(place.appliances)}});
   }
-  out["appliances"] = appliances;
+  out["possible_places"] = possible;
   out["candidates_tried"] = result.candidates_tried;
   out["photo_features"] = result.photo_features;
   out["photo_detail_cells"] = result.photo_detail_cells;
@@ -1020,6 +1070,11 @@ LocateResult Locator::Locate(const Photo& photo, const IntrinsicsHint& hint) con
   LocateResult result = Locate(photo.upright, chosen.intrinsics, chosen.source);
   for (ApplianceInView& appliance : result.appliances) {
     appliance.pixel = photo.DisplayPixel(appliance.pixel);
+  }
+  for (PossiblePlace& place : result.possible_places) {
+    for (ApplianceInView& appliance : place.appliances) {
+      appliance.pixel = photo.DisplayPixel(appliance.pixel);
+    }
   }
   return result;
 }

@@ -358,6 +358,14 @@ struct ApplianceInView {
   double visible_share = 1.0;
 };
 
+// A place an ambiguous photo may have been taken at, and what would be in view from there.
+struct PossiblePlace {
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  int inliers = 0;
+  KeyframeId keyframe;                      // the keyframe holding most of the pose's inliers
+  std::vector<ApplianceInView> appliances;  // as LocateResult::appliances
+};
+
 // Time spent per stage [ms].
 struct LocateTimings {
   double features_ms = 0.0;
@@ -429,12 +437,17 @@ struct LocateResult {
   // wrong ones.
   std::optional<Eigen::Isometry3d> refused_world_from_cam;
   int refused_inliers = 0;
+  // When ambiguous: the two places that fit about as well (Decision::ambiguous, the leader
+  // first), each with the appliances in view from it. A person may tell which it is from them; when
+  // both hold the same kind of appliance, that much is known either way.
+  std::vector<PossiblePlace> possible_places;
 };
 
 // The answer's JSON: {"matched", "reason"?, "reason_code"?, "advice"?, "pose": {"world_from_cam":
 // {"position", "quaternion_xyzw"}}, "inliers", "matches", "keyframe", "intrinsics":
 // {"fx","fy","cx","cy", "width","height","source"}, "appliances":
-// [{"name","type","pixel":[u,v],"distance_m", "visible","visible_share"}], "timings_ms": {...}}.
+// [{"name","type","pixel":[u,v],"distance_m", "visible","visible_share"}], "possible_places":
+// [{"pose", "inliers", "keyframe", "appliances"}] (empty unless ambiguous), "timings_ms": {...}}.
 nlohmann::json ToJson(const LocateResult& result);
 
 // How far a Locator's loading has got: keyframes read so far (on every loading thread) of the

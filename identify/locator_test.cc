@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <thread>
 #include <utility>
@@ -296,12 +297,30 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
   int by_default = 0;
   int by_sift = 0;
   int only_by_default = 0;
+  int ambiguous = 0;
   for (const sim::QueryPhoto& photo : *seen_photos_) {
     const LocateResult first = orb.Locate(photo.image, photo.intrinsics);
     const LocateResult both = locator_->Locate(photo.image, photo.intrinsics);
     const LocateResult alone = sift.Locate(photo.image, photo.intrinsics);
     for (const LocateResult* result : {&first, &both, &alone}) {
       if (result->matched) ExpectRightPose(*result, photo);
+      // An ambiguous answer names the two places that fit; no other answer names any.
+      if (result->reason_code != UnmatchedReason::kAmbiguous) {
+        EXPECT_TRUE(result->possible_places.empty()) << photo.index;
+        continue;
+      }
+      ++ambiguous;
+      ASSERT_EQ(result->possible_places.size(), 2u) << photo.index;
+      const PossiblePlace& would_be = result->possible_places[0];
+      const PossiblePlace& other = result->possible_places[1];
+      EXPECT_GE(std::min(would_be.inliers, other.inliers), LocatorOptions().min_inliers)
+          << photo.index;
+      EXPECT_GT(
+          (would_be.world_from_cam.translation() - other.world_from_cam.translation()).norm() +
+              RotationAngleDeg(would_be.world_from_cam.linear(), other.world_from_cam.linear()),
+          0.0)
+          << photo.index;
+      EXPECT_TRUE(would_be.keyframe.valid() && other.keyframe.valid()) << photo.index;
     }
     // ORB's answer stands whenever it places the photo.
     if (first.matched) {
@@ -326,8 +345,10 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
     by_sift += alone.matched ? 1 : 0;
     only_by_default += both.matched && !first.matched ? 1 : 0;
   }
-  std::printf("of %zu seen photos: ORB %d, ORB then RootSIFT %d, RootSIFT %d\n",
-              seen_photos_->size(), by_orb, by_default, by_sift);
+  std::printf(
+      "of %zu seen photos: ORB %d, ORB then RootSIFT %d, RootSIFT %d; %d answers "
+      "ambiguous\n",
+      seen_photos_->size(), by_orb, by_default, by_sift, ambiguous);
   EXPECT_GE(only_by_default, 2);  // measured 3 (20 -> 23 of 32)
   EXPECT_GE(by_sift, static_cast<int>(0.40 * static_cast<double>(seen_photos_->size())));
 }
@@ -629,9 +650,10 @@ TEST_F(LocatorTest, JsonHasTheDocumentedKeys) {
   const sim::QueryPhoto& photo = seen_photos_->front();
   const nlohmann::json json = ToJson(locator_->Locate(photo.image, photo.intrinsics));
   for (const char* key : {"matched", "pose", "inliers", "matches", "keyframe", "intrinsics",
-                          "appliances", "timings_ms"}) {
+                          "appliances", "possible_places", "timings_ms"}) {
     EXPECT_TRUE(json.contains(key)) << key;
   }
+  EXPECT_TRUE(json["possible_places"].empty());  // only an ambiguous photo has them
   ASSERT_TRUE(json["matched"].get<bool>());
   EXPECT_EQ(json["pose"]["world_from_cam"]["position"].size(), 3u);
   EXPECT_EQ(json["pose"]["world_from_cam"]["quaternion_xyzw"].size(), 4u);
@@ -655,6 +677,108 @@ TEST_F(LocatorTest, JsonHasTheDocumentedKeys) {
   EXPECT_EQ(unmatched["reason_code"], "empty_photo");
   EXPECT_EQ(unmatched["advice"], Advice(UnmatchedReason::kEmptyPhoto));
   EXPECT_EQ(unmatched["intrinsics"]["source"], "estimated");
+
+  // An ambiguous answer names its places, each with what is in view from it.
+  LocateResult ambiguous;
+  ambiguous.reason_code = UnmatchedReason::kAmbiguous;
+  PossiblePlace place;
+  place.world_from_cam.translation() = Eigen::Vector3d(1, 2, 3);
+  place.inliers = 70;
+  place.keyframe = KeyframeId(12);
+  place.appliances.push_back({"monitor_2", "monitor", Eigen::Vector2d(40, 50), 1.5, false, 1.0});
+  ambiguous.possible_places = {place, place};
+  ambiguous.possible_places[1].appliances.clear();
+  const nlohmann::json places = ToJson(ambiguous)["possible_places"];
+  ASSERT_EQ(places.size(), 2u);
+  EXPECT_EQ(places[0]["pose"]["world_from_cam"]["position"], nlohmann::json({1.0, 2.0, 3.0}));
+  EXPECT_EQ(places[0]["inliers"], 70);
+  EXPECT_EQ(places[0]["keyframe"], 12);
+  ASSERT_EQ(places[0]["appliances"].size(), 1u);
+  EXPECT_EQ(places[0]["appliances"][0]["name"], "monitor_2");
+  EXPECT_TRUE(places[1]["appliances"].empty());
+}
+
+// A building whose floors repeat: the walk's first 20 keyframes again, 10 m higher (the floor
+// above, every surface alike, none of it labelled). A photo of the walk's place fits both floors
+// equally: it is answered ambiguous, naming both places and what is in view from each, so a person
+// can tell which it is (here: the labelled floor shows appliances, the copy none).
+TEST(LocatorRepeatedFloorTest, AnAmbiguousPhotoNamesBothPlacesAndWhatEachShows) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("sightmap-locator-floors-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  SimModelOptions model_options;
+  model_options.keyframes = 20;
+  const SimModelSummary summary = BuildSimulatorModel((dir / "model.db").string(), model_options);
+  store::Model model = store::Model::Open((dir / "model.db").string());
+  Eigen::Isometry3d floor_above = Eigen::Isometry3d::Identity();
+  floor_above.translation() = Eigen::Vector3d(0, 0, 10);
+  for (const store::KeyframeInfo& info : model.Keyframes()) {
+    store::KeyframeRecord copy;
+    copy.session = info.session;
+    copy.timestamp_ns = info.timestamp_ns + 1'000'000'000'000;
+    copy.world_from_cam = floor_above * info.world_from_cam;
+    copy.odom_world_from_cam = floor_above * info.odom_world_from_cam;
+    copy.intrinsics = info.intrinsics;
+    copy.color = model.LoadColor(info.id);
+    copy.depth = model.LoadDepth(info.id);
+    copy.features = model.LoadFeatures(info.id);
+    copy.photo_features = model.LoadPhotoFeatures(info.id);
+    model.AddKeyframe(copy);
+  }
+  ASSERT_EQ(model.Keyframes().size(), 40u);
+  const Locator locator(model);
+
+  // A session-2 photo from where a keyframe stood, of a view with an appliance in it.
+  sim::Simulator simulator(PhotoSessionOptions());
+  const sim::QueryOptions query_options;
+  std::optional<sim::QueryPhoto> photo;
+  for (size_t k = 0; k < summary.world_from_cam.size() && !photo; k += 3) {
+    sim::QueryPhoto candidate =
+        simulator.RenderQuery(query_options.PhoneIntrinsics(), summary.world_from_cam[k],
+                              query_options.thresholds, /*noise_seed=*/k);
+    if (std::any_of(candidate.visibility.begin(), candidate.visibility.end(),
+                    [](const sim::ApplianceVisibility& v) {
+                      return v.type == sim::VisibilityType::kVisible;
+                    })) {
+      photo = std::move(candidate);
+    }
+  }
+  ASSERT_TRUE(photo.has_value()) << "no keyframe of the walk's first 20 s sees an appliance";
+
+  const LocateResult result = locator.Locate(photo->image, photo->intrinsics);
+  ASSERT_EQ(result.reason_code, UnmatchedReason::kAmbiguous) << result.reason;
+  ASSERT_EQ(result.possible_places.size(), 2u);
+  std::vector<double> heights;
+  int labelled = -1;
+  for (size_t p = 0; p < 2; ++p) {
+    const PossiblePlace& place = result.possible_places[p];
+    EXPECT_GE(place.inliers, LocatorOptions().min_inliers);
+    EXPECT_TRUE(place.keyframe.valid());
+    const Eigen::Vector3d offset =
+        place.world_from_cam.translation() - photo->world_from_cam.translation();
+    heights.push_back(offset.z());
+    EXPECT_LT(offset.head<2>().norm(), 0.5) << p;
+    const bool shows_any = std::any_of(place.appliances.begin(), place.appliances.end(),
+                                       [](const ApplianceInView& a) { return !a.occluded; });
+    if (shows_any) labelled = static_cast<int>(p);
+  }
+  // One on the walk's floor, one 10 m above; appliances in view only from the walk's.
+  std::sort(heights.begin(), heights.end());
+  EXPECT_LT(std::abs(heights[0]), 0.5);
+  EXPECT_LT(std::abs(heights[1] - 10.0), 0.5);
+  ASSERT_GE(labelled, 0);
+  EXPECT_LT(
+      std::abs(
+          result.possible_places[static_cast<size_t>(labelled)].world_from_cam.translation().z() -
+          photo->world_from_cam.translation().z()),
+      0.5);
+  const nlohmann::json json = ToJson(result);
+  EXPECT_EQ(json["reason_code"], "ambiguous");
+  ASSERT_EQ(json["possible_places"].size(), 2u);
+  EXPECT_EQ(json["possible_places"][static_cast<size_t>(labelled)]["appliances"].size(),
+            result.possible_places[static_cast<size_t>(labelled)].appliances.size());
+  std::error_code ignored;
+  fs::remove_all(dir, ignored);
 }
 
 TEST_F(LocatorTest, ConcurrentCallsGiveTheSameAnswers) {

@@ -13,7 +13,10 @@ chromedriver, driven by python3-selenium:
   the one `sightmap label list --json` reports, at the clicked pixel, and the same world point
   `sightmap label add --keyframe --pixel` makes of that pixel;
 - a read-only server's labelling page shows no editing controls, and its write endpoints answer
-  403; with a token, edits without it answer 401.
+  403; with a token, edits without it answer 401;
+- on a copy of the model whose keyframes repeat 10 m higher (a building whose floors repeat), an
+  ambiguous photo's page names both places with the appliances `sightmap locate --json` lists
+  for each.
 
 Screenshots of both pages at 360x740 (a phone) go to OUT_DIR for people to look at.
 
@@ -26,6 +29,7 @@ import json
 import os
 import re
 import shutil
+import sqlite3
 import subprocess
 import sys
 import tempfile
@@ -159,6 +163,28 @@ def build_model(sightmap, work):
         return sorted(os.path.join(queries, name) for name in os.listdir(queries)
                       if name.endswith(".jpg"))
     return model, jpegs(photos), jpegs(os.path.join(work, "big"))
+
+
+def add_floor_above(model, repeated, height_m):
+    """A copy of `model` whose keyframes appear again `height_m` higher, unlabelled: a building
+    whose floors repeat, where a photo of one fits the other as well."""
+    with sqlite3.connect(model) as source, sqlite3.connect(repeated) as target:
+        source.backup(target)
+    db = sqlite3.connect(repeated)
+    offset = db.execute("SELECT MAX(id) FROM keyframes").fetchone()[0]
+
+    def copy_rows(table, changes):
+        columns = [row[1] for row in db.execute(f"PRAGMA table_info({table})")]
+        values = [changes.get(column, column) for column in columns]
+        db.execute(f"INSERT INTO {table} ({', '.join(columns)}) "
+                   f"SELECT {', '.join(values)} FROM {table}")
+
+    copy_rows("keyframes", {"id": f"id + {offset}", "timestamp_ns": "timestamp_ns + 1000000000000",
+                            "tz": f"tz + {height_m}", "odom_tz": f"odom_tz + {height_m}"})
+    for table in ("keyframe_images", "features", "photo_features"):
+        copy_rows(table, {"keyframe_id": f"keyframe_id + {offset}"})
+    db.commit()
+    db.close()
 
 
 def locate_answers(sightmap, model, photos):
@@ -352,6 +378,41 @@ def test_label_page(browser, server, sightmap, model, work, out_dir):
            "the removed label is still stored")
 
 
+def test_ambiguous_photo(browser, sightmap, model, photos, work, out_dir):
+    """On a building whose floors repeat, a photo is ambiguous: the page names both places and,
+    under each, the appliances `sightmap locate --json` lists for it."""
+    repeated = os.path.join(work, "repeated.db")
+    add_floor_above(model, repeated, 10.0)
+    answers = locate_answers(sightmap, repeated, photos)
+    ambiguous = [p for p, a in answers.items()
+                 if a.get("reason_code") == "ambiguous" and a["possible_places"]]
+    expect(ambiguous, "no photo is ambiguous on a model whose floors repeat")
+    server = Server(sightmap, "--model", repeated)
+    try:
+        browser.get(server.url + "/")
+        photo = ambiguous[0]
+        expect(upload(browser, photo) == "unmatched", f"{photo} was not answered ambiguous")
+        places = answers[photo]["possible_places"]
+        lists = browser.find_elements(By.CSS_SELECTOR, "#possible ol")
+        expect(len(lists) == len(places) == 2,
+               f"the page lists {len(lists)} places, locate --json {len(places)}")
+        for number, (shown_list, place) in enumerate(zip(lists, places), start=1):
+            shown = [item.get_attribute("data-name")
+                     for item in shown_list.find_elements(By.CSS_SELECTOR, "li")]
+            expected = [a["name"] for a in place["appliances"]]
+            expect(shown == expected, f"place {number}: the page shows {shown}, locate --json "
+                                      f"says {expected}")
+        intro = browser.find_element(By.CSS_SELECTOR, "#possible p").text
+        expect(intro == "It is one of these 2 places:", f"the page says '{intro}'")
+        status = browser.find_element(By.ID, "status").text
+        expect(status.startswith("It could be one of 2 places"), f"the status says '{status}'")
+        browser.save_screenshot(os.path.join(out_dir, "phone-ambiguous.png"))
+        print(f"phone page: ambiguous photo {os.path.basename(photo)} -> "
+              f"{[[a['name'] for a in p['appliances']] for p in places]}")
+    finally:
+        server.stop()
+
+
 def test_read_only_and_token(browser, sightmap, model):
     server = Server(sightmap, "--model", model, "--read-only")
     try:
@@ -425,6 +486,7 @@ def main():
         server.stop()
         server = None
         test_read_only_and_token(browser, sightmap, model)
+        test_ambiguous_photo(browser, sightmap, model, photos, work, out_dir)
         print(f"screenshots (360x740 viewport) in {out_dir}")
         print("PASS")
         return 0

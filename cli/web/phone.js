@@ -170,10 +170,11 @@ function drawAnswer(bitmap, answer) {
   }
 }
 
-function listAppliances(answer) {
-  const list = $('appliances');
+// Fills `list` with one button per appliance (numbered as on the photo), each showing its
+// details when tapped.
+function fillApplianceList(list, appliances) {
   list.replaceChildren();
-  answer.appliances.forEach((appliance, index) => {
+  appliances.forEach((appliance, index) => {
     const look = visibilityOf(appliance);
     const item = document.createElement('li');
     item.className = look.css;
@@ -196,6 +197,35 @@ function listAppliances(answer) {
     button.addEventListener('click', () => showDetails(appliance));
     item.append(button);
     list.append(item);
+  });
+}
+
+function listAppliances(answer) {
+  fillApplianceList($('appliances'), answer.appliances);
+}
+
+// An ambiguous photo: the places it may have been taken at, each with what is in view from
+// there, so the person can tell which it is (or see that both hold the same kind of appliance).
+function listPossiblePlaces(answer) {
+  const section = $('possible');
+  const places = answer.possible_places || [];
+  section.replaceChildren();
+  section.hidden = places.length === 0;
+  if (places.length === 0) return;
+  const intro = document.createElement('p');
+  intro.textContent = `It is one of these ${places.length} places:`;
+  section.append(intro);
+  places.forEach((place, index) => {
+    const heading = document.createElement('h3');
+    const inView = place.appliances.filter((a) => a.visible).length;
+    heading.textContent = `Place ${index + 1}: ` + (inView === 0
+        ? 'no labelled appliance in view'
+        : `${inView} appliance${inView === 1 ? '' : 's'} in view`);
+    const list = document.createElement('ol');
+    list.className = 'appliances';
+    list.dataset.place = String(index + 1);
+    fillApplianceList(list, place.appliances);
+    section.append(heading, list);
   });
 }
 
@@ -281,12 +311,18 @@ async function locate(file) {
   $('result').hidden = false;
   drawAnswer(prepared.bitmap, answer);
   listAppliances(answer);
+  listPossiblePlaces(answer);
   $('advice').hidden = answer.matched;
   $('technical').hidden = answer.matched;
   if (!answer.matched) {
     $('advice').textContent = answer.advice || 'The photo could not be placed in the building.';
     $('reason').textContent = answer.reason || '';
-    setStatus(`Not matched (${seconds} s).`, true);
+    const places = (answer.possible_places || []).length;
+    if (places > 0) {
+      setStatus(`It could be one of ${places} places (${seconds} s): see below.`);
+    } else {
+      setStatus(`Not matched (${seconds} s).`, true);
+    }
   } else if (answer.appliances.length === 0) {
     setStatus(`Placed in the building, but no labelled appliance is in view (${seconds} s).`);
   } else {
