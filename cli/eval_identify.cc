@@ -87,6 +87,11 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
             << Fixed(100.0 * e.median_position_error_m, 1) << " cm, "
             << Fixed(e.median_rotation_error_deg, 2) << " deg (" << e.posed_photos
             << " with a true pose)\n";
+  if (e.ambiguous_photos > 0) {
+    std::cout << "ambiguous, right place named   "
+              << Share(e.ambiguous_right_place_photos, e.ambiguous_photos)
+              << "   (of the photos answered with two possible places)\n";
+  }
   std::cout << "occluded reported as visible   "
             << Share(e.occluded_identified, e.occluded_instances) << "\n";
   const int not_visible = e.categories[0][0] + e.categories[0][1];

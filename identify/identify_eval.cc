@@ -147,6 +147,9 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   if (!result.matched) {
     answer.refused_world_from_cam = result.refused_world_from_cam;
     answer.refused_inliers = result.refused_inliers;
+    for (const PossiblePlace& place : result.possible_places) {
+      answer.possible_places.push_back(place.world_from_cam);
+    }
     return answer;
   }
   answer.matches = result.matches;
@@ -255,6 +258,12 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
         row["refused_rotation_error_deg"] = error.rotation_deg;
       }
     }
+    row["possible_place_position_errors_m"] = nlohmann::json::array();
+    for (const Eigen::Isometry3d& place : answer.possible_places) {
+      if (!truth.world_from_cam) break;
+      row["possible_place_position_errors_m"].push_back(
+          ComparePoses(*truth.world_from_cam, place).position_m);
+    }
     row["identified"] = answer.identified;
     const auto if_matched = [&](int value) {
       return answer.matched ? nlohmann::json(value) : nlohmann::json();
@@ -305,6 +314,15 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
     out.second_look_photos += answer.second_look ? 1 : 0;
     if (!answer.matched) {
       ++out.unmatched_reasons[answer.reason.empty() ? "(no reason given)" : answer.reason];
+      if (!answer.possible_places.empty()) {
+        ++out.ambiguous_photos;
+        out.ambiguous_right_place_photos +=
+            truth.world_from_cam &&
+            std::any_of(answer.possible_places.begin(), answer.possible_places.end(),
+                        [&](const Eigen::Isometry3d& place) {
+                          return !IsWrongPose(ComparePoses(*truth.world_from_cam, place), options);
+                        });
+      }
       continue;
     }
     ++out.matched_photos;
@@ -388,6 +406,8 @@ nlohmann::json ToJson(const IdentifyEvaluation& e) {
   out["posed_photos"] = e.posed_photos;
   out["second_look_photos"] = e.second_look_photos;
   out["wrong_poses"] = e.wrong_poses;
+  out["ambiguous_photos"] = e.ambiguous_photos;
+  out["ambiguous_right_place_photos"] = e.ambiguous_right_place_photos;
   out["wrong_pose_ratio"] = e.wrong_pose_ratio;
   out["median_position_error_m"] = e.median_position_error_m;
   out["median_rotation_error_deg"] = e.median_rotation_error_deg;

@@ -85,6 +85,8 @@ struct PhotoAnswer {
   // When not matched: the pose the answer would have been, and its inliers (LocateResult's).
   std::optional<Eigen::Isometry3d> refused_world_from_cam;
   int refused_inliers = 0;
+  // When ambiguous: the poses of the places it named (LocateResult::possible_places).
+  std::vector<Eigen::Isometry3d> possible_places;
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
 
@@ -133,6 +135,10 @@ struct IdentifyEvaluation {
   // wrong / matched, and the median errors of the posed ones.
   int posed_photos = 0;
   int wrong_poses = 0;
+  // Unmatched photos answered with possible places (ambiguous), and those of them with a true
+  // pose one of whose places is right (not a wrong pose by the thresholds above).
+  int ambiguous_photos = 0;
+  int ambiguous_right_place_photos = 0;
   double wrong_pose_ratio = 0.0;
   double median_position_error_m = 0.0;
   double median_rotation_error_deg = 0.0;
@@ -170,14 +176,17 @@ void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<Phot
 // occluded), and the checks' figures: "matches", "runner_up_inliers", "projected_points",
 // "inlier_cells" (null when not matched) and "photo_detail_cells"; for a photo not matched,
 // "refused_inliers", "refused_position_error_m" and "refused_rotation_error_deg" of the pose the
-// answer would have been (null when there was none, the errors also without a true pose).
+// answer would have been (null when there was none, the errors also without a true pose), and
+// "possible_place_position_errors_m" of an ambiguous answer's places (empty for others or
+// without a true pose).
 std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
                                       const std::vector<PhotoAnswer>& answers,
                                       const IdentifyEvalOptions& options = {});
 
 // Stable keys: photos, matched_photos, matched_ratio, recall_ge_0_8_ratio, precision_ge_0_8_ratio,
 // posed_photos, wrong_poses, wrong_pose_ratio, median_position_error_m, median_rotation_error_deg,
-// occluded_false_positive_ratio, locate_median_ms, locate_p95_ms, categories
+// ambiguous_photos, ambiguous_right_place_photos, occluded_false_positive_ratio, locate_median_ms,
+// locate_p95_ms, categories
 // ({"visible": {"identified", "not_identified"}, ...}), recall/precision histograms and counts,
 // stages_ms ({"features": {"median", "p95", "mean", "max"}, ...}) and <stage>_median_ms /
 // <stage>_p95_ms.

@@ -287,6 +287,33 @@ TEST(IdentifyEval, WrongPosesAreCountedAndPhotosSplitByCoverage) {
   EXPECT_EQ(EvaluateIdentification(selected_truths, selected_answers).wrong_poses, 1);
 }
 
+TEST(IdentifyEval, AmbiguousAnswersCountWhetherOneOfTheirPlacesIsRight) {
+  const Eigen::Isometry3d truth_pose(Eigen::Translation3d(1, 2, 1.5));
+  std::vector<QueryTruth> truths(4, Truth({{"lamp", T::kVisible}}));
+  for (size_t i = 0; i < 3; ++i) truths[i].world_from_cam = truth_pose;
+  const auto at = [&](double x) {
+    Eigen::Isometry3d pose = truth_pose;
+    pose.translation().x() += x;
+    return pose;
+  };
+  std::vector<PhotoAnswer> answers(4, Answer(false, {}, 10));
+  answers[0].possible_places = {at(2.2), at(0.1)};   // the right desk second
+  answers[1].possible_places = {at(6.0), at(10.0)};  // two wrong places
+  // answers[2]: unmatched for another reason; answers[3]: ambiguous without a true pose.
+  answers[3].possible_places = {at(0.0), at(3.0)};
+  const IdentifyEvaluation e = EvaluateIdentification(truths, answers);
+  EXPECT_EQ(e.ambiguous_photos, 3);
+  EXPECT_EQ(e.ambiguous_right_place_photos, 1);
+  const nlohmann::json json = ToJson(e);
+  EXPECT_EQ(json["ambiguous_photos"], 3);
+  EXPECT_EQ(json["ambiguous_right_place_photos"], 1);
+  const std::vector<nlohmann::json> rows = PhotoRows(truths, answers);
+  ASSERT_EQ(rows[0]["possible_place_position_errors_m"].size(), 2u);
+  EXPECT_NEAR(rows[0]["possible_place_position_errors_m"][1].get<double>(), 0.1, 1e-9);
+  EXPECT_TRUE(rows[2]["possible_place_position_errors_m"].empty());
+  EXPECT_TRUE(rows[3]["possible_place_position_errors_m"].empty());  // no true pose
+}
+
 TEST(IdentifyEval, PhotoRowsNameEachPhotosAnswerAndError) {
   std::vector<QueryTruth> truths(3, Truth({{"lamp", T::kVisible}}));
   const Eigen::Isometry3d truth_pose(Eigen::Translation3d(1, 2, 1.5));
