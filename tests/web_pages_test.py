@@ -402,6 +402,9 @@ def test_ambiguous_photo(browser, sightmap, model, photos, work, out_dir):
             expected = [a["name"] for a in place["appliances"]]
             expect(shown == expected, f"place {number}: the page shows {shown}, locate --json "
                                       f"says {expected}")
+            # No marks are drawn for a possible place, so its list is not numbered like them.
+            expect(not shown_list.find_elements(By.CSS_SELECTOR, ".badge"),
+                   f"place {number}'s list carries the photo's mark numbers")
         intro = browser.find_element(By.CSS_SELECTOR, "#possible p").text
         expect(intro == "It is one of these 2 places:", f"the page says '{intro}'")
         status = browser.find_element(By.ID, "status").text

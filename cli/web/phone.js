@@ -170,9 +170,9 @@ function drawAnswer(bitmap, answer) {
   }
 }
 
-// Fills `list` with one button per appliance (numbered as on the photo), each showing its
-// details when tapped.
-function fillApplianceList(list, appliances) {
+// Fills `list` with one button per appliance, each showing its details when tapped; `numbered`
+// as the marks on the photo (an ambiguous photo's places have none drawn).
+function fillApplianceList(list, appliances, numbered = true) {
   list.replaceChildren();
   appliances.forEach((appliance, index) => {
     const look = visibilityOf(appliance);
@@ -193,7 +193,8 @@ function fillApplianceList(list, appliances) {
     meta.textContent =
         `${appliance.type} · ${appliance.distance_m.toFixed(1)} m · ${look.words}`;
     text.append(name, meta);
-    button.append(badge, text);
+    if (numbered) button.append(badge);
+    button.append(text);
     button.addEventListener('click', () => showDetails(appliance));
     item.append(button);
     list.append(item);
@@ -224,7 +225,7 @@ function listPossiblePlaces(answer) {
     const list = document.createElement('ol');
     list.className = 'appliances';
     list.dataset.place = String(index + 1);
-    fillApplianceList(list, place.appliances);
+    fillApplianceList(list, place.appliances, /*numbered=*/false);
     section.append(heading, list);
   });
 }
