@@ -256,14 +256,13 @@ struct Locator::Impl {
     return AppliancesInView(current->labels, &cloud, intrinsics, world_from_cam,
                             ToVisibilityOptions(options), &current->sightings);
   }
-  // The places an ambiguous decision names, each with what is in view from it; empty unless the
-  // decision is ambiguous. `photo_size` is the photo's full size.
+  // The places an ambiguous decision names (Decision::ambiguous, empty otherwise), each with what
+  // is in view from it. `photo_size` is the photo's full size.
   std::vector<PossiblePlace> PossiblePlaces(const std::vector<PlaceVerdict>& verdicts,
                                             const Decision& decision,
                                             const std::vector<LocatorKeyframe>& matched,
                                             const cv::Size& photo_size) const {
     std::vector<PossiblePlace> places;
-    if (!decision.refusal || decision.refusal->code != UnmatchedReason::kAmbiguous) return places;
     for (const int v : decision.ambiguous) {
       const PlaceVerdict& verdict = verdicts[static_cast<size_t>(v)];
       PossiblePlace place;

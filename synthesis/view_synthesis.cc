@@ -30,6 +30,26 @@ double DepthAt(const cv::Mat& depth_mm, const Eigen::Vector2d& pixel) {
   return depth_mm.at<uint16_t>(v, u) / 1000.0;
 }
 
+// Whether a person at `eye` would look up or down at `target` more steeply than max_pitch_deg.
+bool TooSteep(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up,
+              const ViewSynthesisOptions& options) {
+  const double sine = std::abs((target - eye).normalized().dot(up));
+  return RadToDeg(std::asin(std::min(1.0, sine))) > options.max_pitch_deg;
+}
+
+// A standpoint posed `world_from_cam`, looking at `label`.
+Standpoint LookingAt(const identify::LabelCoverage& label, const Eigen::Isometry3d& world_from_cam,
+                     double bearing_deg, double distance_m) {
+  Standpoint standpoint;
+  standpoint.label = label.id;
+  standpoint.label_name = label.name;
+  standpoint.target = label.centre;
+  standpoint.world_from_cam = world_from_cam;
+  standpoint.bearing_deg = bearing_deg;
+  standpoint.distance_m = distance_m;
+  return standpoint;
+}
+
 // The floor plan's cell under floor coordinates `at`, kUnknown outside the plan.
 uint8_t PlanCell(const identify::FloorPlan& plan, const Eigen::Vector2d& at) {
   const Eigen::Vector2d cell = (at - plan.origin) / plan.cell_m;
@@ -131,16 +151,9 @@ std::vector<Standpoint> PlanStandpoints(const identify::ModelCoverage& coverage,
         const Eigen::Vector3d eye = on_floor + coverage.eye_height_m * coverage.up +
                                     distance * (std::cos(bearing) * coverage.floor_x +
                                                 std::sin(bearing) * coverage.floor_y);
-        const double sine = std::abs((label.centre - eye).normalized().dot(coverage.up));
-        if (RadToDeg(std::asin(std::min(1.0, sine))) > options.max_pitch_deg) continue;
-        Standpoint standpoint;
-        standpoint.label = label.id;
-        standpoint.label_name = label.name;
-        standpoint.target = label.centre;
-        standpoint.world_from_cam = LookAt(eye, label.centre, coverage.up);
-        standpoint.bearing_deg = bearing_deg;
-        standpoint.distance_m = distance;
-        standpoints.push_back(std::move(standpoint));
+        if (TooSteep(eye, label.centre, coverage.up, options)) continue;
+        standpoints.push_back(
+            LookingAt(label, LookAt(eye, label.centre, coverage.up), bearing_deg, distance));
       }
     }
   }
@@ -172,22 +185,15 @@ std::vector<Standpoint> PlanGridStandpoints(const identify::ModelCoverage& cover
         const Eigen::Vector2d label_at = floor_of(label.centre);
         const double distance = (label_at - at).norm();
         if (distance < band.min_distance_m || distance > band.max_distance_m) continue;
-        const double sine = std::abs((label.centre - eye).normalized().dot(coverage.up));
-        if (RadToDeg(std::asin(std::min(1.0, sine))) > options.max_pitch_deg) continue;
+        if (TooSteep(eye, label.centre, coverage.up, options)) continue;
         if (!InPlainSight(plan, at, label_at, band.label_clearance_m)) continue;
         const Eigen::Isometry3d world_from_cam = LookAt(eye, label.centre, coverage.up);
         if (identify::ViewWasSeen(world_from_cam, label.centre, keyframes, options.grid_seen)) {
           continue;
         }
-        Standpoint standpoint;
-        standpoint.label = label.id;
-        standpoint.label_name = label.name;
-        standpoint.target = label.centre;
-        standpoint.world_from_cam = world_from_cam;
-        standpoint.bearing_deg =
-            FloorBearingDeg(eye - label.centre, coverage.floor_x, coverage.floor_y);
-        standpoint.distance_m = distance;
-        standpoints.push_back(std::move(standpoint));
+        standpoints.push_back(LookingAt(
+            label, world_from_cam,
+            FloorBearingDeg(eye - label.centre, coverage.floor_x, coverage.floor_y), distance));
       }
     }
   }
