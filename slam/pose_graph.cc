@@ -321,11 +321,7 @@ void PoseGraph::SetPose(int64_t id, const Eigen::Isometry3d& world_from_cam) {
   node->second.world_from_cam = world_from_cam;
 }
 
-size_t PoseGraph::AddEdge(const PoseGraphEdge& edge) {
-  SIGHTMAP_CHECK(HasPose(edge.from) && HasPose(edge.to),
-                 "edge " << edge.from << " -> " << edge.to << " joins an unknown pose");
-  SIGHTMAP_CHECK(edge.from != edge.to,
-                 "edge " << edge.from << " -> " << edge.to << " joins a pose to itself");
+void PoseGraph::CheckMeasurement(const PoseGraphEdge& edge) const {
   SIGHTMAP_CHECK(IsRigid(edge.to_in_from), "edge " << edge.from << " -> " << edge.to
                                                    << " measures no finite rigid transform");
   const Matrix6d& information = edge.information;
@@ -339,9 +335,27 @@ size_t PoseGraph::AddEdge(const PoseGraphEdge& edge) {
                  "edge " << edge.from << " -> " << edge.to
                          << " has an information that is not positive semi-definite (eigenvalue "
                          << smallest << ")");
+}
+
+size_t PoseGraph::AddEdge(const PoseGraphEdge& edge) {
+  SIGHTMAP_CHECK(HasPose(edge.from) && HasPose(edge.to),
+                 "edge " << edge.from << " -> " << edge.to << " joins an unknown pose");
+  SIGHTMAP_CHECK(edge.from != edge.to,
+                 "edge " << edge.from << " -> " << edge.to << " joins a pose to itself");
+  CheckMeasurement(edge);
   edges_.push_back(edge);
   active_.push_back(true);
   return edges_.size() - 1;
+}
+
+void PoseGraph::SetEdgeMeasurement(size_t index, const Eigen::Isometry3d& to_in_from,
+                                   const Matrix6d& information) {
+  SIGHTMAP_CHECK(index < edges_.size(), "edge index " << index << " is out of range");
+  PoseGraphEdge edge = edges_[index];
+  edge.to_in_from = to_in_from;
+  edge.information = information;
+  CheckMeasurement(edge);
+  edges_[index] = edge;
 }
 
 void PoseGraph::SetFixed(int64_t id, bool fixed) {

@@ -139,6 +139,11 @@ class PoseGraph {
   bool IsFixed(int64_t id) const;
   // Turns a switched-off edge back on (or any edge off).
   void SetEdgeActive(size_t index, bool active);
+  // Replaces an edge's measurement and information (a motion-model guess revised once the motion
+  // after it is measured); the poses move at the next optimisation. Throws as AddEdge does for a
+  // bad measurement or information, or when the index is out of range, and then changes nothing.
+  void SetEdgeMeasurement(size_t index, const Eigen::Isometry3d& to_in_from,
+                          const Matrix6d& information);
 
   // Moves the poses to the least-squares estimate of the active edges. Poses without an active
   // edge do not move. Throws InvalidArgument on invalid options.
@@ -196,6 +201,9 @@ class PoseGraph {
   PoseGraphSummary OptimizeEdges(const PoseGraphOptions& options, const Scope& scope,
                                  std::map<int64_t, Eigen::Isometry3d>* before,
                                  std::vector<std::pair<size_t, double>>* border);
+  // Throws unless the edge's measurement is a finite rigid transform and its information finite,
+  // symmetric and positive semi-definite.
+  void CheckMeasurement(const PoseGraphEdge& edge) const;
   // Whether a window's solution fits the rest of its part (see OptimizeNear).
   bool WindowFits(const PoseGraphSummary& summary,
                   const std::vector<std::pair<size_t, double>>& border, double max_border_chi2_rise,

@@ -115,6 +115,30 @@ TEST(PoseGraph, ConflictingMeasurementsGiveTheWeightedMean) {
   EXPECT_NEAR(graph.Pose(9).translation().x(), (100.0 * 1.0 + 300.0 * 1.3) / 400.0, 1e-6);
 }
 
+// A revised measurement replaces the old one in the next optimisation; a bad one is refused and
+// leaves the edge as it was.
+TEST(PoseGraph, ARevisedMeasurementReplacesTheOldOne) {
+  PoseGraph graph;
+  graph.AddPose(0, Translation(0.0));
+  graph.AddPose(1, Translation(0.0));
+  graph.AddEdge(MakeEdge(0, 1, Translation(1.0), XWeight(100.0), LinkType::kPrior));
+  graph.SetEdgeMeasurement(0, Translation(0.4), XWeight(400.0));
+  PoseGraphOptions exact;
+  exact.function_tolerance = 1e-12;
+  graph.Optimize(exact);
+  EXPECT_NEAR(graph.Pose(1).translation().x(), 0.4, 1e-6);
+  EXPECT_EQ(graph.Edges()[0].information(0, 0), 400.0);
+  EXPECT_EQ(graph.Edges()[0].type, LinkType::kPrior);
+
+  Eigen::Isometry3d not_rigid = Translation(2.0);
+  not_rigid.linear() *= 2.0;
+  EXPECT_THROW(graph.SetEdgeMeasurement(0, not_rigid, XWeight(1.0)), Error);
+  EXPECT_THROW(graph.SetEdgeMeasurement(0, Translation(2.0), -XWeight(1.0)), Error);
+  EXPECT_THROW(graph.SetEdgeMeasurement(1, Translation(2.0), XWeight(1.0)), Error);
+  EXPECT_NEAR(graph.Edges()[0].to_in_from.translation().x(), 0.4, 1e-12);
+  EXPECT_EQ(graph.Edges()[0].information(0, 0), 400.0);
+}
+
 // Four poses 1 m apart on a line, each tied to the next and the one after (as the mapper links a
 // keyframe to the two before it), all exact and firm (3 mm) but the step 1 -> 2, 10 cm off. In
 // plain least squares the wrong step shares its error with the two paths around it; with the

@@ -352,6 +352,24 @@ struct Model::Impl {
     insert.Run();
   }
 
+  // Replaces a stored link's measurement and information (found by its ends and type).
+  void ReviseLink(const LinkRecord& link) {
+    SIGHTMAP_CHECK(link.from.valid() && link.to.valid(),
+                   "a revised link needs keyframe ids at both ends");
+    Statement update(db,
+                     "UPDATE links SET tx = ?, ty = ?, tz = ?, qx = ?, qy = ?, qz = ?, qw = ?, "
+                     "information = ? WHERE from_id = ? AND to_id = ? AND type = ?");
+    BindPose(update, 1, link.to_in_from);
+    update.BindBlob(8, link.information.data(), sizeof(double) * 36);
+    update.Bind(9, link.from.value()).Bind(10, link.to.value());
+    update.Bind(11, static_cast<int>(link.type));
+    update.Run();
+    SIGHTMAP_CHECK(sqlite3_changes(db) >= 1,
+                   "no " << LinkTypeName(link.type) << " link from keyframe " << link.from.value()
+                         << " to " << link.to.value() << " in model " << FileDescription(path)
+                         << " to revise; nothing was changed");
+  }
+
   void InsertLabelPoints(LabelId id, const std::vector<LabelPoint>& points) {
     Statement insert(db,
                      "INSERT INTO label_points (label_id, idx, x, y, z, source, keyframe_id, u, v, "
@@ -799,6 +817,7 @@ KeyframeId Model::AddKeyframe(const KeyframeRecord& keyframe) {
   if (photo_encoded) InsertFeatures(db, "photo_features", id, *photo_encoded);
 
   for (const LinkRecord& link : keyframe.links) impl_->InsertLink(link, id);
+  for (const LinkRecord& link : keyframe.revised_links) impl_->ReviseLink(link);
   transaction.Commit();
   return id;
 }

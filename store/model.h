@@ -75,6 +75,11 @@ struct KeyframeRecord {
   std::optional<Features> photo_features;
   // Links written in the same transaction. An invalid id at either end stands for this keyframe.
   std::vector<LinkRecord> links;
+  // Stored links (found by their ends and type) whose measurement and information this keyframe
+  // revised, replaced in the same transaction: a motion-model link across a blind run, bridged
+  // once this keyframe measured the motion after the run. AddKeyframe throws, and stores
+  // nothing, when one is not in the model.
+  std::vector<LinkRecord> revised_links;
 };
 
 // A keyframe's metadata, listed without touching its image blobs.

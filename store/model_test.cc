@@ -511,6 +511,55 @@ TEST(Model, ALinkSwitchedOffByThePoseGraphStaysOff) {
   EXPECT_NEAR(model.Keyframe(ids[2]).world_from_cam.translation().x(), 7.0, 1e-12);
 }
 
+TEST(Model, AKeyframeRevisesAStoredLinkInItsTransaction) {
+  Model model = Model::Open(":memory:");
+  const SessionId session = model.BeginSession({});
+  std::vector<KeyframeId> ids;
+  for (int i = 0; i < 2; ++i) {
+    KeyframeRecord keyframe = MakeSyntheticKeyframe(session, i, SmallKeyframes());
+    if (i > 0) {
+      LinkRecord prior;
+      prior.from = ids.back();
+      prior.type = LinkType::kPrior;
+      prior.to_in_from = MakePose(0.6, Eigen::Vector3d(0.5, 0.0, 0.0));
+      keyframe.links.push_back(prior);
+    }
+    ids.push_back(model.AddKeyframe(keyframe));
+  }
+  // The next keyframe measured the motion after the blind one: the prior is bridged.
+  LinkRecord bridged;
+  bridged.from = ids[0];
+  bridged.to = ids[1];
+  bridged.type = LinkType::kPrior;
+  bridged.to_in_from = MakePose(0.3, Eigen::Vector3d(0.4, 0.1, 0.0));
+  bridged.information = 4.0 * Matrix6d::Identity();
+  KeyframeRecord next = MakeSyntheticKeyframe(session, 2, SmallKeyframes());
+  next.revised_links.push_back(bridged);
+  ids.push_back(model.AddKeyframe(next));
+  const auto stored_prior = [&model] {
+    for (const LinkRecord& link : model.Links()) {
+      if (link.type == LinkType::kPrior) return link;
+    }
+    ADD_FAILURE() << "no prior link";
+    return LinkRecord();
+  };
+  EXPECT_TRUE(stored_prior().to_in_from.isApprox(bridged.to_in_from, 1e-12));
+  EXPECT_EQ(stored_prior().information(0, 0), 4.0);
+  EXPECT_EQ(model.Links().size(), 1u);
+
+  // A revision of a link the model does not hold: neither the keyframe nor anything else stored.
+  LinkRecord missing = bridged;
+  missing.from = ids[1];
+  missing.to = ids[2];
+  missing.information = Matrix6d::Identity();
+  KeyframeRecord last = MakeSyntheticKeyframe(session, 3, SmallKeyframes());
+  last.revised_links = {bridged, missing};
+  last.revised_links[0].information = 9.0 * Matrix6d::Identity();
+  EXPECT_THROW(model.AddKeyframe(last), Error);
+  EXPECT_EQ(model.Keyframes().size(), 3u);
+  EXPECT_EQ(stored_prior().information(0, 0), 4.0);
+}
+
 TEST(Model, VocabularyRoundTrip) {
   Model model = Model::Open(":memory:");
   EXPECT_FALSE(model.LoadVocabulary());
