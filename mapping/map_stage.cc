@@ -56,12 +56,15 @@ WriteTask MapStage::KeyframeTask(const slam::KeyframeReport& report, RgbdFrame& 
   task.record.depth = std::move(frame.depth);
   task.record.features = mapper_->FeaturesOf(report.id);
   // This step's links are the newest of Links(). Older links it switched off were stored active
-  // and are switched off with the poses.
+  // and are switched off with the poses; older links it revised are replaced with the keyframe.
   const std::vector<slam::MapperLink>& links = mapper_->Links();
   const size_t first_new = links.size() - report.new_links.size();
   for (size_t i = first_new; i < links.size(); ++i) task.links.push_back(links[i]);
   for (size_t index : report.rejected_links) {
     if (index < first_new) deactivated->push_back(links[index]);
+  }
+  for (size_t index : report.revised_links) {
+    if (index < first_new) task.revised.push_back(links[index]);
   }
   return task;
 }

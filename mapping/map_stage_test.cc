@@ -3,12 +3,14 @@
 #include "mapping/map_stage.h"
 
 #include <algorithm>
+#include <map>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "core/link_type.h"
 #include "sim/simulator.h"
+#include "slam/tracker.h"
 
 namespace sightmap::mapping {
 namespace {
@@ -96,6 +98,47 @@ TEST(MapStage, EachKeyframeBecomesItsWriteTasksInOrder) {
     EXPECT_TRUE(pose.isApprox(mapper.WorldFromCam(id), 0.0)) << id;
   }
   EXPECT_TRUE(last.deactivated.empty()) << "no loop of this walk is switched off";
+}
+
+// Tracked at 1 Hz, the walk goes blind for a second now and then (seed 11: frames 1-2, 9, 11);
+// the keyframe that registers after such a run hands the writer the run's bridged prior links,
+// as the mapper now holds them, to replace the stored guesses.
+TEST(MapStage, AKeyframeAfterABlindRunHandsOverTheBridgedLinks) {
+  sim::Simulator simulator = OneHzWalk(14);
+  const Intrinsics camera = simulator.options().camera;
+  slam::Tracker tracker(camera);
+  slam::Mapper mapper(camera);
+  MapStage stage(&mapper, SessionId(1), camera, MapStageOptions(), RestoredModel());
+  std::map<int64_t, Eigen::Isometry3d> guessed;  // the motion model's step, by mapper id
+  int revised = 0;
+  for (int64_t i = 0; i < simulator.num_frames(); ++i) {
+    for (slam::TrackedKeyframe& keyframe : tracker.Track(simulator.RenderFrame(i)).keyframes) {
+      const auto id = static_cast<int64_t>(mapper.NumKeyframes());
+      if (keyframe.motion && keyframe.motion->source == slam::MotionSource::kPrior) {
+        guessed[id] = keyframe.motion->previous_from_cam;
+      }
+      KeyframeItem item;
+      item.keyframe = std::move(keyframe);
+      item.tracked = true;
+      const WriteTask task = stage.Map(std::move(item)).front();
+      for (const slam::MapperLink& link : task.revised) {
+        ++revised;
+        EXPECT_EQ(link.type, LinkType::kPrior);
+        EXPECT_EQ(link.from + 1, link.to);
+        EXPECT_LT(link.to, task.mapper_id) << "only links stored before";
+        ASSERT_EQ(guessed.count(link.to), 1u) << "a link the motion model made";
+        EXPECT_FALSE(link.to_in_from.isApprox(guessed[link.to], 1e-6)) << "bridged";
+        const auto held = std::find_if(
+            mapper.Links().begin(), mapper.Links().end(), [&link](const slam::MapperLink& l) {
+              return l.from == link.from && l.to == link.to && l.type == link.type;
+            });
+        ASSERT_NE(held, mapper.Links().end());
+        EXPECT_TRUE(held->to_in_from.isApprox(link.to_in_from, 0.0));
+      }
+    }
+  }
+  EXPECT_FALSE(guessed.empty()) << "the 1 Hz walk goes blind";
+  EXPECT_GT(revised, 0);
 }
 
 TEST(MapStage, GroundTruthPosesNeedGroundTruthOnEveryKeyframe) {

@@ -84,6 +84,16 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
     stored.active = link.active;
     record.links.push_back(stored);
   }
+  for (const slam::MapperLink& link : task.revised) {
+    store::LinkRecord stored;
+    stored.from = StoreId(link.from);
+    stored.to = StoreId(link.to);
+    stored.type = link.type;
+    stored.to_in_from = link.to_in_from;
+    stored.information = link.information;
+    stored.active = link.active;
+    record.revised_links.push_back(stored);
+  }
   if (photo_features_ && !record.photo_features) {
     // Only features with a 3D point: a photo is matched to points, the rest would be stored for
     // nothing.

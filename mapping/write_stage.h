@@ -35,6 +35,9 @@ struct WriteTask {
   int64_t mapper_id = -1;
   store::KeyframeRecord record;
   std::vector<slam::MapperLink> links;
+  // Older links, stored already, whose measurement this keyframe revised (a bridged blind run):
+  // replaced in the keyframe's transaction.
+  std::vector<slam::MapperLink> revised;
   FeedStatus status;
   // kPoses: optimised poses by mapper id (ids not written yet are skipped), and stored links the
   // optimisation switched off.

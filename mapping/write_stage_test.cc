@@ -1,6 +1,6 @@
 // The writing stage against a real model file: keyframes and links reach it with the model's ids,
-// pose updates switch stored links off, the vocabulary is stored, and a failed write stops the
-// stage without losing what was committed.
+// pose updates switch stored links off, a keyframe's revisions replace older links, the vocabulary
+// is stored, and a failed write stops the stage without losing what was committed.
 #include "mapping/write_stage.h"
 
 #include <chrono>
@@ -126,20 +126,27 @@ TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
     vocabulary.kind = WriteTask::Kind::kVocabulary;
     vocabulary.vocabulary = {1, 2, 3};
     ASSERT_TRUE(stage.Push(vocabulary));
+    // Keyframe 3 measured the motion after the blind keyframe 2: the prior 1 -> 2 is bridged.
+    WriteTask after_blind = KeyframeTask(session, 3, {Link(2, 3, LinkType::kOdometry)});
+    slam::MapperLink bridged = Link(1, 2, LinkType::kPrior);
+    bridged.to_in_from = At(0.7);
+    bridged.information = 4.0 * Matrix6d::Identity();
+    after_blind.revised = {bridged};
+    ASSERT_TRUE(stage.Push(after_blind));
     stage.Finish();
     EXPECT_FALSE(stage.failed());
-    EXPECT_EQ(stage.committed(), 3);
+    EXPECT_EQ(stage.committed(), 4);
   }
   store::ModelOptions read_only;
   read_only.read_only = true;
   const store::Model model = store::Model::Open(path, read_only);
   const std::vector<store::KeyframeInfo> keyframes = model.Keyframes();
-  ASSERT_EQ(keyframes.size(), 3u);
+  ASSERT_EQ(keyframes.size(), 4u);
   EXPECT_NEAR(keyframes[0].world_from_cam.translation().x(), 0.5, 1e-9);
   EXPECT_NEAR(keyframes[1].world_from_cam.translation().x(), 1.0, 1e-9);
   EXPECT_NEAR(keyframes[2].world_from_cam.translation().x(), 2.5, 1e-9);
   const std::vector<store::LinkRecord> links = model.Links();
-  ASSERT_EQ(links.size(), 3u);
+  ASSERT_EQ(links.size(), 4u);
   int loops = 0;
   for (const store::LinkRecord& link : links) {
     if (link.type == LinkType::kLoopClosure) {
@@ -151,10 +158,11 @@ TEST(WriteStage, KeyframesLinksPosesAndTheVocabularyReachTheModelWithItsIds) {
       EXPECT_EQ(link.from, keyframes[1].id);
       EXPECT_EQ(link.to, keyframes[2].id);
       EXPECT_TRUE(link.active);
+      EXPECT_NEAR(link.to_in_from.translation().x(), 0.7, 1e-12) << "revised by keyframe 3";
+      EXPECT_EQ(link.information(0, 0), 4.0);
     } else {
       EXPECT_EQ(link.type, LinkType::kOdometry);
-      EXPECT_EQ(link.from, keyframes[0].id);
-      EXPECT_EQ(link.to, keyframes[1].id);
+      EXPECT_EQ(link.to.value() - link.from.value(), 1);
     }
   }
   EXPECT_EQ(loops, 1);

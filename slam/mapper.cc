@@ -12,6 +12,7 @@
 #include "core/options_json.h"
 #include "core/rotation.h"
 #include "core/timing.h"
+#include "slam/blind_bridge.h"
 
 namespace sightmap::slam {
 namespace {
@@ -97,6 +98,10 @@ bool MapperOptions::Check(std::string* error) const {
     return fail(
         "blind_link_max_deviation_mps, _dps and blind_link_slack_m, _deg must not be negative");
   }
+  if (!(bridged_sigma_factor >= 0.0) || !std::isfinite(bridged_sigma_factor)) {
+    return fail("bridged_sigma_factor must be a finite number >= 0 (0 turns bridging off)");
+  }
+  if (!(bridge_min_blind_step_s >= 0.0)) return fail("bridge_min_blind_step_s must be >= 0");
   if (depth_downscale < 1) return fail("depth_downscale must be at least 1");
   if (vocabulary_training_keyframes < 1) {
     return fail("vocabulary_training_keyframes must be at least 1");
@@ -624,7 +629,15 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
   if (start_new_segment_) report->odometry_failure = "a new segment was asked for";
   start_new_segment_ = false;
   AddGraphPose(keyframe.id, world_from_cam);
+  // The tracked motion is the first of the links (TrackedMotionLink).
+  if (motion) {
+    keyframe.motion_link = static_cast<int64_t>(links_.size());
+    keyframe.motion_source = motion->source;
+  }
   for (const MapperLink& link : odometry) AddLink(link, report);
+  if (motion && motion->source == MotionSource::kRegistered) {
+    BridgeBlindRunBefore(keyframe, *motion, report);
+  }
   keyframes_.push_back(std::move(keyframe));
   Keyframe& inserted = keyframes_.back();
   const bool relocalised = RecognisePlace(inserted, report);
@@ -643,6 +656,51 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
   report->state = state_;
   report->world_from_cam = graph_.Pose(inserted.id);
   PackOldDenseImages();
+}
+
+void Mapper::BridgeBlindRunBefore(const Keyframe& keyframe, const KeyframeMotion& motion,
+                                  KeyframeReport* report) {
+  if (!(options_.bridged_sigma_factor > 0.0)) return;
+  // The run, oldest first, back to the keyframe before it (`before`). Both sides must be
+  // registered by features: a dense chain's motion errs by degrees before the bare wall that
+  // blinds the frames after it (10 Hz hand-held seed 11, keyframe 114: 3 degrees), and a bridge
+  // from it put the stretch beyond the run 11 cm off.
+  std::vector<int64_t> run;
+  int64_t before = keyframe.id - 1;
+  for (; before >= 1; --before) {
+    const Keyframe& candidate = Get(before);
+    if (candidate.motion_link < 0 || candidate.walk != keyframe.walk) return;
+    if (candidate.motion_source != MotionSource::kPrior) break;
+    run.insert(run.begin(), before);
+  }
+  if (run.empty() || before < 1 || Get(before).motion_source != MotionSource::kRegistered) return;
+  const auto seconds_to = [this, &keyframe](int64_t id) {
+    const TimestampNs end_ns = id == keyframe.id ? keyframe.timestamp_ns : Get(id).timestamp_ns;
+    return 1e-9 * static_cast<double>(end_ns - Get(id - 1).timestamp_ns);
+  };
+  std::vector<double> blind_dt_s;
+  for (int64_t id : run) blind_dt_s.push_back(seconds_to(id));
+  const TimedMotion measured_before{links_[static_cast<size_t>(Get(before).motion_link)].to_in_from,
+                                    seconds_to(before)};
+  const TimedMotion measured_after{motion.previous_from_cam, seconds_to(keyframe.id)};
+  // A source's clock that stood still leaves no velocity to bridge with.
+  const double shortest_step_s = *std::min_element(blind_dt_s.begin(), blind_dt_s.end());
+  if (std::min({measured_before.dt_s, measured_after.dt_s, shortest_step_s}) <= 0.0 ||
+      shortest_step_s < options_.bridge_min_blind_step_s) {
+    return;
+  }
+  const std::vector<Eigen::Isometry3d> bridged =
+      BridgeBlindRun(measured_before, blind_dt_s, measured_after);
+  const double information_scale =
+      1.0 / (options_.bridged_sigma_factor * options_.bridged_sigma_factor);
+  for (size_t i = 0; i < run.size(); ++i) {
+    const auto index = static_cast<size_t>(Get(run[i]).motion_link);
+    MapperLink& link = links_[index];
+    link.to_in_from = Orthonormalised(bridged[i]);
+    link.information *= information_scale;
+    graph_.SetEdgeMeasurement(index, link.to_in_from, link.information);
+    report->revised_links.push_back(index);
+  }
 }
 
 int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
@@ -978,17 +1036,18 @@ void Mapper::TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* r
 SIGHTMAP_OPTIONS_JSON(
     MapperOptions, features, registration, odometry_window, extra_odometry_links,
     extra_link_max_disagreement_m, extra_link_max_disagreement_deg, blind_link_max_deviation_mps,
-    blind_link_max_deviation_dps, blind_link_slack_m, blind_link_slack_deg, depth_downscale,
-    vocabulary, vocabulary_training_keyframes, loop_exclude_recent, loop_candidates,
-    loop_min_relative_score, loop_min_inliers, loop_min_spacing, proximity_candidates,
-    proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
-    proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
-    local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m, join_max_disagreement_rad,
-    walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s,
-    walk_max_tilt_deg, loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad,
-    loop_check_lever_m, loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m,
-    link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
-    dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
-    dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
+    blind_link_max_deviation_dps, blind_link_slack_m, blind_link_slack_deg, bridged_sigma_factor,
+    bridge_min_blind_step_s, depth_downscale, vocabulary, vocabulary_training_keyframes,
+    loop_exclude_recent, loop_candidates, loop_min_relative_score, loop_min_inliers,
+    loop_min_spacing, proximity_candidates, proximity_radius_m, proximity_max_angle_deg,
+    proximity_min_inliers, proximity_max_disagreement_m, proximity_max_disagreement_deg,
+    local_loop_hops, local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m,
+    join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m,
+    walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2, loop_check_link_sigma_m,
+    loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m, loop_check_slack_rad,
+    link_min_sigma_m, link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m,
+    dense_max_correction_deg, dense_fit_max_correction_m, dense_fit_max_correction_deg,
+    dense_fit_max_rms_ratio, dense_fit_max_intensity_ratio, dense_link_min_sigma_m,
+    dense_link_min_sigma_rad)
 
 }  // namespace sightmap::slam

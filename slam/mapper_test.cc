@@ -267,6 +267,63 @@ TEST(Mapper, ABlindKeyframeKeepsOnlyLinksAWalkerCouldMake) {
   EXPECT_NEAR(far_error_m, 0.6, 0.03);
 }
 
+// Keyframes 0-12 of the walk as the tracker emits them, keyframe 11 as if the tracker had placed
+// it on its motion model 0.2 s blind, guessing no motion at all. Returns the link 10 -> 11 as
+// the mapper holds it after keyframe 12 (whose motion was registered), and that keyframe's
+// report.
+MapperLink BlindLinkAfterTheNextKeyframe(double bridged_sigma_factor, double min_blind_step_s,
+                                         KeyframeReport* report) {
+  const Walk& walk = HandheldWalkAt5Hz();
+  MapperOptions options = SmallVocabulary();
+  options.vocabulary_training_keyframes = 1000;  // links only
+  options.bridged_sigma_factor = bridged_sigma_factor;
+  options.bridge_min_blind_step_s = min_blind_step_s;
+  Mapper mapper(walk.camera, options);
+  std::vector<TrackedKeyframe> keyframes = TrackedKeyframes0To12();
+  SIGHTMAP_CHECK(keyframes[10].motion->source == MotionSource::kRegistered &&
+                     keyframes[12].motion->source == MotionSource::kRegistered,
+                 "keyframes 10 and 12 register");
+  KeyframeMotion& motion = *keyframes[11].motion;
+  motion.source = MotionSource::kPrior;
+  motion.blind_s = 0.2;
+  motion.previous_from_cam = Eigen::Isometry3d::Identity();
+  motion.information = DiagonalCovariance(0.08, 0.14).inverse();
+  for (TrackedKeyframe& keyframe : keyframes)
+    *report = mapper.AddTrackedKeyframe(std::move(keyframe));
+  for (const MapperLink& link : mapper.Links()) {
+    if (link.from == 10 && link.to == 11 && link.type == LinkType::kPrior) return link;
+  }
+  ADD_FAILURE() << "no prior link 10 -> 11";
+  return MapperLink();
+}
+
+TEST(Mapper, ABlindKeyframesLinkIsBridgedOnceTheMotionAfterItIsMeasured) {
+  const Walk& walk = HandheldWalkAt5Hz();
+  const Eigen::Isometry3d true_10_from_11 =
+      walk.frames[10].world_from_cam_gt->inverse() * *walk.frames[11].world_from_cam_gt;
+  KeyframeReport report;
+  const MapperLink bridged = BlindLinkAfterTheNextKeyframe(0.5, 0.15, &report);
+  const double bridged_error_m =
+      (true_10_from_11.inverse() * bridged.to_in_from).translation().norm();
+  const double step_m = true_10_from_11.translation().norm();
+  std::printf("blind step of %.3f m: bridged %.4f m off\n", step_m, bridged_error_m);
+  EXPECT_LT(bridged_error_m, 0.2 * step_m);
+  EXPECT_LT(RotationAngleDeg(true_10_from_11.rotation(), bridged.to_in_from.rotation()), 1.0);
+  ASSERT_EQ(report.id, 12);
+  ASSERT_EQ(report.revised_links.size(), 1u);
+
+  // Off, the guess stands: no motion, as the motion model had it.
+  const MapperLink guessed = BlindLinkAfterTheNextKeyframe(0.0, 0.15, &report);
+  EXPECT_NEAR(guessed.to_in_from.translation().norm(), 0.0, 1e-12);
+  EXPECT_TRUE(report.revised_links.empty());
+  // So it does for a step shorter than bridging asks (frames at the sensor's rate).
+  const MapperLink short_step = BlindLinkAfterTheNextKeyframe(0.5, 0.25, &report);
+  EXPECT_NEAR(short_step.to_in_from.translation().norm(), 0.0, 1e-12);
+  EXPECT_TRUE(report.revised_links.empty());
+  // Bridged, its deviations are halved: the information four times the motion model's.
+  EXPECT_TRUE(bridged.information.isApprox(4.0 * guessed.information, 1e-9));
+}
+
 // Keyframes 0-12 of the walk as the tracker emits them, keyframe 12's registered motion put
 // `offset` off (as repeated texture puts features: a radiator's fins, a tiled box). Returns the
 // error of the mapper's link 11 -> 12 against the truth [m].
@@ -372,10 +429,16 @@ TEST(Mapper, ALoopIsCheckedAgainstHowWellTheGraphKnowsItsEnds) {
   EXPECT_LT(far_blind, 0.2 * limit);
 }
 
+// A loop's error by ground truth [m] (the worst of translation and of rotation at 1 m), and
+// whether the pose graph kept it.
+struct LoopError {
+  double error_m = 0.0;
+  bool active = true;
+};
+
 // The first 110 s of seed 5's walk given its 1 Hz frames, tracked and mapped as `sightmap map`
-// does, and each accepted loop's error by ground truth [m] (the worst of translation and of
-// rotation at 1 m).
-std::vector<double> LoopErrorsOfSeed5At1Hz(const MapperOptions& options) {
+// does, and each loop the mapper accepted, by ground truth.
+std::vector<LoopError> LoopErrorsOfSeed5At1Hz(const MapperOptions& options) {
   static const Walk* walk = [] {
     sim::SimulatorOptions sim_options;
     sim_options.seed = 5;
@@ -394,33 +457,60 @@ std::vector<double> LoopErrorsOfSeed5At1Hz(const MapperOptions& options) {
   };
   for (const RgbdFrame& frame : walk->frames) map(tracker.Track(frame).keyframes);
   map(tracker.Finish().keyframes);
-  std::vector<double> errors;
+  std::vector<LoopError> errors;
   for (const MapperLink& link : mapper.Links()) {
-    if (link.type != LinkType::kLoopClosure || !link.active) continue;
+    if (link.type != LinkType::kLoopClosure) continue;
     const Eigen::Isometry3d truth =
         truths[static_cast<size_t>(link.from)].inverse() * truths[static_cast<size_t>(link.to)];
     const Eigen::Isometry3d error = truth.inverse() * link.to_in_from;
     errors.push_back(
-        std::max(error.translation().norm(), Eigen::AngleAxisd(error.linear()).angle()));
+        {std::max(error.translation().norm(), Eigen::AngleAxisd(error.linear()).angle()),
+         link.active});
   }
   return errors;
 }
 
+// The worst error of the loops the map kept (active), or of all it accepted [m].
+double WorstLoop(const std::vector<LoopError>& errors, bool kept_only) {
+  double worst = 0.0;
+  for (const LoopError& loop : errors) {
+    if (loop.active || !kept_only) worst = std::max(worst, loop.error_m);
+  }
+  return worst;
+}
+
 // Seed 5's keyframe 100 stands in a room furnished like the one keyframe 62 saw 10 m away: place
-// recognition proposes the pair and registration accepts it. Only the graph check keeps that
-// loop out of the map: the graph knows where the two keyframes are to far better than 10 m.
+// recognition proposes the pair and registration accepts it. In the graph the motion model's
+// guesses hold loosely (blind runs not bridged), only the graph check keeps that loop out of the
+// map: the graph knows where the two keyframes are to far better than 10 m. With the blind runs
+// bridged, the pose graph switches it off even without the check.
 TEST(Mapper, PlaceRecognitionRefusesALookAlikeRoomTheGraphPutsElsewhere) {
+  MapperOptions unbridged;
+  unbridged.bridged_sigma_factor = 0.0;
+  MapperOptions unchecked_unbridged = unbridged;
+  unchecked_unbridged.loop_max_graph_chi2 = 0.0;
+  const std::vector<LoopError> loose = LoopErrorsOfSeed5At1Hz(unchecked_unbridged);
+  const std::vector<LoopError> checked = LoopErrorsOfSeed5At1Hz(unbridged);
+  std::printf(
+      "unbridged: loops without the graph check %zu, worst kept %.2f m off; with it %zu, "
+      "worst kept %.2f m\n",
+      loose.size(), WorstLoop(loose, true), checked.size(), WorstLoop(checked, true));
+  ASSERT_GT(WorstLoop(loose, true), 5.0)
+      << "the test needs place recognition to propose the look-alike, and the graph to keep it";
+  EXPECT_LT(WorstLoop(checked, true), 0.1);
+
   MapperOptions unchecked;
   unchecked.loop_max_graph_chi2 = 0.0;
-  const std::vector<double> proposed = LoopErrorsOfSeed5At1Hz(unchecked);
-  const std::vector<double> accepted = LoopErrorsOfSeed5At1Hz(MapperOptions());
-  const auto worst = [](const std::vector<double>& errors) {
-    return errors.empty() ? 0.0 : *std::max_element(errors.begin(), errors.end());
-  };
-  std::printf("loops without the graph check: %zu, worst %.2f m off; with it: %zu, worst %.2f m\n",
-              proposed.size(), worst(proposed), accepted.size(), worst(accepted));
-  ASSERT_GT(worst(proposed), 5.0) << "the test needs place recognition to propose the look-alike";
-  EXPECT_LT(worst(accepted), 0.1);
+  const std::vector<LoopError> bridged = LoopErrorsOfSeed5At1Hz(unchecked);
+  const std::vector<LoopError> defaults = LoopErrorsOfSeed5At1Hz(MapperOptions());
+  std::printf(
+      "bridged: loops without the graph check %zu, worst %.2f m off, worst kept %.2f m; "
+      "with it %zu, worst kept %.2f m\n",
+      bridged.size(), WorstLoop(bridged, false), WorstLoop(bridged, true), defaults.size(),
+      WorstLoop(defaults, true));
+  EXPECT_GT(WorstLoop(bridged, false), 5.0) << "proposed and registered as before";
+  EXPECT_LT(WorstLoop(bridged, true), 0.1) << "switched off by the pose graph";
+  EXPECT_LT(WorstLoop(defaults, true), 0.1);
 }
 
 TEST(Mapper, DenseRefinementMakesTheOdometryLinksMillimetreAccurate) {
