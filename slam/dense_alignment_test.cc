@@ -275,7 +275,9 @@ TEST(DenseAlignment, RefusesFramesWithoutDepth) {
   const RgbdFrame& frame = walk.frames.front();
   const DenseImage image = MakeDenseImage(frame.color, frame.depth, walk.camera, options);
   DenseImage blind = image;
-  blind.depth_mm = cv::Mat::zeros(image.depth_mm.size(), CV_16UC1);
+  // A new image: assigning cv::Mat::zeros() would zero the depth `blind` shares with `image`.
+  blind.depth_mm = cv::Mat(image.depth_mm.size(), CV_16UC1, cv::Scalar(0));
+  ASSERT_GT(cv::countNonZero(image.depth_mm), 0);
   const DenseAlignment aligned =
       DenseAligner(walk.camera, options).Align(blind, image, Eigen::Isometry3d::Identity());
   EXPECT_FALSE(aligned.success);

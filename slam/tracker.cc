@@ -471,6 +471,8 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   ++counters_.frames;
   const bool tick = rate_.Accept(input.timestamp_ns);
   if (!reference_ && !StartOnEarlierFrame(frame, &result)) {
+    // Still waiting, or the map starts on this frame, which is then its own reference.
+    if (reference_) result.reference_index = reference_->frame.index;
     result.total_s = SecondsSince(start);
     return result;
   }

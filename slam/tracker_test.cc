@@ -40,8 +40,10 @@ const Walk& HandheldWalkAt10Hz() {
 // The frame as a sensor with its lens covered gives it: black colour, no depth.
 RgbdFrame CoveredLens(const RgbdFrame& frame) {
   RgbdFrame covered = frame;
-  covered.color = cv::Mat::zeros(frame.color.size(), CV_8UC3);
-  covered.depth = cv::Mat::zeros(frame.depth.size(), CV_16UC1);
+  // New images: assigning cv::Mat::zeros() would write the zeros into the buffers `covered`
+  // shares with `frame`, and black out the walk's frame for every later test.
+  covered.color = cv::Mat(frame.color.size(), CV_8UC3, cv::Scalar::all(0));
+  covered.depth = cv::Mat(frame.depth.size(), CV_16UC1, cv::Scalar(0));
   return covered;
 }
 
@@ -620,6 +622,20 @@ TEST(Tracker, WithoutARichFrameTheMapStartsOnTheRichestOfTheWait) {
   EXPECT_EQ(short_stream.counters().keyframes, 1);
   EXPECT_EQ(short_stream.counters().before_start, 1);
   EXPECT_TRUE(short_stream.Finish().keyframes.empty());
+
+  // Covered through the wait, the frame that ends it starts the map itself: it is its own
+  // reference (TrackedChain places the frames from it).
+  Tracker late(walk.camera, options);
+  for (size_t i = 0; i < 5; ++i) {
+    EXPECT_TRUE(late.Track(CoveredLens(walk.frames[i])).keyframes.empty()) << "frame " << i;
+  }
+  const TrackResult started = late.Track(walk.frames[5]);
+  ASSERT_EQ(started.keyframes.size(), 1u);
+  EXPECT_EQ(started.keyframes[0].frame.index, 5);
+  EXPECT_EQ(started.reference_index, 5);
+  EXPECT_TRUE(started.reference_from_cam.isApprox(Eigen::Isometry3d::Identity(), 0.0));
+  TrackedChain chain;
+  EXPECT_TRUE(chain.Add(started).has_value());
 }
 
 TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
