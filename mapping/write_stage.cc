@@ -68,31 +68,28 @@ KeyframeId WriteStage::StoreId(int64_t mapper_id) const {
   return store_ids_[static_cast<size_t>(mapper_id)];
 }
 
+store::LinkRecord WriteStage::StoredLink(const slam::MapperLink& link, int64_t new_keyframe) const {
+  store::LinkRecord stored;
+  // The new keyframe's own end is left unset: the model fills in the id it gives it.
+  stored.from = link.from == new_keyframe ? KeyframeId() : StoreId(link.from);
+  stored.to = link.to == new_keyframe ? KeyframeId() : StoreId(link.to);
+  stored.type = link.type;
+  stored.to_in_from = link.to_in_from;
+  stored.information = link.information;
+  stored.active = link.active;
+  return stored;
+}
+
 void WriteStage::WriteKeyframe(WriteTask& task) {
   SIGHTMAP_CHECK(task.mapper_id == static_cast<int64_t>(store_ids_.size()),
                  "keyframe " << task.mapper_id << " reached the writer out of order (expected "
                              << store_ids_.size() << ")");
   store::KeyframeRecord& record = task.record;
   for (const slam::MapperLink& link : task.links) {
-    store::LinkRecord stored;
-    // The new keyframe's own end is left unset: the model fills in the id it gives it.
-    stored.from = link.from == task.mapper_id ? KeyframeId() : StoreId(link.from);
-    stored.to = link.to == task.mapper_id ? KeyframeId() : StoreId(link.to);
-    stored.type = link.type;
-    stored.to_in_from = link.to_in_from;
-    stored.information = link.information;
-    stored.active = link.active;
-    record.links.push_back(stored);
+    record.links.push_back(StoredLink(link, task.mapper_id));
   }
   for (const slam::MapperLink& link : task.revised) {
-    store::LinkRecord stored;
-    stored.from = StoreId(link.from);
-    stored.to = StoreId(link.to);
-    stored.type = link.type;
-    stored.to_in_from = link.to_in_from;
-    stored.information = link.information;
-    stored.active = link.active;
-    record.revised_links.push_back(stored);
+    record.revised_links.push_back(StoredLink(link, task.mapper_id));
   }
   if (photo_features_ && !record.photo_features) {
     // Only features with a 3D point: a photo is matched to points, the rest would be stored for

@@ -84,6 +84,8 @@ class WriteStage {
   void WriteKeyframe(WriteTask& task);
   void WritePoses(const WriteTask& task);
   KeyframeId StoreId(int64_t mapper_id) const;
+  // A mapper link as the model stores it; an end at `new_keyframe` (not stored yet) is left unset.
+  store::LinkRecord StoredLink(const slam::MapperLink& link, int64_t new_keyframe) const;
 
   store::Model* model_;
   MapViewFeed* view_;
