@@ -214,10 +214,6 @@ double MedianOdometryLinkError(const Walk& walk, const MapperOptions& options) {
   return Percentile(errors, 0.5);
 }
 
-// Keyframes 0-12 of the walk as the tracker emits them, keyframe 12 as if the tracker had placed
-// it on its motion model 0.2 s blind, with a prediction `prediction_error_m` off sideways. The
-// mapper still registers it to keyframe 10; returns whether that link was kept, and the error of
-// the keyframe's pose relative to keyframe 11 [m].
 // Frames 0-12 of the walk as the tracker emits them, every frame a keyframe.
 std::vector<TrackedKeyframe> TrackedKeyframes0To12() {
   const Walk& walk = HandheldWalkAt5Hz();
@@ -234,6 +230,19 @@ std::vector<TrackedKeyframe> TrackedKeyframes0To12() {
   return keyframes;
 }
 
+// A tracked keyframe's motion made the motion model's guess after `blind_s` seconds blind.
+void MakeBlind(double blind_s, const Eigen::Isometry3d& guess,
+               const Eigen::Matrix<double, 6, 6>& information, KeyframeMotion* motion) {
+  motion->source = MotionSource::kPrior;
+  motion->blind_s = blind_s;
+  motion->previous_from_cam = guess;
+  motion->information = information;
+}
+
+// Keyframes 0-12 of the walk as the tracker emits them, keyframe 12 as if the tracker had placed
+// it on its motion model 0.2 s blind, with a prediction `prediction_error_m` off sideways. The
+// mapper still registers it to keyframe 10; returns whether that link was kept, and the error of
+// the keyframe's pose relative to keyframe 11 [m].
 bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
   const Walk& walk = HandheldWalkAt5Hz();
   MapperOptions options = SmallVocabulary();
@@ -242,11 +251,8 @@ bool KeepsABlindKeyframesLink(double prediction_error_m, double* pose_error_m) {
   std::vector<TrackedKeyframe> keyframes = TrackedKeyframes0To12();
   const Eigen::Isometry3d true_11_from_12 =
       walk.frames[11].world_from_cam_gt->inverse() * *walk.frames[12].world_from_cam_gt;
-  KeyframeMotion& motion = *keyframes[12].motion;
-  motion.source = MotionSource::kPrior;
-  motion.blind_s = 0.2;
-  motion.previous_from_cam = Eigen::Translation3d(prediction_error_m, 0.0, 0.0) * true_11_from_12;
-  motion.information = Eigen::Matrix<double, 6, 6>::Identity();
+  MakeBlind(0.2, Eigen::Translation3d(prediction_error_m, 0.0, 0.0) * true_11_from_12,
+            Eigen::Matrix<double, 6, 6>::Identity(), &*keyframes[12].motion);
   for (TrackedKeyframe& keyframe : keyframes) mapper.AddTrackedKeyframe(std::move(keyframe));
   const Eigen::Isometry3d mapped_11_from_12 =
       mapper.WorldFromCam(11).inverse() * mapper.WorldFromCam(12);
@@ -283,11 +289,8 @@ MapperLink BlindLinkAfterTheNextKeyframe(double bridged_sigma_factor, double min
   SIGHTMAP_CHECK(keyframes[10].motion->source == MotionSource::kRegistered &&
                      keyframes[12].motion->source == MotionSource::kRegistered,
                  "keyframes 10 and 12 register");
-  KeyframeMotion& motion = *keyframes[11].motion;
-  motion.source = MotionSource::kPrior;
-  motion.blind_s = 0.2;
-  motion.previous_from_cam = Eigen::Isometry3d::Identity();
-  motion.information = DiagonalCovariance(0.08, 0.14).inverse();
+  MakeBlind(0.2, Eigen::Isometry3d::Identity(), DiagonalCovariance(0.08, 0.14).inverse(),
+            &*keyframes[11].motion);
   for (TrackedKeyframe& keyframe : keyframes)
     *report = mapper.AddTrackedKeyframe(std::move(keyframe));
   for (const MapperLink& link : mapper.Links()) {
