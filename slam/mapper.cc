@@ -85,8 +85,14 @@ bool MapperOptions::Check(std::string* error) const {
     return false;
   };
   if (!CheckOrbFeatures(features, error) || !registration.Check(error) ||
-      !vocabulary.Check(error) || !pose_graph.Check(error)) {
+      !vocabulary.Check(error) || !pose_graph.Check(error) || !manhattan.Check(error)) {
     return false;
+  }
+  if (!(manhattan_sigma_deg >= 0.0) || !std::isfinite(manhattan_sigma_deg) ||
+      !(manhattan_max_deviation_deg > 0.0 && manhattan_max_deviation_deg < 45.0)) {
+    return fail(
+        "manhattan_sigma_deg must not be negative (0: off), manhattan_max_deviation_deg in "
+        "(0, 45)");
   }
   if (odometry_window < 1) return fail("odometry_window must be at least 1");
   if (extra_odometry_links < 0) return fail("extra_odometry_links must not be negative");
@@ -361,6 +367,29 @@ void Mapper::AddGraphPose(int64_t id, const Eigen::Isometry3d& world_from_cam) {
   if (keyframes_.empty()) graph_.SetFixed(id, true);
 }
 
+std::optional<Eigen::Matrix3d> Mapper::MeasureAxes(const cv::Mat& depth_mm) const {
+  if (!(options_.manhattan_sigma_deg > 0.0)) return std::nullopt;
+  if (depth_mm.cols == camera_.width) {
+    const auto fit = FitManhattanFrame(depth_mm, camera_, options_.manhattan);
+    return fit ? std::optional<Eigen::Matrix3d>(fit->cam_from_manhattan) : std::nullopt;
+  }
+  // A restored keyframe's small depth: the same samples on a coarser grid.
+  ManhattanOptions options = options_.manhattan;
+  options.grid_step_px = std::max(1, options.grid_step_px * depth_mm.cols / camera_.width);
+  const auto fit =
+      FitManhattanFrame(depth_mm, camera_.Scaled(depth_mm.cols, depth_mm.rows), options);
+  return fit ? std::optional<Eigen::Matrix3d>(fit->cam_from_manhattan) : std::nullopt;
+}
+
+void Mapper::AddRotationPrior(const Keyframe& keyframe) {
+  if (!keyframe.cam_from_axes) return;
+  RotationPrior prior;
+  prior.cam_from_axes = *keyframe.cam_from_axes;
+  prior.sigma_rad = DegToRad(options_.manhattan_sigma_deg);
+  prior.max_deviation_rad = DegToRad(options_.manhattan_max_deviation_deg);
+  graph_.SetRotationPrior(keyframe.id, prior);
+}
+
 void Mapper::SetFirstPose(const Eigen::Isometry3d& world_from_cam) {
   SIGHTMAP_CHECK(keyframes_.empty(), "the first pose is set before the first keyframe");
   first_world_from_cam_ = Orthonormalised(world_from_cam);
@@ -386,6 +415,7 @@ Mapper::Keyframe Mapper::MakeKeyframe(TimestampNs timestamp_ns, const cv::Mat& c
   if (options_.dense_refinement) {
     keyframe.dense = MakeDenseImage(color, depth_mm, camera_, options_.dense);
   }
+  keyframe.cam_from_axes = MeasureAxes(depth_mm);
   report->times.features_s = SecondsSince(stage);
   report->id = keyframe.id;
   report->features = static_cast<int>(keyframe.features.size());
@@ -466,6 +496,10 @@ KeyframeReport Mapper::AddTrackedKeyframe(TrackedKeyframe tracked) {
         MakeDenseImage(tracked.frame.color, tracked.frame.depth, camera_, options_.dense);
     report.times.dense_s += SecondsSince(stage);
   }
+  const Clock::time_point axes_stage = Clock::now();
+  keyframe.cam_from_axes =
+      MeasureAxes(tracked.frame.depth.empty() ? tracked.depth_small : tracked.frame.depth);
+  report.times.features_s += SecondsSince(axes_stage);
   report.id = keyframe.id;
   report.features = static_cast<int>(keyframe.features.size());
   const std::optional<KeyframeMotion>& motion = tracked.motion;
@@ -629,6 +663,7 @@ void Mapper::Insert(Keyframe keyframe, const KeyframeMotion* tracked_motion,
   if (start_new_segment_) report->odometry_failure = "a new segment was asked for";
   start_new_segment_ = false;
   AddGraphPose(keyframe.id, world_from_cam);
+  AddRotationPrior(keyframe);
   // The tracked motion is the first of the links (TrackedMotionLink).
   if (motion) {
     keyframe.motion_link = static_cast<int64_t>(links_.size());
@@ -726,9 +761,11 @@ int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
   if (options_.dense_refinement && !color.empty() && depth_mm.size() == color.size()) {
     keyframe.dense = MakeDenseImage(color, depth_mm, camera_, options_.dense);
   }
+  keyframe.cam_from_axes = MeasureAxes(depth_mm);
   keyframe.segment = static_cast<int>(segment_parent_.size());
   segment_parent_.push_back(keyframe.segment);
   AddGraphPose(keyframe.id, world_from_cam);
+  AddRotationPrior(keyframe);
   keyframes_.push_back(std::move(keyframe));
   PackOldDenseImages();
   if (vocabulary_) IndexKeyframe(keyframes_.back());
@@ -1037,17 +1074,17 @@ SIGHTMAP_OPTIONS_JSON(
     MapperOptions, features, registration, odometry_window, extra_odometry_links,
     extra_link_max_disagreement_m, extra_link_max_disagreement_deg, blind_link_max_deviation_mps,
     blind_link_max_deviation_dps, blind_link_slack_m, blind_link_slack_deg, bridged_sigma_factor,
-    bridge_min_blind_step_s, depth_downscale, vocabulary, vocabulary_training_keyframes,
-    loop_exclude_recent, loop_candidates, loop_min_relative_score, loop_min_inliers,
-    loop_min_spacing, proximity_candidates, proximity_radius_m, proximity_max_angle_deg,
-    proximity_min_inliers, proximity_max_disagreement_m, proximity_max_disagreement_deg,
-    local_loop_hops, local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m,
-    join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m,
-    walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2, loop_check_link_sigma_m,
-    loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m, loop_check_slack_rad,
-    link_min_sigma_m, link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m,
-    dense_max_correction_deg, dense_fit_max_correction_m, dense_fit_max_correction_deg,
-    dense_fit_max_rms_ratio, dense_fit_max_intensity_ratio, dense_link_min_sigma_m,
-    dense_link_min_sigma_rad)
+    bridge_min_blind_step_s, manhattan_sigma_deg, manhattan_max_deviation_deg, manhattan,
+    depth_downscale, vocabulary, vocabulary_training_keyframes, loop_exclude_recent,
+    loop_candidates, loop_min_relative_score, loop_min_inliers, loop_min_spacing,
+    proximity_candidates, proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
+    proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
+    local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m, join_max_disagreement_rad,
+    walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s,
+    walk_max_tilt_deg, loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad,
+    loop_check_lever_m, loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m,
+    link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
+    dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
+    dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
 
 }  // namespace sightmap::slam

@@ -1,6 +1,7 @@
 #include "slam/pose_graph.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -20,6 +21,7 @@
 #include "core/options_json.h"
 #include "core/rotation.h"
 #include "core/timing.h"
+#include "slam/manhattan_frame.h"
 #include "slam/pose_graph_stages.h"
 
 namespace sightmap::slam {
@@ -86,6 +88,49 @@ class EdgeCost {
   Eigen::Quaterniond q_measured_;
   Eigen::Vector3d p_measured_;
   Matrix6d sqrt_information_;
+};
+
+// A rotation prior's error, whitened: the rotation vector of world_from_cam * measured^T / sigma,
+// where measured = world_from_axes * axes_from_cam and world_from_axes is a parameter too.
+class RotationPriorCost {
+ public:
+  RotationPriorCost(const Eigen::Matrix3d& axes_from_cam, double sigma_rad)
+      : axes_from_cam_(Eigen::Quaterniond(axes_from_cam).normalized()),
+        inverse_sigma_(1.0 / sigma_rad) {}
+
+  template <typename T>
+  bool operator()(const T* q_data, const T* world_from_axes_data, T* residuals) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(q_data);
+    const Eigen::Map<const Eigen::Quaternion<T>> world_from_axes(world_from_axes_data);
+    const Eigen::Quaternion<T> delta =
+        q * (world_from_axes * axes_from_cam_.template cast<T>()).conjugate();
+    const T delta_wxyz[4] = {delta.w(), delta.x(), delta.y(), delta.z()};
+    ceres::QuaternionToAngleAxis(delta_wxyz, residuals);
+    for (int i = 0; i < 3; ++i) residuals[i] *= T(inverse_sigma_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Matrix3d& axes_from_cam, double sigma_rad) {
+    return new ceres::AutoDiffCostFunction<RotationPriorCost, 3, 4, 4>(
+        new RotationPriorCost(axes_from_cam, sigma_rad));
+  }
+
+ private:
+  Eigen::Quaterniond axes_from_cam_;
+  double inverse_sigma_;
+};
+
+// A rotation prior resolved for one solve: the pose's index and the naming of the axes nearest
+// its estimate (axes_from_cam = S * cam_from_axes^T).
+struct ResolvedRotationPrior {
+  size_t node = 0;
+  Eigen::Matrix3d axes_from_cam;
+  double sigma_rad = 0.0;
+};
+// The priors of one solve and the building's axes they share (estimated with the poses).
+struct RotationPriors {
+  std::vector<ResolvedRotationPrior> priors;
+  double world_from_axes[4] = {0.0, 0.0, 0.0, 1.0};  // quaternion x, y, z, w
 };
 
 // S with S^T S = W for a symmetric positive semi-definite W (eigenvalues within rounding of zero
@@ -193,14 +238,16 @@ struct Solve {
   ceres::Solver::Summary summary;
   std::vector<PoseParameters> parameters;  // the solution; `initial` for poses that did not move
   std::vector<bool> moved;                 // the poses the solve was free to move
+  std::optional<std::array<double, 4>> world_from_axes;  // when the solve moved the axes
 };
 
 Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
                  const std::vector<bool>& solved, const std::vector<Matrix6d>& sqrt_information,
                  const std::vector<PoseParameters>& initial, const std::vector<bool>& pinned,
-                 const PoseGraphOptions& options) {
+                 RotationPriors* rotation_priors, const PoseGraphOptions& options) {
   ceres::EigenQuaternionManifold quaternion_manifold;
   ceres::CauchyLoss loop_loss(options.loop_loss_scale);
+  ceres::CauchyLoss rotation_prior_loss(options.rotation_prior_loss_scale);
   const std::unique_ptr<ceres::LossFunction> odometry_loss(
       options.odometry_loss_scale > 0.0 ? new ceres::CauchyLoss(options.odometry_loss_scale)
                                         : nullptr);
@@ -228,6 +275,19 @@ Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEn
   solve.anything = true;
 
   const std::vector<bool> held = internal::HeldPoses(ends, solved, ties, pinned);
+  // A copy per solve: a solve that switches a loop off starts again from the same axes.
+  std::array<double, 4> world_from_axes;
+  std::copy(std::begin(rotation_priors->world_from_axes),
+            std::end(rotation_priors->world_from_axes), world_from_axes.begin());
+  bool axes_in_problem = false;
+  for (const ResolvedRotationPrior& prior : rotation_priors->priors) {
+    if (!in_problem[prior.node]) continue;  // a held pose's prior holds the axes
+    problem.AddResidualBlock(RotationPriorCost::Create(prior.axes_from_cam, prior.sigma_rad),
+                             &rotation_prior_loss, solve.parameters[prior.node].q,
+                             world_from_axes.data());
+    axes_in_problem = true;
+  }
+  if (axes_in_problem) problem.SetManifold(world_from_axes.data(), &quaternion_manifold);
   for (size_t i = 0; i < initial.size(); ++i) {
     if (!in_problem[i]) continue;
     problem.SetManifold(solve.parameters[i].q, &quaternion_manifold);
@@ -238,6 +298,7 @@ Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEn
     solve.moved[i] = !held[i];
   }
   ceres::Solve(SolverOptions(options), &problem, &solve.summary);
+  if (axes_in_problem) solve.world_from_axes = world_from_axes;
   return solve;
 }
 
@@ -250,12 +311,14 @@ Solve SolveSwitchingOffLoops(const std::vector<PoseGraphEdge>& edges,
                              const internal::EdgeEnds& ends, const std::vector<bool>& selected,
                              const std::vector<Matrix6d>& sqrt_information,
                              const std::vector<PoseParameters>& initial,
-                             const std::vector<bool>& pinned, const PoseGraphOptions& options,
-                             std::vector<bool>* active, PoseGraphSummary* summary) {
+                             const std::vector<bool>& pinned, RotationPriors* rotation_priors,
+                             const PoseGraphOptions& options, std::vector<bool>* active,
+                             PoseGraphSummary* summary) {
   while (true) {
     std::vector<bool> solved(edges.size());
     for (size_t e = 0; e < edges.size(); ++e) solved[e] = (*active)[e] && selected[e];
-    Solve solve = SolveEdges(edges, ends, solved, sqrt_information, initial, pinned, options);
+    Solve solve = SolveEdges(edges, ends, solved, sqrt_information, initial, pinned,
+                             rotation_priors, options);
     if (!solve.anything) {
       summary->converged = true;  // nothing to move
       return solve;
@@ -305,6 +368,9 @@ bool PoseGraphOptions::Check(std::string* error) const {
   }
   // Infinity is allowed: it turns the rejection of loop edges off.
   if (!(max_loop_chi2 > 0.0)) return fail("max_loop_chi2 must be positive");
+  if (!(rotation_prior_loss_scale > 0.0) || !std::isfinite(rotation_prior_loss_scale)) {
+    return fail("rotation_prior_loss_scale must be positive and finite");
+  }
   return true;
 }
 
@@ -602,8 +668,30 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     if (border->empty()) return summary;
   }
 
+  // Each prior's naming of the axes is the one nearest the pose's estimate at the start. Priors
+  // take part only in solves of whole parts, where the axes move with the poses: in a window the
+  // axes, placed by the first prior's pose, are held, and a pose placed by the motion model
+  // before them leaves them turned against the loops that correct it (1 Hz walks: priors in
+  // windows switched 50-100 correct loops off).
+  RotationPriors rotation_priors;
+  Eigen::Map<Eigen::Quaterniond>(rotation_priors.world_from_axes) = world_from_axes_;
+  const Eigen::Matrix3d world_from_axes = world_from_axes_.toRotationMatrix();
+  for (const auto& [id, prior] : rotation_priors_) {
+    if (scope.free) break;
+    const size_t node = index_of.at(id);
+    const auto [measured, deviation] = NearestManhattanRotation(
+        world_from_axes, prior.cam_from_axes, nodes[node]->world_from_cam.linear());
+    if (deviation <= prior.max_deviation_rad) {
+      rotation_priors.priors.push_back(
+          {node, world_from_axes.transpose() * measured, prior.sigma_rad});
+    }
+  }
   const Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
-                                             pinned, options, &active_, &summary);
+                                             pinned, &rotation_priors, options, &active_, &summary);
+  if (solve.world_from_axes) {
+    world_from_axes_ = Eigen::Map<const Eigen::Quaterniond>(solve.world_from_axes->data());
+    world_from_axes_.normalize();
+  }
   const std::vector<PoseParameters>& parameters = solve.parameters;
   const std::vector<bool>& moved = solve.moved;
 
@@ -623,7 +711,22 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   return summary;
 }
 
+void PoseGraph::SetRotationPrior(int64_t id, const RotationPrior& prior) {
+  SIGHTMAP_CHECK(HasPose(id), "a rotation prior for unknown pose " << id);
+  SIGHTMAP_CHECK(IsRigid(Eigen::Isometry3d(prior.cam_from_axes)),
+                 "a rotation prior's axes must be a rotation (pose " << id << ")");
+  SIGHTMAP_CHECK(
+      prior.sigma_rad > 0.0 && std::isfinite(prior.sigma_rad) && prior.max_deviation_rad >= 0.0,
+      "a rotation prior needs a positive sigma and a non-negative deviation");
+  // The first prior places the axes where its pose's estimate says they are.
+  if (rotation_priors_.empty()) {
+    world_from_axes_ = Eigen::Quaterniond(Pose(id).linear() * prior.cam_from_axes).normalized();
+  }
+  rotation_priors_[id] = prior;
+}
+
 SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_threads,
-                      function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2)
+                      function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2,
+                      rotation_prior_loss_scale)
 
 }  // namespace sightmap::slam

@@ -72,6 +72,11 @@ struct PoseGraphOptions {
   // OverconfidentOdometryLosesTheLoop). Infinity turns the switch-off off.
   double max_loop_chi2 = 22.46;
 
+  // Scale of the Cauchy loss on rotation priors (SetRotationPrior), in their sigmas: a prior 3
+  // sigmas off keeps 31% of its weight, one 10 sigmas off 4%, so a wrong measurement among the
+  // many of a stretch of keyframes cannot turn it.
+  double rotation_prior_loss_scale = 2.0;
+
   bool Check(std::string* error) const;
 };
 void to_json(nlohmann::json& json, const PoseGraphOptions& options);
@@ -90,6 +95,20 @@ struct PoseGraphEdge {
   // the header comment; symmetric positive semi-definite.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
   LinkType type = LinkType::kOdometry;
+};
+
+// An absolute measurement of a pose's rotation known up to the 24 ways of naming three orthogonal
+// axes (ManhattanSymmetries): the camera sees the building's axes as `cam_from_axes`. The graph
+// holds where those axes lie in the world (world_from_axes, one rotation for every prior: placed
+// by the first prior's pose, then estimated with the poses in each solve of whole parts). At each
+// solve the candidate world_from_axes * S * cam_from_axes^T nearest the pose's estimate is the
+// measurement, when within `max_deviation_rad` of it (farther, which naming is meant is a
+// guess); its error is the rotation vector of estimate * measured^T, with `sigma_rad` on each
+// component.
+struct RotationPrior {
+  Eigen::Matrix3d cam_from_axes = Eigen::Matrix3d::Identity();
+  double sigma_rad = 0.02;
+  double max_deviation_rad = 0.5;
 };
 
 struct PoseGraphSummary {
@@ -163,6 +182,13 @@ class PoseGraph {
   PoseGraphSummary OptimizeNear(size_t edge, int hops, double max_border_chi2_rise,
                                 const PoseGraphOptions& options = PoseGraphOptions());
 
+  // Gives pose `id` (which must exist) an absolute rotation measurement, replacing any it had.
+  // It takes part in the solves that move the pose and does not tie poses together: a part of
+  // the map is still only what edges join. Throws on a non-rotation or a non-positive sigma.
+  void SetRotationPrior(int64_t id, const RotationPrior& prior);
+  size_t NumRotationPriors() const { return rotation_priors_.size(); }
+  Eigen::Matrix3d WorldFromAxes() const { return world_from_axes_.toRotationMatrix(); }
+
   const Eigen::Isometry3d& Pose(int64_t id) const;  // throws when the id is unknown
   bool HasPose(int64_t id) const;
   size_t NumPoses() const { return nodes_.size(); }
@@ -209,6 +235,8 @@ class PoseGraph {
                   const std::vector<std::pair<size_t, double>>& border, double max_border_chi2_rise,
                   double max_loop_chi2) const;
 
+  std::map<int64_t, RotationPrior> rotation_priors_;  // by pose id
+  Eigen::Quaterniond world_from_axes_ = Eigen::Quaterniond::Identity();
   std::map<int64_t, Node> nodes_;  // by id: references stay valid, components find lowest ids
   std::vector<PoseGraphEdge> edges_;
   std::vector<bool> active_;

@@ -139,6 +139,52 @@ TEST(PoseGraph, ARevisedMeasurementReplacesTheOldOne) {
   EXPECT_EQ(graph.Edges()[0].information(0, 0), 400.0);
 }
 
+// Three poses 1 m apart, truly unrotated; the step 1 -> 2 measures an 8 degree turn that did not
+// happen, with the loose rotation of a motion-model guess (5 degrees). Each pose's depth sees the
+// building's axes as the pose's own axes (pose 2's named 90 degrees round: the same axes), and
+// the priors (1 degree) take the turn out. A prior farther from the estimate than its deviation
+// bound is not used.
+TEST(PoseGraph, RotationPriorsFromTheBuildingsAxesTakeOutAFalseTurn) {
+  const auto solve = [](double max_deviation_deg, bool priors) {
+    PoseGraph graph;
+    const Eigen::Isometry3d turn(Eigen::AngleAxisd(DegToRad(8.0), Eigen::Vector3d::UnitY()));
+    graph.AddPose(0, Translation(0.0));
+    graph.AddPose(1, Translation(1.0));
+    graph.AddPose(2, Translation(2.0) * turn);
+    graph.AddEdge(MakeEdge(0, 1, Translation(1.0), Information(0.01, DegToRad(0.2))));
+    graph.AddEdge(
+        MakeEdge(1, 2, Translation(1.0) * turn, Information(0.1, DegToRad(5.0)), LinkType::kPrior));
+    if (priors) {
+      RotationPrior prior;
+      prior.sigma_rad = DegToRad(1.0);
+      prior.max_deviation_rad = DegToRad(max_deviation_deg);
+      graph.SetRotationPrior(0, prior);  // places the axes: pose 0 is held
+      graph.SetRotationPrior(1, prior);
+      prior.cam_from_axes = Eigen::AngleAxisd(DegToRad(90.0), Eigen::Vector3d::UnitY()).matrix();
+      graph.SetRotationPrior(2, prior);
+      EXPECT_EQ(graph.NumRotationPriors(), 3u);
+    }
+    PoseGraphOptions exact;
+    exact.function_tolerance = 1e-12;
+    graph.Optimize(exact);
+    return RadToDeg(Eigen::AngleAxisd(graph.Pose(2).linear()).angle());
+  };
+  EXPECT_NEAR(solve(10.0, false), 8.0, 0.05);
+  const double corrected = solve(10.0, true);
+  EXPECT_LT(corrected, 0.5);
+  EXPECT_NEAR(solve(5.0, true), 8.0, 0.05);  // pose 2's prior is too far: not used
+
+  PoseGraph graph;
+  graph.AddPose(0, Translation(0.0));
+  EXPECT_THROW(graph.SetRotationPrior(1, RotationPrior()), Error);
+  RotationPrior not_a_rotation;
+  not_a_rotation.cam_from_axes *= 2.0;
+  EXPECT_THROW(graph.SetRotationPrior(0, not_a_rotation), Error);
+  RotationPrior no_sigma;
+  no_sigma.sigma_rad = 0.0;
+  EXPECT_THROW(graph.SetRotationPrior(0, no_sigma), Error);
+}
+
 // Four poses 1 m apart on a line, each tied to the next and the one after (as the mapper links a
 // keyframe to the two before it), all exact and firm (3 mm) but the step 1 -> 2, 10 cm off. In
 // plain least squares the wrong step shares its error with the two paths around it; with the

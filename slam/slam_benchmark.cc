@@ -8,6 +8,7 @@
 //   slam_benchmark --frames 150 --overlap   (what consecutive 1 Hz frames share, by ground truth)
 //   slam_benchmark --frames 1500 --fps 5 --overlap   (the same walk at 5 Hz, every frame mapped)
 //   slam_benchmark --frames 600 --laps 4   (the same 600 frames four times: cost against map size)
+//   slam_benchmark --frames 600 --manhattan   (the building's axes fitted to each depth image)
 
 #include <algorithm>
 #include <chrono>
@@ -34,6 +35,7 @@
 #include "core/tum_format.h"
 #include "sim/simulator.h"
 #include "slam/features.h"
+#include "slam/manhattan_frame.h"
 #include "slam/mapper.h"
 #include "slam/registration.h"
 #include "slam/tracker.h"
@@ -59,6 +61,7 @@ struct RunResult {
   int loops_rejected = 0;
   int false_loops = 0;
   int segments = 0;
+  int manhattan_keyframes = 0;  // keyframes with a rotation prior from the building's axes
   // The largest joined part of the map and its ATE aligned on its own: how good the map is
   // where it holds together, apart from how its parts are placed.
   int largest_keyframes = 0;
@@ -397,6 +400,8 @@ void PrintRun(const RunResult& run) {
   std::printf("\n");
   std::printf("RPE                 %.4f m/m, %.3f deg/m\n", run.error.rpe_trans_per_m,
               run.error.rpe_rot_deg_per_m);
+  std::printf("building's axes     seen by %d of %d keyframes (a rotation prior each)\n",
+              run.manhattan_keyframes, run.keyframes);
   std::printf("largest part        %d keyframes, ATE rmse %.4f m, max %.4f aligned on its own\n",
               run.largest_keyframes, run.largest_error.ate_rmse_m, run.largest_error.ate_max_m);
   PrintLinkCalibration(run);
@@ -439,6 +444,7 @@ RunResult Run(const KeyframeFeed& feed, const Intrinsics& camera, const MapperOp
   run.final_optimisation_s = whole.times.optimisation_s;
   run.keyframes = static_cast<int>(mapper.NumKeyframes());
   run.segments = mapper.NumSegments();
+  run.manhattan_keyframes = mapper.NumManhattanKeyframes();
   run.estimate = mapper.Trajectory();
   for (size_t i = 0; i < truths.size(); ++i) {
     run.ground_truth.push_back({run.estimate[i].timestamp_ns, truths[i]});
@@ -559,6 +565,28 @@ void PrintFalseLoop(const RunResult& clean, const RunResult& injected, int at) {
 
 // The options `sightmap map --config` reads, as far as SLAM goes: its "mapper" block and its
 // "tracking" block's "tracker".
+// How well each frame's depth gives the building's axes (FitManhattanFrame), against the
+// simulator's ground truth (its walls run along the world's x and y, z up).
+void ReportManhattanFits(const std::vector<Frame>& frames, const Intrinsics& camera,
+                         const ManhattanOptions& options) {
+  std::vector<double> errors_deg;
+  for (const Frame& frame : frames) {
+    const std::optional<ManhattanFit> fit = FitManhattanFrame(frame.depth, camera, options);
+    if (!fit) continue;
+    errors_deg.push_back(
+        RadToDeg(NearestManhattanRotation(Eigen::Matrix3d::Identity(), fit->cam_from_manhattan,
+                                          frame.world_from_cam_gt.linear())
+                     .second));
+  }
+  std::printf("building's axes     shown by %zu of %zu frames", errors_deg.size(), frames.size());
+  if (!errors_deg.empty()) {
+    std::printf(", rotation error p50 %.3f deg, p90 %.3f, p99 %.3f, max %.3f",
+                Percentile(errors_deg, 0.5), Percentile(errors_deg, 0.9),
+                Percentile(errors_deg, 0.99), Percentile(errors_deg, 1.0));
+  }
+  std::printf("\n");
+}
+
 void ReadConfig(const std::string& path, MapperOptions* mapper, TrackerOptions* tracker) {
   std::ifstream file(path);
   SIGHTMAP_CHECK(file, "cannot read the config " << path);
@@ -634,6 +662,7 @@ int Main(int argc, char** argv) {
   int64_t frames_wanted = 600;
   bool false_loop = false;
   bool overlap = false;
+  bool manhattan = false;
   double fps = 1.0;
   bool no_walk_check = false;
   int local_loop_hops = -1;
@@ -649,6 +678,9 @@ int Main(int argc, char** argv) {
   app.add_option("--frames", frames_wanted, "keyframes (frames of the walk at --fps)");
   app.add_flag("--false-loop", false_loop,
                "also run again with a wrong loop injected halfway and compare the ATE");
+  app.add_flag("--manhattan", manhattan,
+               "how far the building's axes fitted to each frame's depth are from the truth "
+               "(mapper.manhattan options), then stop");
   app.add_flag("--overlap", overlap,
                "first report what consecutive frames share by ground truth, and how many pairs "
                "registration bridges");
@@ -727,6 +759,10 @@ int Main(int argc, char** argv) {
               trajectory.c_str(), session, static_cast<unsigned long long>(seed), frames.size(),
               fps);
   if (overlap) ReportOverlap(frames, camera, options);
+  if (manhattan) {
+    ReportManhattanFits(frames, camera, options.manhattan);
+    return 0;
+  }
   const size_t lap_length = frames.size();
   for (int lap = 1; lap < laps; ++lap) {
     const TimestampNs offset = frames[lap_length - 1].timestamp_ns + 1'000'000'000;
