@@ -327,6 +327,45 @@ TEST(Mapper, ABlindKeyframesLinkIsBridgedOnceTheMotionAfterItIsMeasured) {
   EXPECT_TRUE(bridged.information.isApprox(4.0 * guessed.information, 1e-9));
 }
 
+// Keyframes 0-12 of the walk as the tracker emits them, keyframe 12 as if the tracker had placed
+// it on its motion model 0.2 s blind, guessing a 25 degree turn (about the image's vertical) that
+// did not happen: beyond what a blind link may turn, so no registration replaces the guess.
+// Returns how far keyframe 12's rotation is from the truth (relative to keyframe 0) once the
+// map is optimised whole [deg].
+double RotationErrorAfterAFalseBlindTurn(double manhattan_sigma_deg) {
+  const Walk& walk = HandheldWalkAt5Hz();
+  MapperOptions options = SmallVocabulary();
+  options.vocabulary_training_keyframes = 1000;  // links only
+  options.manhattan_sigma_deg = manhattan_sigma_deg;
+  options.manhattan_max_deviation_deg = 30.0;
+  Mapper mapper(walk.camera, options);
+  std::vector<TrackedKeyframe> keyframes = TrackedKeyframes0To12();
+  const Eigen::Isometry3d true_11_from_12 =
+      walk.frames[11].world_from_cam_gt->inverse() * *walk.frames[12].world_from_cam_gt;
+  const Eigen::Isometry3d false_turn(Eigen::AngleAxisd(DegToRad(25.0), Eigen::Vector3d::UnitY()));
+  MakeBlind(0.2, true_11_from_12 * false_turn, DiagonalCovariance(0.08, 0.14).inverse(),
+            &*keyframes[12].motion);
+  for (TrackedKeyframe& keyframe : keyframes) mapper.AddTrackedKeyframe(std::move(keyframe));
+  mapper.OptimiseWhole();
+  const Eigen::Matrix3d true_0_from_12 =
+      (walk.frames[0].world_from_cam_gt->inverse() * *walk.frames[12].world_from_cam_gt).linear();
+  const Eigen::Matrix3d mapped_0_from_12 =
+      (mapper.WorldFromCam(0).inverse() * mapper.WorldFromCam(12)).linear();
+  std::printf("keyframes with the building's axes: %d of %zu\n", mapper.NumManhattanKeyframes(),
+              mapper.NumKeyframes());
+  return RotationAngleDeg(true_0_from_12, mapped_0_from_12);
+}
+
+// A keyframe placed blind turns with the guess; the building's axes in its depth turn it back.
+TEST(Mapper, TheBuildingsAxesTurnBackAFalseBlindTurn) {
+  const double without = RotationErrorAfterAFalseBlindTurn(0.0);
+  const double with = RotationErrorAfterAFalseBlindTurn(1.0);
+  std::printf("keyframe 12 after a false 25 degree turn: %.2f degrees off without, %.2f with\n",
+              without, with);
+  EXPECT_GT(without, 20.0);
+  EXPECT_LT(with, 2.0);
+}
+
 // Keyframes 0-12 of the walk as the tracker emits them, keyframe 12's registered motion put
 // `offset` off (as repeated texture puts features: a radiator's fins, a tiled box). Returns the
 // error of the mapper's link 11 -> 12 against the truth [m].

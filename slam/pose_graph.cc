@@ -676,14 +676,15 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   RotationPriors rotation_priors;
   Eigen::Map<Eigen::Quaterniond>(rotation_priors.world_from_axes) = world_from_axes_;
   const Eigen::Matrix3d world_from_axes = world_from_axes_.toRotationMatrix();
-  for (const auto& [id, prior] : rotation_priors_) {
-    if (scope.free) break;
-    const size_t node = index_of.at(id);
-    const auto [measured, deviation] = NearestManhattanRotation(
-        world_from_axes, prior.cam_from_axes, nodes[node]->world_from_cam.linear());
-    if (deviation <= prior.max_deviation_rad) {
-      rotation_priors.priors.push_back(
-          {node, world_from_axes.transpose() * measured, prior.sigma_rad});
+  if (!scope.free) {
+    for (const auto& [id, prior] : rotation_priors_) {
+      const size_t node = index_of.at(id);
+      const auto [measured, deviation] = NearestManhattanRotation(
+          world_from_axes, prior.cam_from_axes, nodes[node]->world_from_cam.linear());
+      if (deviation <= prior.max_deviation_rad) {
+        rotation_priors.priors.push_back(
+            {node, world_from_axes.transpose() * measured, prior.sigma_rad});
+      }
     }
   }
   const Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,

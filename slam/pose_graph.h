@@ -183,8 +183,10 @@ class PoseGraph {
                                 const PoseGraphOptions& options = PoseGraphOptions());
 
   // Gives pose `id` (which must exist) an absolute rotation measurement, replacing any it had.
-  // It takes part in the solves that move the pose and does not tie poses together: a part of
-  // the map is still only what edges join. Throws on a non-rotation or a non-positive sigma.
+  // Priors take part in solves of whole parts (Optimize, OptimizeAround, and OptimizeNear when
+  // its window grows to the part), not in OptimizeNear's windows, and do not tie poses together:
+  // a part of the map is still only what edges join. Throws on a non-rotation or a non-positive
+  // sigma.
   void SetRotationPrior(int64_t id, const RotationPrior& prior);
   size_t NumRotationPriors() const { return rotation_priors_.size(); }
   Eigen::Matrix3d WorldFromAxes() const { return world_from_axes_.toRotationMatrix(); }
