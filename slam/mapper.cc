@@ -369,16 +369,13 @@ void Mapper::AddGraphPose(int64_t id, const Eigen::Isometry3d& world_from_cam) {
 
 std::optional<Eigen::Matrix3d> Mapper::MeasureAxes(const cv::Mat& depth_mm) const {
   if (!(options_.manhattan_sigma_deg > 0.0)) return std::nullopt;
-  if (depth_mm.cols == camera_.width) {
-    const auto fit = FitManhattanFrame(depth_mm, camera_, options_.manhattan);
-    return fit ? std::optional<Eigen::Matrix3d>(fit->cam_from_manhattan) : std::nullopt;
-  }
-  // A restored keyframe's small depth: the same samples on a coarser grid.
+  // A restored or tracked keyframe's small depth holds the same samples on a coarser grid.
   ManhattanOptions options = options_.manhattan;
   options.grid_step_px = std::max(1, options.grid_step_px * depth_mm.cols / camera_.width);
-  const auto fit =
+  const std::optional<ManhattanFit> fit =
       FitManhattanFrame(depth_mm, camera_.Scaled(depth_mm.cols, depth_mm.rows), options);
-  return fit ? std::optional<Eigen::Matrix3d>(fit->cam_from_manhattan) : std::nullopt;
+  if (!fit) return std::nullopt;
+  return fit->cam_from_manhattan;
 }
 
 void Mapper::AddRotationPrior(const Keyframe& keyframe) {

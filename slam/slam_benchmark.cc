@@ -563,8 +563,6 @@ void PrintFalseLoop(const RunResult& clean, const RunResult& injected, int at) {
       injected.largest_error.ate_rmse_m, clean.largest_error.ate_rmse_m);
 }
 
-// The options `sightmap map --config` reads, as far as SLAM goes: its "mapper" block and its
-// "tracking" block's "tracker".
 // How well each frame's depth gives the building's axes (FitManhattanFrame), against the
 // simulator's ground truth (its walls run along the world's x and y, z up).
 void ReportManhattanFits(const std::vector<Frame>& frames, const Intrinsics& camera,
@@ -587,6 +585,8 @@ void ReportManhattanFits(const std::vector<Frame>& frames, const Intrinsics& cam
   std::printf("\n");
 }
 
+// The options `sightmap map --config` reads, as far as SLAM goes: its "mapper" block and its
+// "tracking" block's "tracker".
 void ReadConfig(const std::string& path, MapperOptions* mapper, TrackerOptions* tracker) {
   std::ifstream file(path);
   SIGHTMAP_CHECK(file, "cannot read the config " << path);
