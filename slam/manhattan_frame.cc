@@ -189,8 +189,7 @@ bool ManhattanOptions::Check(std::string* error) const {
 }
 
 std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Intrinsics& camera,
-                                              const ManhattanOptions& options,
-                                              const std::optional<Eigen::Vector3d>& up_in_cam) {
+                                              const ManhattanOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && depth_mm.cols == camera.width &&
                      depth_mm.rows == camera.height,
@@ -199,8 +198,7 @@ std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Int
   ManhattanFit fit;
   fit.normals = static_cast<int>(normals.size());
   const int min_count = options.min_axis_normals;
-  const Eigen::Vector3d expected_up =
-      up_in_cam ? up_in_cam->normalized() : Eigen::Vector3d(0.0, -1.0, 0.0);
+  const Eigen::Vector3d expected_up(0.0, -1.0, 0.0);  // the image's up
 
   // The vertical: floor and ceiling normals near the expected up, then those near their mean.
   Eigen::Vector3d up = expected_up;

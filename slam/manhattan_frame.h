@@ -71,12 +71,10 @@ struct ManhattanFit {
 };
 
 // The camera's rotation relative to the building's axes, or nullopt when the image does not show
-// two of them. `up_in_cam`, when given, is where the caller expects the vertical (from its pose
-// estimate); without it the image's up (-y) is taken, within max_tilt_deg. `depth_mm` is 16-bit
-// millimetres, 0 for no depth, of the size in `camera`.
-std::optional<ManhattanFit> FitManhattanFrame(
-    const cv::Mat& depth_mm, const Intrinsics& camera, const ManhattanOptions& options,
-    const std::optional<Eigen::Vector3d>& up_in_cam = std::nullopt);
+// two of them. The vertical is sought within max_tilt_deg of the image's up (-y): a walker holds
+// the camera upright. `depth_mm` is 16-bit millimetres, 0 for no depth, of the size in `camera`.
+std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Intrinsics& camera,
+                                              const ManhattanOptions& options);
 
 // The 24 proper rotations that map the coordinate axes onto themselves (with signs).
 const std::vector<Eigen::Matrix3d>& ManhattanSymmetries();
