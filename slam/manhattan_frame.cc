@@ -12,8 +12,6 @@
 namespace sightmap::slam {
 namespace {
 
-constexpr double kDegree = kPi / 180.0;
-
 // Unit normals of the depth image's locally planar patches, facing the camera.
 std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrinsics& camera,
                                           const ManhattanOptions& options) {
@@ -37,7 +35,7 @@ std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrins
   const int k = options.normal_span_cells;
   std::vector<Eigen::Vector3d> normals;
   normals.reserve(points.size());
-  const double min_incidence_cos = std::cos(options.max_incidence_deg * kDegree);
+  const double min_incidence_cos = std::cos(DegToRad(options.max_incidence_deg));
   auto at = [&](int r, int c) { return static_cast<size_t>(r) * cols + c; };
   for (int r = k; r + k < rows; ++r) {
     for (int c = k; c + k < cols; ++c) {
@@ -94,7 +92,7 @@ std::optional<double> WallHeading(const std::vector<Eigen::Vector3d>& normals,
   const int bins = std::max(4, static_cast<int>(std::lround(90.0 / options.heading_bin_deg)));
   std::vector<double> headings;
   std::vector<int> histogram(bins, 0);
-  const double max_sin = std::sin(options.assign_deg * kDegree);
+  const double max_sin = std::sin(DegToRad(options.assign_deg));
   for (const Eigen::Vector3d& normal : normals) {
     if (std::abs(normal.dot(up)) > max_sin) continue;
     double heading = std::fmod(std::atan2(normal.dot(north), normal.dot(east)), quarter);
@@ -123,7 +121,7 @@ std::optional<double> WallHeading(const std::vector<Eigen::Vector3d>& normals,
   double sin_sum = 0.0, cos_sum = 0.0;
   for (double heading : headings) {
     const double difference = std::remainder(heading - peak, quarter);
-    if (std::abs(difference) > options.assign_deg * kDegree) continue;
+    if (std::abs(difference) > DegToRad(options.assign_deg)) continue;
     sin_sum += std::sin(4.0 * heading);
     cos_sum += std::cos(4.0 * heading);
   }
@@ -133,14 +131,13 @@ std::optional<double> WallHeading(const std::vector<Eigen::Vector3d>& normals,
 }
 
 // Kabsch refinement: each normal within the assignment angle of an axis (or its opposite) pulls
-// that axis towards it. Fills the fit's rotation, support and rms.
+// that axis towards it. Fills the fit's rotation and support.
 void RefineAxes(const std::vector<Eigen::Vector3d>& normals, const ManhattanOptions& options,
                 ManhattanFit* fit) {
-  const double min_cos = std::cos(options.assign_deg * kDegree);
+  const double min_cos = std::cos(DegToRad(options.assign_deg));
   for (int iteration = 0; iteration < 3; ++iteration) {
     Eigen::Matrix3d correlation = Eigen::Matrix3d::Zero();
     fit->support = {0, 0, 0};
-    double squared_sum = 0.0;
     for (const Eigen::Vector3d& normal : normals) {
       const Eigen::Vector3d in_axes = fit->cam_from_manhattan.transpose() * normal;
       int axis = 0;
@@ -151,12 +148,9 @@ void RefineAxes(const std::vector<Eigen::Vector3d>& normals, const ManhattanOpti
       target[axis] = in_axes[axis] > 0.0 ? 1.0 : -1.0;
       correlation += normal * target.transpose();
       ++fit->support[axis];
-      const double angle = std::acos(std::min(1.0, cos));
-      squared_sum += angle * angle;
     }
     const int assigned = fit->support[0] + fit->support[1] + fit->support[2];
     if (assigned == 0) return;
-    fit->rms_deg = std::sqrt(squared_sum / assigned) / kDegree;
     const Eigen::JacobiSVD<Eigen::Matrix3d> svd(correlation,
                                                 Eigen::ComputeFullU | Eigen::ComputeFullV);
     Eigen::Matrix3d sign = Eigen::Matrix3d::Identity();
@@ -203,8 +197,8 @@ std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Int
   // The vertical: floor and ceiling normals near the expected up, then those near their mean.
   Eigen::Vector3d up = expected_up;
   if (const auto floor =
-          AxisMean(normals, expected_up, options.max_tilt_deg * kDegree, min_count)) {
-    if (const auto refined = AxisMean(normals, *floor, options.assign_deg * kDegree, min_count)) {
+          AxisMean(normals, expected_up, DegToRad(options.max_tilt_deg), min_count)) {
+    if (const auto refined = AxisMean(normals, *floor, DegToRad(options.assign_deg), min_count)) {
       up = *refined;
       if (up.dot(expected_up) < 0.0) up = -up;
     }

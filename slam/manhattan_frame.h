@@ -66,8 +66,6 @@ struct ManhattanFit {
   Eigen::Matrix3d cam_from_manhattan = Eigen::Matrix3d::Identity();
   std::array<int, 3> support{};  // normals assigned to each axis
   int normals = 0;               // valid normals
-  // Root mean square angle between an assigned normal and its axis [deg].
-  double rms_deg = 0.0;
 };
 
 // The camera's rotation relative to the building's axes, or nullopt when the image does not show

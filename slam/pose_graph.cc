@@ -130,7 +130,7 @@ struct ResolvedRotationPrior {
 // The priors of one solve and the building's axes they share (estimated with the poses).
 struct RotationPriors {
   std::vector<ResolvedRotationPrior> priors;
-  double world_from_axes[4] = {0.0, 0.0, 0.0, 1.0};  // quaternion x, y, z, w
+  std::array<double, 4> world_from_axes = {0.0, 0.0, 0.0, 1.0};  // quaternion x, y, z, w
 };
 
 // S with S^T S = W for a symmetric positive semi-definite W (eigenvalues within rounding of zero
@@ -244,7 +244,7 @@ struct Solve {
 Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
                  const std::vector<bool>& solved, const std::vector<Matrix6d>& sqrt_information,
                  const std::vector<PoseParameters>& initial, const std::vector<bool>& pinned,
-                 RotationPriors* rotation_priors, const PoseGraphOptions& options) {
+                 const RotationPriors& rotation_priors, const PoseGraphOptions& options) {
   ceres::EigenQuaternionManifold quaternion_manifold;
   ceres::CauchyLoss loop_loss(options.loop_loss_scale);
   ceres::CauchyLoss rotation_prior_loss(options.rotation_prior_loss_scale);
@@ -276,11 +276,9 @@ Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEn
 
   const std::vector<bool> held = internal::HeldPoses(ends, solved, ties, pinned);
   // A copy per solve: a solve that switches a loop off starts again from the same axes.
-  std::array<double, 4> world_from_axes;
-  std::copy(std::begin(rotation_priors->world_from_axes),
-            std::end(rotation_priors->world_from_axes), world_from_axes.begin());
+  std::array<double, 4> world_from_axes = rotation_priors.world_from_axes;
   bool axes_in_problem = false;
-  for (const ResolvedRotationPrior& prior : rotation_priors->priors) {
+  for (const ResolvedRotationPrior& prior : rotation_priors.priors) {
     if (!in_problem[prior.node]) continue;  // a held pose's prior holds the axes
     problem.AddResidualBlock(RotationPriorCost::Create(prior.axes_from_cam, prior.sigma_rad),
                              &rotation_prior_loss, solve.parameters[prior.node].q,
@@ -311,7 +309,7 @@ Solve SolveSwitchingOffLoops(const std::vector<PoseGraphEdge>& edges,
                              const internal::EdgeEnds& ends, const std::vector<bool>& selected,
                              const std::vector<Matrix6d>& sqrt_information,
                              const std::vector<PoseParameters>& initial,
-                             const std::vector<bool>& pinned, RotationPriors* rotation_priors,
+                             const std::vector<bool>& pinned, const RotationPriors& rotation_priors,
                              const PoseGraphOptions& options, std::vector<bool>* active,
                              PoseGraphSummary* summary) {
   while (true) {
@@ -674,7 +672,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   // before them leaves them turned against the loops that correct it (1 Hz walks: priors in
   // windows switched 50-100 correct loops off).
   RotationPriors rotation_priors;
-  Eigen::Map<Eigen::Quaterniond>(rotation_priors.world_from_axes) = world_from_axes_;
+  Eigen::Map<Eigen::Quaterniond>(rotation_priors.world_from_axes.data()) = world_from_axes_;
   const Eigen::Matrix3d world_from_axes = world_from_axes_.toRotationMatrix();
   if (!scope.free) {
     for (const auto& [id, prior] : rotation_priors_) {
@@ -688,7 +686,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     }
   }
   const Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
-                                             pinned, &rotation_priors, options, &active_, &summary);
+                                             pinned, rotation_priors, options, &active_, &summary);
   if (solve.world_from_axes) {
     world_from_axes_ = Eigen::Map<const Eigen::Quaterniond>(solve.world_from_axes->data());
     world_from_axes_.normalize();
