@@ -7,9 +7,12 @@
 
 namespace sightmap::slam {
 
-std::vector<Eigen::Isometry3d> BridgeBlindRun(const TimedMotion& before,
-                                              const std::vector<double>& blind_dt_s,
-                                              const TimedMotion& after) {
+std::vector<Eigen::Isometry3d> BridgeBlindRun(
+    const TimedMotion& before, const std::vector<double>& blind_dt_s, const TimedMotion& after,
+    BridgeFrame frame, const std::vector<std::optional<Eigen::Matrix3d>>& step_rotations) {
+  if (!step_rotations.empty() && step_rotations.size() != blind_dt_s.size()) {
+    SIGHTMAP_THROW(InvalidArgument, "bridging a blind run needs one rotation entry per step");
+  }
   const auto positive = [](double s) { return s > 0.0 && std::isfinite(s); };
   if (!positive(before.dt_s) || !positive(after.dt_s)) {
     SIGHTMAP_THROW(InvalidArgument,
@@ -32,6 +35,28 @@ std::vector<Eigen::Isometry3d> BridgeBlindRun(const TimedMotion& before,
     const double w = (start_s + 0.5 * dt_s) / span_s;
     const Eigen::Matrix<double, 6, 1> velocity = (1.0 - w) * velocity_before + w * velocity_after;
     motions.push_back(ExpSe3(velocity * dt_s));
+    if (!step_rotations.empty() && step_rotations[motions.size() - 1]) {
+      motions.back().linear() = *step_rotations[motions.size() - 1];
+    }
+    start_s += dt_s;
+  }
+  if (frame == BridgeFrame::kCamera) return motions;
+  // The velocities on both sides in the camera where the run starts (R: the run's rotations from
+  // there), and each step's translation by their interpolation, in the camera where it starts.
+  Eigen::Matrix3d run_start_from_cam = Eigen::Matrix3d::Identity();
+  for (const Eigen::Isometry3d& motion : motions) run_start_from_cam *= motion.linear();
+  const Eigen::Vector3d before_mps = before.previous_from_cam.linear().transpose() *
+                                     before.previous_from_cam.translation() / before.dt_s;
+  const Eigen::Vector3d after_mps =
+      run_start_from_cam * after.previous_from_cam.translation() / after.dt_s;
+  Eigen::Matrix3d step_start = Eigen::Matrix3d::Identity();
+  start_s = 0.5 * before.dt_s;
+  for (size_t k = 0; k < motions.size(); ++k) {
+    const double dt_s = blind_dt_s[k];
+    const double w = (start_s + 0.5 * dt_s) / span_s;
+    motions[k].translation() =
+        step_start.transpose() * (((1.0 - w) * before_mps + w * after_mps) * dt_s);
+    step_start *= motions[k].linear();
     start_s += dt_s;
   }
   return motions;

@@ -2,11 +2,17 @@
 // nothing registered for a second or more (a 1 Hz walker turning 35 degrees between frames).
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <Eigen/Geometry>
 
 namespace sightmap::slam {
+
+// Which frame a walker keeps its velocity in across a blind run. A robot's camera goes where the
+// robot heads, turning its velocity with it (kCamera); a hand-held camera looks about while the
+// walker goes on (kWorld: the velocity is kept in the world, the turn is the head's).
+enum class BridgeFrame { kCamera, kWorld };
 
 // A measured motion between two consecutive keyframes and the time it took.
 struct TimedMotion {
@@ -24,8 +30,13 @@ struct TimedMotion {
 // degrees) even from the true velocity before; the bridge from the true velocities on both
 // sides by 0.08-0.09 m and 7-9 degrees (p90 0.19-0.23 m, 20-21 degrees). Throws InvalidArgument
 // for durations that are not positive.
-std::vector<Eigen::Isometry3d> BridgeBlindRun(const TimedMotion& before,
-                                              const std::vector<double>& blind_dt_s,
-                                              const TimedMotion& after);
+// With kWorld the translations are interpolated in the world (expressed in the camera where the
+// run starts, through the bridged rotations), the rotations as with kCamera.
+// `step_rotations`, when given (one per step), replaces a step's interpolated rotation where it
+// holds one (measured otherwise, e.g. from the building's axes at both of its ends).
+std::vector<Eigen::Isometry3d> BridgeBlindRun(
+    const TimedMotion& before, const std::vector<double>& blind_dt_s, const TimedMotion& after,
+    BridgeFrame frame = BridgeFrame::kCamera,
+    const std::vector<std::optional<Eigen::Matrix3d>>& step_rotations = {});
 
 }  // namespace sightmap::slam

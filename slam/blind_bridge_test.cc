@@ -53,6 +53,60 @@ TEST(BridgeBlindRun, StepsLieOnTheLineByTheirTimes) {
   EXPECT_NEAR(bridged[1].translation().z(), 0.2, 1e-9);
 }
 
+// A hand-held walker going on at 0.5 m/s while turning the camera at 35 deg/s about its down
+// axis: the camera's pose at time t, in the world where it started.
+Eigen::Isometry3d HeadTurningWalker(double t_s) {
+  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
+  world_from_cam.linear() =
+      Eigen::AngleAxisd(DegToRad(35.0 * t_s), Eigen::Vector3d::UnitY()).matrix();
+  world_from_cam.translation() = Eigen::Vector3d(0.0, 0.0, 0.5 * t_s);
+  return world_from_cam;
+}
+
+Eigen::Isometry3d HeadTurningStep(double from_s, double to_s) {
+  return HeadTurningWalker(from_s).inverse() * HeadTurningWalker(to_s);
+}
+
+TEST(BridgeBlindRun, AWalkerLookingAboutKeepsItsVelocityInTheWorld) {
+  // Measured from -1 to 0 s and from 2 to 3 s, blind from 0 to 2 s.
+  const TimedMotion before{HeadTurningStep(-1.0, 0.0), 1.0};
+  const TimedMotion after{HeadTurningStep(2.0, 3.0), 1.0};
+  const std::vector<Eigen::Isometry3d> world =
+      BridgeBlindRun(before, {1.0, 1.0}, after, BridgeFrame::kWorld);
+  const std::vector<Eigen::Isometry3d> camera =
+      BridgeBlindRun(before, {1.0, 1.0}, after, BridgeFrame::kCamera);
+  ASSERT_EQ(world.size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Isometry3d truth = HeadTurningStep(k, k + 1.0);
+    EXPECT_LT(TranslationError(world[k], truth), 1e-9) << "step " << k;
+    EXPECT_LT(RotationAngleDeg(world[k].rotation(), truth.rotation()), 1e-9);
+    // Keeping the velocity in the camera turns it with the head: 0.17 m off in each second.
+    EXPECT_GT(TranslationError(camera[k], truth), 0.15) << "step " << k;
+  }
+}
+
+TEST(BridgeBlindRun, AMeasuredTurnReplacesTheInterpolatedOne) {
+  // The motions on both sides say the camera does not turn; the first blind step's ends show
+  // it turned 35 degrees. That step takes the turn; so the motion after the run, measured in the
+  // turned camera, goes 35 degrees off the one before, and the steps' velocities lie between
+  // the two (a third and two thirds of the way), each in the camera where its step starts.
+  const TimedMotion before{WalkStep(0.0, 1.0), 1.0};
+  const TimedMotion after = before;
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(DegToRad(35.0), Eigen::Vector3d::UnitY()).matrix();
+  const std::vector<Eigen::Isometry3d> bridged =
+      BridgeBlindRun(before, {1.0, 1.0}, after, BridgeFrame::kWorld, {turn, std::nullopt});
+  ASSERT_EQ(bridged.size(), 2u);
+  EXPECT_LT(RotationAngleDeg(bridged[0].rotation(), turn), 1e-9);
+  EXPECT_LT(RotationAngleDeg(bridged[1]), 1e-9);
+  const Eigen::Vector3d forward(0.0, 0.0, 0.5);
+  EXPECT_LT((bridged[0].translation() - (2.0 * forward + turn * forward) / 3.0).norm(), 1e-9);
+  EXPECT_LT(
+      (bridged[1].translation() - turn.transpose() * (forward + 2.0 * turn * forward) / 3.0).norm(),
+      1e-9);
+  EXPECT_THROW(BridgeBlindRun(before, {1.0, 1.0}, after, BridgeFrame::kWorld, {turn}),
+               InvalidArgument);
+}
+
 TEST(BridgeBlindRun, DurationsMustBePositive) {
   const TimedMotion step{WalkStep(0.0, 1.0), 1.0};
   EXPECT_THROW(BridgeBlindRun(step, {0.0}, step), InvalidArgument);

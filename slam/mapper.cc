@@ -88,6 +88,9 @@ bool MapperOptions::Check(std::string* error) const {
       !vocabulary.Check(error) || !pose_graph.Check(error) || !manhattan.Check(error)) {
     return false;
   }
+  if (bridge_frame != "camera" && bridge_frame != "world") {
+    return fail("bridge_frame must be \"camera\" or \"world\"");
+  }
   if (!(manhattan_sigma_deg >= 0.0) || !std::isfinite(manhattan_sigma_deg) ||
       !(manhattan_max_deviation_deg > 0.0 && manhattan_max_deviation_deg < 45.0)) {
     return fail(
@@ -725,8 +728,27 @@ void Mapper::BridgeBlindRunBefore(const Keyframe& keyframe, const KeyframeMotion
       shortest_step_s < options_.bridge_min_blind_step_s) {
     return;
   }
+  // A step whose both ends show the building's axes turns as the axes say (the naming nearest
+  // the interpolated turn).
+  std::vector<std::optional<Eigen::Matrix3d>> step_rotations(run.size());
+  if (options_.bridge_rotations_from_axes) {
+    const std::vector<Eigen::Isometry3d> interpolated =
+        BridgeBlindRun(measured_before, blind_dt_s, measured_after);
+    for (size_t i = 0; i < run.size(); ++i) {
+      const Keyframe& from = Get(run[i] - 1);
+      const Keyframe& to = Get(run[i]);
+      if (!from.cam_from_axes || !to.cam_from_axes) continue;
+      const auto [measured, deviation] = NearestManhattanRotation(
+          *from.cam_from_axes, *to.cam_from_axes, interpolated[i].linear());
+      if (deviation <= DegToRad(options_.manhattan_max_deviation_deg * 2.0)) {
+        step_rotations[i] = measured;
+      }
+    }
+  }
   const std::vector<Eigen::Isometry3d> bridged =
-      BridgeBlindRun(measured_before, blind_dt_s, measured_after);
+      BridgeBlindRun(measured_before, blind_dt_s, measured_after,
+                     options_.bridge_frame == "world" ? BridgeFrame::kWorld : BridgeFrame::kCamera,
+                     step_rotations);
   const double information_scale =
       1.0 / (options_.bridged_sigma_factor * options_.bridged_sigma_factor);
   for (size_t i = 0; i < run.size(); ++i) {
@@ -1075,17 +1097,18 @@ SIGHTMAP_OPTIONS_JSON(
     MapperOptions, features, registration, odometry_window, extra_odometry_links,
     extra_link_max_disagreement_m, extra_link_max_disagreement_deg, blind_link_max_deviation_mps,
     blind_link_max_deviation_dps, blind_link_slack_m, blind_link_slack_deg, bridged_sigma_factor,
-    bridge_min_blind_step_s, manhattan_sigma_deg, manhattan_max_deviation_deg, manhattan,
-    depth_downscale, vocabulary, vocabulary_training_keyframes, loop_exclude_recent,
-    loop_candidates, loop_min_relative_score, loop_min_inliers, loop_min_spacing,
-    proximity_candidates, proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
-    proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
-    local_loop_max_border_chi2_rise, pose_graph, join_max_disagreement_m, join_max_disagreement_rad,
-    walk_max_speed_mps, walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s,
-    walk_max_tilt_deg, loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad,
-    loop_check_lever_m, loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m,
-    link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
-    dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
-    dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
+    bridge_min_blind_step_s, bridge_frame, bridge_rotations_from_axes, manhattan_sigma_deg,
+    manhattan_max_deviation_deg, manhattan, depth_downscale, vocabulary,
+    vocabulary_training_keyframes, loop_exclude_recent, loop_candidates, loop_min_relative_score,
+    loop_min_inliers, loop_min_spacing, proximity_candidates, proximity_radius_m,
+    proximity_max_angle_deg, proximity_min_inliers, proximity_max_disagreement_m,
+    proximity_max_disagreement_deg, local_loop_hops, local_loop_max_border_chi2_rise, pose_graph,
+    join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
+    walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2,
+    loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m,
+    loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad, dense_refinement, dense,
+    dense_max_correction_m, dense_max_correction_deg, dense_fit_max_correction_m,
+    dense_fit_max_correction_deg, dense_fit_max_rms_ratio, dense_fit_max_intensity_ratio,
+    dense_link_min_sigma_m, dense_link_min_sigma_rad)
 
 }  // namespace sightmap::slam
