@@ -31,7 +31,10 @@ struct TimedMotion {
 // sides by 0.08-0.09 m and 7-9 degrees (p90 0.19-0.23 m, 20-21 degrees). Throws InvalidArgument
 // for durations that are not positive.
 // With kWorld the translations are interpolated in the world (expressed in the camera where the
-// run starts, through the bridged rotations), the rotations as with kCamera.
+// run starts, through the bridged rotations), the rotations as with kCamera: from the true
+// motions on both sides and the true rotation, the translation of a 1 Hz hand-held walk's blind
+// step errs 26-28 mm at the median (p90 0.10-0.11 m), against 92-100 mm (p90 0.19 m) in the
+// camera (seeds 1 and 7).
 // `step_rotations`, when given (one per step), replaces a step's interpolated rotation where it
 // holds one (measured otherwise, e.g. from the building's axes at both of its ends).
 std::vector<Eigen::Isometry3d> BridgeBlindRun(
