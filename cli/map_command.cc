@@ -96,6 +96,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["largest_segment_keyframes"] = summary.largest_segment_keyframes;
   json["largest_part_ratio"] = summary.largest_part_ratio;
   json["prior_links"] = summary.prior_links;
+  json["axes_keyframes"] = summary.axes_keyframes;
   json["tracked_frames"] = summary.tracked_frames;
   json["dense_frames"] = summary.dense_frames;
   json["dense_at_rest_frames"] = summary.dense_at_rest_frames;
@@ -166,8 +167,9 @@ void PrintSummary(const mapping::MappingSummary& summary, const std::string& mod
     out << "  tracked     " << summary.tracked_frames << " frames (" << summary.dense_frames
         << " by dense odometry, " << summary.dense_at_rest_frames << " of them at rest, "
         << summary.blind_frames << " by the motion model alone; " << summary.prior_links
-        << " prior links, " << summary.early_keyframes << " early keyframes); "
-        << std::setprecision(1) << summary.track_median_ms << " ms median, " << summary.track_p95_ms
+        << " prior links, " << summary.early_keyframes << " early keyframes, "
+        << summary.axes_keyframes << " showing the building's axes); " << std::setprecision(1)
+        << summary.track_median_ms << " ms median, " << summary.track_p95_ms
         << " ms p95 per frame\n";
     if (summary.frames_before_start > 0) {
       out << "  started     after " << summary.frames_before_start

@@ -270,6 +270,7 @@ void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage
   summary->largest_segment_keyframes = model_summary.largest_segment_keyframes;
   summary->largest_part_ratio = model_summary.LargestPartRatio();
   summary->prior_links = model_summary.prior_links;
+  summary->axes_keyframes = mapper.NumManhattanKeyframes();
   summary->model_bytes = model_summary.size_bytes;
   const TrackStageReport& tracking = track.report();
   summary->tracked_frames = tracked ? tracking.counters.frames : 0;
