@@ -685,8 +685,42 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
       }
     }
   }
-  const Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
-                                             pinned, rotation_priors, options, &active_, &summary);
+  const std::vector<bool> active_before = active_;
+  Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial, pinned,
+                                       rotation_priors, options, &active_, &summary);
+  if (options.retry_rejected_loops_without_priors && !rotation_priors.priors.empty() &&
+      !summary.rejected_edges.empty()) {
+    // The priors' namings were taken from poses a switched-off loop may say are wrong (a stretch
+    // the tracker turned 180 degrees keeps a naming of the axes 180 degrees off, and the loop
+    // that would turn it back is switched off). Solved first by the loops alone, the namings
+    // from that solution: kept when fewer loops are switched off so.
+    const std::vector<bool> active_with_priors = active_;
+    active_ = active_before;
+    PoseGraphSummary retry;
+    retry.edge_chi2.assign(edges_.size(), 0.0);
+    RotationPriors loops_alone;
+    loops_alone.world_from_axes = rotation_priors.world_from_axes;
+    const Solve first = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
+                                               pinned, loops_alone, options, &active_, &retry);
+    RotationPriors renamed = loops_alone;
+    for (const auto& [id, prior] : rotation_priors_) {
+      const size_t node = index_of.at(id);
+      const auto [measured, deviation] = NearestManhattanRotation(
+          world_from_axes, prior.cam_from_axes, first.parameters[node].Get().linear());
+      if (deviation <= prior.max_deviation_rad) {
+        renamed.priors.push_back({node, world_from_axes.transpose() * measured, prior.sigma_rad});
+      }
+    }
+    Solve second =
+        SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, first.parameters, pinned,
+                               renamed, options, &active_, &retry);
+    if (retry.usable && retry.rejected_edges.size() < summary.rejected_edges.size()) {
+      solve = std::move(second);
+      summary = std::move(retry);
+    } else {
+      active_ = active_with_priors;
+    }
+  }
   if (solve.world_from_axes) {
     world_from_axes_ = Eigen::Map<const Eigen::Quaterniond>(solve.world_from_axes->data());
     world_from_axes_.normalize();
@@ -726,6 +760,6 @@ void PoseGraph::SetRotationPrior(int64_t id, const RotationPrior& prior) {
 
 SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_threads,
                       function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2,
-                      rotation_prior_loss_scale)
+                      rotation_prior_loss_scale, retry_rejected_loops_without_priors)
 
 }  // namespace sightmap::slam

@@ -76,6 +76,10 @@ struct PoseGraphOptions {
   // sigmas off keeps 31% of its weight, one 10 sigmas off 4%, so a wrong measurement among the
   // many of a stretch of keyframes cannot turn it.
   double rotation_prior_loss_scale = 2.0;
+  // When a solve with rotation priors switches a loop off, solve again by the loops alone, name
+  // the axes from that solution and solve with the priors from there; keep that when it switches
+  // fewer loops off.
+  bool retry_rejected_loops_without_priors = true;
 
   bool Check(std::string* error) const;
 };
