@@ -674,17 +674,20 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   RotationPriors rotation_priors;
   Eigen::Map<Eigen::Quaterniond>(rotation_priors.world_from_axes.data()) = world_from_axes_;
   const Eigen::Matrix3d world_from_axes = world_from_axes_.toRotationMatrix();
-  if (!scope.free) {
+  // The priors named from the poses `at` (by index), those within their bound.
+  const auto name_priors = [&](const std::vector<PoseParameters>& at) {
+    std::vector<ResolvedRotationPrior> named;
     for (const auto& [id, prior] : rotation_priors_) {
       const size_t node = index_of.at(id);
-      const auto [measured, deviation] = NearestManhattanRotation(
-          world_from_axes, prior.cam_from_axes, nodes[node]->world_from_cam.linear());
+      const auto [measured, deviation] =
+          NearestManhattanRotation(world_from_axes, prior.cam_from_axes, at[node].Get().linear());
       if (deviation <= prior.max_deviation_rad) {
-        rotation_priors.priors.push_back(
-            {node, world_from_axes.transpose() * measured, prior.sigma_rad});
+        named.push_back({node, world_from_axes.transpose() * measured, prior.sigma_rad});
       }
     }
-  }
+    return named;
+  };
+  if (!scope.free) rotation_priors.priors = name_priors(initial);
   const std::vector<bool> active_before = active_;
   Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial, pinned,
                                        rotation_priors, options, &active_, &summary);
@@ -703,14 +706,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     const Solve first = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
                                                pinned, loops_alone, options, &active_, &retry);
     RotationPriors renamed = loops_alone;
-    for (const auto& [id, prior] : rotation_priors_) {
-      const size_t node = index_of.at(id);
-      const auto [measured, deviation] = NearestManhattanRotation(
-          world_from_axes, prior.cam_from_axes, first.parameters[node].Get().linear());
-      if (deviation <= prior.max_deviation_rad) {
-        renamed.priors.push_back({node, world_from_axes.transpose() * measured, prior.sigma_rad});
-      }
-    }
+    renamed.priors = name_priors(first.parameters);
     Solve second =
         SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, first.parameters, pinned,
                                renamed, options, &active_, &retry);
