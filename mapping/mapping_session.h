@@ -166,14 +166,12 @@ struct MappingSummary {
   int64_t largest_segment_keyframes = 0;  // keyframes in the largest of them (the model's count)
   double largest_part_ratio = 0.0;        // largest_segment_keyframes / model keyframes
   int64_t prior_links = 0;                // links made by the motion model across blind stretches
-  // Keyframes whose depth showed the building's axes (a rotation prior each; MapperOptions::
-  // manhattan_sigma_deg), this session's and restored ones.
-  int64_t axes_keyframes = 0;
-  int64_t tracked_frames = 0;        // frames the tracker placed (0 without tracking)
-  int64_t dense_frames = 0;          // of them, placed by the dense fallback
-  int64_t dense_at_rest_frames = 0;  // of those, unmoved (TrackerOptions::dense_prefer_rest)
-  int64_t blind_frames = 0;          // of them, placed by the motion model alone
-  int64_t early_keyframes = 0;       // keyframes taken off the rate's clock (overlap lost)
+  int64_t axes_keyframes = 0;             // keyframes whose depth showed the building's axes
+  int64_t tracked_frames = 0;             // frames the tracker placed (0 without tracking)
+  int64_t dense_frames = 0;               // of them, placed by the dense fallback
+  int64_t dense_at_rest_frames = 0;       // of those, unmoved (TrackerOptions::dense_prefer_rest)
+  int64_t blind_frames = 0;               // of them, placed by the motion model alone
+  int64_t early_keyframes = 0;            // keyframes taken off the rate's clock (overlap lost)
   // Frames read before one could anchor the map (TrackerOptions::start_max_wait_s), never placed.
   int64_t frames_before_start = 0;
   double track_median_ms = 0.0;  // tracking time per frame
