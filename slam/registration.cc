@@ -408,6 +408,8 @@ void MeasureInliers(const PoseEstimate& estimate, const RegistrationOptions& opt
   result->rmse_m = std::sqrt(squared / estimate.inliers.size());
 }
 
+}  // namespace
+
 // Dense verification of the result's pose: each depth image's pixels moved into the other camera
 // (both ways) must agree with the depth seen there, and not lie in front of it (space the other
 // camera saw empty). Fills the result's figures; the reason to refuse, or empty.
@@ -449,8 +451,6 @@ std::string VerifyByDepth(const cv::Mat& source_depth_mm, const cv::Mat& target_
   }
   return "";
 }
-
-}  // namespace
 
 bool RegistrationOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
@@ -530,7 +530,10 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
     stage_start = Clock::now();
     result.failure = VerifyByDepth(source_depth_mm, target_depth_mm, camera, options, &result);
     result.times.verification_s = SecondsSince(stage_start);
-    if (!result.failure.empty()) return result;
+    if (!result.failure.empty()) {
+      result.refused_by_verification = true;
+      return result;
+    }
   }
   result.success = true;
   return result;

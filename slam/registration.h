@@ -87,6 +87,9 @@ struct RegistrationTimes {
 struct RegistrationResult {
   bool success = false;
   std::string failure;  // why it was refused, when !success
+  // Refused by the dense verification alone: the pose is the refined one on enough inliers (a
+  // start for dense alignment, slam/dense_rescue.h).
+  bool refused_by_verification = false;
   // Maps points of the source camera into the target camera (cam_target_from_cam_source).
   Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
   int matches = 0;          // descriptor matches among keypoints with 3D points
@@ -118,5 +121,14 @@ RegistrationResult RegisterRgbd(const Features& source, const Features& target,
                                 const Intrinsics& camera,
                                 const RegistrationOptions& options = RegistrationOptions(),
                                 const Eigen::Isometry3d* prior = nullptr);
+
+// Dense verification of result->target_from_source (as RegisterRgbd's last step): each depth
+// image's pixels moved into the other camera (both ways) must agree with the depth seen there, and
+// not lie in front of it (space the other camera saw empty). Fills the result's consistent and
+// violation fractions and overlap samples; returns the reason to refuse the pose, or "". Depth
+// images as RegisterRgbd's; throws InvalidArgument for ones that do not fit the camera.
+std::string VerifyByDepth(const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
+                          const Intrinsics& camera, const RegistrationOptions& options,
+                          RegistrationResult* result);
 
 }  // namespace sightmap::slam

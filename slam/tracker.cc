@@ -130,6 +130,8 @@ struct Tracker::Placed {
   int near_inliers = 0;  // of `inliers`, within RegistrationOptions::near_depth_m
   double blind_s = 0.0;
   Matrix6 blind_start_covariance = Matrix6::Zero();  // the covariance when the blind time began
+  // Prepared for dense alignment when first needed (Tracker::DenseOf), shared by the copies.
+  std::shared_ptr<DenseAligner::Frame> dense;
 };
 
 // A frame prepared for dense alignment: in a dense chain each frame is aligned twice, as the
@@ -187,12 +189,24 @@ Tracker::Placed Tracker::Prepare(const RgbdFrame& frame, TrackResult* result) co
 bool Tracker::RegisterToReference(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                                   TrackResult* result) {
   const Clock::time_point start = Clock::now();
-  const RegistrationResult registration =
+  RegistrationResult registration =
       RegisterRgbd(frame.features, reference_->features, frame.depth_small, reference_->depth_small,
                    camera_, options_.registration, &predicted);
   result->registration_s += SecondsSince(start);
+  bool rescued = false;
+  const bool was_accepted = registration.success;
+  if (dt_s > options_.dense_max_interval_s &&
+      NeedsDenseAlignment(registration, options_.dense_rescue)) {
+    const Clock::time_point rescue_start = Clock::now();
+    registration = RescueByDenseAlignment(
+        registration, aligner_, DenseOf(frame), DenseOf(*reference_), frame.depth_small,
+        reference_->depth_small, camera_, options_.registration, options_.dense_rescue);
+    rescued = registration.success && !was_accepted;
+    result->dense_s += SecondsSince(rescue_start);
+  }
   // The prediction is good to the time since the last frame registration or ICP placed.
   if (!Believable(registration, predicted, dt_s + last_->blind_s)) return false;
+  if (rescued) ++counters_.rescued;
   reference_best_inliers_ = std::max(reference_best_inliers_, registration.inliers);
   reference_best_near_inliers_ = std::max(reference_best_near_inliers_, registration.near_inliers);
   frame.reference_from_cam = registration.target_from_source;
@@ -217,17 +231,17 @@ bool Tracker::Believable(const RegistrationResult& registration, const Eigen::Is
 bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                               TrackResult* result) {
   const Clock::time_point start = Clock::now();
-  const auto make = [&](const RgbdFrame& source) {
+  const auto make = [&](Placed& source) {
     DenseFrame dense;
-    dense.index = source.index;
-    dense.prepared =
-        aligner_.Prepare(MakeDenseImage(source.color, source.depth, camera_, options_.dense));
+    dense.index = source.frame.index;
+    dense.prepared = source.dense;
+    if (!dense.prepared) dense.prepared = aligner_.Prepare(DenseImageOf(source.frame));
     return dense;
   };
   if (!last_dense_ || last_dense_->index != last_->frame.index) {
-    last_dense_ = std::make_unique<DenseFrame>(make(last_->frame));
+    last_dense_ = std::make_unique<DenseFrame>(make(*last_));
   }
-  DenseFrame current = make(frame.frame);
+  DenseFrame current = make(frame);
   // Predicted step from the last frame: last_from_cam.
   const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
   const DenseAlignment aligned =
@@ -268,6 +282,15 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   frame.blind_s = last_->blind_s;
   frame.blind_start_covariance = last_->blind_start_covariance;
   return true;
+}
+
+DenseImage Tracker::DenseImageOf(const RgbdFrame& frame) const {
+  return MakeDenseImage(frame.color, frame.depth, camera_, options_.dense);
+}
+
+DenseAligner::Frame& Tracker::DenseOf(Placed& placed) const {
+  if (!placed.dense) placed.dense = aligner_.Prepare(DenseImageOf(placed.frame));
+  return *placed.dense;
 }
 
 bool Tracker::StandingStillFitsBetter(DenseAligner::Frame& current, DenseAligner::Frame& last,
@@ -497,9 +520,9 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
                       dense_step_sigma_m, dense_step_sigma_rad, dense_weak_eigen_ratio,
                       dense_weak_lever_m, dense_prefer_rest, fallback_on_smoothed_velocity,
-                      prior_sigma_m, prior_sigma_mps, prior_sigma_rad, prior_sigma_radps,
-                      blind_velocity_decay, blind_keyframe_after_s, min_reference_points,
-                      start_max_wait_s)
+                      dense_rescue, prior_sigma_m, prior_sigma_mps, prior_sigma_rad,
+                      prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
+                      min_reference_points, start_max_wait_s)
 
 std::optional<Eigen::Isometry3d> TrackedChain::Add(const TrackResult& result) {
   for (const TrackedKeyframe& keyframe : result.keyframes) {
