@@ -47,15 +47,17 @@ struct DenseRescueOptions {
 void to_json(nlohmann::json& json, const DenseRescueOptions& options);
 void from_json(const nlohmann::json& json, DenseRescueOptions& options);
 
-// Whether RescueByDenseAlignment acts on `result`.
+// Whether RescueByDenseAlignment acts on `result`: with the options enabled, a registration
+// refused by the dense check alone, or (check_accepted) accepted with more than
+// max_violation_fraction of its samples seen through.
 bool NeedsDenseAlignment(const RegistrationResult& result, const DenseRescueOptions& options);
 
-// Aligns `source` to `target` densely from `refused`'s pose (a registration with
-// refused_by_verification) and verifies the result by depth (depth images as RegisterRgbd's,
+// Aligns `source` to `target` densely from `refused`'s pose (one NeedsDenseAlignment picks) and
+// verifies the result by depth (depth images as RegisterRgbd's,
 // `registration` as it was registered with). Returns a successful result with the aligned pose, the
 // alignment's information (floored) and the new verification figures; otherwise `refused` with its
-// failure extended by why the rescue failed. Does nothing (returns `refused`) when the options are
-// off or `refused` was not refused by verification. `aligner` made the prepared frames.
+// failure extended by why the rescue failed (an accepted registration that fails is refused). Does
+// nothing (returns `refused`) unless NeedsDenseAlignment. `aligner` made the prepared frames.
 RegistrationResult RescueByDenseAlignment(const RegistrationResult& refused,
                                           const DenseAligner& aligner, DenseAligner::Frame& source,
                                           DenseAligner::Frame& target,

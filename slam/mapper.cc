@@ -264,14 +264,6 @@ RegistrationResult Mapper::Register(const Keyframe& source, const Keyframe& targ
       RegisterRgbd(source.features, target.features, source.depth_small, target.depth_small,
                    camera_, options_.registration, prior);
   AddRegistrationTimes(result.times, times);
-  if (aligner_ && NeedsDenseAlignment(result, options_.dense_rescue) && source.HasDense() &&
-      target.HasDense()) {
-    const Clock::time_point start = Clock::now();
-    result = RescueByDenseAlignment(result, *aligner_, *Prepared(source), *Prepared(target),
-                                    source.depth_small, target.depth_small, camera_,
-                                    options_.registration, options_.dense_rescue);
-    times->dense_s += SecondsSince(start);
-  }
   if (!result.success) return result;
   const double tilt_deg = DownAxisTurnDeg(result.target_from_source);
   if (tilt_deg > options_.walk_max_tilt_deg) {
@@ -1115,7 +1107,7 @@ SIGHTMAP_OPTIONS_JSON(
     walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2,
     loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m,
     loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad, dense_refinement, dense,
-    dense_rescue, dense_max_correction_m, dense_max_correction_deg, dense_fit_max_correction_m,
+    dense_max_correction_m, dense_max_correction_deg, dense_fit_max_correction_m,
     dense_fit_max_correction_deg, dense_fit_max_rms_ratio, dense_fit_max_intensity_ratio,
     dense_link_min_sigma_m, dense_link_min_sigma_rad)
 

@@ -30,7 +30,6 @@
 #include "core/rgbd_frame.h"
 #include "core/tracking_state.h"
 #include "slam/dense_alignment.h"
-#include "slam/dense_rescue.h"
 #include "slam/features.h"
 #include "slam/manhattan_frame.h"
 #include "slam/place_index.h"
@@ -210,17 +209,6 @@ struct MapperOptions {
   // [m], [deg].
   bool dense_refinement = true;
   DenseAlignmentOptions dense;
-  // With dense refinement on: registrations the dense check refused, or accepted seeing through
-  // more than its strict share, are aligned densely from their pose and checked again
-  // (dense_rescue.h), as the tracker's. Off: the tracker's does it for the motions it emits, and
-  // the mapper's too (its own registrations: extra odometry links, loops, relocalisation) moved
-  // the 1 Hz walks (seeds 1, 3, 5, 7, 11, 23) from 0.329 / 0.082 / 0.130 / 0.114 / 0.065 /
-  // 0.085 m to 0.077 / 0.079 / 0.156 / 0.299 / 1.194 / 0.245 m.
-  DenseRescueOptions dense_rescue = [] {
-    DenseRescueOptions options;
-    options.enabled = false;
-    return options;
-  }();
   double dense_max_correction_m = 0.05;
   double dense_max_correction_deg = 2.0;
   // An odometry link's refinement may move it up to dense_fit_max_correction_* when the frames

@@ -77,7 +77,10 @@ bool TrackerOptions::Check(std::string* error) const {
     if (error) *error = what;
     return false;
   };
-  if (!CheckOrbFeatures(features, error) || !registration.Check(error)) return false;
+  if (!CheckOrbFeatures(features, error) || !registration.Check(error) ||
+      !dense_rescue.Check(error)) {
+    return false;
+  }
   if (!(keyframe_rate_hz >= 0.0) || !std::isfinite(keyframe_rate_hz) || keyframe_rate_hz > 1000) {
     return fail("keyframe_rate_hz must be in [0, 1000] (0 makes every frame a keyframe)");
   }

@@ -700,6 +700,10 @@ TEST(Tracker, RefusesImagesOfTheWrongSizeAndBadOptions) {
   options = TrackerOptions();
   options.prior_sigma_m = 0.0;
   EXPECT_FALSE(options.Check(&error));
+  options = TrackerOptions();
+  options.dense_rescue.max_violation_fraction = 2.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("dense rescue"), std::string::npos) << error;
   EXPECT_TRUE(TrackerOptions().Check(&error));
 }
 
