@@ -137,13 +137,6 @@ struct Tracker::Placed {
   std::shared_ptr<DenseAligner::Frame> dense;
 };
 
-// A frame prepared for dense alignment: in a dense chain each frame is aligned twice, as the
-// source and then as the target, and is prepared once.
-struct Tracker::DenseFrame {
-  int64_t index = -1;
-  std::shared_ptr<DenseAligner::Frame> prepared;
-};
-
 namespace {
 
 capture::KeyframeSamplerOptions RateOf(const TrackerOptions& options) {
@@ -234,24 +227,15 @@ bool Tracker::Believable(const RegistrationResult& registration, const Eigen::Is
 bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                               TrackResult* result) {
   const Clock::time_point start = Clock::now();
-  const auto make = [&](Placed& source) {
-    DenseFrame dense;
-    dense.index = source.frame.index;
-    dense.prepared = source.dense;
-    if (!dense.prepared) dense.prepared = aligner_.Prepare(DenseImageOf(source.frame));
-    return dense;
-  };
-  if (!last_dense_ || last_dense_->index != last_->frame.index) {
-    last_dense_ = std::make_unique<DenseFrame>(make(*last_));
-  }
-  DenseFrame current = make(frame);
+  // In a dense chain each frame is aligned twice, as the source and then as the target (last_),
+  // and prepared once.
+  DenseAligner::Frame& last = DenseOf(*last_);
+  DenseAligner::Frame& current = DenseOf(frame);
   // Predicted step from the last frame: last_from_cam.
   const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
-  const DenseAlignment aligned =
-      aligner_.Align(*current.prepared, *last_dense_->prepared, step_guess);
+  const DenseAlignment aligned = aligner_.Align(current, last, step_guess);
   if (!aligned.success) {
     result->dense_s = SecondsSince(start);
-    last_dense_ = std::make_unique<DenseFrame>(std::move(current));
     return false;
   }
   Eigen::Isometry3d step =
@@ -265,11 +249,9 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   // projection screen OpenCV's alignment, started from the approach's velocity, slid and turned
   // while the frames agreed best unmoved, and the survey's standstill keyframes there ended 8-23
   // degrees off.
-  const bool at_rest = options_.dense_prefer_rest &&
-                       StandingStillFitsBetter(*current.prepared, *last_dense_->prepared, step);
+  const bool at_rest = options_.dense_prefer_rest && StandingStillFitsBetter(current, last, step);
   if (at_rest) step = Eigen::Isometry3d::Identity();
   result->dense_s = SecondsSince(start);
-  last_dense_ = std::make_unique<DenseFrame>(std::move(current));
   const Eigen::Isometry3d deviation = step_guess.inverse() * step;
   if (!MotionWithin(deviation, options_.dense_max_deviation_mps * dt_s + options_.dense_slack_m,
                     options_.dense_max_deviation_dps * dt_s + options_.dense_slack_deg) ||
@@ -509,7 +491,6 @@ TrackResult Tracker::Track(const RgbdFrame& input) {
   if (tick || early) Emit(frame, !tick, &result);
   result.reference_index = reference_->frame.index;
   result.reference_from_cam = frame.reference_from_cam;
-  if (!last_dense_ || last_dense_->index != frame.frame.index) last_dense_.reset();
   last_ = std::make_unique<Placed>(std::move(frame));
   result.total_s = SecondsSince(start);
   return result;

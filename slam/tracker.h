@@ -271,7 +271,6 @@ class Tracker {
 
  private:
   struct Placed;  // a frame with its features and its pose relative to the reference
-  struct DenseFrame;
 
   Placed Prepare(const RgbdFrame& frame, TrackResult* result) const;
   // Whether a registration succeeded with a finite pose and information, within the walker's
@@ -320,7 +319,6 @@ class Tracker {
   capture::KeyframeSampler rate_;  // the keyframe rate's clock; early keyframes do not move it
   TrackerCounters counters_;
   DenseAligner aligner_;
-  std::unique_ptr<DenseFrame> last_dense_;   // last_ prepared for alignment, when first needed
   std::unique_ptr<Placed> start_candidate_;  // before the first keyframe: the richest frame yet
   TimestampNs first_timestamp_ns_ = 0;       // of the first frame seen
 };
