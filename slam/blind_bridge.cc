@@ -28,17 +28,21 @@ std::vector<Eigen::Isometry3d> BridgeBlindRun(
   const Eigen::Matrix<double, 6, 1> velocity_after = LogSe3(after.previous_from_cam) / after.dt_s;
   // Times from the middle of the motion before the run to the middle of the one after it.
   const double span_s = 0.5 * before.dt_s + run_s + 0.5 * after.dt_s;
-  std::vector<Eigen::Isometry3d> motions;
-  motions.reserve(blind_dt_s.size());
+  // Each step's weight of the velocity after the run: its middle's time along the span.
+  std::vector<double> weights;
+  weights.reserve(blind_dt_s.size());
   double start_s = 0.5 * before.dt_s;
   for (double dt_s : blind_dt_s) {
-    const double w = (start_s + 0.5 * dt_s) / span_s;
-    const Eigen::Matrix<double, 6, 1> velocity = (1.0 - w) * velocity_before + w * velocity_after;
-    motions.push_back(ExpSe3(velocity * dt_s));
-    if (!step_rotations.empty() && step_rotations[motions.size() - 1]) {
-      motions.back().linear() = *step_rotations[motions.size() - 1];
-    }
+    weights.push_back((start_s + 0.5 * dt_s) / span_s);
     start_s += dt_s;
+  }
+  std::vector<Eigen::Isometry3d> motions;
+  motions.reserve(blind_dt_s.size());
+  for (size_t k = 0; k < blind_dt_s.size(); ++k) {
+    const double w = weights[k];
+    const Eigen::Matrix<double, 6, 1> velocity = (1.0 - w) * velocity_before + w * velocity_after;
+    motions.push_back(ExpSe3(velocity * blind_dt_s[k]));
+    if (!step_rotations.empty() && step_rotations[k]) motions.back().linear() = *step_rotations[k];
   }
   if (frame == BridgeFrame::kCamera) return motions;
   // The velocities on both sides in the camera where the run starts (R: the run's rotations from
@@ -50,14 +54,11 @@ std::vector<Eigen::Isometry3d> BridgeBlindRun(
   const Eigen::Vector3d after_mps =
       run_start_from_cam * after.previous_from_cam.translation() / after.dt_s;
   Eigen::Matrix3d step_start = Eigen::Matrix3d::Identity();
-  start_s = 0.5 * before.dt_s;
   for (size_t k = 0; k < motions.size(); ++k) {
-    const double dt_s = blind_dt_s[k];
-    const double w = (start_s + 0.5 * dt_s) / span_s;
+    const double w = weights[k];
     motions[k].translation() =
-        step_start.transpose() * (((1.0 - w) * before_mps + w * after_mps) * dt_s);
+        step_start.transpose() * (((1.0 - w) * before_mps + w * after_mps) * blind_dt_s[k]);
     step_start *= motions[k].linear();
-    start_s += dt_s;
   }
   return motions;
 }

@@ -67,12 +67,9 @@ RegistrationResult RescueByDenseAlignment(const RegistrationResult& refused,
   const std::string failure =
       VerifyByDepth(source_depth_mm, target_depth_mm, camera, strict, &rescued);
   if (!failure.empty()) return give_up("is refused too: " + failure);
-  // A tiny ridge keeps directions the geometry leaves free (a slide along a wall) free.
-  constexpr double kRidge = 1e-9;
+  // Directions the geometry leaves free (a slide along a wall) stay free.
   rescued.information =
-      RidgedInverse(RidgedInverse(aligned.information, kRidge) +
-                        DiagonalCovariance(options.min_sigma_m, options.min_sigma_rad),
-                    0.0);
+      FlooredInformation(aligned.information, options.min_sigma_m, options.min_sigma_rad);
   rescued.success = true;
   rescued.failure.clear();
   rescued.refused_by_verification = false;

@@ -30,15 +30,6 @@ void AddRegistrationTimes(const RegistrationTimes& times, MapperStageTimes* tota
   ++total->registrations;
 }
 
-// Adds the floor to the covariance of a registration's information matrix.
-Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
-                                               double min_sigma_m, double min_sigma_rad) {
-  // A singular information (degenerate geometry) is lifted by the ridge before inverting: the
-  // floor then dominates those directions.
-  return RidgedInverse(
-      RidgedInverse(information, kRidge) + DiagonalCovariance(min_sigma_m, min_sigma_rad), 0.0);
-}
-
 // How far a relative pose turns the camera's down axis (image y): about gravity a walker turns
 // freely, away from it barely [deg].
 double DownAxisTurnDeg(const Eigen::Isometry3d& target_from_source) {
@@ -61,7 +52,8 @@ MapperLink RegisteredLink(int64_t from, int64_t to, const RegistrationResult& re
 
 Eigen::Matrix<double, 6, 6> FlooredInformation(const Eigen::Matrix<double, 6, 6>& information,
                                                const MapperOptions& options) {
-  return FlooredInformation(information, options.link_min_sigma_m, options.link_min_sigma_rad);
+  return slam::FlooredInformation(information, options.link_min_sigma_m,
+                                  options.link_min_sigma_rad);
 }
 
 // A link's covariance from its information (singular directions lifted by a tiny ridge, which

@@ -456,6 +456,12 @@ Matrix6d RidgedInverse(const Matrix6d& matrix, double ridge) {
   return 0.5 * (inverse + inverse.transpose());
 }
 
+Matrix6d FlooredInformation(const Matrix6d& information, double min_sigma_m, double min_sigma_rad) {
+  constexpr double kRidge = 1e-9;  // a covariance of 1e9 along a direction the link does not fix
+  return RidgedInverse(
+      RidgedInverse(information, kRidge) + DiagonalCovariance(min_sigma_m, min_sigma_rad), 0.0);
+}
+
 std::optional<Matrix6d> PoseGraph::PathCovariance(
     int64_t from, int64_t to, const std::function<Matrix6d(size_t edge)>& edge_covariance,
     double lever_m) const {

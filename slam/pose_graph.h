@@ -146,6 +146,12 @@ Matrix6d DiagonalCovariance(double sigma_m, double sigma_rad);
 // a covariance of 1/ridge there, free for all practical purposes, instead of infinities.
 Matrix6d RidgedInverse(const Matrix6d& matrix, double ridge);
 
+// An information matrix whose covariance gets DiagonalCovariance(min_sigma_m, min_sigma_rad)
+// added: no direction claims better than the floor. A singular information (degenerate geometry)
+// is lifted by a tiny ridge before inverting, so the floor's addition leaves those directions
+// free.
+Matrix6d FlooredInformation(const Matrix6d& information, double min_sigma_m, double min_sigma_rad);
+
 class PoseGraph {
  public:
   // Throws sightmap::Error on a duplicate id or a pose that is not a finite rigid transform.
