@@ -321,6 +321,24 @@ SIGHTMAP_OPTIONS_JSON(DenseAlignmentOptions, downscale, iterations_per_level, mi
                       max_depth_m, min_gradient_per_level, information_stride_px,
                       max_pair_distance_m, depth_noise_coeff, min_pairs)
 
+namespace {
+
+// Rotations scaled by lever_m, so that they and translations count metres at that distance.
+Vector6 LeverScale(double lever_m) {
+  Vector6 scale;
+  scale << 1.0, 1.0, 1.0, lever_m, lever_m, lever_m;
+  return scale;
+}
+
+// The eigen-directions of `information` in LeverScale(lever_m)'s units, weakest first.
+Eigen::SelfAdjointEigenSolver<Matrix6> ScaledEigen(const Matrix6& information, double lever_m) {
+  const Vector6 inverse_scale = LeverScale(lever_m).cwiseInverse();
+  return Eigen::SelfAdjointEigenSolver<Matrix6>(inverse_scale.asDiagonal() * information *
+                                                inverse_scale.asDiagonal());
+}
+
+}  // namespace
+
 Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Matrix6& information,
                                      const Eigen::Isometry3d& prior, double min_eigen_ratio,
                                      double lever_m) {
@@ -328,12 +346,9 @@ Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Mat
                  "KeepPriorWhereWeak needs a ratio >= 0 and a positive lever");
   if (min_eigen_ratio == 0.0) return aligned;
   // The information is on a perturbation applied on the left: aligned = [R(w) | t] prior.
-  Vector6 scale;
-  scale << 1.0, 1.0, 1.0, lever_m, lever_m, lever_m;
+  const Vector6 scale = LeverScale(lever_m);
   const Vector6 scaled = LogSe3(aligned * prior.inverse()).cwiseProduct(scale);
-  const Matrix6 scaled_information =
-      scale.cwiseInverse().asDiagonal() * information * scale.cwiseInverse().asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Matrix6> eigen(scaled_information);
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eigen = ScaledEigen(information, lever_m);
   const double strongest = eigen.eigenvalues()(5);
   Vector6 kept = Vector6::Zero();
   for (int k = 0; k < 6; ++k) {
@@ -342,6 +357,19 @@ Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned, const Mat
     kept += direction * direction.dot(scaled);
   }
   return Orthonormalised(ExpSe3(kept.cwiseQuotient(scale)) * prior);
+}
+
+bool FixesRotation(const Matrix6& information, double min_eigen_ratio, double lever_m) {
+  SIGHTMAP_CHECK(min_eigen_ratio >= 0.0 && lever_m > 0.0,
+                 "FixesRotation needs a ratio >= 0 and a positive lever");
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eigen = ScaledEigen(information, lever_m);
+  const double strongest = eigen.eigenvalues()(5);
+  if (!(strongest > 0.0)) return false;
+  for (int k = 0; k < 6; ++k) {
+    if (eigen.eigenvalues()(k) >= min_eigen_ratio * strongest) continue;
+    if (eigen.eigenvectors().col(k).tail<3>().squaredNorm() > 0.5) return false;
+  }
+  return true;
 }
 
 }  // namespace sightmap::slam

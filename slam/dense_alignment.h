@@ -171,4 +171,11 @@ Eigen::Isometry3d KeepPriorWhereWeak(const Eigen::Isometry3d& aligned,
                                      const Eigen::Isometry3d& prior, double min_eigen_ratio,
                                      double lever_m);
 
+// Whether `information` fixes the rotation: every eigen-direction weaker than min_eigen_ratio of
+// the strongest (rotations scaled by lever_m, as KeepPriorWhereWeak) is mostly a translation.
+// Before a single wall the turn about its normal is free, and an alignment started from a guess
+// tens of degrees off keeps most of that error.
+bool FixesRotation(const Eigen::Matrix<double, 6, 6>& information, double min_eigen_ratio,
+                   double lever_m);
+
 }  // namespace sightmap::slam

@@ -222,6 +222,30 @@ TEST(DenseAlignment, KeepPriorWhereWeakTakesOnlyWhatTheWallLeavesFree) {
   EXPECT_THROW(KeepPriorWhereWeak(slid, aligned.information, prior, -0.1, 1.5), Error);
 }
 
+// A bare wall leaves the turn about its normal free; the room's furniture and corners fix every
+// turn (its slides may still be weak).
+TEST(DenseAlignment, FixesRotationOnlyWhereTheGeometryHoldsEveryTurn) {
+  const DenseAlignment wall = WallOnItself();
+  ASSERT_TRUE(wall.success) << wall.failure;
+  EXPECT_FALSE(FixesRotation(wall.information, 0.01, 1.5));
+  // A ratio of 0 counts every direction as fixed.
+  EXPECT_TRUE(FixesRotation(wall.information, 0.0, 1.5));
+
+  const testing::SimWalk& walk = RoomWalk();
+  const DenseAlignmentOptions options;
+  const RgbdFrame& source = walk.frames.back();
+  const RgbdFrame& target = walk.frames.front();
+  const DenseAlignment room =
+      DenseAligner(walk.camera, options)
+          .Align(MakeDenseImage(source.color, source.depth, walk.camera, options),
+                 MakeDenseImage(target.color, target.depth, walk.camera, options),
+                 TrueTargetFromSource(source, target));
+  ASSERT_TRUE(room.success) << room.failure;
+  EXPECT_TRUE(FixesRotation(room.information, 0.01, 1.5));
+  EXPECT_FALSE(FixesRotation(Matrix6::Zero(), 0.01, 1.5));
+  EXPECT_THROW(FixesRotation(room.information, -0.1, 1.5), Error);
+}
+
 // What the mapper weighs a large refinement by: at the true pose the room's frames agree better
 // than at one 8 cm and 1.5 degrees off (how far repeated texture puts features), in the share of
 // pixels on the other's surface, in depth residuals and in grey levels.

@@ -1,5 +1,9 @@
 #include "slam/dense_rescue.h"
 
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
 #include <nlohmann/json.hpp>
 
 #include "core/check.h"
@@ -75,6 +79,72 @@ RegistrationResult RescueByDenseAlignment(const RegistrationResult& refused,
   rescued.refused_by_verification = false;
   return rescued;
 }
+
+bool DenseSearchOptions::Check(std::string* error) const {
+  if (yaw_offsets_deg.empty() || std::any_of(yaw_offsets_deg.begin(), yaw_offsets_deg.end(),
+                                             [](double deg) { return !(std::abs(deg) <= 90.0); })) {
+    if (error) *error = "dense search: yaw_offsets_deg must hold turns within +-90 degrees";
+    return false;
+  }
+  if (!(max_disagreement_deg > 0.0) || !(min_eigen_ratio >= 0.0 && min_eigen_ratio <= 1.0) ||
+      !(lever_m > 0.0)) {
+    if (error) {
+      *error =
+          "dense search: max_disagreement_deg and lever_m must be positive, min_eigen_ratio in "
+          "[0, 1]";
+    }
+    return false;
+  }
+  return true;
+}
+
+std::optional<DenseSearchResult> SearchByDenseAlignment(
+    const Eigen::Isometry3d& guess, const DenseAligner& aligner, DenseAligner::Frame& source,
+    DenseAligner::Frame& target, const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
+    const Intrinsics& camera, const RegistrationOptions& registration,
+    const DenseRescueOptions& rescue, const DenseSearchOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  RegistrationOptions strict = registration;
+  strict.min_consistent_fraction = rescue.min_consistent_fraction;
+  strict.max_violation_fraction = rescue.max_violation_fraction;
+  std::vector<DenseSearchResult> verified;
+  for (double yaw_deg : options.yaw_offsets_deg) {
+    // The source camera turned about its own centre (a turn on the left keeps the centre).
+    const Eigen::Isometry3d seed =
+        Eigen::Isometry3d(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY())) *
+        guess;
+    const DenseAlignment aligned = aligner.Align(source, target, seed);
+    if (!aligned.success ||
+        !FixesRotation(aligned.information, options.min_eigen_ratio, options.lever_m)) {
+      continue;
+    }
+    RegistrationResult check;
+    check.target_from_source = aligned.target_from_source;
+    if (!VerifyByDepth(source_depth_mm, target_depth_mm, camera, strict, &check).empty()) continue;
+    DenseSearchResult result;
+    result.target_from_source = aligned.target_from_source;
+    result.information = aligned.information;
+    result.consistent_fraction = check.consistent_fraction;
+    verified.push_back(result);
+  }
+  if (verified.empty()) return std::nullopt;
+  const auto best = std::max_element(verified.begin(), verified.end(),
+                                     [](const DenseSearchResult& a, const DenseSearchResult& b) {
+                                       return a.consistent_fraction < b.consistent_fraction;
+                                     });
+  for (const DenseSearchResult& other : verified) {
+    if (RotationAngleDeg(other.target_from_source.inverse() * best->target_from_source) >
+        options.max_disagreement_deg) {
+      return std::nullopt;
+    }
+  }
+  DenseSearchResult result = *best;
+  result.verified = static_cast<int>(verified.size());
+  return result;
+}
+
+SIGHTMAP_OPTIONS_JSON(DenseSearchOptions, enabled, yaw_offsets_deg, max_disagreement_deg,
+                      min_eigen_ratio, lever_m)
 
 SIGHTMAP_OPTIONS_JSON(DenseRescueOptions, enabled, check_accepted, min_consistent_fraction,
                       max_violation_fraction, max_correction_m, max_correction_deg, min_sigma_m,

@@ -13,7 +13,9 @@
 // front of the other's surface.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
@@ -65,5 +67,61 @@ RegistrationResult RescueByDenseAlignment(const RegistrationResult& refused,
                                           const cv::Mat& target_depth_mm, const Intrinsics& camera,
                                           const RegistrationOptions& registration,
                                           const DenseRescueOptions& options);
+
+// A frame a second after the last that features did not register (a pale poster filling the
+// view, a 30-degree turn with a 0.4 m step): dense alignment started from the motion model turned
+// about the camera's vertical axis by each of a range of offsets, checked as the rescue checks.
+//
+// Why: on the robot's 1 Hz walk (seed 11) 107 of 600 frames did not register, 65 of them at the
+// head's full 30 deg/s pan; at the true pose nearly all of them agree densely (consistent 0.8-1.0,
+// nothing seen through), but alignment converges only from within 2-10 degrees, and the motion
+// model at the start of a pan is off by up to 30. An alignment whose geometry leaves a turn free
+// (one wall) is not taken: the hand-held walk's first step (seed 11, a pale wall, a 30-degree
+// turn) was otherwise taken degrees off (DenseSearch.TakesNothingWhereTheGeometryLeavesATurnFree).
+//
+// Off by default: the steps it finds are right (1 Hz walks, seeds 1, 3, 5, 7, 11, 23: every step
+// found within 0.7 degrees, a few 6-25 cm off along a wall), but the 1 Hz maps do not yet gain
+// from them: robot seeds 1 / 3 / 5 / 7 / 11 / 23 1.05 / 2.57 / 3.87 / 6.10 / 3.22 / 2.42 m ->
+// 1.57 / 3.24 / 8.15 / 5.51 / 3.99 / 0.48 m, hand-held 0.329 / 0.082 / 0.130 / 0.114 / 0.065 /
+// 0.085 m -> 0.332 / 0.086 / 0.106 / 0.111 / 0.074 / 2.53 m. In hand-held seed 23 the tracker's
+// chain is better with it (frame 185 found where the motion model is 17 degrees off) and every
+// link but one ends as accurate; the prior link from blind frame 190 to 191, 0.5 degrees off
+// without the search, ends 47 degrees off. Passing found frames to the mapper as registered
+// (refined, bridging blind runs) instead: hand-held seed 1 7.08 m (a false loop 23 m off).
+struct DenseSearchOptions {
+  bool enabled = false;
+  // Turns about the camera's y axis added to the motion model's guess, one alignment each (about
+  // 15 ms each at 320x240) [deg].
+  std::vector<double> yaw_offsets_deg = {0.0,  -5.0,  5.0,  -10.0, 10.0, -15.0, 15.0, -20.0,
+                                         20.0, -25.0, 25.0, -30.0, 30.0, -35.0, 35.0};
+  // Verified poses further apart than this in rotation: the frames are ambiguous, none is taken
+  // [deg].
+  double max_disagreement_deg = 3.0;
+  // An alignment whose geometry leaves a turn free (FixesRotation with this ratio and lever) is
+  // not taken [-], [m].
+  double min_eigen_ratio = 0.01;
+  double lever_m = 1.5;
+
+  bool Check(std::string* error) const;
+};
+void to_json(nlohmann::json& json, const DenseSearchOptions& options);
+void from_json(const nlohmann::json& json, DenseSearchOptions& options);
+
+struct DenseSearchResult {
+  Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
+  // The alignment's point-to-plane information (singular along a slide on a bare wall).
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+  double consistent_fraction = 0.0;
+  int verified = 0;  // seeds whose alignment passed the check
+};
+
+// Aligns `source` to `target` from `guess` (target_from_source) turned by each yaw offset, keeps
+// the alignments that pass the strict check (rescue's fractions), and returns the most consistent
+// one unless two of them disagree by more than max_disagreement_deg; nullopt when none passes.
+std::optional<DenseSearchResult> SearchByDenseAlignment(
+    const Eigen::Isometry3d& guess, const DenseAligner& aligner, DenseAligner::Frame& source,
+    DenseAligner::Frame& target, const cv::Mat& source_depth_mm, const cv::Mat& target_depth_mm,
+    const Intrinsics& camera, const RegistrationOptions& registration,
+    const DenseRescueOptions& rescue, const DenseSearchOptions& options);
 
 }  // namespace sightmap::slam

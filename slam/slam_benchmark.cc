@@ -628,13 +628,14 @@ int RunTrackedBenchmark(const sim::SimulatorOptions& sim_options, const MapperOp
   const TrackerCounters& c = figures.counters;
   std::printf(
       "tracking            %lld frames: %lld before the first keyframe, %lld registered (%lld "
-      "of them rescued by dense alignment), %lld dense, %lld blind; %lld keyframes (%lld early, "
+      "of them rescued by dense alignment), %lld dense (%lld of them a second or more apart, by "
+      "the dense search), %lld blind; %lld keyframes (%lld early, "
       "%lld on the motion model)\n",
       static_cast<long long>(c.frames), static_cast<long long>(c.before_start),
       static_cast<long long>(c.registered), static_cast<long long>(c.rescued),
-      static_cast<long long>(c.dense), static_cast<long long>(c.blind),
-      static_cast<long long>(c.keyframes), static_cast<long long>(c.early_keyframes),
-      static_cast<long long>(c.prior_keyframes));
+      static_cast<long long>(c.dense), static_cast<long long>(c.searched),
+      static_cast<long long>(c.blind), static_cast<long long>(c.keyframes),
+      static_cast<long long>(c.early_keyframes), static_cast<long long>(c.prior_keyframes));
   std::printf("tracking per frame  p50 %.1f ms, p95 %.1f ms, max %.1f ms\n",
               1e3 * Percentile(figures.frame_s, 0.5), 1e3 * Percentile(figures.frame_s, 0.95),
               1e3 * Percentile(figures.frame_s, 1.0));

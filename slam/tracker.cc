@@ -78,7 +78,7 @@ bool TrackerOptions::Check(std::string* error) const {
     return false;
   };
   if (!CheckOrbFeatures(features, error) || !registration.Check(error) ||
-      !dense_rescue.Check(error)) {
+      !dense_rescue.Check(error) || !dense_search.Check(error)) {
     return false;
   }
   if (!(keyframe_rate_hz >= 0.0) || !std::isfinite(keyframe_rate_hz) || keyframe_rate_hz > 1000) {
@@ -103,8 +103,9 @@ bool TrackerOptions::Check(std::string* error) const {
   if (!(dense_max_speed_mps > 0.0) || !(dense_max_turn_rate_dps > 0.0)) {
     return fail("dense_max_speed_mps and dense_max_turn_rate_dps must be positive");
   }
-  if (!(dense_step_sigma_m > 0.0) || !(dense_step_sigma_rad > 0.0) || !(prior_sigma_m > 0.0) ||
-      !(prior_sigma_mps >= 0.0) || !(prior_sigma_rad > 0.0) || !(prior_sigma_radps >= 0.0)) {
+  if (!(dense_step_sigma_m > 0.0) || !(dense_step_sigma_rad > 0.0) ||
+      !(dense_search_sigma_rad > 0.0) || !(prior_sigma_m > 0.0) || !(prior_sigma_mps >= 0.0) ||
+      !(prior_sigma_rad > 0.0) || !(prior_sigma_radps >= 0.0)) {
     return fail("the dense step and prior sigmas must be positive");
   }
   if (!(dense_weak_eigen_ratio >= 0.0 && dense_weak_eigen_ratio <= 1.0) ||
@@ -269,6 +270,33 @@ bool Tracker::RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted,
   return true;
 }
 
+bool Tracker::SearchDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
+                            TrackResult* result) {
+  if (!options_.dense_search.enabled) return false;
+  const Clock::time_point start = Clock::now();
+  const Eigen::Isometry3d step_guess = last_->reference_from_cam.inverse() * predicted;
+  const std::optional<DenseSearchResult> found = SearchByDenseAlignment(
+      step_guess, aligner_, DenseOf(frame), DenseOf(*last_), frame.depth_small, last_->depth_small,
+      camera_, options_.registration, options_.dense_rescue, options_.dense_search);
+  result->dense_s += SecondsSince(start);
+  if (!found) return false;
+  const Eigen::Isometry3d step = found->target_from_source;
+  if (!MotionWithin(step, options_.dense_max_speed_mps * dt_s + options_.dense_slack_m,
+                    options_.dense_max_turn_rate_dps * dt_s + options_.dense_slack_deg)) {
+    return false;
+  }
+  ++counters_.searched;
+  // Chained, not registered: the mapper neither refines it nor bridges a blind run from it.
+  frame.source = Worse(last_->source, MotionSource::kChained);
+  frame.reference_from_cam = Orthonormalised(last_->reference_from_cam * step);
+  frame.covariance = last_->covariance +
+                     DiagonalCovariance(options_.prior_sigma_m + options_.prior_sigma_mps * dt_s,
+                                        options_.dense_search_sigma_rad);
+  frame.blind_s = last_->blind_s;
+  frame.blind_start_covariance = last_->blind_start_covariance;
+  return true;
+}
+
 DenseImage Tracker::DenseImageOf(const RgbdFrame& frame) const {
   return MakeDenseImage(frame.color, frame.depth, camera_, options_.dense);
 }
@@ -357,8 +385,10 @@ FrameTracking Tracker::Place(Placed& frame, double dt_s, TrackResult* result) {
   if (registered) {
     registered_velocity_.Add(last_->reference_from_cam.inverse() * frame.reference_from_cam, dt_s);
   } else {
-    const bool dense = options_.dense_fallback && dt_s <= options_.dense_max_interval_s &&
-                       RegisterDensely(frame, predicted, dt_s, result);
+    const bool dense =
+        dt_s <= options_.dense_max_interval_s
+            ? options_.dense_fallback && RegisterDensely(frame, predicted, dt_s, result)
+            : SearchDensely(frame, predicted, dt_s, result);
     tracking = dense ? FrameTracking::kDense : FrameTracking::kBlind;
     if (!dense) PlaceBlind(frame, predicted, dt_s);
   }
@@ -504,9 +534,9 @@ SIGHTMAP_OPTIONS_JSON(TrackerOptions, features, registration, keyframe_rate_hz,
                       dense_slack_deg, dense_max_speed_mps, dense_max_turn_rate_dps,
                       dense_step_sigma_m, dense_step_sigma_rad, dense_weak_eigen_ratio,
                       dense_weak_lever_m, dense_prefer_rest, fallback_on_smoothed_velocity,
-                      dense_rescue, prior_sigma_m, prior_sigma_mps, prior_sigma_rad,
-                      prior_sigma_radps, blind_velocity_decay, blind_keyframe_after_s,
-                      min_reference_points, start_max_wait_s)
+                      dense_rescue, dense_search, dense_search_sigma_rad, prior_sigma_m,
+                      prior_sigma_mps, prior_sigma_rad, prior_sigma_radps, blind_velocity_decay,
+                      blind_keyframe_after_s, min_reference_points, start_max_wait_s)
 
 std::optional<Eigen::Isometry3d> TrackedChain::Add(const TrackResult& result) {
   for (const TrackedKeyframe& keyframe : result.keyframes) {

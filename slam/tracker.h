@@ -12,7 +12,10 @@
 //     and the previous one (OpenCV's RgbdICPOdometry: point-to-plane ICP and photometric error),
 //     started from the prediction and refused when it strays far from it. Along the directions
 //     the geometry leaves free (the slide along a bare wall) it keeps the registered frames'
-//     velocity instead.
+//     velocity instead. Frames a second or more apart (a 1 Hz folder) may be searched instead
+//     (dense_search, off by default): dense alignment from the prediction turned by a range of
+//     yaw offsets, strictly checked, as a walker or a robot's head turns up to 35 degrees
+//     between them.
 //  4. When nothing registers (the view is blind for a moment), the frame is placed by the motion
 //     model; after blind_keyframe_after_s a frame with enough 3D points becomes a keyframe linked
 //     to the last one by that prediction, with a covariance that grows with the blind time. The
@@ -133,6 +136,13 @@ struct TrackerOptions {
   // it took the 10 Hz hand-held walk (seed 11) from 0.0112 to 0.0161 m, the robot's from 0.0137
   // to 0.0150 m.
   DenseRescueOptions dense_rescue;
+  // Frames further apart than dense_max_interval_s that features did not register: dense
+  // alignment from the motion model turned by the search's yaw offsets, checked as the rescue
+  // checks (dense_rescue.h; off by default, measured there). Its step is trusted in rotation to
+  // dense_search_sigma_rad and in translation to the motion model's sigma for the interval, since
+  // a slide along a pale wall stays free [rad].
+  DenseSearchOptions dense_search;
+  double dense_search_sigma_rad = 0.02;
 
   // Where a frame does not register but the last one did, the dense step starts from, and a blind
   // frame is placed by, the smoothed velocity of the recent registered frames (SmoothedVelocity)
@@ -238,6 +248,7 @@ struct TrackerCounters {
   int64_t dense = 0;          // by the dense fallback
   int64_t dense_at_rest = 0;  // of those, placed unmoved (TrackerOptions::dense_prefer_rest)
   int64_t blind = 0;          // by the motion model only
+  int64_t searched = 0;       // of `dense`, a second or more apart, found by the dense search
   int64_t rescued = 0;  // of `registered`, refused by the dense check and placed by dense alignment
   int64_t keyframes = 0;
   int64_t early_keyframes = 0;  // off the rate's clock: overlap lost or weak
@@ -282,6 +293,9 @@ class Tracker {
                            TrackResult* result);
   bool RegisterDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
                        TrackResult* result);
+  // A frame further than dense_max_interval_s from the last: dense_search from `predicted`.
+  bool SearchDensely(Placed& frame, const Eigen::Isometry3d& predicted, double dt_s,
+                     TrackResult* result);
   DenseImage DenseImageOf(const RgbdFrame& frame) const;
   // `placed` prepared for dense alignment, once.
   DenseAligner::Frame& DenseOf(Placed& placed) const;

@@ -568,6 +568,59 @@ TEST(Tracker, AtOneHertzAPoseTheDenseCheckRefusedIsAlignedDensely) {
   EXPECT_LT(RotationAngleDeg(error), 0.3);
 }
 
+// The robot's head turns 13 degrees from frame 227 to 228 of its 1 Hz walk (seed 11) while it
+// slows to turn: features do not register the frames, and the motion model (standing still, as
+// the walk starts here) misses the turn.
+TEST(Tracker, AtOneHertzAFrameFeaturesMissIsFoundByTheDenseSearch) {
+  sim::SimulatorOptions sim_options;
+  sim_options.trajectory = sim::TrajectoryKind::kRobot;
+  sim_options.fps = 1.0;
+  sim_options.frames = 229;
+  sim_options.seed = 11;
+  const Walk walk = testing::RenderSimWalk(sim_options, 227);
+  const auto track = [&walk](const TrackerOptions& options, TrackerCounters* counters) {
+    Tracker tracker(walk.camera, options);
+    std::vector<TrackedKeyframe> keyframes;
+    for (const RgbdFrame& frame : walk.frames) {
+      for (TrackedKeyframe& keyframe : tracker.Track(frame).keyframes) {
+        keyframes.push_back(std::move(keyframe));
+      }
+    }
+    *counters = tracker.counters();
+    return keyframes;
+  };
+  TrackerCounters before;
+  const std::vector<TrackedKeyframe> blind = track(TrackerOptions(), &before);
+  ASSERT_EQ(blind.size(), 2u);
+  ASSERT_TRUE(blind[1].motion);
+  EXPECT_EQ(blind[1].motion->source, MotionSource::kPrior) << "the test needs features to fail";
+  EXPECT_EQ(before.blind, 1);
+
+  TrackerOptions with_search;
+  with_search.dense_search.enabled = true;
+  TrackerCounters counters;
+  const std::vector<TrackedKeyframe> found = track(with_search, &counters);
+  ASSERT_EQ(found.size(), 2u);
+  ASSERT_TRUE(found[1].motion);
+  const KeyframeMotion& motion = *found[1].motion;
+  EXPECT_EQ(motion.source, MotionSource::kChained);
+  EXPECT_EQ(counters.dense, 1);
+  EXPECT_EQ(counters.searched, 1);
+  EXPECT_EQ(counters.blind, 0);
+  const Eigen::Isometry3d truth =
+      walk.frames[0].world_from_cam_gt->inverse() * *walk.frames[1].world_from_cam_gt;
+  ASSERT_GT(RotationAngleDeg(truth), 10.0);
+  const Eigen::Isometry3d error = truth.inverse() * motion.previous_from_cam;
+  EXPECT_LT(error.translation().norm(), 0.02);
+  EXPECT_LT(RotationAngleDeg(error), 0.5);
+  // Trusted in rotation to dense_search_sigma_rad, in translation only to the motion model's
+  // sigma for a second.
+  const Eigen::Matrix<double, 6, 6> covariance = motion.information.inverse();
+  const TrackerOptions defaults;
+  EXPECT_NEAR(std::sqrt(covariance(5, 5)), defaults.dense_search_sigma_rad, 1e-6);
+  EXPECT_NEAR(std::sqrt(covariance(0, 0)), defaults.prior_sigma_m + defaults.prior_sigma_mps, 1e-6);
+}
+
 // The first `frames` frames of the hand-held walk of `seed` at 10 Hz.
 Walk WalkStart(uint64_t seed, int frames) {
   sim::SimulatorOptions options;
