@@ -111,8 +111,7 @@ std::optional<DenseSearchResult> SearchByDenseAlignment(
   for (double yaw_deg : options.yaw_offsets_deg) {
     // The source camera turned about its own centre (a turn on the left keeps the centre).
     const Eigen::Isometry3d seed =
-        Eigen::Isometry3d(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY())) *
-        guess;
+        Eigen::Isometry3d(Eigen::AngleAxisd(DegToRad(yaw_deg), Eigen::Vector3d::UnitY())) * guess;
     const DenseAlignment aligned = aligner.Align(source, target, seed);
     if (!aligned.success ||
         !FixesRotation(aligned.information, options.min_eigen_ratio, options.lever_m)) {
