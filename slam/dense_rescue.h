@@ -86,8 +86,10 @@ RegistrationResult RescueByDenseAlignment(const RegistrationResult& refused,
 // 0.085 m -> 0.332 / 0.086 / 0.106 / 0.111 / 0.074 / 2.53 m. In hand-held seed 23 the tracker's
 // chain is better with it (frame 185 found where the motion model is 17 degrees off) and every
 // link but one ends as accurate; the prior link from blind frame 190 to 191, 0.5 degrees off
-// without the search, ends 47 degrees off. Passing found frames to the mapper as registered
-// (refined, bridging blind runs) instead: hand-held seed 1 7.08 m (a false loop 23 m off).
+// without the search, ends 47 degrees off: the map sets in two halves 45 degrees apart, joined by
+// prior links only, and the turned half's axes priors fall outside their bound (README). Passing
+// found frames to the mapper as registered (refined, bridging blind runs) instead: hand-held seed
+// 1 7.08 m (a false loop 23 m off).
 struct DenseSearchOptions {
   bool enabled = false;
   // Turns about the camera's y axis added to the motion model's guess, one alignment each (about
