@@ -13,6 +13,20 @@
 
 namespace sightmap::slam {
 
+namespace {
+
+// Registration's verification with the rescue's fractions: strict about surfaces seen through,
+// lenient about agreement.
+RegistrationOptions StrictVerification(const RegistrationOptions& registration,
+                                       const DenseRescueOptions& rescue) {
+  RegistrationOptions strict = registration;
+  strict.min_consistent_fraction = rescue.min_consistent_fraction;
+  strict.max_violation_fraction = rescue.max_violation_fraction;
+  return strict;
+}
+
+}  // namespace
+
 bool DenseRescueOptions::Check(std::string* error) const {
   auto fail = [error](const char* what) {
     if (error) *error = what;
@@ -65,9 +79,7 @@ RegistrationResult RescueByDenseAlignment(const RegistrationResult& refused,
     return give_up("moved beyond the rescue's bounds");
   }
   rescued.target_from_source = aligned.target_from_source;
-  RegistrationOptions strict = registration;
-  strict.min_consistent_fraction = options.min_consistent_fraction;
-  strict.max_violation_fraction = options.max_violation_fraction;
+  const RegistrationOptions strict = StrictVerification(registration, options);
   const std::string failure =
       VerifyByDepth(source_depth_mm, target_depth_mm, camera, strict, &rescued);
   if (!failure.empty()) return give_up("is refused too: " + failure);
@@ -104,9 +116,7 @@ std::optional<DenseSearchResult> SearchByDenseAlignment(
     const Intrinsics& camera, const RegistrationOptions& registration,
     const DenseRescueOptions& rescue, const DenseSearchOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  RegistrationOptions strict = registration;
-  strict.min_consistent_fraction = rescue.min_consistent_fraction;
-  strict.max_violation_fraction = rescue.max_violation_fraction;
+  const RegistrationOptions strict = StrictVerification(registration, rescue);
   std::vector<DenseSearchResult> verified;
   for (double yaw_deg : options.yaw_offsets_deg) {
     // The source camera turned about its own centre (a turn on the left keeps the centre).
@@ -122,7 +132,6 @@ std::optional<DenseSearchResult> SearchByDenseAlignment(
     if (!VerifyByDepth(source_depth_mm, target_depth_mm, camera, strict, &check).empty()) continue;
     DenseSearchResult result;
     result.target_from_source = aligned.target_from_source;
-    result.information = aligned.information;
     result.consistent_fraction = check.consistent_fraction;
     verified.push_back(result);
   }

@@ -111,8 +111,6 @@ void from_json(const nlohmann::json& json, DenseSearchOptions& options);
 
 struct DenseSearchResult {
   Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
-  // The alignment's point-to-plane information (singular along a slide on a bare wall).
-  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
   double consistent_fraction = 0.0;
   int verified = 0;  // seeds whose alignment passed the check
 };
