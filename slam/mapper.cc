@@ -819,7 +819,9 @@ KeyframeReport Mapper::OptimiseWhole() {
   if (keyframes_.empty()) return report;
   std::set<int> roots;
   for (const Keyframe& keyframe : keyframes_) {
-    if (roots.insert(Root(keyframe.segment)).second) Optimise(keyframe.id, &report);
+    if (roots.insert(Root(keyframe.segment)).second) {
+      Optimise(keyframe.id, &report, options_.seeded_final_solve);
+    }
   }
   const Keyframe& newest = keyframes_.back();
   report.id = newest.id;
@@ -1053,9 +1055,11 @@ void Mapper::JoinSegments(int older_root, int newer_root, const MapperLink& link
   segment_parent_[static_cast<size_t>(newer_root)] = older_root;
 }
 
-void Mapper::Optimise(int64_t around, KeyframeReport* report) {
+void Mapper::Optimise(int64_t around, KeyframeReport* report, bool seeded) {
   const Clock::time_point start = Clock::now();
-  TakeOptimisation(graph_.OptimizeAround(around, options_.pose_graph), report);
+  TakeOptimisation(seeded ? graph_.OptimizeAroundSeeded(around, options_.pose_graph)
+                          : graph_.OptimizeAround(around, options_.pose_graph),
+                   report);
   report->optimised_locally = false;  // whatever moved before, the writer needs every pose
   report->moved.clear();
   report->times.optimisation_s += SecondsSince(start);
@@ -1095,12 +1099,12 @@ SIGHTMAP_OPTIONS_JSON(
     loop_min_inliers, loop_min_spacing, proximity_candidates, proximity_radius_m,
     proximity_max_angle_deg, proximity_min_inliers, proximity_max_disagreement_m,
     proximity_max_disagreement_deg, local_loop_hops, local_loop_max_border_chi2_rise, pose_graph,
-    join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
-    walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2,
-    loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m,
-    loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad, dense_refinement, dense,
-    dense_max_correction_m, dense_max_correction_deg, dense_fit_max_correction_m,
-    dense_fit_max_correction_deg, dense_fit_max_rms_ratio, dense_fit_max_intensity_ratio,
-    dense_link_min_sigma_m, dense_link_min_sigma_rad)
+    seeded_final_solve, join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps,
+    walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg,
+    loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m,
+    loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad,
+    dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
+    dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
+    dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
 
 }  // namespace sightmap::slam

@@ -158,6 +158,11 @@ struct MapperOptions {
     options.odometry_loss_scale = options.loop_loss_scale;
     return options;
   }();
+  // OptimiseWhole also solves each part from poses seeded by its links alone
+  // (PoseGraph::OptimizeAroundSeeded) and keeps the better fit: the solves while mapping can leave
+  // a stretch joined by blind links turned where its axes priors hold it (README, "The final
+  // solve also from a seed"). The 10 Hz walks are unchanged.
+  bool seeded_final_solve = true;
   // Two relocalisations of one segment must agree this well before the segments are joined
   // [m], [rad].
   double join_max_disagreement_m = 0.10;
@@ -494,8 +499,9 @@ class Mapper {
   bool JoinKeepsTheWalkPossible(int older_root, int newer_root,
                                 const Eigen::Isometry3d& correction) const;
   void JoinSegments(int older_root, int newer_root, const MapperLink& link);
-  // Optimises the part of the map joined to keyframe `around` (where a link was just added).
-  void Optimise(int64_t around, KeyframeReport* report);
+  // Optimises the part of the map joined to keyframe `around` (where a link was just added);
+  // `seeded`: also from poses seeded by its links (PoseGraph::OptimizeAroundSeeded).
+  void Optimise(int64_t around, KeyframeReport* report, bool seeded = false);
   // Optimises after link `link` (an index into links_) was added: the keyframes within
   // local_loop_hops links of it when that fits the rest, else more (PoseGraph::OptimizeNear).
   void OptimiseNear(size_t link, KeyframeReport* report);

@@ -23,6 +23,7 @@
 #include "core/timing.h"
 #include "slam/manhattan_frame.h"
 #include "slam/pose_graph_stages.h"
+#include "slam/pose_seed.h"
 
 namespace sightmap::slam {
 
@@ -345,6 +346,163 @@ Solve SolveSwitchingOffLoops(const std::vector<PoseGraphEdge>& edges,
     summary->rejected_edges.push_back(*worst);
   }
 }
+
+// A rotation prior by pose index, for the stages below.
+struct IndexedRotationPrior {
+  size_t node = 0;
+  RotationPrior prior;
+};
+
+double CauchyLoss(double chi2, double scale) {
+  if (scale <= 0.0) return chi2;
+  const double b = scale * scale;
+  return b * std::log1p(chi2 / b);
+}
+
+// How badly poses `at` fit the measurements: every edge of `considered` with the solve's loss, and
+// every prior of a pose in play at its nearest naming whether within its bound or not, with the
+// priors' loss. Solutions that switched different loops off or named different priors are
+// compared on the same terms.
+double Misfit(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
+              const std::vector<bool>& considered, const std::vector<PoseParameters>& at,
+              const std::vector<IndexedRotationPrior>& priors,
+              const Eigen::Matrix3d& world_from_axes, const PoseGraphOptions& options) {
+  double misfit = 0.0;
+  std::vector<bool> in_play(at.size(), false);
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (!considered[e]) continue;
+    const auto [a, b] = ends[e];
+    in_play[a] = in_play[b] = true;
+    const double chi2 = Chi2(edges[e], at[a], at[b]);
+    misfit += CauchyLoss(
+        chi2, IsLoopEdge(edges[e].type) ? options.loop_loss_scale : options.odometry_loss_scale);
+  }
+  for (const IndexedRotationPrior& indexed : priors) {
+    if (!in_play[indexed.node]) continue;
+    const double deviation = NearestManhattanRotation(world_from_axes, indexed.prior.cam_from_axes,
+                                                      at[indexed.node].Get().linear())
+                                 .second;
+    const double whitened = deviation / indexed.prior.sigma_rad;
+    misfit += CauchyLoss(whitened * whitened, options.rotation_prior_loss_scale);
+  }
+  return 0.5 * misfit;
+}
+
+// The building's axes most priors agree on at poses `at`: of the axes each of up to 64 priors of
+// poses in play (spread over the list) gives, the one the most priors lie within `tolerance_rad`
+// of, up to naming. nullopt without priors in play.
+std::optional<Eigen::Matrix3d> ConsensusAxes(const std::vector<IndexedRotationPrior>& priors,
+                                             const std::vector<bool>& in_play,
+                                             const std::vector<PoseParameters>& at,
+                                             double tolerance_rad) {
+  std::vector<const IndexedRotationPrior*> candidates;
+  for (const IndexedRotationPrior& indexed : priors) {
+    if (in_play[indexed.node]) candidates.push_back(&indexed);
+  }
+  if (candidates.empty()) return std::nullopt;
+  const size_t tries = std::min<size_t>(candidates.size(), 64);
+  std::optional<Eigen::Matrix3d> best;
+  int best_votes = -1;
+  for (size_t k = 0; k < tries; ++k) {
+    const IndexedRotationPrior& candidate = *candidates[k * candidates.size() / tries];
+    const Eigen::Matrix3d axes = at[candidate.node].Get().linear() * candidate.prior.cam_from_axes;
+    int votes = 0;
+    for (const IndexedRotationPrior* other : candidates) {
+      if (NearestManhattanRotation(axes, other->prior.cam_from_axes, at[other->node].Get().linear())
+              .second <= tolerance_rad) {
+        ++votes;
+      }
+    }
+    if (votes > best_votes) {
+      best_votes = votes;
+      best = axes;
+    }
+  }
+  return best;
+}
+
+// The `solved` edges as SeedPoses' measurements: the rotation weighted by the mean of its
+// information's diagonal, the translation by its information (cross terms dropped).
+std::vector<SeedEdge> SeedEdgesOf(const std::vector<PoseGraphEdge>& edges,
+                                  const internal::EdgeEnds& ends, const std::vector<bool>& solved) {
+  std::vector<SeedEdge> seed_edges;
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (!solved[e]) continue;
+    SeedEdge seed;
+    seed.from = ends[e].first;
+    seed.to = ends[e].second;
+    seed.to_in_from = edges[e].to_in_from;
+    seed.rotation_weight = edges[e].information.bottomRightCorner<3, 3>().trace() / 3.0;
+    seed.translation_information = edges[e].information.topLeftCorner<3, 3>();
+    seed_edges.push_back(seed);
+  }
+  return seed_edges;
+}
+
+// The priors named from the poses `at` and the axes: each the naming nearest its pose's estimate,
+// those within their bound.
+std::vector<ResolvedRotationPrior> NamePriors(const std::vector<IndexedRotationPrior>& priors,
+                                              const std::vector<PoseParameters>& at,
+                                              const Eigen::Matrix3d& world_from_axes) {
+  std::vector<ResolvedRotationPrior> named;
+  for (const IndexedRotationPrior& indexed : priors) {
+    const auto [measured, deviation] = NearestManhattanRotation(
+        world_from_axes, indexed.prior.cam_from_axes, at[indexed.node].Get().linear());
+    if (deviation <= indexed.prior.max_deviation_rad) {
+      named.push_back(
+          {indexed.node, world_from_axes.transpose() * measured, indexed.prior.sigma_rad});
+    }
+  }
+  return named;
+}
+
+// A part's solve started from poses seeded by its `solved` edges alone (SeedPoses; the poses
+// `pinned` or holding the gauge stay), the axes where the most priors agree at the seed.
+struct SeededSolve {
+  Solve solve;
+  PoseGraphSummary summary;
+  std::vector<bool> active;
+};
+SeededSolve SolveFromSeed(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
+                          const std::vector<bool>& selected, const std::vector<bool>& solved,
+                          const std::vector<Matrix6d>& sqrt_information,
+                          const std::vector<PoseParameters>& initial,
+                          const std::vector<bool>& pinned,
+                          const std::vector<IndexedRotationPrior>& priors,
+                          const Eigen::Matrix3d& world_from_axes, const PoseGraphOptions& options,
+                          std::vector<bool> active) {
+  std::vector<bool> ties(edges.size()), in_play(initial.size(), false);
+  for (size_t e = 0; e < edges.size(); ++e) {
+    ties[e] = solved[e] && !edges[e].information.isZero();
+    if (solved[e]) in_play[ends[e].first] = in_play[ends[e].second] = true;
+  }
+  std::vector<Eigen::Isometry3d> estimates(initial.size());
+  for (size_t i = 0; i < initial.size(); ++i) estimates[i] = initial[i].Get();
+  const std::vector<Eigen::Isometry3d> seed_poses = SeedPoses(
+      estimates, internal::HeldPoses(ends, solved, ties, pinned), SeedEdgesOf(edges, ends, solved));
+  std::vector<PoseParameters> seeded(initial.size());
+  for (size_t i = 0; i < initial.size(); ++i) seeded[i].Set(seed_poses[i]);
+  const Eigen::Matrix3d seeded_axes =
+      ConsensusAxes(priors, in_play, seeded, DegToRad(2.0)).value_or(world_from_axes);
+  RotationPriors seeded_priors;
+  Eigen::Map<Eigen::Quaterniond>(seeded_priors.world_from_axes.data()) =
+      Eigen::Quaterniond(seeded_axes).normalized();
+  seeded_priors.priors = NamePriors(priors, seeded, seeded_axes);
+  SeededSolve result;
+  result.active = std::move(active);
+  result.summary.edge_chi2.assign(edges.size(), 0.0);
+  result.solve = SolveSwitchingOffLoops(edges, ends, selected, sqrt_information, seeded, pinned,
+                                        seeded_priors, options, &result.active, &result.summary);
+  result.summary.seeded = true;
+  return result;
+}
+
+// The axes a solve ended with (`fallback` when it did not move them).
+Eigen::Matrix3d AxesOf(const Solve& solve, const Eigen::Matrix3d& fallback) {
+  return solve.world_from_axes
+             ? Eigen::Quaterniond(solve.world_from_axes->data()).normalized().toRotationMatrix()
+             : fallback;
+}
 }  // namespace
 
 bool PoseGraphOptions::Check(std::string* error) const {
@@ -557,6 +715,14 @@ PoseGraphSummary PoseGraph::OptimizeAround(int64_t id, const PoseGraphOptions& o
   return OptimizeEdges(options, scope, nullptr, nullptr);
 }
 
+PoseGraphSummary PoseGraph::OptimizeAroundSeeded(int64_t id, const PoseGraphOptions& options) {
+  SIGHTMAP_CHECK(nodes_.count(id) > 0, "pose " << id << " is not in the pose graph");
+  Scope scope;
+  scope.around = id;
+  scope.seeded = true;
+  return OptimizeEdges(options, scope, nullptr, nullptr);
+}
+
 PoseGraphSummary PoseGraph::OptimizeNear(size_t edge, int hops, double max_border_chi2_rise,
                                          const PoseGraphOptions& options) {
   SIGHTMAP_CHECK(edge < edges_.size(), "edge index " << edge << " is out of range");
@@ -680,20 +846,11 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   RotationPriors rotation_priors;
   Eigen::Map<Eigen::Quaterniond>(rotation_priors.world_from_axes.data()) = world_from_axes_;
   const Eigen::Matrix3d world_from_axes = world_from_axes_.toRotationMatrix();
-  // The priors named from the poses `at` (by index), those within their bound.
-  const auto name_priors = [&](const std::vector<PoseParameters>& at) {
-    std::vector<ResolvedRotationPrior> named;
-    for (const auto& [id, prior] : rotation_priors_) {
-      const size_t node = index_of.at(id);
-      const auto [measured, deviation] =
-          NearestManhattanRotation(world_from_axes, prior.cam_from_axes, at[node].Get().linear());
-      if (deviation <= prior.max_deviation_rad) {
-        named.push_back({node, world_from_axes.transpose() * measured, prior.sigma_rad});
-      }
-    }
-    return named;
-  };
-  if (!scope.free) rotation_priors.priors = name_priors(initial);
+  std::vector<IndexedRotationPrior> indexed_priors;
+  for (const auto& [id, prior] : rotation_priors_) {
+    indexed_priors.push_back({index_of.at(id), prior});
+  }
+  if (!scope.free) rotation_priors.priors = NamePriors(indexed_priors, initial, world_from_axes);
   const std::vector<bool> active_before = active_;
   Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial, pinned,
                                        rotation_priors, options, &active_, &summary);
@@ -712,7 +869,7 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     const Solve first = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial,
                                                pinned, loops_alone, options, &active_, &retry);
     RotationPriors renamed = loops_alone;
-    renamed.priors = name_priors(first.parameters);
+    renamed.priors = NamePriors(indexed_priors, first.parameters, world_from_axes);
     Solve second =
         SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, first.parameters, pinned,
                                renamed, options, &active_, &retry);
@@ -721,6 +878,27 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
       summary = std::move(retry);
     } else {
       active_ = active_with_priors;
+    }
+  }
+  if (scope.seeded && summary.usable && solve.anything) {
+    // The same part solved from a seed its links alone give; kept when it fits every measurement
+    // the part had before this call and every prior better.
+    std::vector<bool> solved(edges_.size()), considered(edges_.size());
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      solved[e] = active_[e] && selected[e];
+      considered[e] = selected[e] && active_before[e];
+    }
+    SeededSolve seeded =
+        SolveFromSeed(edges_, ends, selected, solved, sqrt_information, initial, pinned,
+                      indexed_priors, world_from_axes, options, active_before);
+    if (seeded.summary.usable &&
+        Misfit(edges_, ends, considered, seeded.solve.parameters, indexed_priors,
+               AxesOf(seeded.solve, world_from_axes),
+               options) < Misfit(edges_, ends, considered, solve.parameters, indexed_priors,
+                                 AxesOf(solve, world_from_axes), options)) {
+      solve = std::move(seeded.solve);
+      summary = std::move(seeded.summary);
+      active_ = std::move(seeded.active);
     }
   }
   if (solve.world_from_axes) {

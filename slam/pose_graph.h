@@ -131,6 +131,8 @@ struct PoseGraphSummary {
   std::vector<size_t> rejected_edges;
   // OptimizeNear kept a window's solution (the rest of the part did not move).
   bool local = false;
+  // OptimizeAroundSeeded kept the solution from the seed.
+  bool seeded = false;
   // Ids of the poses the call moved (free in the last solve), in id order.
   std::vector<int64_t> moved_poses;
   // Chi-square of each edge with the final poses (0 for inactive edges), by edge index.
@@ -181,6 +183,13 @@ class PoseGraph {
   // no new edge and stays as it is. What a new link needs, at a cost that follows its part of
   // the map rather than the whole (a map of many unjoined segments).
   PoseGraphSummary OptimizeAround(int64_t id, const PoseGraphOptions& options = PoseGraphOptions());
+  // OptimizeAround, and the same part solved again from poses seeded by its measurements alone
+  // (SeedPoses: rotations by the chordal relaxation, then translations), the building's axes where
+  // most rotation priors agree at the seed; the solution that fits every measurement and prior
+  // better is kept. Earlier solves can leave a stretch of the map turned against measurements
+  // the robust losses no longer hear; the seed does not depend on them.
+  PoseGraphSummary OptimizeAroundSeeded(int64_t id,
+                                        const PoseGraphOptions& options = PoseGraphOptions());
   // What a new edge (index `edge`) needs: OptimizeAround its end, but moving only the poses
   // within `hops` active edges of its ends when that fits the rest. Such a window is tried when
   // the edge closes a cycle inside it (else its correction belongs to a longer cycle), with the
@@ -232,6 +241,7 @@ class PoseGraph {
   struct Scope {
     std::optional<int64_t> around;
     std::optional<std::unordered_set<int64_t>> free;
+    bool seeded = false;  // also solve from SeedPoses' seed; keep the better fit
   };
   // `before` (may be null) gets the poses it moved as they were; `border` (may be null) the edges
   // with one end free and one held, with their chi-square before (none: nothing was solved, the

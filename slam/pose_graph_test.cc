@@ -222,6 +222,42 @@ TEST(PoseGraph, ALoopTurnsBackAStretchThePriorsWouldHoldInAWrongNaming) {
   EXPECT_LT(retried_deg, 1.0);
 }
 
+// Two halves of a walk (poses 0-2 and 3-5, 1 m apart on a line), each firm, joined only by two
+// blind prior links (15 degrees, 0.5 m) that measure the truth; every camera sees the building's
+// axes. The second half starts turned 100 degrees: its priors then lie 10 degrees from the naming
+// a quarter turn off and hold it there against the links, whose robust loss hears them less the
+// farther they are off. Seeded by the links alone, the part is solved where they put it, and
+// that fits links and priors better.
+TEST(PoseGraph, TheSeededSolveTurnsBackAHalfItsPriorsHoldInAWrongNaming) {
+  const auto solve = [](bool seeded) {
+    PoseGraph graph;
+    const Eigen::Isometry3d turn(Eigen::AngleAxisd(DegToRad(100.0), Eigen::Vector3d::UnitY()));
+    for (int i = 0; i < 3; ++i) graph.AddPose(i, Translation(i));
+    for (int i = 3; i < 6; ++i) graph.AddPose(i, Translation(3.0) * turn * Translation(i - 3.0));
+    const Matrix6d firm = Information(0.003, 0.001);
+    const Matrix6d blind = Information(0.5, DegToRad(15.0));
+    for (int i : {0, 1, 3, 4}) graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), firm));
+    graph.AddEdge(MakeEdge(2, 3, Translation(1.0), blind, LinkType::kPrior));
+    graph.AddEdge(MakeEdge(5, 0, Translation(-5.0), blind, LinkType::kPrior));
+    RotationPrior prior;
+    prior.sigma_rad = DegToRad(1.0);
+    prior.max_deviation_rad = DegToRad(15.0);
+    for (int id = 0; id < 6; ++id) graph.SetRotationPrior(id, prior);
+    PoseGraphOptions options;
+    options.odometry_loss_scale = options.loop_loss_scale;  // as the mapper has it
+    const PoseGraphSummary summary =
+        seeded ? graph.OptimizeAroundSeeded(0, options) : graph.OptimizeAround(0, options);
+    return std::make_pair(summary.seeded,
+                          RadToDeg(Eigen::AngleAxisd(graph.Pose(4).linear()).angle()));
+  };
+  const auto [plain_seeded, plain_deg] = solve(false);
+  EXPECT_FALSE(plain_seeded);
+  EXPECT_NEAR(plain_deg, 90.0, 1.0);
+  const auto [seeded, seeded_deg] = solve(true);
+  EXPECT_TRUE(seeded);
+  EXPECT_LT(seeded_deg, 0.5);
+}
+
 // Four poses 1 m apart on a line, each tied to the next and the one after (as the mapper links a
 // keyframe to the two before it), all exact and firm (3 mm) but the step 1 -> 2, 10 cm off. In
 // plain least squares the wrong step shares its error with the two paths around it; with the

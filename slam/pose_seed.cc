@@ -1,0 +1,176 @@
+#include "slam/pose_seed.h"
+
+#include <algorithm>
+
+#include <Eigen/SVD>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "core/check.h"
+
+namespace sightmap::slam {
+namespace {
+
+constexpr size_t kNone = static_cast<size_t>(-1);
+
+// The normal equations of sum |A_from x_from + A_to x_to - c|^2_W over 3-vector unknowns, with
+// `cols` right-hand sides solved at once (x and c are 3 x cols).
+class BlockLeastSquares {
+ public:
+  BlockLeastSquares(size_t unknowns, int cols)
+      : unknowns_(unknowns), rhs_(Eigen::MatrixXd::Zero(3 * unknowns, cols)) {}
+
+  // `from`/`to` are unknowns' indices or kNone for a known value (given in known_*).
+  void Add(size_t from, const Eigen::Matrix3d& a_from, const Eigen::MatrixXd& known_from, size_t to,
+           const Eigen::Matrix3d& a_to, const Eigen::MatrixXd& known_to, Eigen::MatrixXd c,
+           const Eigen::Matrix3d& weight) {
+    if (from == kNone) c -= a_from * known_from;
+    if (to == kNone) c -= a_to * known_to;
+    const auto add_block = [&](size_t i, size_t j, const Eigen::Matrix3d& block) {
+      for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) {
+          if (block(r, k) != 0.0) triplets_.emplace_back(3 * i + r, 3 * j + k, block(r, k));
+        }
+      }
+    };
+    if (from != kNone) {
+      add_block(from, from, a_from.transpose() * weight * a_from);
+      rhs_.middleRows<3>(3 * from) += a_from.transpose() * weight * c;
+    }
+    if (to != kNone) {
+      add_block(to, to, a_to.transpose() * weight * a_to);
+      rhs_.middleRows<3>(3 * to) += a_to.transpose() * weight * c;
+    }
+    if (from != kNone && to != kNone) {
+      const Eigen::Matrix3d cross = a_from.transpose() * weight * a_to;
+      add_block(from, to, cross);
+      add_block(to, from, cross.transpose());
+    }
+  }
+
+  // Solves with each unknown also pulled to `anchor` (3 x cols each) with weight
+  // `anchor_weight` times the system's mean diagonal. Empty when the factorisation fails.
+  std::vector<Eigen::MatrixXd> Solve(const std::vector<Eigen::MatrixXd>& anchor,
+                                     double anchor_weight) {
+    Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(3 * unknowns_);
+    for (const auto& t : triplets_) {
+      if (t.row() == t.col()) diagonal[t.row()] += t.value();
+    }
+    const double epsilon =
+        anchor_weight * std::max(diagonal.size() > 0 ? diagonal.mean() : 0.0, 1.0);
+    for (size_t i = 0; i < unknowns_; ++i) {
+      for (int r = 0; r < 3; ++r) triplets_.emplace_back(3 * i + r, 3 * i + r, epsilon);
+      rhs_.middleRows<3>(3 * i) += epsilon * anchor[i];
+    }
+    Eigen::SparseMatrix<double> normal(3 * unknowns_, 3 * unknowns_);
+    normal.setFromTriplets(triplets_.begin(), triplets_.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+    if (solver.info() != Eigen::Success) return {};
+    const Eigen::MatrixXd x = solver.solve(rhs_);
+    if (solver.info() != Eigen::Success || !x.allFinite()) return {};
+    std::vector<Eigen::MatrixXd> out(unknowns_);
+    for (size_t i = 0; i < unknowns_; ++i) out[i] = x.middleRows<3>(3 * i);
+    return out;
+  }
+
+ private:
+  size_t unknowns_;
+  std::vector<Eigen::Triplet<double>> triplets_;
+  Eigen::MatrixXd rhs_;
+};
+
+Eigen::Matrix3d NearestRotation(const Eigen::Matrix3d& matrix) {
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(matrix, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+  return svd.matrixU() * d * svd.matrixV().transpose();
+}
+
+// The chordal relaxation's rotations of the poses `unknown` maps to unknowns (the rest held at
+// `initial`); empty when the system cannot be solved.
+std::vector<Eigen::Matrix3d> ChordalRotations(const std::vector<Eigen::Isometry3d>& initial,
+                                              const std::vector<size_t>& unknown,
+                                              const std::vector<size_t>& pose_of,
+                                              const std::vector<SeedEdge>& edges,
+                                              double anchor_weight) {
+  // One row of R at a time as the three right-hand sides: R_to = R_from M reads
+  // row_to = M^T row_from for each row (as column vectors), i.e. x = R^T column-wise.
+  BlockLeastSquares rotations(pose_of.size(), 3);
+  for (const SeedEdge& edge : edges) {
+    if (edge.rotation_weight <= 0.0) continue;
+    const Eigen::Matrix3d m = edge.to_in_from.linear();
+    rotations.Add(unknown[edge.from], -m.transpose(), initial[edge.from].linear().transpose(),
+                  unknown[edge.to], Eigen::Matrix3d::Identity(),
+                  initial[edge.to].linear().transpose(), Eigen::MatrixXd::Zero(3, 3),
+                  edge.rotation_weight * Eigen::Matrix3d::Identity());
+  }
+  std::vector<Eigen::MatrixXd> anchor(pose_of.size());
+  for (size_t k = 0; k < pose_of.size(); ++k) anchor[k] = initial[pose_of[k]].linear().transpose();
+  const std::vector<Eigen::MatrixXd> rows = rotations.Solve(anchor, anchor_weight);
+  std::vector<Eigen::Matrix3d> out;
+  if (rows.empty()) return out;
+  out.reserve(pose_of.size());
+  for (size_t k = 0; k < pose_of.size(); ++k) out.push_back(NearestRotation(rows[k].transpose()));
+  return out;
+}
+
+// Positions with the rotations of `poses` held: R_from^T (t_to - t_from) = M.t. False when the
+// system cannot be solved (the positions are then left as they are).
+bool SolveTranslations(const std::vector<size_t>& unknown, const std::vector<size_t>& pose_of,
+                       const std::vector<SeedEdge>& edges, double anchor_weight,
+                       std::vector<Eigen::Isometry3d>* poses) {
+  BlockLeastSquares translations(pose_of.size(), 1);
+  for (const SeedEdge& edge : edges) {
+    if (edge.translation_information.isZero()) continue;
+    const Eigen::Matrix3d from_rotation_t = (*poses)[edge.from].linear().transpose();
+    translations.Add(unknown[edge.from], -from_rotation_t, (*poses)[edge.from].translation(),
+                     unknown[edge.to], from_rotation_t, (*poses)[edge.to].translation(),
+                     edge.to_in_from.translation(), edge.translation_information);
+  }
+  std::vector<Eigen::MatrixXd> anchor(pose_of.size());
+  for (size_t k = 0; k < pose_of.size(); ++k) anchor[k] = (*poses)[pose_of[k]].translation();
+  const std::vector<Eigen::MatrixXd> positions = translations.Solve(anchor, anchor_weight);
+  if (positions.empty()) return false;
+  for (size_t k = 0; k < pose_of.size(); ++k) {
+    (*poses)[pose_of[k]].translation() = positions[k].col(0);
+  }
+  return true;
+}
+
+// Unknown indices of the poses the edges touch that are not held (kNone for the rest).
+std::vector<size_t> Unknowns(size_t poses, const std::vector<bool>& held,
+                             const std::vector<SeedEdge>& edges, std::vector<size_t>* pose_of) {
+  std::vector<size_t> unknown(poses, kNone);
+  for (const SeedEdge& edge : edges) {
+    SIGHTMAP_CHECK(edge.from < poses && edge.to < poses && edge.from != edge.to,
+                   "a seed edge joins two different known poses");
+    for (const size_t i : {edge.from, edge.to}) {
+      if (!held[i] && unknown[i] == kNone) {
+        unknown[i] = pose_of->size();
+        pose_of->push_back(i);
+      }
+    }
+  }
+  return unknown;
+}
+
+}  // namespace
+
+std::vector<Eigen::Isometry3d> SeedPoses(const std::vector<Eigen::Isometry3d>& initial,
+                                         const std::vector<bool>& held,
+                                         const std::vector<SeedEdge>& edges, double anchor_weight) {
+  SIGHTMAP_CHECK(held.size() == initial.size(), "one held flag a pose");
+  SIGHTMAP_CHECK(anchor_weight > 0.0, "the anchor weight must be positive");
+  std::vector<size_t> pose_of;
+  const std::vector<size_t> unknown = Unknowns(initial.size(), held, edges, &pose_of);
+  std::vector<Eigen::Isometry3d> seeded = initial;
+  if (pose_of.empty()) return seeded;
+  const std::vector<Eigen::Matrix3d> rotations =
+      ChordalRotations(initial, unknown, pose_of, edges, anchor_weight);
+  if (rotations.empty()) return seeded;
+  for (size_t k = 0; k < pose_of.size(); ++k) seeded[pose_of[k]].linear() = rotations[k];
+  SolveTranslations(unknown, pose_of, edges, anchor_weight, &seeded);
+  return seeded;
+}
+
+}  // namespace sightmap::slam
