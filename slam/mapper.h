@@ -158,10 +158,10 @@ struct MapperOptions {
     options.odometry_loss_scale = options.loop_loss_scale;
     return options;
   }();
-  // OptimiseWhole also solves each part from poses seeded by its links alone
-  // (PoseGraph::OptimizeAroundSeeded) and keeps the better fit: the solves while mapping can leave
-  // a stretch joined by blind links turned where its axes priors hold it (README, "The final
-  // solve also from a seed"). The 10 Hz walks are unchanged.
+  // OptimiseWhole also solves each part from seeds its links and the building's axes give
+  // (PoseGraph::OptimizeAroundSeeded) and keeps the best fit: the solves while mapping can leave
+  // a stretch joined by blind links turned where its axes priors no longer reach it (README, "The
+  // final solve also from a seed"). The 10 Hz walks are unchanged.
   bool seeded_final_solve = true;
   // Two relocalisations of one segment must agree this well before the segments are joined
   // [m], [rad].

@@ -456,12 +456,51 @@ std::vector<ResolvedRotationPrior> NamePriors(const std::vector<IndexedRotationP
   return named;
 }
 
+// Poses seeded (SeedPoses) with the building's axes one more unknown, each prior of a pose in
+// play an edge from its pose to the axes, named nearest the poses `at` and the axes `axes` when
+// within `max_deviation_rad` of it, well beyond the solves' bound: a part the links left turned
+// by up to that much is turned to its axes.
+// Returns the poses and the axes.
+std::pair<std::vector<Eigen::Isometry3d>, Eigen::Matrix3d> SeedWithAxes(
+    const std::vector<Eigen::Isometry3d>& estimates, const std::vector<bool>& held,
+    std::vector<SeedEdge> seed_edges, const std::vector<IndexedRotationPrior>& priors,
+    const std::vector<bool>& in_play, const std::vector<PoseParameters>& at,
+    const Eigen::Matrix3d& axes, double max_deviation_rad) {
+  const size_t axes_index = estimates.size();
+  std::vector<Eigen::Isometry3d> with_axes = estimates;
+  with_axes.push_back(Eigen::Isometry3d::Identity());
+  with_axes.back().linear() = axes;
+  std::vector<bool> held_with_axes = held;
+  held_with_axes.push_back(false);
+  for (const IndexedRotationPrior& indexed : priors) {
+    if (!in_play[indexed.node]) continue;
+    const auto [measured, deviation] = NearestManhattanRotation(axes, indexed.prior.cam_from_axes,
+                                                                at[indexed.node].Get().linear());
+    if (deviation > max_deviation_rad) continue;
+    SeedEdge edge;
+    edge.from = indexed.node;
+    edge.to = axes_index;
+    edge.to_in_from.linear() = measured.transpose() * axes;  // world_from_cam * it = the axes
+    edge.rotation_weight = 1.0 / (indexed.prior.sigma_rad * indexed.prior.sigma_rad);
+    seed_edges.push_back(edge);
+  }
+  std::vector<Eigen::Isometry3d> seeded = SeedPoses(with_axes, held_with_axes, seed_edges);
+  const Eigen::Matrix3d seeded_axes = seeded.back().linear();
+  seeded.pop_back();
+  return {seeded, seeded_axes};
+}
+
 // A part's solve started from poses seeded by its `solved` edges alone (SeedPoses; the poses
-// `pinned` or holding the gauge stay), the axes where the most priors agree at the seed.
+// `pinned` or holding the gauge stay), the axes where the most priors agree at the seed; or, with
+// `snap_at` (and its axes), seeded by the edges and the priors named there (SeedWithAxes).
 struct SeededSolve {
   Solve solve;
   PoseGraphSummary summary;
   std::vector<bool> active;
+};
+struct Snap {
+  const std::vector<PoseParameters>* at = nullptr;
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
 };
 SeededSolve SolveFromSeed(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
                           const std::vector<bool>& selected, const std::vector<bool>& solved,
@@ -469,8 +508,8 @@ SeededSolve SolveFromSeed(const std::vector<PoseGraphEdge>& edges, const interna
                           const std::vector<PoseParameters>& initial,
                           const std::vector<bool>& pinned,
                           const std::vector<IndexedRotationPrior>& priors,
-                          const Eigen::Matrix3d& world_from_axes, const PoseGraphOptions& options,
-                          std::vector<bool> active) {
+                          const Eigen::Matrix3d& world_from_axes, const Snap& snap,
+                          const PoseGraphOptions& options, std::vector<bool> active) {
   std::vector<bool> ties(edges.size()), in_play(initial.size(), false);
   for (size_t e = 0; e < edges.size(); ++e) {
     ties[e] = solved[e] && !edges[e].information.isZero();
@@ -478,21 +517,34 @@ SeededSolve SolveFromSeed(const std::vector<PoseGraphEdge>& edges, const interna
   }
   std::vector<Eigen::Isometry3d> estimates(initial.size());
   for (size_t i = 0; i < initial.size(); ++i) estimates[i] = initial[i].Get();
-  const std::vector<Eigen::Isometry3d> seed_poses = SeedPoses(
-      estimates, internal::HeldPoses(ends, solved, ties, pinned), SeedEdgesOf(edges, ends, solved));
+  const std::vector<bool> held = internal::HeldPoses(ends, solved, ties, pinned);
   std::vector<PoseParameters> seeded(initial.size());
-  for (size_t i = 0; i < initial.size(); ++i) seeded[i].Set(seed_poses[i]);
-  const Eigen::Matrix3d seeded_axes =
-      ConsensusAxes(priors, in_play, seeded, DegToRad(2.0)).value_or(world_from_axes);
+  Eigen::Matrix3d seeded_axes = world_from_axes;
+  if (snap.at) {
+    const auto [poses, axes] =
+        SeedWithAxes(estimates, held, SeedEdgesOf(edges, ends, solved), priors, in_play, *snap.at,
+                     snap.axes, DegToRad(options.seeded_max_axes_deviation_deg));
+    for (size_t i = 0; i < initial.size(); ++i) seeded[i].Set(poses[i]);
+    seeded_axes = axes;
+  } else {
+    const std::vector<Eigen::Isometry3d> poses =
+        SeedPoses(estimates, held, SeedEdgesOf(edges, ends, solved));
+    for (size_t i = 0; i < initial.size(); ++i) seeded[i].Set(poses[i]);
+    seeded_axes = ConsensusAxes(priors, in_play, seeded, DegToRad(2.0)).value_or(world_from_axes);
+  }
   RotationPriors seeded_priors;
   Eigen::Map<Eigen::Quaterniond>(seeded_priors.world_from_axes.data()) =
       Eigen::Quaterniond(seeded_axes).normalized();
   seeded_priors.priors = NamePriors(priors, seeded, seeded_axes);
+  PoseGraphOptions seeded_options = options;
+  seeded_options.max_iterations = options.seeded_max_iterations;
+  seeded_options.max_solver_time_s = options.seeded_max_solver_time_s;
   SeededSolve result;
   result.active = std::move(active);
   result.summary.edge_chi2.assign(edges.size(), 0.0);
-  result.solve = SolveSwitchingOffLoops(edges, ends, selected, sqrt_information, seeded, pinned,
-                                        seeded_priors, options, &result.active, &result.summary);
+  result.solve =
+      SolveSwitchingOffLoops(edges, ends, selected, sqrt_information, seeded, pinned, seeded_priors,
+                             seeded_options, &result.active, &result.summary);
   result.summary.seeded = true;
   return result;
 }
@@ -503,6 +555,53 @@ Eigen::Matrix3d AxesOf(const Solve& solve, const Eigen::Matrix3d& fallback) {
              ? Eigen::Quaterniond(solve.world_from_axes->data()).normalized().toRotationMatrix()
              : fallback;
 }
+// OptimizeAroundSeeded's part: the same part solved from a seed its edges alone give, and from
+// one that turns each part of it to the axes as named at the better of the two solutions so far;
+// `solve`, `summary` and `active` become the one that fits every edge the part had before
+// (`active_before`) and every prior best, if not already theirs.
+void SolveFromSeedsIfBetter(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
+                            const std::vector<bool>& selected,
+                            const std::vector<Matrix6d>& sqrt_information,
+                            const std::vector<PoseParameters>& initial,
+                            const std::vector<bool>& pinned,
+                            const std::vector<IndexedRotationPrior>& priors,
+                            const Eigen::Matrix3d& world_from_axes, const PoseGraphOptions& options,
+                            const std::vector<bool>& active_before, Solve* solve,
+                            PoseGraphSummary* summary, std::vector<bool>* active) {
+  std::vector<bool> solved(edges.size()), considered(edges.size());
+  for (size_t e = 0; e < edges.size(); ++e) {
+    solved[e] = (*active)[e] && selected[e];
+    considered[e] = selected[e] && active_before[e];
+  }
+  const auto misfit = [&](const Solve& of) {
+    return Misfit(edges, ends, considered, of.parameters, priors, AxesOf(of, world_from_axes),
+                  options);
+  };
+  double best_misfit = misfit(*solve);
+  const auto keep_if_better = [&](SeededSolve& seeded) {
+    if (!seeded.summary.usable) return;
+    const double seeded_misfit = misfit(seeded.solve);
+    if (seeded_misfit >= best_misfit) return;
+    best_misfit = seeded_misfit;
+    *solve = std::move(seeded.solve);
+    *summary = std::move(seeded.summary);
+    *active = std::move(seeded.active);
+  };
+  SeededSolve from_edges =
+      SolveFromSeed(edges, ends, selected, solved, sqrt_information, initial, pinned, priors,
+                    world_from_axes, Snap(), options, active_before);
+  keep_if_better(from_edges);
+  if (priors.empty()) return;
+  const std::vector<PoseParameters> at = solve->parameters;
+  Snap snap;
+  snap.at = &at;
+  snap.axes = AxesOf(*solve, world_from_axes);
+  SeededSolve from_axes =
+      SolveFromSeed(edges, ends, selected, solved, sqrt_information, initial, pinned, priors,
+                    world_from_axes, snap, options, active_before);
+  keep_if_better(from_axes);
+}
+
 }  // namespace
 
 bool PoseGraphOptions::Check(std::string* error) const {
@@ -526,6 +625,11 @@ bool PoseGraphOptions::Check(std::string* error) const {
   if (!(max_loop_chi2 > 0.0)) return fail("max_loop_chi2 must be positive");
   if (!(rotation_prior_loss_scale > 0.0) || !std::isfinite(rotation_prior_loss_scale)) {
     return fail("rotation_prior_loss_scale must be positive and finite");
+  }
+  if (seeded_max_iterations <= 0) return fail("seeded_max_iterations must be positive");
+  if (!(seeded_max_solver_time_s > 0.0)) return fail("seeded_max_solver_time_s must be positive");
+  if (!(seeded_max_axes_deviation_deg >= 0.0 && seeded_max_axes_deviation_deg <= 180.0)) {
+    return fail("seeded_max_axes_deviation_deg must be in [0, 180]");
   }
   return true;
 }
@@ -881,25 +985,9 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
     }
   }
   if (scope.seeded && summary.usable && solve.anything) {
-    // The same part solved from a seed its links alone give; kept when it fits every measurement
-    // the part had before this call and every prior better.
-    std::vector<bool> solved(edges_.size()), considered(edges_.size());
-    for (size_t e = 0; e < edges_.size(); ++e) {
-      solved[e] = active_[e] && selected[e];
-      considered[e] = selected[e] && active_before[e];
-    }
-    SeededSolve seeded =
-        SolveFromSeed(edges_, ends, selected, solved, sqrt_information, initial, pinned,
-                      indexed_priors, world_from_axes, options, active_before);
-    if (seeded.summary.usable &&
-        Misfit(edges_, ends, considered, seeded.solve.parameters, indexed_priors,
-               AxesOf(seeded.solve, world_from_axes),
-               options) < Misfit(edges_, ends, considered, solve.parameters, indexed_priors,
-                                 AxesOf(solve, world_from_axes), options)) {
-      solve = std::move(seeded.solve);
-      summary = std::move(seeded.summary);
-      active_ = std::move(seeded.active);
-    }
+    SolveFromSeedsIfBetter(edges_, ends, selected, sqrt_information, initial, pinned,
+                           indexed_priors, world_from_axes, options, active_before, &solve,
+                           &summary, &active_);
   }
   if (solve.world_from_axes) {
     world_from_axes_ = Eigen::Map<const Eigen::Quaterniond>(solve.world_from_axes->data());
@@ -940,6 +1028,8 @@ void PoseGraph::SetRotationPrior(int64_t id, const RotationPrior& prior) {
 
 SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_threads,
                       function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2,
-                      rotation_prior_loss_scale, retry_rejected_loops_without_priors)
+                      rotation_prior_loss_scale, retry_rejected_loops_without_priors,
+                      seeded_max_iterations, seeded_max_solver_time_s,
+                      seeded_max_axes_deviation_deg)
 
 }  // namespace sightmap::slam

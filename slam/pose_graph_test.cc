@@ -258,6 +258,35 @@ TEST(PoseGraph, TheSeededSolveTurnsBackAHalfItsPriorsHoldInAWrongNaming) {
   EXPECT_LT(seeded_deg, 0.5);
 }
 
+// The same halves, but both blind links measure the second half turned 25 degrees, and it
+// starts where they put it: there its priors lie beyond their 15-degree bound and take no part,
+// and the seed from the links alone puts it there again. The seed that turns each part to its
+// axes (priors named within seeded_max_axes_deviation_deg) turns it back.
+TEST(PoseGraph, TheSeededSolveTurnsAHalfTheLinksTurnedToItsAxes) {
+  const auto solve = [](double seeded_max_axes_deviation_deg) {
+    PoseGraph graph;
+    const Eigen::Isometry3d turn(Eigen::AngleAxisd(DegToRad(25.0), Eigen::Vector3d::UnitY()));
+    for (int i = 0; i < 3; ++i) graph.AddPose(i, Translation(i));
+    for (int i = 3; i < 6; ++i) graph.AddPose(i, Translation(3.0) * turn * Translation(i - 3.0));
+    const Matrix6d firm = Information(0.003, 0.001);
+    const Matrix6d blind = Information(0.5, DegToRad(15.0));
+    for (int i : {0, 1, 3, 4}) graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), firm));
+    graph.AddEdge(MakeEdge(2, 3, Translation(1.0) * turn, blind, LinkType::kPrior));
+    graph.AddEdge(MakeEdge(5, 0, turn.inverse() * Translation(-5.0), blind, LinkType::kPrior));
+    RotationPrior prior;
+    prior.sigma_rad = DegToRad(1.0);
+    prior.max_deviation_rad = DegToRad(15.0);
+    for (int id = 0; id < 6; ++id) graph.SetRotationPrior(id, prior);
+    PoseGraphOptions options;
+    options.odometry_loss_scale = options.loop_loss_scale;
+    options.seeded_max_axes_deviation_deg = seeded_max_axes_deviation_deg;
+    graph.OptimizeAroundSeeded(0, options);
+    return RadToDeg(Eigen::AngleAxisd(graph.Pose(4).linear()).angle());
+  };
+  EXPECT_GT(solve(0.0), 10.0);
+  EXPECT_LT(solve(30.0), 1.0);
+}
+
 // Four poses 1 m apart on a line, each tied to the next and the one after (as the mapper links a
 // keyframe to the two before it), all exact and firm (3 mm) but the step 1 -> 2, 10 cm off. In
 // plain least squares the wrong step shares its error with the two paths around it; with the
