@@ -459,8 +459,7 @@ std::vector<ResolvedRotationPrior> NamePriors(const std::vector<IndexedRotationP
 // Poses seeded (SeedPoses) with the building's axes one more unknown, each prior of a pose in
 // play an edge from its pose to the axes, named nearest the poses `at` and the axes `axes` when
 // within `max_deviation_rad` of it, well beyond the solves' bound: a part the links left turned
-// by up to that much is turned to its axes.
-// Returns the poses and the axes.
+// by up to that much is turned to its axes. Returns the poses and the axes.
 std::pair<std::vector<Eigen::Isometry3d>, Eigen::Matrix3d> SeedWithAxes(
     const std::vector<Eigen::Isometry3d>& estimates, const std::vector<bool>& held,
     std::vector<SeedEdge> seed_edges, const std::vector<IndexedRotationPrior>& priors,
@@ -492,7 +491,8 @@ std::pair<std::vector<Eigen::Isometry3d>, Eigen::Matrix3d> SeedWithAxes(
 
 // A part's solve started from poses seeded by its `solved` edges alone (SeedPoses; the poses
 // `pinned` or holding the gauge stay), the axes where the most priors agree at the seed; or, with
-// `snap_at` (and its axes), seeded by the edges and the priors named there (SeedWithAxes).
+// a `snap` (poses and their axes), seeded by the edges and the priors named there
+// (SeedWithAxes).
 struct SeededSolve {
   Solve solve;
   PoseGraphSummary summary;
@@ -555,6 +555,7 @@ Eigen::Matrix3d AxesOf(const Solve& solve, const Eigen::Matrix3d& fallback) {
              ? Eigen::Quaterniond(solve.world_from_axes->data()).normalized().toRotationMatrix()
              : fallback;
 }
+
 // OptimizeAroundSeeded's part: the same part solved from a seed its edges alone give, and from
 // one that turns each part of it to the axes as named at the better of the two solutions so far;
 // `solve`, `summary` and `active` become the one that fits every edge the part had before
