@@ -393,7 +393,7 @@ double Misfit(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds&
 // of, up to naming. nullopt without priors in play.
 std::optional<Eigen::Matrix3d> ConsensusAxes(const std::vector<IndexedRotationPrior>& priors,
                                              const std::vector<bool>& in_play,
-                                             const std::vector<PoseParameters>& at,
+                                             const std::vector<Eigen::Isometry3d>& at,
                                              double tolerance_rad) {
   std::vector<const IndexedRotationPrior*> candidates;
   for (const IndexedRotationPrior& indexed : priors) {
@@ -405,10 +405,10 @@ std::optional<Eigen::Matrix3d> ConsensusAxes(const std::vector<IndexedRotationPr
   int best_votes = -1;
   for (size_t k = 0; k < tries; ++k) {
     const IndexedRotationPrior& candidate = *candidates[k * candidates.size() / tries];
-    const Eigen::Matrix3d axes = at[candidate.node].Get().linear() * candidate.prior.cam_from_axes;
+    const Eigen::Matrix3d axes = at[candidate.node].linear() * candidate.prior.cam_from_axes;
     int votes = 0;
     for (const IndexedRotationPrior* other : candidates) {
-      if (NearestManhattanRotation(axes, other->prior.cam_from_axes, at[other->node].Get().linear())
+      if (NearestManhattanRotation(axes, other->prior.cam_from_axes, at[other->node].linear())
               .second <= tolerance_rad) {
         ++votes;
       }
@@ -489,53 +489,26 @@ std::pair<std::vector<Eigen::Isometry3d>, Eigen::Matrix3d> SeedWithAxes(
   return {seeded, seeded_axes};
 }
 
-// A part's solve started from poses seeded by its `solved` edges alone (SeedPoses; the poses
-// `pinned` or holding the gauge stay), the axes where the most priors agree at the seed; or, with
-// a `snap` (poses and their axes), seeded by the edges and the priors named there
-// (SeedWithAxes).
+// A part's solve started from the poses `seed` (by index) and the axes `axes`, the priors named
+// there; `active` is where its edges start, switched off as the solve finds them inconsistent.
 struct SeededSolve {
   Solve solve;
   PoseGraphSummary summary;
   std::vector<bool> active;
 };
-struct Snap {
-  const std::vector<PoseParameters>* at = nullptr;
-  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
-};
-SeededSolve SolveFromSeed(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
-                          const std::vector<bool>& selected, const std::vector<bool>& solved,
-                          const std::vector<Matrix6d>& sqrt_information,
-                          const std::vector<PoseParameters>& initial,
-                          const std::vector<bool>& pinned,
-                          const std::vector<IndexedRotationPrior>& priors,
-                          const Eigen::Matrix3d& world_from_axes, const Snap& snap,
-                          const PoseGraphOptions& options, std::vector<bool> active) {
-  std::vector<bool> ties(edges.size()), in_play(initial.size(), false);
-  for (size_t e = 0; e < edges.size(); ++e) {
-    ties[e] = solved[e] && !edges[e].information.isZero();
-    if (solved[e]) in_play[ends[e].first] = in_play[ends[e].second] = true;
-  }
-  std::vector<Eigen::Isometry3d> estimates(initial.size());
-  for (size_t i = 0; i < initial.size(); ++i) estimates[i] = initial[i].Get();
-  const std::vector<bool> held = internal::HeldPoses(ends, solved, ties, pinned);
-  std::vector<PoseParameters> seeded(initial.size());
-  Eigen::Matrix3d seeded_axes = world_from_axes;
-  if (snap.at) {
-    const auto [poses, axes] =
-        SeedWithAxes(estimates, held, SeedEdgesOf(edges, ends, solved), priors, in_play, *snap.at,
-                     snap.axes, DegToRad(options.seeded_max_axes_deviation_deg));
-    for (size_t i = 0; i < initial.size(); ++i) seeded[i].Set(poses[i]);
-    seeded_axes = axes;
-  } else {
-    const std::vector<Eigen::Isometry3d> poses =
-        SeedPoses(estimates, held, SeedEdgesOf(edges, ends, solved));
-    for (size_t i = 0; i < initial.size(); ++i) seeded[i].Set(poses[i]);
-    seeded_axes = ConsensusAxes(priors, in_play, seeded, DegToRad(2.0)).value_or(world_from_axes);
-  }
+SeededSolve SolveFrom(const std::vector<Eigen::Isometry3d>& seed, const Eigen::Matrix3d& axes,
+                      const std::vector<PoseGraphEdge>& edges, const internal::EdgeEnds& ends,
+                      const std::vector<bool>& selected,
+                      const std::vector<Matrix6d>& sqrt_information,
+                      const std::vector<bool>& pinned,
+                      const std::vector<IndexedRotationPrior>& priors,
+                      const PoseGraphOptions& options, std::vector<bool> active) {
+  std::vector<PoseParameters> seeded(seed.size());
+  for (size_t i = 0; i < seed.size(); ++i) seeded[i].Set(seed[i]);
   RotationPriors seeded_priors;
   Eigen::Map<Eigen::Quaterniond>(seeded_priors.world_from_axes.data()) =
-      Eigen::Quaterniond(seeded_axes).normalized();
-  seeded_priors.priors = NamePriors(priors, seeded, seeded_axes);
+      Eigen::Quaterniond(axes).normalized();
+  seeded_priors.priors = NamePriors(priors, seeded, axes);
   PoseGraphOptions seeded_options = options;
   seeded_options.max_iterations = options.seeded_max_iterations;
   seeded_options.max_solver_time_s = options.seeded_max_solver_time_s;
@@ -569,17 +542,29 @@ void SolveFromSeedsIfBetter(const std::vector<PoseGraphEdge>& edges, const inter
                             const Eigen::Matrix3d& world_from_axes, const PoseGraphOptions& options,
                             const std::vector<bool>& active_before, Solve* solve,
                             PoseGraphSummary* summary, std::vector<bool>* active) {
-  std::vector<bool> solved(edges.size()), considered(edges.size());
+  // What both seeds are made of: the edges the solve kept, the poses holding the gauge.
+  std::vector<bool> solved(edges.size()), considered(edges.size()), ties(edges.size());
+  std::vector<bool> in_play(initial.size(), false);
   for (size_t e = 0; e < edges.size(); ++e) {
     solved[e] = (*active)[e] && selected[e];
     considered[e] = selected[e] && active_before[e];
+    ties[e] = solved[e] && !edges[e].information.isZero();
+    if (solved[e]) in_play[ends[e].first] = in_play[ends[e].second] = true;
   }
+  std::vector<Eigen::Isometry3d> estimates(initial.size());
+  for (size_t i = 0; i < initial.size(); ++i) estimates[i] = initial[i].Get();
+  const std::vector<bool> held = internal::HeldPoses(ends, solved, ties, pinned);
+  const std::vector<SeedEdge> seed_edges = SeedEdgesOf(edges, ends, solved);
+
   const auto misfit = [&](const Solve& of) {
     return Misfit(edges, ends, considered, of.parameters, priors, AxesOf(of, world_from_axes),
                   options);
   };
   double best_misfit = misfit(*solve);
-  const auto keep_if_better = [&](SeededSolve& seeded) {
+  const auto solve_and_keep_if_better = [&](const std::vector<Eigen::Isometry3d>& seed,
+                                            const Eigen::Matrix3d& axes) {
+    SeededSolve seeded = SolveFrom(seed, axes, edges, ends, selected, sqrt_information, pinned,
+                                   priors, options, active_before);
     if (!seeded.summary.usable) return;
     const double seeded_misfit = misfit(seeded.solve);
     if (seeded_misfit >= best_misfit) return;
@@ -588,19 +573,15 @@ void SolveFromSeedsIfBetter(const std::vector<PoseGraphEdge>& edges, const inter
     *summary = std::move(seeded.summary);
     *active = std::move(seeded.active);
   };
-  SeededSolve from_edges =
-      SolveFromSeed(edges, ends, selected, solved, sqrt_information, initial, pinned, priors,
-                    world_from_axes, Snap(), options, active_before);
-  keep_if_better(from_edges);
+  const std::vector<Eigen::Isometry3d> from_edges = SeedPoses(estimates, held, seed_edges);
+  solve_and_keep_if_better(
+      from_edges,
+      ConsensusAxes(priors, in_play, from_edges, DegToRad(2.0)).value_or(world_from_axes));
   if (priors.empty()) return;
-  const std::vector<PoseParameters> at = solve->parameters;
-  Snap snap;
-  snap.at = &at;
-  snap.axes = AxesOf(*solve, world_from_axes);
-  SeededSolve from_axes =
-      SolveFromSeed(edges, ends, selected, solved, sqrt_information, initial, pinned, priors,
-                    world_from_axes, snap, options, active_before);
-  keep_if_better(from_axes);
+  const auto [from_axes, axes] = SeedWithAxes(estimates, held, seed_edges, priors, in_play,
+                                              solve->parameters, AxesOf(*solve, world_from_axes),
+                                              DegToRad(options.seeded_max_axes_deviation_deg));
+  solve_and_keep_if_better(from_axes, axes);
 }
 
 }  // namespace

@@ -223,28 +223,44 @@ TEST(PoseGraph, ALoopTurnsBackAStretchThePriorsWouldHoldInAWrongNaming) {
 }
 
 // Two halves of a walk (poses 0-2 and 3-5, 1 m apart on a line), each firm, joined only by two
-// blind prior links (15 degrees, 0.5 m) that measure the truth; every camera sees the building's
-// axes. The second half starts turned 100 degrees: its priors then lie 10 degrees from the naming
-// a quarter turn off and hold it there against the links, whose robust loss hears them less the
-// farther they are off. Seeded by the links alone, the part is solved where they put it, and
-// that fits links and priors better.
+// blind prior links (15 degrees, 0.5 m) that measure the second half turned by `link_turn_deg`
+// about the vertical; the second half starts turned by `start_turn_deg`. Every camera sees the
+// building's axes as they are (none of them turned).
+PoseGraph HalvesJoinedByBlindLinks(double start_turn_deg, double link_turn_deg) {
+  PoseGraph graph;
+  const Eigen::Isometry3d start_turn(
+      Eigen::AngleAxisd(DegToRad(start_turn_deg), Eigen::Vector3d::UnitY()));
+  const Eigen::Isometry3d link_turn(
+      Eigen::AngleAxisd(DegToRad(link_turn_deg), Eigen::Vector3d::UnitY()));
+  for (int i = 0; i < 3; ++i) graph.AddPose(i, Translation(i));
+  for (int i = 3; i < 6; ++i)
+    graph.AddPose(i, Translation(3.0) * start_turn * Translation(i - 3.0));
+  const Matrix6d firm = Information(0.003, 0.001);
+  const Matrix6d blind = Information(0.5, DegToRad(15.0));
+  for (int i : {0, 1, 3, 4}) graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), firm));
+  graph.AddEdge(MakeEdge(2, 3, Translation(1.0) * link_turn, blind, LinkType::kPrior));
+  graph.AddEdge(MakeEdge(5, 0, link_turn.inverse() * Translation(-5.0), blind, LinkType::kPrior));
+  RotationPrior prior;
+  prior.sigma_rad = DegToRad(1.0);
+  prior.max_deviation_rad = DegToRad(15.0);
+  for (int id = 0; id < 6; ++id) graph.SetRotationPrior(id, prior);
+  return graph;
+}
+
+PoseGraphOptions WithTheMappersOdometryLoss() {
+  PoseGraphOptions options;
+  options.odometry_loss_scale = options.loop_loss_scale;
+  return options;
+}
+
+// The links measure the truth, but the second half starts turned 100 degrees: its priors then
+// lie 10 degrees from the naming a quarter turn off and hold it there against the links, whose
+// robust loss hears them less the farther they are off. Seeded by the links alone, the part is
+// solved where they put it, and that fits links and priors better.
 TEST(PoseGraph, TheSeededSolveTurnsBackAHalfItsPriorsHoldInAWrongNaming) {
   const auto solve = [](bool seeded) {
-    PoseGraph graph;
-    const Eigen::Isometry3d turn(Eigen::AngleAxisd(DegToRad(100.0), Eigen::Vector3d::UnitY()));
-    for (int i = 0; i < 3; ++i) graph.AddPose(i, Translation(i));
-    for (int i = 3; i < 6; ++i) graph.AddPose(i, Translation(3.0) * turn * Translation(i - 3.0));
-    const Matrix6d firm = Information(0.003, 0.001);
-    const Matrix6d blind = Information(0.5, DegToRad(15.0));
-    for (int i : {0, 1, 3, 4}) graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), firm));
-    graph.AddEdge(MakeEdge(2, 3, Translation(1.0), blind, LinkType::kPrior));
-    graph.AddEdge(MakeEdge(5, 0, Translation(-5.0), blind, LinkType::kPrior));
-    RotationPrior prior;
-    prior.sigma_rad = DegToRad(1.0);
-    prior.max_deviation_rad = DegToRad(15.0);
-    for (int id = 0; id < 6; ++id) graph.SetRotationPrior(id, prior);
-    PoseGraphOptions options;
-    options.odometry_loss_scale = options.loop_loss_scale;  // as the mapper has it
+    PoseGraph graph = HalvesJoinedByBlindLinks(100.0, 0.0);
+    const PoseGraphOptions options = WithTheMappersOdometryLoss();
     const PoseGraphSummary summary =
         seeded ? graph.OptimizeAroundSeeded(0, options) : graph.OptimizeAround(0, options);
     return std::make_pair(summary.seeded,
@@ -258,27 +274,14 @@ TEST(PoseGraph, TheSeededSolveTurnsBackAHalfItsPriorsHoldInAWrongNaming) {
   EXPECT_LT(seeded_deg, 0.5);
 }
 
-// The same halves, but both blind links measure the second half turned 25 degrees, and it
-// starts where they put it: there its priors lie beyond their 15-degree bound and take no part,
-// and the seed from the links alone puts it there again. The seed that turns each part to its
-// axes (priors named within seeded_max_axes_deviation_deg) turns it back.
+// Both blind links measure the second half turned 25 degrees, and it starts where they put it:
+// there its priors lie beyond their 15-degree bound and take no part, and the seed from the links
+// alone puts it there again. The seed that turns each part to its axes (priors named within
+// seeded_max_axes_deviation_deg) turns it back.
 TEST(PoseGraph, TheSeededSolveTurnsAHalfTheLinksTurnedToItsAxes) {
   const auto solve = [](double seeded_max_axes_deviation_deg) {
-    PoseGraph graph;
-    const Eigen::Isometry3d turn(Eigen::AngleAxisd(DegToRad(25.0), Eigen::Vector3d::UnitY()));
-    for (int i = 0; i < 3; ++i) graph.AddPose(i, Translation(i));
-    for (int i = 3; i < 6; ++i) graph.AddPose(i, Translation(3.0) * turn * Translation(i - 3.0));
-    const Matrix6d firm = Information(0.003, 0.001);
-    const Matrix6d blind = Information(0.5, DegToRad(15.0));
-    for (int i : {0, 1, 3, 4}) graph.AddEdge(MakeEdge(i, i + 1, Translation(1.0), firm));
-    graph.AddEdge(MakeEdge(2, 3, Translation(1.0) * turn, blind, LinkType::kPrior));
-    graph.AddEdge(MakeEdge(5, 0, turn.inverse() * Translation(-5.0), blind, LinkType::kPrior));
-    RotationPrior prior;
-    prior.sigma_rad = DegToRad(1.0);
-    prior.max_deviation_rad = DegToRad(15.0);
-    for (int id = 0; id < 6; ++id) graph.SetRotationPrior(id, prior);
-    PoseGraphOptions options;
-    options.odometry_loss_scale = options.loop_loss_scale;
+    PoseGraph graph = HalvesJoinedByBlindLinks(25.0, 25.0);
+    PoseGraphOptions options = WithTheMappersOdometryLoss();
     options.seeded_max_axes_deviation_deg = seeded_max_axes_deviation_deg;
     graph.OptimizeAroundSeeded(0, options);
     return RadToDeg(Eigen::AngleAxisd(graph.Pose(4).linear()).angle());
