@@ -16,6 +16,14 @@ double RotationAngleDeg(const Eigen::Isometry3d& motion) {
   return RotationAngleDeg(motion.linear());
 }
 
+Eigen::Matrix<double, 6, 6> AdjointSe3(const Eigen::Isometry3d& motion) {
+  Eigen::Matrix<double, 6, 6> adjoint = Eigen::Matrix<double, 6, 6>::Zero();
+  adjoint.topLeftCorner<3, 3>() = motion.linear();
+  adjoint.topRightCorner<3, 3>() = Skew(motion.translation()) * motion.linear();
+  adjoint.bottomRightCorner<3, 3>() = motion.linear();
+  return adjoint;
+}
+
 bool MotionWithin(const Eigen::Isometry3d& motion, double max_m, double max_deg) {
   return motion.translation().norm() <= max_m && RotationAngleDeg(motion) <= max_deg;
 }

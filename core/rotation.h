@@ -31,6 +31,11 @@ Eigen::Isometry3d ExpSe3(const Eigen::Matrix<double, 6, 1>& delta);
 // The (t, w) of a rigid motion: ExpSe3's inverse for rotations below 180 degrees.
 Eigen::Matrix<double, 6, 1> LogSe3(const Eigen::Isometry3d& motion);
 
+// The adjoint of a rigid motion T = [R | p] for (t, w) errors applied on the left:
+// T Exp(r) T^-1 = Exp(Ad r), Ad = [[R, [p]x R], [0, R]]. It carries an error expressed in T's
+// `to` frame into its `from` frame (pose-graph path covariances, an edge run backwards).
+Eigen::Matrix<double, 6, 6> AdjointSe3(const Eigen::Isometry3d& motion);
+
 // Whether a rigid motion (a step, or the difference between two poses) moves at most max_m and
 // turns at most max_deg: the bound every motion and disagreement check applies, usually a rate
 // times a time plus a slack. False for a motion that is not finite.

@@ -61,6 +61,17 @@ TEST(ExpSe3, IsTheTranslationAndTheRotationVectorAndLogSe3UndoesIt) {
 }
 
 // Bearings run from e1 towards e2 in [0, 360); the height along up plays no part.
+// T Exp(r) T^-1 = Exp(Ad r) to first order in a small error r.
+TEST(AdjointSe3, CarriesAnErrorIntoTheOtherFrame) {
+  const Eigen::Isometry3d motion =
+      ExpSe3((Eigen::Matrix<double, 6, 1>() << 1.0, -2.0, 0.5, 0.3, -0.4, 0.9).finished());
+  const Eigen::Matrix<double, 6, 1> error =
+      (Eigen::Matrix<double, 6, 1>() << 1e-5, 2e-5, -1e-5, 2e-5, -1e-5, 3e-5).finished();
+  const Eigen::Isometry3d carried = motion * ExpSe3(error) * motion.inverse();
+  const Eigen::Matrix<double, 6, 1> expected = AdjointSe3(motion) * error;
+  EXPECT_LT((LogSe3(carried) - expected).norm(), 1e-3 * error.norm());  // second order
+}
+
 TEST(FloorBearingDeg, FromTheFirstAxisTowardsTheSecond) {
   Eigen::Vector3d e1, e2;
   FloorAxes(Eigen::Vector3d::UnitZ(), &e1, &e2);

@@ -112,6 +112,10 @@ bool MapperOptions::Check(std::string* error) const {
   if (loop_min_inliers < 0) return fail("loop_min_inliers must not be negative");
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
+  if (!loop_axes.Check(error)) return false;
+  if (!(loop_max_axes_chi2 >= 0.0) || !(loop_axes_max_sigma_deg > 0.0)) {
+    return fail("loop_max_axes_chi2 must not be negative (0: off), loop_axes_max_sigma_deg > 0");
+  }
   if (!(loop_max_graph_chi2 >= 0.0) || !(loop_check_link_sigma_m >= 0.0) ||
       !(loop_check_link_sigma_rad >= 0.0) || !(loop_check_lever_m >= 0.0) ||
       !(loop_check_slack_m >= 0.0) || !(loop_check_slack_rad >= 0.0)) {
@@ -876,8 +880,39 @@ double Mapper::LoopChi2(const MapperLink& loop) const {
   return error.dot(covariance.ldlt().solve(error));
 }
 
+double Mapper::LoopChi2AlongAxes(const MapperLink& loop) const {
+  const Eigen::Matrix<double, 6, 6> floor =
+      DiagonalCovariance(options_.loop_check_link_sigma_m, options_.loop_check_link_sigma_rad);
+  const auto edge_covariance = [&](size_t edge) {
+    return Eigen::Matrix<double, 6, 6>(CovarianceOf(graph_.Edges()[edge].information) + floor);
+  };
+  const std::optional<std::vector<size_t>> path =
+      graph_.FirmestPath(loop.from, loop.to, edge_covariance, options_.loop_check_lever_m);
+  if (!path) return 0.0;
+  const AxesChain chain =
+      ChainAlongAxes(graph_, loop.from, *path, edge_covariance, options_.loop_axes);
+  const double end_sigma_rad = std::sqrt(chain.covariance.bottomRightCorner<3, 3>().trace());
+  if (end_sigma_rad > DegToRad(options_.loop_axes_max_sigma_deg)) return 0.0;
+  Eigen::Matrix<double, 6, 1> error;
+  error.head<3>() = loop.to_in_from.translation() - chain.to_in_from.translation();
+  const Eigen::AngleAxisd turn(loop.to_in_from.linear() * chain.to_in_from.linear().transpose());
+  error.tail<3>() = turn.angle() * turn.axis();
+  // The loop's own error r (true = Exp(r) M) moves its translation by its rotation error levered
+  // over M's translation too.
+  Eigen::Matrix<double, 6, 6> lever = Eigen::Matrix<double, 6, 6>::Identity();
+  lever.topRightCorner<3, 3>() = -Skew(loop.to_in_from.translation());
+  const Eigen::Matrix<double, 6, 6> covariance =
+      chain.covariance + lever * CovarianceOf(loop.information) * lever.transpose() +
+      DiagonalCovariance(options_.loop_check_slack_m, options_.loop_check_slack_rad);
+  return error.dot(covariance.ldlt().solve(error));
+}
+
 bool Mapper::LoopFitsTheGraph(const MapperLink& loop) const {
-  return !(options_.loop_max_graph_chi2 > 0.0) || LoopChi2(loop) <= options_.loop_max_graph_chi2;
+  if (options_.loop_max_graph_chi2 > 0.0 && LoopChi2(loop) > options_.loop_max_graph_chi2) {
+    return false;
+  }
+  return !(options_.loop_max_axes_chi2 > 0.0) ||
+         LoopChi2AlongAxes(loop) <= options_.loop_max_axes_chi2;
 }
 
 bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {
@@ -1089,22 +1124,23 @@ void Mapper::TakeOptimisation(const PoseGraphSummary& summary, KeyframeReport* r
   report->optimised = true;
 }
 
-SIGHTMAP_OPTIONS_JSON(
-    MapperOptions, features, registration, odometry_window, extra_odometry_links,
-    extra_link_max_disagreement_m, extra_link_max_disagreement_deg, blind_link_max_deviation_mps,
-    blind_link_max_deviation_dps, blind_link_slack_m, blind_link_slack_deg, bridged_sigma_factor,
-    bridge_min_blind_step_s, bridge_frame, bridge_rotations_from_axes, manhattan_sigma_deg,
-    manhattan_max_deviation_deg, manhattan, depth_downscale, vocabulary,
-    vocabulary_training_keyframes, loop_exclude_recent, loop_candidates, loop_min_relative_score,
-    loop_min_inliers, loop_min_spacing, proximity_candidates, proximity_radius_m,
-    proximity_max_angle_deg, proximity_min_inliers, proximity_max_disagreement_m,
-    proximity_max_disagreement_deg, local_loop_hops, local_loop_max_border_chi2_rise, pose_graph,
-    seeded_final_solve, join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps,
-    walk_max_turn_rate_dps, walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg,
-    loop_max_graph_chi2, loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m,
-    loop_check_slack_m, loop_check_slack_rad, link_min_sigma_m, link_min_sigma_rad,
-    dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
-    dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
-    dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad)
+SIGHTMAP_OPTIONS_JSON_LONG(
+    MapperOptions,
+    (features, registration, odometry_window, extra_odometry_links, extra_link_max_disagreement_m,
+     extra_link_max_disagreement_deg, blind_link_max_deviation_mps, blind_link_max_deviation_dps,
+     blind_link_slack_m, blind_link_slack_deg, bridged_sigma_factor, bridge_min_blind_step_s,
+     bridge_frame, bridge_rotations_from_axes, manhattan_sigma_deg, manhattan_max_deviation_deg,
+     manhattan, depth_downscale, vocabulary, vocabulary_training_keyframes, loop_exclude_recent,
+     loop_candidates, loop_min_relative_score, loop_min_inliers, loop_min_spacing,
+     proximity_candidates, proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
+     proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
+     local_loop_max_border_chi2_rise, pose_graph, seeded_final_solve),
+    (join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
+     walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2,
+     loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m,
+     loop_check_slack_rad, loop_max_axes_chi2, loop_axes_max_sigma_deg, loop_axes, link_min_sigma_m,
+     link_min_sigma_rad, dense_refinement, dense, dense_max_correction_m, dense_max_correction_deg,
+     dense_fit_max_correction_m, dense_fit_max_correction_deg, dense_fit_max_rms_ratio,
+     dense_fit_max_intensity_ratio, dense_link_min_sigma_m, dense_link_min_sigma_rad))
 
 }  // namespace sightmap::slam

@@ -29,6 +29,7 @@
 #include "core/link_type.h"
 #include "core/rgbd_frame.h"
 #include "core/tracking_state.h"
+#include "slam/axes_path.h"
 #include "slam/dense_alignment.h"
 #include "slam/features.h"
 #include "slam/manhattan_frame.h"
@@ -198,6 +199,19 @@ struct MapperOptions {
   double loop_check_lever_m = 3.0;  // weighs rotation against translation in the path's choice
   double loop_check_slack_m = 0.25;
   double loop_check_slack_rad = 0.0;
+  // The same loop against where the measurements alone put its keyframe, chained along that path
+  // with every rotation a keyframe's axes prior fixes held to the building's axes
+  // (ChainAlongAxes, loop_axes), at most loop_max_axes_chi2 (same covariances and slack). While
+  // mapping the graph's estimate between keyframes minutes apart can be off by 60-110 degrees
+  // (1 Hz robot walk), so the check above must be wide and let a loop onto an identical room 10 m
+  // away through (chi-square 9-22); held to the axes, a blind link's rotation error stops at the
+  // next keyframe that sees them and that loop scores 87-129 (seeds 5, 11). Judged only when the
+  // chain's rotation sigma at the loop's end is within loop_axes_max_sigma_deg: farther, the
+  // linearised test means nothing (right loops 79 degrees off with a 69-degree sigma scored
+  // 60-270). 0: no check [deg].
+  double loop_max_axes_chi2 = 60.0;
+  double loop_axes_max_sigma_deg = 40.0;
+  AxesChainOptions loop_axes;
   // Registration's information matrix assumes independent depth errors and so claims sub-millimetre
   // precision from a few hundred inliers; systematic errors (depth bias, calibration) do not shrink
   // with the inlier count. This floor is added to every link's covariance so the pose graph weighs
@@ -374,6 +388,11 @@ class Mapper {
   // (MapperOptions::loop_max_graph_chi2 says how it is made); 0 when no link joins them. Throws
   // when either keyframe is unknown.
   double LoopChi2(const MapperLink& loop) const;
+  // The same disagreement against the loop's keyframes' relative pose chained along that path's
+  // measurements with every rotation the building's axes fix held to them (ChainAlongAxes)
+  // instead of the graph's estimate (MapperOptions::loop_max_axes_chi2); 0 when no link joins
+  // them or the chain's rotation at `to` is not known within loop_axes_max_sigma_deg.
+  double LoopChi2AlongAxes(const MapperLink& loop) const;
   const Features& FeaturesOf(int64_t id) const;
 
  private:

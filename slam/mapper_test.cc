@@ -405,8 +405,11 @@ TEST(Mapper, ARefinementTheFramesFitBetterCorrectsAMotionCentimetresOff) {
 }
 
 // The walk's keyframes as the tracker emits them (every frame), linked by their motions only;
-// with `blind`, keyframes 10-29 as if the motion model had placed each after a second blind.
-std::unique_ptr<Mapper> ChainedWalk(bool blind) {
+// with `blind`, keyframes 10-29 as if the motion model had placed each after a second blind,
+// with these sigmas (the tracker's prior after a blind second: 0.32 m and 0.62 rad,
+// TrackerOptions::prior_*).
+std::unique_ptr<Mapper> ChainedWalk(bool blind, double blind_sigma_m = 0.32,
+                                    double blind_sigma_rad = 0.62) {
   const Walk& walk = HandheldWalkAt5Hz();
   TrackerOptions tracker_options;
   tracker_options.keyframe_rate_hz = 0.0;
@@ -421,8 +424,7 @@ std::unique_ptr<Mapper> ChainedWalk(bool blind) {
       if (blind && keyframe.motion && id >= 10 && id < 30) {
         keyframe.motion->source = MotionSource::kPrior;
         keyframe.motion->blind_s = 1.0;
-        // The tracker's prior after a blind second: 0.32 m and 0.62 rad (TrackerOptions::prior_*).
-        keyframe.motion->information = DiagonalCovariance(0.32, 0.62).inverse();
+        keyframe.motion->information = DiagonalCovariance(blind_sigma_m, blind_sigma_rad).inverse();
       }
       mapper->AddTrackedKeyframe(std::move(keyframe));
     }
@@ -469,6 +471,28 @@ TEST(Mapper, ALoopIsCheckedAgainstHowWellTheGraphKnowsItsEnds) {
   EXPECT_GT(far, limit);
   EXPECT_GT(next_room, 10.0 * limit);
   EXPECT_LT(far_blind, 0.2 * limit);
+}
+
+// The check along the building's axes on a walk with 20 blind seconds (0.16 m and 5 degrees a
+// link, as bridged ones between keyframes that see the axes): a loop that agrees with the
+// measurements passes, one onto a look-alike room 10 m away does not. (Why it is needed beside
+// the graph's check: AxesPath tests, and the 1 Hz robot walk in the README.)
+TEST(Mapper, ALoopIsCheckedAlongTheAxes) {
+  const std::unique_ptr<Mapper> walk = ChainedWalk(true, 0.16, DegToRad(5.0));
+  const Mapper& mapper = *walk;
+  ASSERT_EQ(mapper.NumPriorLinks(), 20);
+  ASSERT_GT(mapper.NumManhattanKeyframes(), 20);
+  const double agrees = mapper.LoopChi2AlongAxes(LoopOffTheGraph(mapper, Eigen::Vector3d::Zero()));
+  const double drift = mapper.LoopChi2AlongAxes(LoopOffTheGraph(mapper, {0.3, 0.0, 0.0}));
+  const double next_room = mapper.LoopChi2AlongAxes(LoopOffTheGraph(mapper, {10.0, 0.0, 0.0}));
+  std::printf(
+      "after 20 blind seconds, loop 0 -> 40 chi-square along the axes: on the graph %.2f, 30 cm "
+      "off %.2f, 10 m off %.0f\n",
+      agrees, drift, next_room);
+  const double limit = MapperOptions().loop_max_axes_chi2;
+  EXPECT_LT(agrees, 0.05 * limit);
+  EXPECT_LT(drift, 0.1 * limit);
+  EXPECT_GT(next_room, 2.0 * limit);
 }
 
 // A loop's error by ground truth [m] (the worst of translation and of rotation at 1 m), and
@@ -535,12 +559,14 @@ double WorstLoop(const std::vector<LoopError>& errors, bool kept_only) {
 // recognition proposes the pair and registration accepts it. In the graph the motion model's
 // guesses hold loosely (blind runs not bridged), only the graph check keeps that loop out of the
 // map: the graph knows where the two keyframes are to far better than 10 m. With the blind runs
-// bridged, the pose graph switches it off even without the check.
+// bridged, the pose graph switches it off even without the check, and the check along the
+// building's axes alone refuses it before it is added.
 TEST(Mapper, PlaceRecognitionRefusesALookAlikeRoomTheGraphPutsElsewhere) {
   MapperOptions unbridged;
   unbridged.bridged_sigma_factor = 0.0;
   MapperOptions unchecked_unbridged = unbridged;
   unchecked_unbridged.loop_max_graph_chi2 = 0.0;
+  unchecked_unbridged.loop_max_axes_chi2 = 0.0;
   const std::vector<LoopError> loose = LoopErrorsOfSeed5At1Hz(unchecked_unbridged, LooseTracker());
   const std::vector<LoopError> checked = LoopErrorsOfSeed5At1Hz(unbridged, LooseTracker());
   std::printf(
@@ -553,7 +579,15 @@ TEST(Mapper, PlaceRecognitionRefusesALookAlikeRoomTheGraphPutsElsewhere) {
 
   MapperOptions unchecked;
   unchecked.loop_max_graph_chi2 = 0.0;
+  unchecked.loop_max_axes_chi2 = 0.0;
   const std::vector<LoopError> bridged = LoopErrorsOfSeed5At1Hz(unchecked, LooseTracker());
+  MapperOptions along_the_axes_only = unchecked;
+  along_the_axes_only.loop_max_axes_chi2 = MapperOptions().loop_max_axes_chi2;
+  const std::vector<LoopError> axes_only =
+      LoopErrorsOfSeed5At1Hz(along_the_axes_only, LooseTracker());
+  std::printf("bridged, checked along the axes alone: %zu loops, worst %.2f m off\n",
+              axes_only.size(), WorstLoop(axes_only, false));
+  EXPECT_LT(WorstLoop(axes_only, false), 0.1) << "refused before it is added";
   const std::vector<LoopError> defaults = LoopErrorsOfSeed5At1Hz(MapperOptions(), LooseTracker());
   std::printf(
       "bridged: loops without the graph check %zu, worst %.2f m off, worst kept %.2f m; "

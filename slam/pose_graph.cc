@@ -434,6 +434,7 @@ std::vector<SeedEdge> SeedEdgesOf(const std::vector<PoseGraphEdge>& edges,
     seed.to_in_from = edges[e].to_in_from;
     seed.rotation_weight = edges[e].information.bottomRightCorner<3, 3>().trace() / 3.0;
     seed.translation_information = edges[e].information.topLeftCorner<3, 3>();
+    seed.bridging = edges[e].type == LinkType::kPrior;
     seed_edges.push_back(seed);
   }
   return seed_edges;
@@ -565,13 +566,14 @@ void SolveFromSeedsIfBetter(const std::vector<PoseGraphEdge>& edges, const inter
                                             const Eigen::Matrix3d& axes) {
     SeededSolve seeded = SolveFrom(seed, axes, edges, ends, selected, sqrt_information, pinned,
                                    priors, options, active_before);
-    if (!seeded.summary.usable) return;
+    if (!seeded.summary.usable) return false;
     const double seeded_misfit = misfit(seeded.solve);
-    if (seeded_misfit >= best_misfit) return;
+    if (seeded_misfit >= best_misfit) return false;
     best_misfit = seeded_misfit;
     *solve = std::move(seeded.solve);
     *summary = std::move(seeded.summary);
     *active = std::move(seeded.active);
+    return true;
   };
   const std::vector<Eigen::Isometry3d> from_edges = SeedPoses(estimates, held, seed_edges);
   solve_and_keep_if_better(
@@ -582,6 +584,21 @@ void SolveFromSeedsIfBetter(const std::vector<PoseGraphEdge>& edges, const inter
                                               solve->parameters, AxesOf(*solve, world_from_axes),
                                               DegToRad(options.seeded_max_axes_deviation_deg));
   solve_and_keep_if_better(from_axes, axes);
+  // Parts the best solution so far still leaves a quarter turn from what their bridging links
+  // say; a part turned right can bring its neighbours within reach of their naming, hence rounds.
+  // (A bound of 45 degrees or more would let a turn and no turn both fit a bridge.)
+  const int rounds =
+      options.seeded_max_axes_deviation_deg < 45.0 ? options.seeded_max_turn_rounds : 0;
+  for (int round = 0; round < rounds; ++round) {
+    std::vector<Eigen::Isometry3d> best(initial.size());
+    for (size_t i = 0; i < initial.size(); ++i) best[i] = solve->parameters[i].Get();
+    int turned_parts = 0;
+    const Eigen::Matrix3d best_axes = AxesOf(*solve, world_from_axes);
+    const std::vector<Eigen::Isometry3d> turned =
+        TurnPartsToTheirBridges(best, held, seed_edges, best_axes,
+                                DegToRad(options.seeded_max_axes_deviation_deg), &turned_parts);
+    if (turned_parts == 0 || !solve_and_keep_if_better(turned, best_axes)) break;
+  }
 }
 
 }  // namespace
@@ -613,6 +630,7 @@ bool PoseGraphOptions::Check(std::string* error) const {
   if (!(seeded_max_axes_deviation_deg >= 0.0 && seeded_max_axes_deviation_deg <= 180.0)) {
     return fail("seeded_max_axes_deviation_deg must be in [0, 180]");
   }
+  if (seeded_max_turn_rounds < 0) return fail("seeded_max_turn_rounds must not be negative");
   return true;
 }
 
@@ -706,13 +724,13 @@ Matrix6d FlooredInformation(const Matrix6d& information, double min_sigma_m, dou
       RidgedInverse(information, kRidge) + DiagonalCovariance(min_sigma_m, min_sigma_rad), 0.0);
 }
 
-std::optional<Matrix6d> PoseGraph::PathCovariance(
+std::optional<std::vector<size_t>> PoseGraph::FirmestPath(
     int64_t from, int64_t to, const std::function<Matrix6d(size_t edge)>& edge_covariance,
     double lever_m) const {
   SIGHTMAP_CHECK(HasPose(from) && HasPose(to),
-                 "PathCovariance between unknown poses " << from << " and " << to);
-  SIGHTMAP_CHECK(lever_m >= 0.0, "PathCovariance needs a lever >= 0, got " << lever_m);
-  if (from == to) return Matrix6d::Zero();
+                 "FirmestPath between unknown poses " << from << " and " << to);
+  SIGHTMAP_CHECK(lever_m >= 0.0, "FirmestPath needs a lever >= 0, got " << lever_m);
+  if (from == to) return std::vector<size_t>();
   std::unordered_map<int64_t, std::vector<size_t>> adjacent;
   for (size_t e = 0; e < edges_.size(); ++e) {
     if (!active_[e]) continue;
@@ -720,7 +738,7 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     adjacent[edges_[e].to].push_back(e);
   }
   // Dijkstra on a scalar size of each edge's covariance; `via` is the edge a pose was reached by.
-  std::unordered_map<size_t, Matrix6d> covariances;  // by edge index, computed once each
+  std::unordered_map<size_t, double> steps;  // by edge index, computed once each
   std::unordered_map<int64_t, double> cost{{from, 0.0}};
   std::unordered_map<int64_t, size_t> via;
   using Entry = std::pair<double, int64_t>;
@@ -734,11 +752,13 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     for (const size_t e : adjacent[id]) {
       const PoseGraphEdge& edge = edges_[e];
       const int64_t next = edge.from == id ? edge.to : edge.from;
-      auto [it, inserted] = covariances.try_emplace(e);
-      if (inserted) it->second = edge_covariance(e);
-      const Matrix6d& covariance = it->second;
-      const double step = covariance.topLeftCorner<3, 3>().trace() +
-                          lever_m * lever_m * covariance.bottomRightCorner<3, 3>().trace();
+      auto [it, inserted] = steps.try_emplace(e);
+      if (inserted) {
+        const Matrix6d covariance = edge_covariance(e);
+        it->second = covariance.topLeftCorner<3, 3>().trace() +
+                     lever_m * lever_m * covariance.bottomRightCorner<3, 3>().trace();
+      }
+      const double step = it->second;
       const auto known = cost.find(next);
       if (known != cost.end() && known->second <= reached_cost + step) continue;
       cost[next] = reached_cost + step;
@@ -747,9 +767,6 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     }
   }
   if (!via.count(to)) return std::nullopt;
-  // Chained from `from` outwards: T_from_to = T_from_a T_a_b ...; an edge error r_ab in a's frame
-  // reaches `from`'s frame through the adjoint of T_from_a (translation first):
-  // [[R, [p]x R], [0, R]].
   std::vector<size_t> path;
   for (int64_t id = to; id != from;) {
     const PoseGraphEdge& edge = edges_[via.at(id)];
@@ -757,20 +774,30 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     id = edge.from == id ? edge.to : edge.from;
   }
   std::reverse(path.begin(), path.end());
+  return path;
+}
+
+std::optional<Matrix6d> PoseGraph::PathCovariance(
+    int64_t from, int64_t to, const std::function<Matrix6d(size_t edge)>& edge_covariance,
+    double lever_m) const {
+  const std::optional<std::vector<size_t>> path = FirmestPath(from, to, edge_covariance, lever_m);
+  if (!path) return std::nullopt;
+  // Chained from `from` outwards: T_from_to = T_from_a T_a_b ...; an edge error r_ab in a's frame
+  // reaches `from`'s frame through the adjoint of T_from_a (AdjointSe3).
   const Eigen::Isometry3d from_world = Pose(from).inverse();
   Matrix6d total = Matrix6d::Zero();
-  for (const size_t e : path) {
+  for (const size_t e : *path) {
     const PoseGraphEdge& edge = edges_[e];
     // The edge's error lives in its `from` pose's frame, whichever way the path runs through it.
-    const Eigen::Isometry3d from_edge = from_world * Pose(edge.from);
-    const Eigen::Matrix3d rotation = from_edge.linear();
-    Matrix6d adjoint = Matrix6d::Zero();
-    adjoint.topLeftCorner<3, 3>() = rotation;
-    adjoint.topRightCorner<3, 3>() = Skew(from_edge.translation()) * rotation;
-    adjoint.bottomRightCorner<3, 3>() = rotation;
-    total += adjoint * covariances.at(e) * adjoint.transpose();
+    const Matrix6d adjoint = AdjointSe3(from_world * Pose(edge.from));
+    total += adjoint * edge_covariance(e) * adjoint.transpose();
   }
   return 0.5 * (total + total.transpose());
+}
+
+const RotationPrior* PoseGraph::RotationPriorOf(int64_t id) const {
+  const auto prior = rotation_priors_.find(id);
+  return prior == rotation_priors_.end() ? nullptr : &prior->second;
 }
 
 const Eigen::Isometry3d& PoseGraph::Pose(int64_t id) const {
@@ -1012,6 +1039,6 @@ SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_t
                       function_tolerance, loop_loss_scale, odometry_loss_scale, max_loop_chi2,
                       rotation_prior_loss_scale, retry_rejected_loops_without_priors,
                       seeded_max_iterations, seeded_max_solver_time_s,
-                      seeded_max_axes_deviation_deg)
+                      seeded_max_axes_deviation_deg, seeded_max_turn_rounds)
 
 }  // namespace sightmap::slam

@@ -89,6 +89,10 @@ struct PoseGraphOptions {
   // lies within this of the naming [deg]: farther, the naming is a guess (a keyframe placed a
   // quarter turn off). Unbounded, 1 Hz hand-held seed 23 went from 0.089 to 0.102 m.
   double seeded_max_axes_deviation_deg = 30.0;
+  // Then up to this many rounds of turning the rigid parts (poses joined by registered links) a
+  // quarter turn where their blind links say so, within seeded_max_axes_deviation_deg
+  // (TurnPartsToTheirBridges), each solved and kept while it fits better. 0: none.
+  int seeded_max_turn_rounds = 4;
 
   bool Check(std::string* error) const;
 };
@@ -242,6 +246,14 @@ class PoseGraph {
       int64_t from, int64_t to,
       const std::function<Eigen::Matrix<double, 6, 6>(size_t edge)>& edge_covariance,
       double lever_m) const;
+  // The edges (indices into Edges(), in order from `from` to `to`) of that path: PathCovariance's
+  // choice. Empty when from == to, nullopt when no active path joins them.
+  std::optional<std::vector<size_t>> FirmestPath(
+      int64_t from, int64_t to,
+      const std::function<Eigen::Matrix<double, 6, 6>(size_t edge)>& edge_covariance,
+      double lever_m) const;
+  // Pose `id`'s rotation prior (SetRotationPrior), or null.
+  const RotationPrior* RotationPriorOf(int64_t id) const;
 
  private:
   struct Node {

@@ -1,17 +1,25 @@
 #include "slam/pose_seed.h"
 
 #include <algorithm>
+#include <functional>
+#include <map>
+#include <optional>
 
 #include <Eigen/SVD>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
 #include "core/check.h"
+#include "core/rotation.h"
+#include "slam/manhattan_frame.h"
+#include "slam/pose_graph_stages.h"
 
 namespace sightmap::slam {
 namespace {
 
 constexpr size_t kNone = static_cast<size_t>(-1);
+// SeedPoses' default anchor: positions no edge fixes keep their estimate.
+constexpr double kTranslationAnchorWeight = 1e-6;
 
 // The normal equations of sum |A_from x_from + A_to x_to - c|^2_W over 3-vector unknowns, with
 // `cols` right-hand sides solved at once (x and c are 3 x cols).
@@ -154,6 +162,40 @@ std::vector<size_t> Unknowns(size_t poses, const std::vector<bool>& held,
   return unknown;
 }
 
+// The rigid parts the edges other than bridging ones make, over the poses any edge touches.
+struct Parts {
+  std::vector<std::vector<size_t>> members;  // each part's poses, in index order
+  std::vector<size_t> of;                    // each pose's part (kNone: no edge touches it)
+  std::vector<size_t> by_size;               // parts, largest first (the first of equals first)
+};
+
+// The parts `joined` makes of the poses any edge touches.
+Parts PartsOf(size_t poses, const std::vector<SeedEdge>& edges,
+              const std::function<bool(const SeedEdge&)>& joined) {
+  internal::Components components(poses);
+  std::vector<bool> touched(poses, false);
+  for (const SeedEdge& edge : edges) {
+    touched[edge.from] = touched[edge.to] = true;
+    if (joined(edge)) components.Join(edge.from, edge.to);
+  }
+  Parts parts;
+  parts.of.assign(poses, kNone);
+  std::map<size_t, size_t> part_of_root;
+  for (size_t i = 0; i < poses; ++i) {
+    if (!touched[i]) continue;
+    const auto [it, inserted] = part_of_root.try_emplace(components.Find(i), parts.members.size());
+    if (inserted) parts.members.emplace_back();
+    parts.members[it->second].push_back(i);
+    parts.of[i] = it->second;
+  }
+  parts.by_size.resize(parts.members.size());
+  for (size_t k = 0; k < parts.by_size.size(); ++k) parts.by_size[k] = k;
+  std::stable_sort(parts.by_size.begin(), parts.by_size.end(), [&](size_t a, size_t b) {
+    return parts.members[a].size() > parts.members[b].size();
+  });
+  return parts;
+}
+
 }  // namespace
 
 std::vector<Eigen::Isometry3d> SeedPoses(const std::vector<Eigen::Isometry3d>& initial,
@@ -171,6 +213,101 @@ std::vector<Eigen::Isometry3d> SeedPoses(const std::vector<Eigen::Isometry3d>& i
   for (size_t k = 0; k < pose_of.size(); ++k) seeded[pose_of[k]].linear() = rotations[k];
   SolveTranslations(unknown, pose_of, edges, anchor_weight, &seeded);
   return seeded;
+}
+
+std::vector<Eigen::Isometry3d> TurnPartsToTheirBridges(const std::vector<Eigen::Isometry3d>& poses,
+                                                       const std::vector<bool>& held,
+                                                       const std::vector<SeedEdge>& edges,
+                                                       const Eigen::Matrix3d& world_from_axes,
+                                                       double max_deviation_rad,
+                                                       int* turned_parts) {
+  SIGHTMAP_CHECK(held.size() == poses.size(), "one held flag a pose");
+  SIGHTMAP_CHECK(max_deviation_rad >= 0.0 && max_deviation_rad < kPi / 4.0,
+                 "max_deviation_rad must be in [0, pi/4), got " << max_deviation_rad);
+  if (turned_parts != nullptr) *turned_parts = 0;
+  std::vector<size_t> pose_of;
+  const std::vector<size_t> unknown = Unknowns(poses.size(), held, edges, &pose_of);
+  std::vector<Eigen::Isometry3d> turned = poses;
+  std::vector<Eigen::Matrix3d> turns;
+  size_t identity = 0;
+  for (const Eigen::Matrix3d& symmetry : ManhattanSymmetries()) {
+    if (symmetry.isIdentity()) identity = turns.size();
+    turns.push_back(world_from_axes * symmetry * world_from_axes.transpose());
+  }
+  // The turn a bridge says its `inside` end's part needs, given the other end's part's turn.
+  const auto vote = [&](const SeedEdge& bridge, bool to_inside,
+                        const Eigen::Matrix3d& outside_turn) -> std::optional<size_t> {
+    const size_t inside = to_inside ? bridge.to : bridge.from;
+    const size_t outside = to_inside ? bridge.from : bridge.to;
+    const Eigen::Matrix3d inside_in_outside =
+        to_inside ? Eigen::Matrix3d(bridge.to_in_from.linear())
+                  : Eigen::Matrix3d(bridge.to_in_from.linear().transpose());
+    const Eigen::Matrix3d needed = outside_turn * poses[outside].linear() * inside_in_outside *
+                                   poses[inside].linear().transpose();
+    for (size_t t = 0; t < turns.size(); ++t) {
+      if (Eigen::AngleAxisd(needed * turns[t].transpose()).angle() <= max_deviation_rad) return t;
+    }
+    return std::nullopt;
+  };
+  // Rigid parts, and those joined by a bridge that agrees with them as they are taken as one:
+  // a part that sits a quarter turn off drags the small parts bridged to it along, and they
+  // would outvote its one bridge to the rest.
+  const Parts parts = PartsOf(poses.size(), edges, [&](const SeedEdge& edge) {
+    return !edge.bridging || vote(edge, true, Eigen::Matrix3d::Identity()) == identity;
+  });
+  if (parts.members.size() < 2) return turned;
+  // From the largest part outwards: of the parts bridged to those already placed, the largest
+  // next, taking the turn most of its bridges to placed parts ask for (no turn on a tie). Votes
+  // of parts not yet placed would let a small part a quarter turn off turn a larger one its way.
+  std::vector<size_t> label(parts.members.size(), identity);
+  std::vector<bool> placed(parts.members.size(), false);
+  placed[parts.by_size.front()] = true;
+  for (;;) {
+    size_t next = kNone;
+    for (const size_t part : parts.by_size) {
+      if (placed[part]) continue;
+      const bool bridged = std::any_of(edges.begin(), edges.end(), [&](const SeedEdge& edge) {
+        const size_t a = parts.of[edge.from], b = parts.of[edge.to];
+        return edge.bridging && ((a == part && placed[b]) || (b == part && placed[a]));
+      });
+      if (bridged) {
+        next = part;
+        break;
+      }
+    }
+    if (next == kNone) break;
+    std::vector<int> votes(turns.size(), 0);
+    for (const SeedEdge& edge : edges) {
+      const size_t from_part = parts.of[edge.from], to_part = parts.of[edge.to];
+      if (!edge.bridging || (from_part != next && to_part != next)) continue;
+      const bool to_inside = to_part == next;
+      const size_t other = to_inside ? from_part : to_part;
+      if (other == next || !placed[other]) continue;
+      if (const std::optional<size_t> t = vote(edge, to_inside, turns[label[other]])) ++votes[*t];
+    }
+    for (size_t t = 0; t < turns.size(); ++t) {
+      if (votes[t] > votes[label[next]]) label[next] = t;
+    }
+    placed[next] = true;
+  }
+  // Each turned part turns about its first pose; then every position is solved again with the
+  // rotations held, so that the bridges place the turned parts.
+  int turned_count = 0;
+  for (size_t part = 0; part < parts.members.size(); ++part) {
+    if (label[part] == identity) continue;
+    ++turned_count;
+    const Eigen::Matrix3d& turn = turns[label[part]];
+    const Eigen::Vector3d pivot = poses[parts.members[part].front()].translation();
+    for (const size_t i : parts.members[part]) {
+      turned[i].linear() = turn * poses[i].linear();
+      turned[i].translation() = pivot + turn * (poses[i].translation() - pivot);
+    }
+  }
+  if (turned_parts != nullptr) *turned_parts = turned_count;
+  if (turned_count > 0 && !pose_of.empty()) {
+    SolveTranslations(unknown, pose_of, edges, kTranslationAnchorWeight, &turned);
+  }
+  return turned;
 }
 
 }  // namespace sightmap::slam

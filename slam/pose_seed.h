@@ -26,6 +26,9 @@ struct SeedEdge {
   double rotation_weight = 0.0;
   // Inverse covariance of the translation error R_from^T (t_to - t_from) - M.t [1/m^2].
   Eigen::Matrix3d translation_information = Eigen::Matrix3d::Zero();
+  // A motion-model link across a blind stretch (LinkType::kPrior): it joins rigid parts of the
+  // map that registered links do not.
+  bool bridging = false;
 };
 
 // `initial` gives every pose's estimate, `held` the poses kept as they are (at least one in every
@@ -37,5 +40,22 @@ std::vector<Eigen::Isometry3d> SeedPoses(const std::vector<Eigen::Isometry3d>& i
                                          const std::vector<bool>& held,
                                          const std::vector<SeedEdge>& edges,
                                          double anchor_weight = 1e-6);
+
+// A solution whose rigid parts (poses joined by edges other than bridging ones) may sit a
+// quarter turn off: a part joined to the rest only by blind links, left 45-70 degrees off by
+// earlier solves, has its axes priors named a quarter turn off and held there, while the
+// bridging links that say otherwise are few and under a robust loss. Each part but the largest
+// takes one of the building's axes' symmetries (world_from_axes S world_from_axes^T, S one of
+// ManhattanSymmetries) as a turn: the one most of its bridging edges ask for within
+// max_deviation_rad (< 45 degrees), given the other parts' turns, keeping its own on a tie
+// (iterated from no turn until none changes). Turned parts turn about their first pose, and then
+// every position not `held` is solved again with the rotations held. `turned_parts` (may be null)
+// gets how many parts turned; none: the poses come back as they were.
+std::vector<Eigen::Isometry3d> TurnPartsToTheirBridges(const std::vector<Eigen::Isometry3d>& poses,
+                                                       const std::vector<bool>& held,
+                                                       const std::vector<SeedEdge>& edges,
+                                                       const Eigen::Matrix3d& world_from_axes,
+                                                       double max_deviation_rad,
+                                                       int* turned_parts = nullptr);
 
 }  // namespace sightmap::slam

@@ -83,5 +83,66 @@ TEST(PoseSeed, PosesNoEdgeTouchesAndHeldPosesStay) {
   EXPECT_LT((seeded[2].translation() - truth[2].translation()).norm(), 1e-3);
 }
 
+// The room walk's four sides as rigid parts (registered edges within a side), joined at the
+// corners by bridging edges; `turn_deg` turns the side {4, 5} about the vertical (camera y) round
+// pose 4, and `wrong_bridge` makes the corner edge 3 -> 4 measure a quarter turn too.
+struct SidesAndCorners {
+  std::vector<Eigen::Isometry3d> truth = RoomWalk();
+  std::vector<Eigen::Isometry3d> estimates;
+  std::vector<SeedEdge> edges;
+  std::vector<bool> held = std::vector<bool>(8, false);
+
+  SidesAndCorners(double turn_deg, bool wrong_bridge) {
+    Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+    turn.linear() =
+        Eigen::AngleAxisd(DegToRad(turn_deg), Eigen::Vector3d::UnitY()).toRotationMatrix();
+    turn.translation() = truth[4].translation() - turn.linear() * truth[4].translation();
+    held[0] = true;
+    estimates = truth;
+    estimates[4] = turn * truth[4];
+    estimates[5] = turn * truth[5];
+    for (size_t side = 0; side < 4; ++side) {
+      edges.push_back(Between(truth, 2 * side, 2 * side + 1, 1.0, 0.01));
+      SeedEdge corner = Between(truth, 2 * side + 1, (2 * side + 2) % 8, 15.0, 0.2);
+      corner.bridging = true;
+      if (wrong_bridge && side == 1) {
+        corner.to_in_from.linear() =
+            corner.to_in_from.linear() *
+            Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+      }
+      edges.push_back(corner);
+    }
+  }
+};
+
+TEST(PoseSeed, APartAQuarterTurnFromBothItsBridgesIsTurnedBack) {
+  const SidesAndCorners walk(90.0, false);
+  int turned_parts = -1;
+  const std::vector<Eigen::Isometry3d> turned =
+      TurnPartsToTheirBridges(walk.estimates, walk.held, walk.edges, Eigen::Matrix3d::Identity(),
+                              DegToRad(30.0), &turned_parts);
+  EXPECT_EQ(turned_parts, 1);
+  for (size_t i = 0; i < walk.truth.size(); ++i) {
+    EXPECT_LT(AngleDeg(turned[i].linear(), walk.truth[i].linear()), 1e-6) << i;
+    EXPECT_LT((turned[i].translation() - walk.truth[i].translation()).norm(), 1e-6) << i;
+  }
+}
+
+TEST(PoseSeed, APartTurnsOnlyWhenMostOfItsBridgesSaySo) {
+  // Right where it is, one bridge of two says turn: a tie, no turn.
+  int turned_parts = -1;
+  const SidesAndCorners right(0.0, true);
+  const std::vector<Eigen::Isometry3d> kept =
+      TurnPartsToTheirBridges(right.estimates, right.held, right.edges, Eigen::Matrix3d::Identity(),
+                              DegToRad(30.0), &turned_parts);
+  EXPECT_EQ(turned_parts, 0);
+  EXPECT_LT(AngleDeg(kept[4].linear(), right.truth[4].linear()), 1e-6);
+  // Turned 50 degrees: no naming of the axes lies within 30 degrees of what its bridges say.
+  const SidesAndCorners between(50.0, false);
+  TurnPartsToTheirBridges(between.estimates, between.held, between.edges,
+                          Eigen::Matrix3d::Identity(), DegToRad(30.0), &turned_parts);
+  EXPECT_EQ(turned_parts, 0);
+}
+
 }  // namespace
 }  // namespace sightmap::slam
