@@ -258,7 +258,8 @@ std::vector<Eigen::Isometry3d> TurnPartsToTheirBridges(const std::vector<Eigen::
   if (parts.members.size() < 2) return turned;
   // From the largest part outwards: of the parts bridged to those already placed, the largest
   // next, taking the turn most of its bridges to placed parts ask for (no turn on a tie). Votes
-  // of parts not yet placed would let a small part a quarter turn off turn a larger one its way.
+  // of parts not yet placed would let a small part a quarter turn off turn a larger one its way
+  // (and starting from a small part, as the one holding the map's first pose, does the same).
   std::vector<size_t> label(parts.members.size(), identity);
   std::vector<bool> placed(parts.members.size(), false);
   placed[parts.by_size.front()] = true;
@@ -289,6 +290,21 @@ std::vector<Eigen::Isometry3d> TurnPartsToTheirBridges(const std::vector<Eigen::
       if (votes[t] > votes[label[next]]) label[next] = t;
     }
     placed[next] = true;
+  }
+  // The part holding the first held pose keeps the map's frame: when it is to turn, everything
+  // turns back by as much instead (the turns are a group, so each stays one of them).
+  const auto first_held = std::find(held.begin(), held.end(), true);
+  if (first_held != held.end()) {
+    const size_t held_part = parts.of[static_cast<size_t>(first_held - held.begin())];
+    if (held_part != kNone && label[held_part] != identity) {
+      const Eigen::Matrix3d back = turns[label[held_part]].transpose();
+      for (size_t& part_label : label) {
+        const Eigen::Matrix3d turn = back * turns[part_label];
+        for (size_t t = 0; t < turns.size(); ++t) {
+          if (turns[t].isApprox(turn, 1e-6)) part_label = t;
+        }
+      }
+    }
   }
   // Each turned part turns about its first pose; then every position is solved again with the
   // rotations held, so that the bridges place the turned parts.

@@ -44,13 +44,14 @@ std::vector<Eigen::Isometry3d> SeedPoses(const std::vector<Eigen::Isometry3d>& i
 // A solution whose rigid parts (poses joined by edges other than bridging ones) may sit a
 // quarter turn off: a part joined to the rest only by blind links, left 45-70 degrees off by
 // earlier solves, has its axes priors named a quarter turn off and held there, while the
-// bridging links that say otherwise are few and under a robust loss. Each part but the largest
-// takes one of the building's axes' symmetries (world_from_axes S world_from_axes^T, S one of
-// ManhattanSymmetries) as a turn: the one most of its bridging edges ask for within
-// max_deviation_rad (< 45 degrees), given the other parts' turns, keeping its own on a tie
-// (iterated from no turn until none changes). Turned parts turn about their first pose, and then
-// every position not `held` is solved again with the rotations held. `turned_parts` (may be null)
-// gets how many parts turned; none: the poses come back as they were.
+// bridging links that say otherwise are few and under a robust loss. Parts whose bridges agree
+// with them as they are count as one; from the largest outwards, each next-largest part bridged
+// to those placed takes the symmetry of the building's axes (world_from_axes S
+// world_from_axes^T, S one of ManhattanSymmetries) that most of those bridges ask for within
+// max_deviation_rad (< 45 degrees), no turn on a tie. The part holding the first `held` pose
+// keeps its place (all turn back by its turn instead). Turned parts turn about their first pose,
+// and every position not `held` is then solved again with the rotations held. `turned_parts`
+// (may be null) gets how many parts turned; none: the poses come back as they were.
 std::vector<Eigen::Isometry3d> TurnPartsToTheirBridges(const std::vector<Eigen::Isometry3d>& poses,
                                                        const std::vector<bool>& held,
                                                        const std::vector<SeedEdge>& edges,

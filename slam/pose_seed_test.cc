@@ -128,6 +128,27 @@ TEST(PoseSeed, APartAQuarterTurnFromBothItsBridgesIsTurnedBack) {
   }
 }
 
+// Held in the part that is off, pose 4 keeps the map's frame: the rest turns to it instead.
+TEST(PoseSeed, APartHoldingAHeldPoseIsNotTurned) {
+  SidesAndCorners walk(90.0, false);
+  walk.held.assign(8, false);
+  walk.held[4] = true;
+  int turned_parts = -1;
+  const std::vector<Eigen::Isometry3d> turned =
+      TurnPartsToTheirBridges(walk.estimates, walk.held, walk.edges, Eigen::Matrix3d::Identity(),
+                              DegToRad(30.0), &turned_parts);
+  EXPECT_EQ(turned_parts, 1);
+  EXPECT_TRUE(turned[4].isApprox(walk.estimates[4]));
+  // The whole walk as the truth, moved rigidly to where pose 4 is held; positions to a centimetre
+  // or so (the rest turned about pose 0 lands metres from there, and the solve keeps a faint
+  // anchor to where a pose was).
+  const Eigen::Isometry3d frame = walk.estimates[4] * walk.truth[4].inverse();
+  for (size_t i = 0; i < walk.truth.size(); ++i) {
+    EXPECT_LT(AngleDeg(turned[i].linear(), (frame * walk.truth[i]).linear()), 1e-6) << i;
+    EXPECT_LT((turned[i].translation() - (frame * walk.truth[i]).translation()).norm(), 0.03) << i;
+  }
+}
+
 TEST(PoseSeed, APartTurnsOnlyWhenMostOfItsBridgesSaySo) {
   // Right where it is, one bridge of two says turn: a tie, no turn.
   int turned_parts = -1;
