@@ -208,9 +208,9 @@ struct MapperOptions {
   // next keyframe that sees them and that loop scores 87-129 (seeds 5, 11). Judged only when the
   // chain's rotation sigma at the loop's end is within loop_axes_max_sigma_deg: farther, the
   // linearised test means nothing (right loops 79 degrees off with a 69-degree sigma scored
-  // 60-270). 0: no check [deg].
-  double loop_max_axes_chi2 = 60.0;
-  double loop_axes_max_sigma_deg = 40.0;
+  // 60-270).
+  double loop_max_axes_chi2 = 60.0;       // 0: no check
+  double loop_axes_max_sigma_deg = 40.0;  // [deg]
   AxesChainOptions loop_axes;
   // Registration's information matrix assumes independent depth errors and so claims sub-millimetre
   // precision from a few hundred inliers; systematic errors (depth bias, calibration) do not shrink
