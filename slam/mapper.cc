@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <set>
 #include <utility>
 
@@ -858,14 +859,25 @@ void Mapper::IndexKeyframe(Keyframe& keyframe) {
   keyframe.indexed = true;
 }
 
-double Mapper::LoopChi2(const MapperLink& loop) const {
+std::function<Eigen::Matrix<double, 6, 6>(size_t edge)> Mapper::LoopCheckEdgeCovariance() const {
   const Eigen::Matrix<double, 6, 6> floor =
       DiagonalCovariance(options_.loop_check_link_sigma_m, options_.loop_check_link_sigma_rad);
-  const std::optional<Eigen::Matrix<double, 6, 6>> path = graph_.PathCovariance(
-      loop.from, loop.to,
-      [&](size_t edge) { return CovarianceOf(graph_.Edges()[edge].information) + floor; },
-      options_.loop_check_lever_m);
-  if (!path) return 0.0;  // nothing ties them: the graph has no opinion
+  return [this, floor](size_t edge) {
+    return Eigen::Matrix<double, 6, 6>(CovarianceOf(graph_.Edges()[edge].information) + floor);
+  };
+}
+
+std::optional<std::vector<size_t>> Mapper::LoopCheckPath(const MapperLink& loop) const {
+  return graph_.FirmestPath(loop.from, loop.to, LoopCheckEdgeCovariance(),
+                            options_.loop_check_lever_m);
+}
+
+double Mapper::LoopChi2(const MapperLink& loop) const {
+  const std::optional<std::vector<size_t>> path = LoopCheckPath(loop);
+  return path ? LoopChi2On(loop, *path) : 0.0;  // no path: the graph has no opinion
+}
+
+double Mapper::LoopChi2On(const MapperLink& loop, const std::vector<size_t>& path) const {
   // The loop's pose against the graph's, M E^-1 in `from`'s frame. Not quite the pose graph's
   // edge error r (E = Exp(r) M, whose translation is this one's negated and turned by R(w)): the
   // two differ where the loop turns the graph far, and with r the 1 Hz walks let look-alike loops
@@ -875,22 +887,20 @@ double Mapper::LoopChi2(const MapperLink& loop) const {
       graph_.Pose(loop.from).inverse() * graph_.Pose(loop.to);
   const Eigen::Matrix<double, 6, 1> error = LogSe3(loop.to_in_from * graph_to_in_from.inverse());
   const Eigen::Matrix<double, 6, 6> covariance =
-      *path + CovarianceOf(loop.information) +
+      graph_.PathCovariance(loop.from, path, LoopCheckEdgeCovariance()) +
+      CovarianceOf(loop.information) +
       DiagonalCovariance(options_.loop_check_slack_m, options_.loop_check_slack_rad);
   return error.dot(covariance.ldlt().solve(error));
 }
 
 double Mapper::LoopChi2AlongAxes(const MapperLink& loop) const {
-  const Eigen::Matrix<double, 6, 6> floor =
-      DiagonalCovariance(options_.loop_check_link_sigma_m, options_.loop_check_link_sigma_rad);
-  const auto edge_covariance = [&](size_t edge) {
-    return Eigen::Matrix<double, 6, 6>(CovarianceOf(graph_.Edges()[edge].information) + floor);
-  };
-  const std::optional<std::vector<size_t>> path =
-      graph_.FirmestPath(loop.from, loop.to, edge_covariance, options_.loop_check_lever_m);
-  if (!path) return 0.0;
+  const std::optional<std::vector<size_t>> path = LoopCheckPath(loop);
+  return path ? LoopChi2AlongAxesOn(loop, *path) : 0.0;
+}
+
+double Mapper::LoopChi2AlongAxesOn(const MapperLink& loop, const std::vector<size_t>& path) const {
   const AxesChain chain =
-      ChainAlongAxes(graph_, loop.from, *path, edge_covariance, options_.loop_axes);
+      ChainAlongAxes(graph_, loop.from, path, LoopCheckEdgeCovariance(), options_.loop_axes);
   const double end_sigma_rad = std::sqrt(chain.covariance.bottomRightCorner<3, 3>().trace());
   if (end_sigma_rad > DegToRad(options_.loop_axes_max_sigma_deg)) return 0.0;
   Eigen::Matrix<double, 6, 1> error;
@@ -908,11 +918,14 @@ double Mapper::LoopChi2AlongAxes(const MapperLink& loop) const {
 }
 
 bool Mapper::LoopFitsTheGraph(const MapperLink& loop) const {
-  if (options_.loop_max_graph_chi2 > 0.0 && LoopChi2(loop) > options_.loop_max_graph_chi2) {
-    return false;
-  }
-  return !(options_.loop_max_axes_chi2 > 0.0) ||
-         LoopChi2AlongAxes(loop) <= options_.loop_max_axes_chi2;
+  const bool graph_check = options_.loop_max_graph_chi2 > 0.0;
+  const bool axes_check = options_.loop_max_axes_chi2 > 0.0;
+  if (!graph_check && !axes_check) return true;
+  // One path search serves both checks.
+  const std::optional<std::vector<size_t>> path = LoopCheckPath(loop);
+  if (!path) return true;  // nothing ties them: neither check has an opinion
+  if (graph_check && LoopChi2On(loop, *path) > options_.loop_max_graph_chi2) return false;
+  return !axes_check || LoopChi2AlongAxesOn(loop, *path) <= options_.loop_max_axes_chi2;
 }
 
 bool Mapper::SearchPlaces(Keyframe& keyframe, KeyframeReport* report) {

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -504,6 +505,13 @@ class Mapper {
   void IndexKeyframe(Keyframe& keyframe);
   // Whether a loop's disagreement with the graph is within MapperOptions::loop_max_graph_chi2.
   bool LoopFitsTheGraph(const MapperLink& loop) const;
+  // What both loop checks chain along: each link's covariance plus loop_check_link_sigma_*, and
+  // the firmest path between the loop's keyframes by it (nullopt: nothing ties them).
+  std::function<Eigen::Matrix<double, 6, 6>(size_t edge)> LoopCheckEdgeCovariance() const;
+  std::optional<std::vector<size_t>> LoopCheckPath(const MapperLink& loop) const;
+  // LoopChi2 and LoopChi2AlongAxes on that path.
+  double LoopChi2On(const MapperLink& loop, const std::vector<size_t>& path) const;
+  double LoopChi2AlongAxesOn(const MapperLink& loop, const std::vector<size_t>& path) const;
   // Looks up `keyframe` for loop closures (same segment) or relocalisation (other segments);
   // true when it joined two segments.
   bool SearchPlaces(Keyframe& keyframe, KeyframeReport* report);

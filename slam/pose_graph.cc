@@ -782,11 +782,18 @@ std::optional<Matrix6d> PoseGraph::PathCovariance(
     double lever_m) const {
   const std::optional<std::vector<size_t>> path = FirmestPath(from, to, edge_covariance, lever_m);
   if (!path) return std::nullopt;
+  return PathCovariance(from, *path, edge_covariance);
+}
+
+Matrix6d PoseGraph::PathCovariance(
+    int64_t from, const std::vector<size_t>& path,
+    const std::function<Matrix6d(size_t edge)>& edge_covariance) const {
   // Chained from `from` outwards: T_from_to = T_from_a T_a_b ...; an edge error r_ab in a's frame
   // reaches `from`'s frame through the adjoint of T_from_a (AdjointSe3).
   const Eigen::Isometry3d from_world = Pose(from).inverse();
   Matrix6d total = Matrix6d::Zero();
-  for (const size_t e : *path) {
+  for (const size_t e : path) {
+    SIGHTMAP_CHECK(e < edges_.size(), "edge index " << e << " is out of range");
     const PoseGraphEdge& edge = edges_[e];
     // The edge's error lives in its `from` pose's frame, whichever way the path runs through it.
     const Matrix6d adjoint = AdjointSe3(from_world * Pose(edge.from));

@@ -246,6 +246,10 @@ class PoseGraph {
       int64_t from, int64_t to,
       const std::function<Eigen::Matrix<double, 6, 6>(size_t edge)>& edge_covariance,
       double lever_m) const;
+  // The same chained along `path` (FirmestPath's edges from `from`).
+  Eigen::Matrix<double, 6, 6> PathCovariance(
+      int64_t from, const std::vector<size_t>& path,
+      const std::function<Eigen::Matrix<double, 6, 6>(size_t edge)>& edge_covariance) const;
   // The edges (indices into Edges(), in order from `from` to `to`) of that path: PathCovariance's
   // choice. Empty when from == to, nullopt when no active path joins them.
   std::optional<std::vector<size_t>> FirmestPath(
