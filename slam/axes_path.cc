@@ -113,17 +113,8 @@ AxesChain ChainAlongAxes(const PoseGraph& graph, int64_t from, const std::vector
     if (drift_sigma > max_drift_rad) continue;
     // The anchor sees the axes as A, this pose as C: this pose in the anchor's frame turns by
     // A S C^T for one of the namings S.
-    Eigen::Matrix3d nearest = rotation;
-    double nearest_angle = max_snap_rad;
-    for (const Eigen::Matrix3d& symmetry : ManhattanSymmetries()) {
-      const Eigen::Matrix3d candidate =
-          anchor_rotation * anchor->cam_from_axes * symmetry * prior->cam_from_axes.transpose();
-      const double angle = Eigen::AngleAxisd(candidate * rotation.transpose()).angle();
-      if (angle <= nearest_angle) {
-        nearest = candidate;
-        nearest_angle = angle;
-      }
-    }
+    const auto [nearest, nearest_angle] = NearestManhattanRotation(
+        anchor_rotation * anchor->cam_from_axes, prior->cam_from_axes, rotation);
     if (nearest_angle >= max_snap_rad) continue;
     rotation = nearest;
     CopyRotationError(kAnchor, kRotation, &covariance);
