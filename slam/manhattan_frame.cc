@@ -10,11 +10,9 @@
 #include "core/rotation.h"
 
 namespace sightmap::slam {
-namespace {
 
-// Unit normals of the depth image's locally planar patches, facing the camera.
-std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrinsics& camera,
-                                          const ManhattanOptions& options) {
+std::vector<PlanePatch> PlanePatches(const cv::Mat& depth_mm, const Intrinsics& camera,
+                                     const ManhattanOptions& options) {
   const int step = options.grid_step_px;
   const int rows = depth_mm.rows / step;
   const int cols = depth_mm.cols / step;
@@ -33,8 +31,8 @@ std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrins
     }
   }
   const int k = options.normal_span_cells;
-  std::vector<Eigen::Vector3d> normals;
-  normals.reserve(points.size());
+  std::vector<PlanePatch> patches;
+  patches.reserve(points.size());
   const double min_incidence_cos = std::cos(DegToRad(options.max_incidence_deg));
   auto at = [&](int r, int c) { return static_cast<size_t>(r) * cols + c; };
   for (int r = k; r + k < rows; ++r) {
@@ -58,8 +56,20 @@ std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrins
       if (normal.dot(points[centre]) > 0.0) normal = -normal;
       // Seen edge-on, a plane's disparity steps are long and its normals lean towards the ray.
       if (-normal.dot(points[centre].normalized()) < min_incidence_cos) continue;
-      normals.push_back(normal);
+      patches.push_back({normal, points[centre]});
     }
+  }
+  return patches;
+}
+
+namespace {
+
+// Unit normals of the depth image's locally planar patches, facing the camera.
+std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrinsics& camera,
+                                          const ManhattanOptions& options) {
+  std::vector<Eigen::Vector3d> normals;
+  for (const PlanePatch& patch : PlanePatches(depth_mm, camera, options)) {
+    normals.push_back(patch.normal);
   }
   return normals;
 }

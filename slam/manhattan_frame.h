@@ -74,6 +74,19 @@ struct ManhattanFit {
 std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Intrinsics& camera,
                                               const ManhattanOptions& options);
 
+// A small plane patch a depth image shows: its unit normal (facing the camera) and its centre
+// point, in the camera frame.
+struct PlanePatch {
+  Eigen::Vector3d normal;
+  Eigen::Vector3d point;
+};
+
+// The depth image's plane patches on a grid of `grid_step_px`, each fitted over
+// `normal_span_cells` cells to either side, within `max_depth_m`, not at an edge or a corner
+// (`max_planarity_error`) nor seen edge-on (`max_incidence_deg`). Depth as FitManhattanFrame's.
+std::vector<PlanePatch> PlanePatches(const cv::Mat& depth_mm, const Intrinsics& camera,
+                                     const ManhattanOptions& options);
+
 // The 24 proper rotations that map the coordinate axes onto themselves (with signs).
 const std::vector<Eigen::Matrix3d>& ManhattanSymmetries();
 

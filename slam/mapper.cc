@@ -78,9 +78,11 @@ bool MapperOptions::Check(std::string* error) const {
     return false;
   };
   if (!CheckOrbFeatures(features, error) || !registration.Check(error) ||
-      !vocabulary.Check(error) || !pose_graph.Check(error) || !manhattan.Check(error)) {
+      !vocabulary.Check(error) || !pose_graph.Check(error) || !manhattan.Check(error) ||
+      !wall_ties.Check(error)) {
     return false;
   }
+  if (wall_tie_rounds < 0) return fail("wall_tie_rounds must not be negative (0: off)");
   if (bridge_frame != "camera" && bridge_frame != "world") {
     return fail("bridge_frame must be \"camera\" or \"world\"");
   }
@@ -367,15 +369,26 @@ void Mapper::AddGraphPose(int64_t id, const Eigen::Isometry3d& world_from_cam) {
   if (keyframes_.empty()) graph_.SetFixed(id, true);
 }
 
-std::optional<Eigen::Matrix3d> Mapper::MeasureAxes(const cv::Mat& depth_mm) const {
-  if (!(options_.manhattan_sigma_deg > 0.0)) return std::nullopt;
+ManhattanOptions Mapper::ManhattanOptionsFor(const cv::Mat& depth_mm) const {
   // A restored or tracked keyframe's small depth holds the same samples on a coarser grid.
   ManhattanOptions options = options_.manhattan;
   options.grid_step_px = std::max(1, options.grid_step_px * depth_mm.cols / camera_.width);
-  const std::optional<ManhattanFit> fit =
-      FitManhattanFrame(depth_mm, camera_.Scaled(depth_mm.cols, depth_mm.rows), options);
-  if (!fit) return std::nullopt;
-  return fit->cam_from_manhattan;
+  return options;
+}
+
+void Mapper::MeasureAxesAndWalls(const cv::Mat& depth_mm, Keyframe* keyframe) const {
+  keyframe->cam_from_axes.reset();
+  keyframe->planes.clear();
+  if (!(options_.manhattan_sigma_deg > 0.0)) return;
+  const ManhattanOptions options = ManhattanOptionsFor(depth_mm);
+  const Intrinsics camera = camera_.Scaled(depth_mm.cols, depth_mm.rows);
+  const std::optional<ManhattanFit> fit = FitManhattanFrame(depth_mm, camera, options);
+  if (!fit) return;
+  keyframe->cam_from_axes = fit->cam_from_manhattan;
+  if (options_.wall_tie_rounds > 0) {
+    keyframe->planes =
+        FindAxisPlanes(depth_mm, camera, fit->cam_from_manhattan, options, options_.wall_ties);
+  }
 }
 
 void Mapper::AddRotationPrior(const Keyframe& keyframe) {
@@ -469,7 +482,7 @@ KeyframeReport Mapper::AddKeyframe(TimestampNs timestamp_ns, const cv::Mat& colo
   Keyframe keyframe = MakeKeyframe(timestamp_ns, color, depth_mm, &report);
   // Only keyframes the graph places need the axes: a known pose is never optimised.
   const Clock::time_point axes_stage = Clock::now();
-  keyframe.cam_from_axes = MeasureAxes(depth_mm);
+  MeasureAxesAndWalls(depth_mm, &keyframe);
   report.times.features_s += SecondsSince(axes_stage);
   Insert(std::move(keyframe), nullptr, &report);
   report.times.total_s = SecondsSince(start);
@@ -498,8 +511,8 @@ KeyframeReport Mapper::AddTrackedKeyframe(TrackedKeyframe tracked) {
     report.times.dense_s += SecondsSince(stage);
   }
   const Clock::time_point axes_stage = Clock::now();
-  keyframe.cam_from_axes =
-      MeasureAxes(tracked.frame.depth.empty() ? tracked.depth_small : tracked.frame.depth);
+  MeasureAxesAndWalls(tracked.frame.depth.empty() ? tracked.depth_small : tracked.frame.depth,
+                      &keyframe);
   report.times.features_s += SecondsSince(axes_stage);
   report.id = keyframe.id;
   report.features = static_cast<int>(keyframe.features.size());
@@ -781,7 +794,7 @@ int64_t Mapper::RestoreKeyframe(TimestampNs timestamp_ns, Features features,
   if (options_.dense_refinement && !color.empty() && depth_mm.size() == color.size()) {
     keyframe.dense = MakeDenseImage(color, depth_mm, camera_, options_.dense);
   }
-  keyframe.cam_from_axes = MeasureAxes(depth_mm);
+  MeasureAxesAndWalls(depth_mm, &keyframe);
   keyframe.segment = static_cast<int>(segment_parent_.size());
   segment_parent_.push_back(keyframe.segment);
   AddGraphPose(keyframe.id, world_from_cam);
@@ -828,12 +841,54 @@ KeyframeReport Mapper::OptimiseWhole() {
       Optimise(keyframe.id, &report, options_.seeded_final_solve);
     }
   }
+  for (int round = 0; round < options_.wall_tie_rounds; ++round) {
+    // Only within a segment: unjoined segments' poses are in frames of their own.
+    std::vector<PlaneTie> ties;
+    for (const auto& [root, sightings] : PlaneSightingsOfParts()) {
+      const std::vector<PlaneTie> tied =
+          TieWalls(sightings, graph_.WorldFromAxes(), options_.wall_ties);
+      ties.insert(ties.end(), tied.begin(), tied.end());
+    }
+    graph_.SetPlaneTies(std::move(ties));
+    if (graph_.NumPlaneTies() == 0) break;
+    roots.clear();
+    for (const Keyframe& keyframe : keyframes_) {
+      if (roots.insert(Root(keyframe.segment)).second) Optimise(keyframe.id, &report, false);
+    }
+  }
   const Keyframe& newest = keyframes_.back();
   report.id = newest.id;
   report.segment = SegmentOf(newest.id);
   report.state = state_;
   report.world_from_cam = graph_.Pose(newest.id);
   return report;
+}
+
+std::map<int, std::vector<PlaneSightings>> Mapper::PlaneSightingsOfParts() const {
+  // Rigid parts: keyframes joined by active registered links (not the motion model's priors).
+  std::map<int64_t, size_t> index_of;
+  for (size_t i = 0; i < keyframes_.size(); ++i) index_of[keyframes_[i].id] = i;
+  std::vector<size_t> parent(keyframes_.size());
+  for (size_t i = 0; i < parent.size(); ++i) parent[i] = i;
+  const auto find = [&parent](size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const MapperLink& link : links_) {
+    if (link.type == LinkType::kPrior || !link.active) continue;
+    parent[find(index_of.at(link.from))] = find(index_of.at(link.to));
+  }
+  std::map<int, std::vector<PlaneSightings>> sightings;
+  for (const Keyframe& keyframe : keyframes_) {
+    if (keyframe.planes.empty()) continue;
+    PlaneSightings sighting;
+    sighting.id = keyframe.id;
+    sighting.part = static_cast<int>(find(index_of.at(keyframe.id)));
+    sighting.world_from_cam = graph_.Pose(keyframe.id);
+    sighting.planes = keyframe.planes;
+    sightings[Root(keyframe.segment)].push_back(std::move(sighting));
+  }
+  return sightings;
 }
 
 void Mapper::TrainVocabulary(MapperStageTimes* times) {
@@ -1147,7 +1202,7 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      loop_candidates, loop_min_relative_score, loop_min_inliers, loop_min_spacing,
      proximity_candidates, proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
      proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
-     local_loop_max_border_chi2_rise, pose_graph, seeded_final_solve),
+     local_loop_max_border_chi2_rise, pose_graph, seeded_final_solve, wall_tie_rounds, wall_ties),
     (join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
      walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2,
      loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m,

@@ -39,6 +39,7 @@
 #include "slam/registration.h"
 #include "slam/tracker.h"
 #include "slam/vocabulary.h"
+#include "slam/wall_ties.h"
 
 namespace sightmap::slam {
 
@@ -106,6 +107,10 @@ struct MapperOptions {
   double manhattan_sigma_deg = 1.0;
   double manhattan_max_deviation_deg = 15.0;
   ManhattanOptions manhattan;
+  // The end's solve also ties parts that see the same wall along its normal (slam/wall_ties.h),
+  // in this many rounds of tying and solving (0: off).
+  int wall_tie_rounds = 2;
+  WallTieOptions wall_ties;
   // Depth kept per keyframe for the dense verification, as 1/N of the image size (nearest
   // sample, so depth edges stay sharp): 160x120 at N = 4 is 38 KB a keyframe.
   int depth_downscale = 4;
@@ -422,11 +427,16 @@ class Mapper {
     MotionSource motion_source = MotionSource::kPrior;
     // The building's axes as its depth shows them (FitManhattanFrame), when it shows two.
     std::optional<Eigen::Matrix3d> cam_from_axes;
+    std::vector<AxisPlane> planes;  // along those axes (FindAxisPlanes)
   };
 
-  // The building's axes in a keyframe's depth (full size, or depth_downscale x smaller), when
-  // the Manhattan prior is on and the depth shows two of them.
-  std::optional<Eigen::Matrix3d> MeasureAxes(const cv::Mat& depth_mm) const;
+  // The Manhattan options for a keyframe's depth (full size, or depth_downscale x smaller).
+  ManhattanOptions ManhattanOptionsFor(const cv::Mat& depth_mm) const;
+  // The building's axes in a keyframe's depth, when the Manhattan prior is on and the depth shows
+  // two of them, and then its planes along them (when wall ties are on).
+  void MeasureAxesAndWalls(const cv::Mat& depth_mm, Keyframe* keyframe) const;
+  // Every keyframe's planes with its pose and rigid part, for TieWalls, by segment root.
+  std::map<int, std::vector<PlaneSightings>> PlaneSightingsOfParts() const;
   // Gives a keyframe in the graph its rotation prior (the first one places the building's axes).
   void AddRotationPrior(const Keyframe& keyframe);
   // A keyframe's features and small depth (checks the images; times features_s in `report`).

@@ -121,6 +121,41 @@ class RotationPriorCost {
   double inverse_sigma_;
 };
 
+// A plane tie's error, whitened: (normal . (R_from^T (p_to - p_from)) - offset) / sigma.
+class PlaneTieCost {
+ public:
+  PlaneTieCost(const Eigen::Vector3d& normal_in_from, double offset_m, double sigma_m)
+      : normal_(normal_in_from), offset_m_(offset_m), inverse_sigma_(1.0 / sigma_m) {}
+
+  template <typename T>
+  bool operator()(const T* q_from_data, const T* p_from_data, const T* p_to_data,
+                  T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q_from(q_from_data);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_from(p_from_data);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_to(p_to_data);
+    const Eigen::Matrix<T, 3, 1> in_from = q_from.conjugate() * (p_to - p_from);
+    residual[0] = (normal_.cast<T>().dot(in_from) - T(offset_m_)) * T(inverse_sigma_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const PlaneTie& tie) {
+    return new ceres::AutoDiffCostFunction<PlaneTieCost, 1, 4, 3, 3>(
+        new PlaneTieCost(tie.normal_in_from, tie.offset_m, tie.sigma_m));
+  }
+
+ private:
+  Eigen::Vector3d normal_;
+  double offset_m_;
+  double inverse_sigma_;
+};
+
+// A plane tie between the poses of two indices.
+struct ResolvedPlaneTie {
+  size_t from = 0;
+  size_t to = 0;
+  PlaneTie tie;
+};
+
 // A rotation prior resolved for one solve: the pose's index and the naming of the axes nearest
 // its estimate (axes_from_cam = S * cam_from_axes^T).
 struct ResolvedRotationPrior {
@@ -131,6 +166,7 @@ struct ResolvedRotationPrior {
 // The priors of one solve and the building's axes they share (estimated with the poses).
 struct RotationPriors {
   std::vector<ResolvedRotationPrior> priors;
+  std::vector<ResolvedPlaneTie> plane_ties;
   std::array<double, 4> world_from_axes = {0.0, 0.0, 0.0, 1.0};  // quaternion x, y, z, w
 };
 
@@ -287,6 +323,13 @@ Solve SolveEdges(const std::vector<PoseGraphEdge>& edges, const internal::EdgeEn
     axes_in_problem = true;
   }
   if (axes_in_problem) problem.SetManifold(world_from_axes.data(), &quaternion_manifold);
+  ceres::CauchyLoss plane_tie_loss(1.0);
+  for (const ResolvedPlaneTie& tie : rotation_priors.plane_ties) {
+    if (!in_problem[tie.from] || !in_problem[tie.to]) continue;
+    problem.AddResidualBlock(PlaneTieCost::Create(tie.tie), &plane_tie_loss,
+                             solve.parameters[tie.from].q, solve.parameters[tie.from].p,
+                             solve.parameters[tie.to].p);
+  }
   for (size_t i = 0; i < initial.size(); ++i) {
     if (!in_problem[i]) continue;
     problem.SetManifold(solve.parameters[i].q, &quaternion_manifold);
@@ -970,7 +1013,12 @@ PoseGraphSummary PoseGraph::OptimizeEdges(const PoseGraphOptions& options, const
   for (const auto& [id, prior] : rotation_priors_) {
     indexed_priors.push_back({index_of.at(id), prior});
   }
-  if (!scope.free) rotation_priors.priors = NamePriors(indexed_priors, initial, world_from_axes);
+  if (!scope.free) {
+    rotation_priors.priors = NamePriors(indexed_priors, initial, world_from_axes);
+    for (const PlaneTie& tie : plane_ties_) {
+      rotation_priors.plane_ties.push_back({index_of.at(tie.from), index_of.at(tie.to), tie});
+    }
+  }
   const std::vector<bool> active_before = active_;
   Solve solve = SolveSwitchingOffLoops(edges_, ends, selected, sqrt_information, initial, pinned,
                                        rotation_priors, options, &active_, &summary);
@@ -1040,6 +1088,20 @@ void PoseGraph::SetRotationPrior(int64_t id, const RotationPrior& prior) {
     world_from_axes_ = Eigen::Quaterniond(Pose(id).linear() * prior.cam_from_axes).normalized();
   }
   rotation_priors_[id] = prior;
+}
+
+void PoseGraph::SetPlaneTies(std::vector<PlaneTie> ties) {
+  for (const PlaneTie& tie : ties) {
+    if (!HasPose(tie.from) || !HasPose(tie.to)) {
+      SIGHTMAP_THROW(InvalidArgument,
+                     "a plane tie between unknown poses " << tie.from << " and " << tie.to);
+    }
+    if (!(tie.sigma_m > 0.0 && std::isfinite(tie.sigma_m) && std::isfinite(tie.offset_m) &&
+          tie.normal_in_from.allFinite())) {
+      SIGHTMAP_THROW(InvalidArgument, "a plane tie needs a positive sigma and finite figures");
+    }
+  }
+  plane_ties_ = std::move(ties);
 }
 
 SIGHTMAP_OPTIONS_JSON(PoseGraphOptions, max_iterations, max_solver_time_s, num_threads,

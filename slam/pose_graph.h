@@ -114,6 +114,17 @@ struct PoseGraphEdge {
   LinkType type = LinkType::kOdometry;
 };
 
+// A measurement of where pose `to` lies along a direction of pose `from` (two keyframes seeing one
+// wall, slam/wall_ties.h): normal_in_from . (world_from_from^-1 * position of to) = offset_m,
+// with sigma_m. Used, as rotation priors, in solves of whole parts, under a Cauchy loss.
+struct PlaneTie {
+  int64_t from = 0;
+  int64_t to = 0;
+  Eigen::Vector3d normal_in_from = Eigen::Vector3d::UnitZ();
+  double offset_m = 0.0;
+  double sigma_m = 0.03;
+};
+
 // An absolute measurement of a pose's rotation known up to the 24 ways of naming three orthogonal
 // axes (ManhattanSymmetries): the camera sees the building's axes as `cam_from_axes`. The graph
 // holds where those axes lie in the world (world_from_axes, one rotation for every prior: placed
@@ -224,6 +235,10 @@ class PoseGraph {
   // sigma.
   void SetRotationPrior(int64_t id, const RotationPrior& prior);
   size_t NumRotationPriors() const { return rotation_priors_.size(); }
+  // Replaces the plane ties (throws for a tie of an unknown pose or a non-positive sigma).
+  void SetPlaneTies(std::vector<PlaneTie> ties);
+  size_t NumPlaneTies() const { return plane_ties_.size(); }
+  const std::vector<PlaneTie>& PlaneTies() const { return plane_ties_; }
   Eigen::Matrix3d WorldFromAxes() const { return world_from_axes_.toRotationMatrix(); }
 
   const Eigen::Isometry3d& Pose(int64_t id) const;  // throws when the id is unknown
@@ -286,6 +301,7 @@ class PoseGraph {
                   double max_loop_chi2) const;
 
   std::map<int64_t, RotationPrior> rotation_priors_;  // by pose id
+  std::vector<PlaneTie> plane_ties_;
   Eigen::Quaterniond world_from_axes_ = Eigen::Quaterniond::Identity();
   std::map<int64_t, Node> nodes_;  // by id: references stay valid, components find lowest ids
   std::vector<PoseGraphEdge> edges_;

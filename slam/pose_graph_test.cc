@@ -115,6 +115,40 @@ TEST(PoseGraph, ConflictingMeasurementsGiveTheWeightedMean) {
   EXPECT_NEAR(graph.Pose(9).translation().x(), (100.0 * 1.0 + 300.0 * 1.3) / 400.0, 1e-6);
 }
 
+// A plane tie (two keyframes seeing one wall) holds a pose along its normal only: a prior that
+// put pose 2 0.2 m off in x and y (sigma 0.3 m) is corrected in x by a tie along the turned
+// pose's x normal, and left alone in y.
+TEST(PoseGraph, APlaneTieHoldsAPoseAlongItsNormalOnly) {
+  PoseGraph graph;
+  Eigen::Isometry3d turned = Translation(0.0);
+  turned.linear() = Eigen::AngleAxisd(DegToRad(90.0), Eigen::Vector3d::UnitZ()).matrix();
+  graph.AddPose(1, turned);
+  graph.AddPose(2, Translation(0.0));
+  Matrix6d information = 1e6 * Matrix6d::Identity();
+  information.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() / (0.3 * 0.3);
+  // Truth: pose 2 at world (1, 0, 0); measured at (1.2, 0.2, 0).
+  graph.AddEdge(
+      MakeEdge(1, 2, turned.inverse() * Translation(1.2, 0.2), information, LinkType::kPrior));
+  PlaneTie tie;
+  tie.from = 1;
+  tie.to = 2;
+  // The world's x is the turned pose's -y.
+  tie.normal_in_from = -Eigen::Vector3d::UnitY();
+  tie.offset_m = 1.0;
+  tie.sigma_m = 0.01;
+  graph.SetPlaneTies({tie});
+  EXPECT_EQ(graph.NumPlaneTies(), 1u);
+  graph.Optimize();
+  EXPECT_NEAR(graph.Pose(2).translation().x(), 1.0, 0.005);
+  EXPECT_NEAR(graph.Pose(2).translation().y(), 0.2, 0.005);
+  tie.to = 3;
+  EXPECT_THROW(graph.SetPlaneTies({tie}), InvalidArgument);
+  tie.to = 2;
+  tie.sigma_m = 0.0;
+  EXPECT_THROW(graph.SetPlaneTies({tie}), InvalidArgument);
+  EXPECT_EQ(graph.NumPlaneTies(), 1u);
+}
+
 // A revised measurement replaces the old one in the next optimisation; a bad one is refused and
 // leaves the edge as it was.
 TEST(PoseGraph, ARevisedMeasurementReplacesTheOldOne) {
