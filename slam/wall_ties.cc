@@ -90,6 +90,7 @@ struct Sighting {
   int side = 0;  // axis * 2 + (positive ? 1 : 0)
   double world_offset_m = 0.0;
   Eigen::Vector3d centroid_world;
+  std::vector<double> others_m;  // the world offsets of the keyframe's other planes on this side
 };
 
 std::vector<Sighting> PlaceSightings(const std::vector<PlaneSightings>& keyframes,
@@ -117,16 +118,22 @@ std::vector<Sighting> PlaceSightings(const std::vector<PlaneSightings>& keyframe
       }
     }
   }
+  // A keyframe's sightings are consecutive.
+  for (size_t i = 0; i < sightings.size(); ++i) {
+    for (size_t j = i + 1; j < sightings.size() && sightings[j].keyframe == sightings[i].keyframe;
+         ++j) {
+      if (sightings[j].side != sightings[i].side) continue;
+      sightings[i].others_m.push_back(sightings[j].world_offset_m);
+      sightings[j].others_m.push_back(sightings[i].world_offset_m);
+    }
+  }
   return sightings;
 }
 
-// Whether the keyframe of `own` holds no other plane on its side within `gap` of `offset`.
-bool OnlyPlaneNear(const std::vector<Sighting>& side, size_t own, double offset, double gap) {
-  for (size_t i = 0; i < side.size(); ++i) {
-    if (i == own || side[i].keyframe != side[own].keyframe) continue;
-    if (std::abs(side[i].world_offset_m - offset) < gap) return false;
-  }
-  return true;
+// Whether the keyframe of `sighting` holds no other plane on its side within `gap` of `offset`.
+bool OnlyPlaneNear(const Sighting& sighting, double offset, double gap) {
+  return std::none_of(sighting.others_m.begin(), sighting.others_m.end(),
+                      [&](double other) { return std::abs(other - offset) < gap; });
 }
 
 // Of one part pair's candidate ties on one wall (support, i, j into `side`), those whose offset
@@ -231,8 +238,8 @@ std::vector<PlaneTie> TieWalls(const std::vector<PlaneSightings>& keyframes,
             options.max_centroid_distance_m) {
           continue;
         }
-        if (!OnlyPlaneNear(side, i, side[j].world_offset_m, options.min_unique_gap_m) ||
-            !OnlyPlaneNear(side, j, side[i].world_offset_m, options.min_unique_gap_m)) {
+        if (!OnlyPlaneNear(side[i], side[j].world_offset_m, options.min_unique_gap_m) ||
+            !OnlyPlaneNear(side[j], side[i].world_offset_m, options.min_unique_gap_m)) {
           continue;
         }
         const int support =
