@@ -21,8 +21,31 @@ double Spread(std::vector<double> values) {
   return at(0.98) - at(0.02);
 }
 
-// The planes along one signed axis (`axis` of cam_from_axes, `sign`): peaks of the patches'
-// offsets, strongest first, wide and tall enough to be a wall or a floor.
+// The centres of the offsets' densest windows (`min_support` patches within the bins of
+// `peak_halfwidth_m` around a bin), strongest first, and the windows' half width [m].
+std::pair<std::vector<double>, double> OffsetPeaks(const std::vector<double>& offsets,
+                                                   const WallTieOptions& options) {
+  const auto [lowest, highest] = std::minmax_element(offsets.begin(), offsets.end());
+  const double origin = *lowest;
+  const int bins = static_cast<int>((*highest - origin) / options.bin_m) + 1;
+  std::vector<int> counts(static_cast<size_t>(bins), 0);
+  for (double offset : offsets) ++counts[static_cast<size_t>((offset - origin) / options.bin_m)];
+  const int half =
+      std::max(1, static_cast<int>(std::lround(options.peak_halfwidth_m / options.bin_m)));
+  std::vector<std::pair<int, int>> windows;  // (patches within half bins, bin)
+  for (int b = 0; b < bins; ++b) {
+    int sum = 0;
+    for (int k = std::max(0, b - half); k <= std::min(bins - 1, b + half); ++k) sum += counts[k];
+    if (sum >= options.min_support) windows.emplace_back(sum, b);
+  }
+  std::sort(windows.rbegin(), windows.rend());
+  std::vector<double> centres;
+  for (const auto& [sum, bin] : windows) centres.push_back(origin + (bin + 0.5) * options.bin_m);
+  return {centres, (half + 0.5) * options.bin_m};
+}
+
+// The planes along one signed axis (`axis` of cam_from_axes, `sign`): the offsets' peaks at
+// least min_separation_m from a stronger one, wide and tall enough to be a wall or a floor.
 void FindPlanesAlong(const std::vector<PlanePatch>& patches, const Eigen::Matrix3d& cam_from_axes,
                      int axis, double sign, const WallTieOptions& options,
                      std::vector<AxisPlane>* planes) {
@@ -38,31 +61,17 @@ void FindPlanesAlong(const std::vector<PlanePatch>& patches, const Eigen::Matrix
     offsets.push_back(normal.dot(patch.point));
   }
   if (static_cast<int>(offsets.size()) < options.min_support) return;
-  const auto [lowest, highest] = std::minmax_element(offsets.begin(), offsets.end());
-  const double origin = *lowest;
-  const int bins = static_cast<int>((*highest - origin) / options.bin_m) + 1;
-  std::vector<int> counts(static_cast<size_t>(bins), 0);
-  for (double offset : offsets) ++counts[static_cast<size_t>((offset - origin) / options.bin_m)];
-  const int half =
-      std::max(1, static_cast<int>(std::lround(options.peak_halfwidth_m / options.bin_m)));
-  std::vector<std::pair<int, int>> windows;  // (patches within half bins, bin)
-  for (int b = 0; b < bins; ++b) {
-    int sum = 0;
-    for (int k = std::max(0, b - half); k <= std::min(bins - 1, b + half); ++k) sum += counts[k];
-    if (sum >= options.min_support) windows.emplace_back(sum, b);
-  }
-  std::sort(windows.rbegin(), windows.rend());
+  const auto [centres, reach] = OffsetPeaks(offsets, options);
   std::vector<double> taken;
-  for (const auto& [sum, bin] : windows) {
-    const double centre = origin + (bin + 0.5) * options.bin_m;
+  for (double centre : centres) {
     const bool near_stronger = std::any_of(taken.begin(), taken.end(), [&](double offset) {
       return std::abs(offset - centre) < options.min_separation_m;
     });
     if (near_stronger) continue;
+    taken.push_back(centre);
     AxisPlane plane;
     plane.normal_cam = normal;
     double offset_sum = 0.0;
-    const double reach = (half + 0.5) * options.bin_m;  // the window's bins
     std::vector<double> across_m, along_m;
     for (size_t i = 0; i < offsets.size(); ++i) {
       if (std::abs(offsets[i] - centre) > reach) continue;
@@ -72,7 +81,6 @@ void FindPlanesAlong(const std::vector<PlanePatch>& patches, const Eigen::Matrix
       along_m.push_back(along.dot(on_axis[i]->point));
       ++plane.support;
     }
-    taken.push_back(centre);
     if (plane.support < options.min_support || Spread(across_m) < options.min_extent_m ||
         Spread(along_m) < options.min_extent_m) {
       continue;
@@ -130,6 +138,11 @@ std::vector<Sighting> PlaceSightings(const std::vector<PlaneSightings>& keyframe
   return sightings;
 }
 
+// A candidate tie: (the smaller support of its two planes, its two sightings' indices in a side).
+using CandidatePair = std::tuple<int, size_t, size_t>;
+// (part, part, side, wall): the pairs one part pair could be tied by on one wall.
+using WallKey = std::tuple<int, int, int, long>;
+
 // Whether the keyframe of `sighting` holds no other plane on its side within `gap` of `offset`.
 bool OnlyPlaneNear(const Sighting& sighting, double offset, double gap) {
   return std::none_of(sighting.others_m.begin(), sighting.others_m.end(),
@@ -140,9 +153,10 @@ bool OnlyPlaneNear(const Sighting& sighting, double offset, double gap) {
 // gaps agree with the most others (within `agree_m`): a keyframe that took a cupboard's front for
 // the wall behind it is outvoted by the pairs that saw the wall. Empty without a majority of at
 // least `min_agreeing`.
-std::vector<std::tuple<int, size_t, size_t>> AgreeingPairs(
-    const std::vector<std::tuple<int, size_t, size_t>>& pairs, const std::vector<Sighting>& side,
-    const std::vector<PlaneSightings>& keyframes, const WallTieOptions& options) {
+std::vector<CandidatePair> AgreeingPairs(const std::vector<CandidatePair>& pairs,
+                                         const std::vector<Sighting>& side,
+                                         const std::vector<PlaneSightings>& keyframes,
+                                         const WallTieOptions& options) {
   std::vector<double> gaps;
   for (const auto& [support, i, j] : pairs) {
     // Oriented from the lower part to the higher, whichever sighting came first.
@@ -161,7 +175,7 @@ std::vector<std::tuple<int, size_t, size_t>> AgreeingPairs(
       best = c;
     }
   }
-  std::vector<std::tuple<int, size_t, size_t>> agreeing;
+  std::vector<CandidatePair> agreeing;
   if (best_count < options.min_agreeing || 2 * best_count <= static_cast<int>(gaps.size())) {
     return agreeing;
   }
@@ -169,6 +183,44 @@ std::vector<std::tuple<int, size_t, size_t>> AgreeingPairs(
     if (std::abs(gaps[c] - gaps[best]) <= options.agree_m) agreeing.push_back(pairs[c]);
   }
   return agreeing;
+}
+
+// Pairs of sightings of one wall by two parts, per (part, part, side, wall): on one side,
+// within max_offset_gap_m and max_centroid_distance_m, neither keyframe holding another plane of
+// that side near the other's. Sorts each side of `by_side` by offset (the pairs index into it).
+std::map<WallKey, std::vector<CandidatePair>> CandidatePairs(
+    const std::vector<PlaneSightings>& keyframes, const WallTieOptions& options,
+    std::map<int, std::vector<Sighting>>* by_side) {
+  std::map<WallKey, std::vector<CandidatePair>> candidates;
+  for (auto& [side_index, side] : *by_side) {
+    std::sort(side.begin(), side.end(), [](const Sighting& a, const Sighting& b) {
+      return a.world_offset_m < b.world_offset_m;
+    });
+    for (size_t i = 0; i < side.size(); ++i) {
+      for (size_t j = i + 1; j < side.size(); ++j) {
+        const double gap = side[j].world_offset_m - side[i].world_offset_m;
+        if (gap > options.max_offset_gap_m) break;
+        const PlaneSightings& a = keyframes[side[i].keyframe];
+        const PlaneSightings& b = keyframes[side[j].keyframe];
+        if (a.part == b.part) continue;
+        if ((side[i].centroid_world - side[j].centroid_world).norm() >
+            options.max_centroid_distance_m) {
+          continue;
+        }
+        if (!OnlyPlaneNear(side[i], side[j].world_offset_m, options.min_unique_gap_m) ||
+            !OnlyPlaneNear(side[j], side[i].world_offset_m, options.min_unique_gap_m)) {
+          continue;
+        }
+        const int support =
+            std::min(a.planes[side[i].plane].support, b.planes[side[j].plane].support);
+        const long wall = std::lround(0.5 * (side[i].world_offset_m + side[j].world_offset_m) /
+                                      options.min_unique_gap_m);
+        candidates[{std::min(a.part, b.part), std::max(a.part, b.part), side_index, wall}]
+            .emplace_back(support, i, j);
+      }
+    }
+  }
+  return candidates;
 }
 
 }  // namespace
@@ -216,46 +268,14 @@ std::vector<PlaneTie> TieWalls(const std::vector<PlaneSightings>& keyframes,
                                const Eigen::Matrix3d& world_from_axes,
                                const WallTieOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  const std::vector<Sighting> all = PlaceSightings(keyframes, world_from_axes, options);
   std::map<int, std::vector<Sighting>> by_side;
-  for (const Sighting& sighting : all) by_side[sighting.side].push_back(sighting);
-
-  // Candidates per (part, part, side, wall), best supported first.
-  using WallKey = std::tuple<int, int, int, long>;
-  std::map<WallKey, std::vector<std::tuple<int, size_t, size_t>>> candidates;
-  for (auto& [side_index, side] : by_side) {
-    std::sort(side.begin(), side.end(), [](const Sighting& a, const Sighting& b) {
-      return a.world_offset_m < b.world_offset_m;
-    });
-    for (size_t i = 0; i < side.size(); ++i) {
-      for (size_t j = i + 1; j < side.size(); ++j) {
-        const double gap = side[j].world_offset_m - side[i].world_offset_m;
-        if (gap > options.max_offset_gap_m) break;
-        const PlaneSightings& a = keyframes[side[i].keyframe];
-        const PlaneSightings& b = keyframes[side[j].keyframe];
-        if (a.part == b.part) continue;
-        if ((side[i].centroid_world - side[j].centroid_world).norm() >
-            options.max_centroid_distance_m) {
-          continue;
-        }
-        if (!OnlyPlaneNear(side[i], side[j].world_offset_m, options.min_unique_gap_m) ||
-            !OnlyPlaneNear(side[j], side[i].world_offset_m, options.min_unique_gap_m)) {
-          continue;
-        }
-        const int support =
-            std::min(a.planes[side[i].plane].support, b.planes[side[j].plane].support);
-        const long wall = std::lround(0.5 * (side[i].world_offset_m + side[j].world_offset_m) /
-                                      options.min_unique_gap_m);
-        candidates[{std::min(a.part, b.part), std::max(a.part, b.part), side_index, wall}]
-            .emplace_back(support, i, j);
-      }
-    }
+  for (Sighting& sighting : PlaceSightings(keyframes, world_from_axes, options)) {
+    by_side[sighting.side].push_back(std::move(sighting));
   }
   std::vector<PlaneTie> ties;
-  for (const auto& [key, candidate_pairs] : candidates) {
+  for (const auto& [key, candidates] : CandidatePairs(keyframes, options, &by_side)) {
     const std::vector<Sighting>& side = by_side.at(std::get<2>(key));
-    std::vector<std::tuple<int, size_t, size_t>> pairs =
-        AgreeingPairs(candidate_pairs, side, keyframes, options);
+    std::vector<CandidatePair> pairs = AgreeingPairs(candidates, side, keyframes, options);
     std::sort(pairs.rbegin(), pairs.rend());
     if (static_cast<int>(pairs.size()) > options.max_ties_per_wall) {
       pairs.resize(static_cast<size_t>(options.max_ties_per_wall));
