@@ -13,6 +13,10 @@ namespace sightmap::slam {
 
 std::vector<PlanePatch> PlanePatches(const cv::Mat& depth_mm, const Intrinsics& camera,
                                      const ManhattanOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && depth_mm.cols == camera.width &&
+                     depth_mm.rows == camera.height,
+                 "depth must be 16-bit millimetres of the camera's size");
   const int step = options.grid_step_px;
   const int rows = depth_mm.rows / step;
   const int cols = depth_mm.cols / step;
@@ -63,16 +67,6 @@ std::vector<PlanePatch> PlanePatches(const cv::Mat& depth_mm, const Intrinsics& 
 }
 
 namespace {
-
-// Unit normals of the depth image's locally planar patches, facing the camera.
-std::vector<Eigen::Vector3d> PlaneNormals(const cv::Mat& depth_mm, const Intrinsics& camera,
-                                          const ManhattanOptions& options) {
-  std::vector<Eigen::Vector3d> normals;
-  for (const PlanePatch& patch : PlanePatches(depth_mm, camera, options)) {
-    normals.push_back(patch.normal);
-  }
-  return normals;
-}
 
 // The mean of the normals within `max_angle` of the axis `axis` or of its opposite (flipped onto
 // it), normalised; nullopt when fewer than `min_count`.
@@ -194,11 +188,15 @@ bool ManhattanOptions::Check(std::string* error) const {
 
 std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Intrinsics& camera,
                                               const ManhattanOptions& options) {
+  return FitManhattanFrame(PlanePatches(depth_mm, camera, options), options);
+}
+
+std::optional<ManhattanFit> FitManhattanFrame(const std::vector<PlanePatch>& patches,
+                                              const ManhattanOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1 && depth_mm.cols == camera.width &&
-                     depth_mm.rows == camera.height,
-                 "depth must be 16-bit millimetres of the camera's size");
-  const std::vector<Eigen::Vector3d> normals = PlaneNormals(depth_mm, camera, options);
+  std::vector<Eigen::Vector3d> normals;
+  normals.reserve(patches.size());
+  for (const PlanePatch& patch : patches) normals.push_back(patch.normal);
   ManhattanFit fit;
   fit.normals = static_cast<int>(normals.size());
   const int min_count = options.min_axis_normals;

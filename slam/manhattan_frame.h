@@ -68,12 +68,6 @@ struct ManhattanFit {
   int normals = 0;               // valid normals
 };
 
-// The camera's rotation relative to the building's axes, or nullopt when the image does not show
-// two of them. The vertical is sought within max_tilt_deg of the image's up (-y): a walker holds
-// the camera upright. `depth_mm` is 16-bit millimetres, 0 for no depth, of the size in `camera`.
-std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Intrinsics& camera,
-                                              const ManhattanOptions& options);
-
 // A small plane patch a depth image shows: its unit normal (facing the camera) and its centre
 // point, in the camera frame.
 struct PlanePatch {
@@ -83,9 +77,20 @@ struct PlanePatch {
 
 // The depth image's plane patches on a grid of `grid_step_px`, each fitted over
 // `normal_span_cells` cells to either side, within `max_depth_m`, not at an edge or a corner
-// (`max_planarity_error`) nor seen edge-on (`max_incidence_deg`). Depth as FitManhattanFrame's.
+// (`max_planarity_error`) nor seen edge-on (`max_incidence_deg`). Depth as FitManhattanFrame's
+// (throws otherwise).
 std::vector<PlanePatch> PlanePatches(const cv::Mat& depth_mm, const Intrinsics& camera,
                                      const ManhattanOptions& options);
+
+// The camera's rotation relative to the building's axes, or nullopt when the image does not show
+// two of them. The vertical is sought within max_tilt_deg of the image's up (-y): a walker holds
+// the camera upright. `depth_mm` is 16-bit millimetres, 0 for no depth, of the size in `camera`.
+std::optional<ManhattanFit> FitManhattanFrame(const cv::Mat& depth_mm, const Intrinsics& camera,
+                                              const ManhattanOptions& options);
+// The same from the image's plane patches (PlanePatches with the same options), for a caller
+// that uses them for more than the axes.
+std::optional<ManhattanFit> FitManhattanFrame(const std::vector<PlanePatch>& patches,
+                                              const ManhattanOptions& options);
 
 // The 24 proper rotations that map the coordinate axes onto themselves (with signs).
 const std::vector<Eigen::Matrix3d>& ManhattanSymmetries();

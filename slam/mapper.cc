@@ -14,6 +14,7 @@
 #include "core/rotation.h"
 #include "core/timing.h"
 #include "slam/blind_bridge.h"
+#include "slam/pose_graph_stages.h"
 
 namespace sightmap::slam {
 namespace {
@@ -382,12 +383,13 @@ void Mapper::MeasureAxesAndWalls(const cv::Mat& depth_mm, Keyframe* keyframe) co
   if (!(options_.manhattan_sigma_deg > 0.0)) return;
   const ManhattanOptions options = ManhattanOptionsFor(depth_mm);
   const Intrinsics camera = camera_.Scaled(depth_mm.cols, depth_mm.rows);
-  const std::optional<ManhattanFit> fit = FitManhattanFrame(depth_mm, camera, options);
+  // One set of patches serves the axes and the walls.
+  const std::vector<PlanePatch> patches = PlanePatches(depth_mm, camera, options);
+  const std::optional<ManhattanFit> fit = FitManhattanFrame(patches, options);
   if (!fit) return;
   keyframe->cam_from_axes = fit->cam_from_manhattan;
   if (options_.wall_tie_rounds > 0) {
-    keyframe->planes =
-        FindAxisPlanes(depth_mm, camera, fit->cam_from_manhattan, options, options_.wall_ties);
+    keyframe->planes = FindAxisPlanes(patches, fit->cam_from_manhattan, options_.wall_ties);
   }
 }
 
@@ -868,22 +870,17 @@ std::map<int, std::vector<PlaneSightings>> Mapper::PlaneSightingsOfParts() const
   // Rigid parts: keyframes joined by active registered links (not the motion model's priors).
   std::map<int64_t, size_t> index_of;
   for (size_t i = 0; i < keyframes_.size(); ++i) index_of[keyframes_[i].id] = i;
-  std::vector<size_t> parent(keyframes_.size());
-  for (size_t i = 0; i < parent.size(); ++i) parent[i] = i;
-  const auto find = [&parent](size_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
+  internal::Components parts(keyframes_.size());
   for (const MapperLink& link : links_) {
     if (link.type == LinkType::kPrior || !link.active) continue;
-    parent[find(index_of.at(link.from))] = find(index_of.at(link.to));
+    parts.Join(index_of.at(link.from), index_of.at(link.to));
   }
   std::map<int, std::vector<PlaneSightings>> sightings;
   for (const Keyframe& keyframe : keyframes_) {
     if (keyframe.planes.empty()) continue;
     PlaneSightings sighting;
     sighting.id = keyframe.id;
-    sighting.part = static_cast<int>(find(index_of.at(keyframe.id)));
+    sighting.part = static_cast<int>(parts.Find(index_of.at(keyframe.id)));
     sighting.world_from_cam = graph_.Pose(keyframe.id);
     sighting.planes = keyframe.planes;
     sightings[Root(keyframe.segment)].push_back(std::move(sighting));

@@ -249,12 +249,10 @@ bool WallTieOptions::Check(std::string* error) const {
   return true;
 }
 
-std::vector<AxisPlane> FindAxisPlanes(const cv::Mat& depth_mm, const Intrinsics& camera,
+std::vector<AxisPlane> FindAxisPlanes(const std::vector<PlanePatch>& patches,
                                       const Eigen::Matrix3d& cam_from_axes,
-                                      const ManhattanOptions& manhattan,
                                       const WallTieOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
-  const std::vector<PlanePatch> patches = PlanePatches(depth_mm, camera, manhattan);
   std::vector<AxisPlane> planes;
   for (int axis = 0; axis < 3; ++axis) {
     for (double sign : {1.0, -1.0}) {

@@ -12,9 +12,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <nlohmann/json_fwd.hpp>
-#include <opencv2/core.hpp>
 
-#include "core/camera.h"
 #include "slam/manhattan_frame.h"
 #include "slam/pose_graph.h"
 
@@ -65,11 +63,10 @@ struct WallTieOptions {
 void to_json(nlohmann::json& json, const WallTieOptions& options);
 void from_json(const nlohmann::json& json, WallTieOptions& options);
 
-// The planes of the building's axes (cam_from_axes: FitManhattanFrame's) that a depth image shows.
-// Patches as PlanePatches(depth_mm, camera, manhattan).
-std::vector<AxisPlane> FindAxisPlanes(const cv::Mat& depth_mm, const Intrinsics& camera,
+// The planes of the building's axes (cam_from_axes: FitManhattanFrame's) among a depth image's
+// plane patches (PlanePatches).
+std::vector<AxisPlane> FindAxisPlanes(const std::vector<PlanePatch>& patches,
                                       const Eigen::Matrix3d& cam_from_axes,
-                                      const ManhattanOptions& manhattan,
                                       const WallTieOptions& options);
 
 // A keyframe's planes and where the map has it; `part` names its rigid part (keyframes joined by

@@ -36,9 +36,10 @@ PlaneSightings SeeCorner(int64_t id, int part, const Eigen::Vector3d& position, 
   sightings.world_from_cam.translation() = position;
   // The camera's view of the building's axes: the world's, up to naming.
   const Eigen::Matrix3d cam_from_axes = sightings.world_from_cam.linear().transpose();
-  sightings.planes =
-      FindAxisPlanes(RenderPlanes(sightings.world_from_cam.linear(), kCorner, position),
-                     kPlaneCamera, cam_from_axes, ManhattanOptions(), WallTieOptions());
+  const std::vector<PlanePatch> patches =
+      PlanePatches(RenderPlanes(sightings.world_from_cam.linear(), kCorner, position), kPlaneCamera,
+                   ManhattanOptions());
+  sightings.planes = FindAxisPlanes(patches, cam_from_axes, WallTieOptions());
   return sightings;
 }
 
