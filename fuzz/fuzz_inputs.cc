@@ -48,13 +48,35 @@ void WriteTinyFrame(const std::string& color_path, const std::string& depth_path
   }
 }
 
+namespace {
+
+// The process's scratch folder, removed when the process exits normally (libFuzzer's -runs and
+// -max_total_time end with exit()); after a crash it stays, holding the input that crashed.
+class ScratchFolder {
+ public:
+  ScratchFolder()
+      : path_(std::filesystem::temp_directory_path() /
+              ("sightmap-fuzz-" + std::to_string(::getpid()))) {
+    std::filesystem::create_directories(path_);
+  }
+  ~ScratchFolder() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  ScratchFolder(const ScratchFolder&) = delete;
+  ScratchFolder& operator=(const ScratchFolder&) = delete;
+
+  std::string path() const { return path_.string(); }
+
+ private:
+  std::filesystem::path path_;
+};
+
+}  // namespace
+
 const std::string& ScratchDir() {
-  static const std::string dir = [] {
-    const std::filesystem::path path =
-        std::filesystem::temp_directory_path() / ("sightmap-fuzz-" + std::to_string(::getpid()));
-    std::filesystem::create_directories(path);
-    return path.string();
-  }();
+  static const ScratchFolder folder;
+  static const std::string dir = folder.path();
   return dir;
 }
 

@@ -2,8 +2,6 @@
 // render_preview_fallback_test with no display (NoDisplay.*).
 #include "render/preview_window.h"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -16,6 +14,7 @@
 #include "core/check.h"
 #include "core/timing.h"
 #include "render/map_view_factory.h"
+#include "tests/test_data.h"
 
 namespace sightmap::render {
 namespace {
@@ -64,8 +63,7 @@ double DrawnShare(const cv::Mat& image, const cv::Rect& area) {
 
 TEST(PreviewWindow, OpensDrawsAMapTakesScreenshotsHandlesKeysAndClosesCleanly) {
   ASSERT_NE(std::getenv("DISPLAY"), nullptr) << "run under xvfb-run (ctest does)";
-  const std::string dir = testing::TempDir() + "/preview_" + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  const std::string dir = sightmap::testing::MakeTempDir("snapshots");
   PreviewOptions options;
   options.width = 960;
   options.height = 540;
@@ -143,7 +141,7 @@ TEST(Factory, PreviewAndAutoOpenTheWindowWhenThereIsADisplay) {
 TEST(NoDisplay, AutoFallsBackToOffscreenWithAOneLineNoticeAndPreviewThrows) {
   unsetenv("DISPLAY");
   unsetenv("WAYLAND_DISPLAY");
-  const std::string png = testing::TempDir() + "/fallback_" + std::to_string(getpid()) + ".png";
+  const std::string png = sightmap::testing::MakeTempDir("progress") + "/fallback.png";
   MapViewOptions options;
   options.progress.png_path = png;
   options.progress.every_n_keyframes = 5;

@@ -1,7 +1,5 @@
 #include "render/progress_writer.h"
 
-#include <unistd.h>
-
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -11,13 +9,13 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "tests/test_data.h"
+
 namespace sightmap::render {
 namespace {
 
 std::string TempPath(const std::string& name) {
-  const std::string dir = testing::TempDir() + "/progress_writer_" + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
-  return dir + "/" + name;
+  return sightmap::testing::MakeTempDir("progress") + "/" + name;
 }
 
 MapKeyframe RandomKeyframe(int64_t id, int points, std::mt19937* rng) {

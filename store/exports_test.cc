@@ -90,7 +90,7 @@ TEST(Ply, RoundTripThroughPcl) {
 // colour layouts it aborted the process on, a form feed in the header. Each is an error, never a
 // crash.
 TEST(Ply, MalformedHeadersAreErrorsNeverCrashes) {
-  const std::string dir = ::testing::TempDir();
+  const std::string dir = sightmap::testing::MakeTempDir("ply");
   auto write = [&](const std::string& name, const std::string& element,
                    const std::string& first_field, size_t data_bytes) {
     std::ofstream out(dir + "/" + name, std::ios::binary);
