@@ -114,6 +114,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
   json["continued_after_s"] =
       summary.continued_after_s ? nlohmann::json(*summary.continued_after_s) : nlohmann::json();
   json["links_rejected_after_commit"] = summary.links_rejected_after_commit;
+  json["links_reactivated_at_end"] = summary.links_reactivated_at_end;
   json["ate_rmse_m"] = summary.ate_rmse_m ? nlohmann::json(*summary.ate_rmse_m) : nlohmann::json();
   json["ate_max_m"] = summary.ate_max_m ? nlohmann::json(*summary.ate_max_m) : nlohmann::json();
   json["ate_poses"] = summary.ate_poses;

@@ -115,13 +115,17 @@ WriteTask MapStage::AllPoses() const {
 
 WriteTask MapStage::Finish() {
   std::vector<slam::MapperLink> deactivated;
+  std::vector<slam::MapperLink> reactivated;
   if (!options_.ground_truth_poses && mapper_->NumKeyframes() > 0) {
     const slam::KeyframeReport report = mapper_->OptimiseWhole();
     for (size_t index : report.rejected_links) deactivated.push_back(mapper_->Links()[index]);
+    for (size_t index : report.reactivated_links) reactivated.push_back(mapper_->Links()[index]);
     links_rejected_after_commit_ += static_cast<int64_t>(deactivated.size());
+    links_reactivated_at_end_ = static_cast<int64_t>(reactivated.size());
   }
   WriteTask poses = AllPoses();
   poses.deactivated = std::move(deactivated);
+  poses.reactivated = std::move(reactivated);
   return poses;
 }
 

@@ -56,6 +56,8 @@ class MapStage {
   const std::vector<double>& keyframe_seconds() const { return keyframe_s_; }
   // Stored loop links an optimisation switched off later.
   int64_t links_rejected_after_commit() const { return links_rejected_after_commit_; }
+  // Loop links switched off while mapping that the end's solve switched back on.
+  int64_t links_reactivated_at_end() const { return links_reactivated_at_end_; }
   // This session's keyframes against their ground truth, when every one had it (and at least 3).
   std::optional<slam::TrajectoryError> Accuracy() const;
 
@@ -77,6 +79,7 @@ class MapStage {
   std::vector<StampedPose> ground_truth_;
   std::vector<double> keyframe_s_;
   int64_t links_rejected_after_commit_ = 0;
+  int64_t links_reactivated_at_end_ = 0;
 };
 
 }  // namespace sightmap::mapping

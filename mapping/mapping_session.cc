@@ -288,6 +288,7 @@ void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage
   summary->frames_read = capture.frames_read();
   summary->frames_skipped = capture.frames_skipped();
   summary->links_rejected_after_commit = map.links_rejected_after_commit();
+  summary->links_reactivated_at_end = map.links_reactivated_at_end();
   summary->joined_stored_map = map.joined_stored_map();
   if (const std::optional<slam::TrajectoryError> error = map.Accuracy()) {
     summary->ate_rmse_m = error->ate_rmse_m;

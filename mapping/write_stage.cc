@@ -117,11 +117,14 @@ void WriteStage::WritePoses(const WriteTask& task) {
       poses.emplace_back(store_ids_[static_cast<size_t>(id)], pose);
     }
   }
-  std::vector<store::LinkKey> deactivated;
-  for (const slam::MapperLink& link : task.deactivated) {
-    deactivated.push_back({StoreId(link.from), StoreId(link.to), link.type});
-  }
-  model_->UpdateGraph(poses, deactivated);
+  const auto keys_of = [this](const std::vector<slam::MapperLink>& links) {
+    std::vector<store::LinkKey> keys;
+    for (const slam::MapperLink& link : links) {
+      keys.push_back({StoreId(link.from), StoreId(link.to), link.type});
+    }
+    return keys;
+  };
+  model_->UpdateGraph(poses, keys_of(task.deactivated), keys_of(task.reactivated));
   if (view_) view_->UpdatePoses(task.poses);
 }
 

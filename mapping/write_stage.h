@@ -40,9 +40,10 @@ struct WriteTask {
   std::vector<slam::MapperLink> revised;
   FeedStatus status;
   // kPoses: optimised poses by mapper id (ids not written yet are skipped), and stored links the
-  // optimisation switched off.
+  // optimisation switched off or back on.
   std::vector<std::pair<int64_t, Eigen::Isometry3d>> poses;
   std::vector<slam::MapperLink> deactivated;
+  std::vector<slam::MapperLink> reactivated;
   // kVocabulary: Vocabulary::Serialize()'s bytes.
   std::vector<uint8_t> vocabulary;
 };

@@ -117,6 +117,7 @@ bool MapperOptions::Check(std::string* error) const {
   if (loop_min_relative_score < 0.0) return fail("loop_min_relative_score must not be negative");
   if (loop_min_spacing < 0) return fail("loop_min_spacing must not be negative");
   if (!loop_axes.Check(error)) return false;
+  if (final_retry_max_loops < 0) return fail("final_retry_max_loops must not be negative (0: off)");
   if (!(loop_max_axes_chi2 >= 0.0) || !(loop_axes_max_sigma_deg > 0.0)) {
     return fail("loop_max_axes_chi2 must not be negative (0: off), loop_axes_max_sigma_deg > 0");
   }
@@ -837,6 +838,7 @@ KeyframeReport Mapper::AddExternalLink(const MapperLink& link) {
 KeyframeReport Mapper::OptimiseWhole() {
   KeyframeReport report;
   if (keyframes_.empty()) return report;
+  const std::vector<size_t> retried = RetryRejectedLoops();
   std::set<int> roots;
   for (const Keyframe& keyframe : keyframes_) {
     if (roots.insert(Root(keyframe.segment)).second) {
@@ -858,12 +860,40 @@ KeyframeReport Mapper::OptimiseWhole() {
       if (roots.insert(Root(keyframe.segment)).second) Optimise(keyframe.id, &report, false);
     }
   }
+  NetRetriedLoops(retried, &report);
   const Keyframe& newest = keyframes_.back();
   report.id = newest.id;
   report.segment = SegmentOf(newest.id);
   report.state = state_;
   report.world_from_cam = graph_.Pose(newest.id);
   return report;
+}
+
+std::vector<size_t> Mapper::RetryRejectedLoops() {
+  std::vector<size_t> rejected;
+  for (size_t i = 0; i < links_.size(); ++i) {
+    if (!links_[i].active && links_[i].type == LinkType::kLoopClosure) rejected.push_back(i);
+  }
+  if (static_cast<int>(rejected.size()) > options_.final_retry_max_loops) return {};
+  for (size_t i : rejected) {
+    links_[i].active = true;
+    graph_.SetEdgeActive(i, true);
+  }
+  return rejected;
+}
+
+void Mapper::NetRetriedLoops(const std::vector<size_t>& retried, KeyframeReport* report) const {
+  // A retried loop switched off again was off before: no change to report.
+  const std::set<size_t> retried_set(retried.begin(), retried.end());
+  std::vector<size_t> rejected;
+  for (size_t i : report->rejected_links) {
+    if (retried_set.count(i) == 0) rejected.push_back(i);
+  }
+  report->rejected_links = std::move(rejected);
+  report->links_rejected = static_cast<int>(report->rejected_links.size());
+  for (size_t i : retried) {
+    if (links_[i].active) report->reactivated_links.push_back(i);
+  }
 }
 
 std::map<int, std::vector<PlaneSightings>> Mapper::PlaneSightingsOfParts() const {
@@ -1199,7 +1229,8 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      loop_candidates, loop_min_relative_score, loop_min_inliers, loop_min_spacing,
      proximity_candidates, proximity_radius_m, proximity_max_angle_deg, proximity_min_inliers,
      proximity_max_disagreement_m, proximity_max_disagreement_deg, local_loop_hops,
-     local_loop_max_border_chi2_rise, pose_graph, seeded_final_solve, wall_tie_rounds, wall_ties),
+     local_loop_max_border_chi2_rise, pose_graph, seeded_final_solve, final_retry_max_loops,
+     wall_tie_rounds, wall_ties),
     (join_max_disagreement_m, join_max_disagreement_rad, walk_max_speed_mps, walk_max_turn_rate_dps,
      walk_slack_m, walk_slack_deg, walk_max_gap_s, walk_max_tilt_deg, loop_max_graph_chi2,
      loop_check_link_sigma_m, loop_check_link_sigma_rad, loop_check_lever_m, loop_check_slack_m,

@@ -777,6 +777,78 @@ TEST(Mapper, AFalseLoopIsRejectedAndDoesNotBendTheMap) {
   EXPECT_LT(ate_after, 1.1 * ate_before + 0.002);
 }
 
+// While mapping, a loop is judged against the loops before it: a false loop the graph could
+// still bend to, claiming more than the right loops that come after it, switches right loops off.
+// The end's solve turns them back on and judges all of them together.
+TEST(Mapper, TheEndJudgesTheLoopsSwitchedOffAgainAndTheRightOnesOutvoteAFalseOne) {
+  const Walk& walk = HandheldWalkAt5Hz();
+  std::vector<StampedPose> truth;
+  for (size_t i = 0; i < 45; ++i) {
+    truth.push_back({walk.frames[i].timestamp_ns, *walk.frames[i].world_from_cam_gt});
+  }
+  const auto true_link = [&truth](int64_t from, int64_t to) {
+    return truth[static_cast<size_t>(from)].world_from_cam.inverse() *
+           truth[static_cast<size_t>(to)].world_from_cam;
+  };
+  for (const int final_retry_max_loops : {100, 0}) {
+    MapperOptions options = SmallVocabulary();
+    options.final_retry_max_loops = final_retry_max_loops;
+    // Odometry held by squares, not the Cauchy loss: with it 45 keyframes bend under the 5 cm
+    // below and keep every loop, false or right; a long walk's graph cannot.
+    options.pose_graph.odometry_loss_scale = 0.0;
+    Mapper mapper(walk.camera, options);
+    for (size_t i = 0; i < 45; ++i) {
+      const RgbdFrame& frame = walk.frames[i];
+      mapper.AddKeyframe(frame.timestamp_ns, frame.color, frame.depth);
+    }
+    const Eigen::Matrix<double, 6, 6> information = mapper.Links().back().information;
+    MapperLink wrong;
+    wrong.from = 2;
+    wrong.to = 44;
+    // Slid 5 cm along the camera's y (up a bookcase's shelves), claiming 4 times the information
+    // of the right loops: a loop this small a graph of 45 keyframes still bends to.
+    wrong.to_in_from = Eigen::Translation3d(0.0, 0.05, 0.0) * true_link(2, 44);
+    wrong.information = 4.0 * information;
+    wrong.type = LinkType::kLoopClosure;
+    ASSERT_EQ(mapper.AddExternalLink(wrong).links_rejected, 0) << "the graph bends to it";
+    const size_t wrong_index = mapper.Links().size() - 1;
+    std::vector<size_t> right_indices;
+    std::vector<size_t> switched_off;
+    for (const auto& [from, to] : {std::pair<int64_t, int64_t>(3, 43), {4, 42}, {5, 41}}) {
+      MapperLink right;
+      right.from = from;
+      right.to = to;
+      right.to_in_from = true_link(from, to);
+      right.information = information;
+      right.type = LinkType::kLoopClosure;
+      mapper.AddExternalLink(right);
+      right_indices.push_back(mapper.Links().size() - 1);
+      if (!mapper.Links().back().active) switched_off.push_back(right_indices.back());
+    }
+    ASSERT_TRUE(mapper.Links()[wrong_index].active);
+    ASSERT_GE(switched_off.size(), 2u) << "the false loop, first, switches right ones off";
+    const double ate_before = EvaluateTrajectory(truth, mapper.Trajectory()).ate_rmse_m;
+
+    const KeyframeReport report = mapper.OptimiseWhole();
+    const double ate_after = EvaluateTrajectory(truth, mapper.Trajectory()).ate_rmse_m;
+    std::printf("retry up to %d loops: ATE %.4f m before the end's solve, %.4f m after\n",
+                final_retry_max_loops, ate_before, ate_after);
+    if (final_retry_max_loops == 0) {
+      EXPECT_TRUE(report.reactivated_links.empty());
+      EXPECT_TRUE(mapper.Links()[wrong_index].active);
+      for (size_t index : switched_off) EXPECT_FALSE(mapper.Links()[index].active) << index;
+      continue;
+    }
+    EXPECT_FALSE(mapper.Links()[wrong_index].active);
+    for (size_t index : right_indices) EXPECT_TRUE(mapper.Links()[index].active) << index;
+    // The report says what changed: the right loops that were off are back on, the false one off.
+    EXPECT_EQ(report.reactivated_links, switched_off);
+    EXPECT_EQ(report.rejected_links, std::vector<size_t>{wrong_index});
+    EXPECT_EQ(report.links_rejected, 1);
+    EXPECT_LT(ate_after, ate_before);
+  }
+}
+
 TEST(Mapper, AResumedSessionRelocalisesIntoTheRestoredMap) {
   // Day one maps frames 0-29; day two restores that map (as `sightmap map` does from the model)
   // and walks frames 15-29 again: its first keyframe cannot be registered by odometry, is

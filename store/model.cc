@@ -828,19 +828,23 @@ void Model::UpdatePoses(
 }
 
 void Model::UpdateGraph(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam,
-                        const std::vector<LinkKey>& deactivated_links) {
+                        const std::vector<LinkKey>& deactivated_links,
+                        const std::vector<LinkKey>& reactivated_links) {
   impl_->CheckWritable();
   Transaction transaction(impl_->db);
-  Statement deactivate(impl_->db,
-                       "UPDATE links SET active = 0 WHERE from_id = ? AND to_id = ? AND type = ?");
-  for (const LinkKey& link : deactivated_links) {
-    deactivate.Bind(1, link.from.value()).Bind(2, link.to.value());
-    deactivate.Bind(3, static_cast<int>(link.type));
-    deactivate.Run();
-    SIGHTMAP_CHECK(sqlite3_changes(impl_->db) >= 1,
-                   "no " << LinkTypeName(link.type) << " link from keyframe " << link.from.value()
-                         << " to " << link.to.value() << " in model "
-                         << FileDescription(impl_->path) << "; nothing was changed");
+  Statement set_active(impl_->db,
+                       "UPDATE links SET active = ? WHERE from_id = ? AND to_id = ? AND type = ?");
+  for (const auto& [links, active] :
+       {std::pair(&deactivated_links, 0), std::pair(&reactivated_links, 1)}) {
+    for (const LinkKey& link : *links) {
+      set_active.Bind(1, active).Bind(2, link.from.value()).Bind(3, link.to.value());
+      set_active.Bind(4, static_cast<int>(link.type));
+      set_active.Run();
+      SIGHTMAP_CHECK(sqlite3_changes(impl_->db) >= 1,
+                     "no " << LinkTypeName(link.type) << " link from keyframe " << link.from.value()
+                           << " to " << link.to.value() << " in model "
+                           << FileDescription(impl_->path) << "; nothing was changed");
+    }
   }
   Statement update(impl_->db,
                    "UPDATE keyframes SET tx = ?, ty = ?, tz = ?, qx = ?, qy = ?, qz = ?, qw = ? "

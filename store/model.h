@@ -235,10 +235,12 @@ class Model {
   KeyframeId AddKeyframe(const KeyframeRecord& keyframe);
   // A pose-graph optimisation's result: every optimised world_from_cam in one transaction.
   void UpdatePoses(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam);
-  // The same, with the links that optimisation switched off, in one transaction: the stored graph
-  // never has poses from one optimisation and link states from another.
+  // The same, with the links that optimisation switched off and those it switched back on, in one
+  // transaction: the stored graph never has poses from one optimisation and link states from
+  // another.
   void UpdateGraph(const std::vector<std::pair<KeyframeId, Eigen::Isometry3d>>& world_from_cam,
-                   const std::vector<LinkKey>& deactivated_links);
+                   const std::vector<LinkKey>& deactivated_links,
+                   const std::vector<LinkKey>& reactivated_links = {});
   std::vector<KeyframeInfo> Keyframes() const;  // ordered by id; no image is read
   KeyframeInfo Keyframe(KeyframeId id) const;
   int64_t NumKeyframes() const;

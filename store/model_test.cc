@@ -503,6 +503,12 @@ TEST(Model, ALinkSwitchedOffByThePoseGraphStaysOff) {
   EXPECT_EQ(summary.odometry_links, 3);
   EXPECT_NEAR(model.Keyframe(ids[2]).world_from_cam.translation().x(), 7.0, 1e-12);
 
+  // The end's solve judges it again and switches it back on, with its poses.
+  model.UpdateGraph({{ids[2], moved}}, {}, {{ids[3], ids[1], LinkType::kLoopClosure}});
+  EXPECT_EQ(model.Summary().loop_closures, 1);
+  EXPECT_EQ(model.Summary().inactive_links, 1);
+  model.UpdateGraph({{ids[2], moved}}, {{ids[3], ids[1], LinkType::kLoopClosure}});
+
   // A link the model does not hold: nothing changes, not even the poses.
   Eigen::Isometry3d elsewhere = Eigen::Isometry3d::Identity();
   elsewhere.translation() = Eigen::Vector3d(-3.0, 0.0, 0.0);
