@@ -55,8 +55,9 @@ namespace {
 class ScratchFolder {
  public:
   ScratchFolder()
-      : path_(std::filesystem::temp_directory_path() /
-              ("sightmap-fuzz-" + std::to_string(::getpid()))) {
+      : path_((std::filesystem::temp_directory_path() /
+               ("sightmap-fuzz-" + std::to_string(::getpid())))
+                  .string()) {
     std::filesystem::create_directories(path_);
   }
   ~ScratchFolder() {
@@ -66,18 +67,17 @@ class ScratchFolder {
   ScratchFolder(const ScratchFolder&) = delete;
   ScratchFolder& operator=(const ScratchFolder&) = delete;
 
-  std::string path() const { return path_.string(); }
+  const std::string& path() const { return path_; }
 
  private:
-  std::filesystem::path path_;
+  std::string path_;
 };
 
 }  // namespace
 
 const std::string& ScratchDir() {
   static const ScratchFolder folder;
-  static const std::string dir = folder.path();
-  return dir;
+  return folder.path();
 }
 
 void WriteFile(const std::string& path, const std::string& bytes) {

@@ -185,8 +185,9 @@ struct MappingSummary {
   // The source time this session continued after (the last stored frame of the same replay) [s].
   std::optional<double> continued_after_s;
   int64_t links_rejected_after_commit = 0;  // loop links switched off after being stored
-  int64_t links_reactivated_at_end = 0;     // of those, switched back on by the end's solve
-  std::optional<double> ate_rmse_m;         // this session's keyframes vs. ground truth
+  // Loop links switched off while mapping (stored or not yet) that the end's solve switched on.
+  int64_t links_reactivated_at_end = 0;
+  std::optional<double> ate_rmse_m;  // this session's keyframes vs. ground truth
   std::optional<double> ate_max_m;
   int64_t ate_poses = 0;
   double elapsed_s = 0.0;
