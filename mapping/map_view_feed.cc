@@ -25,6 +25,8 @@ render::ViewMode ToRender(ViewChoice choice) {
 
 }  // namespace
 
+bool DrawnAsLoop(LinkType type) { return type != LinkType::kOdometry && type != LinkType::kPrior; }
+
 bool MapViewFeedOptions::Check(std::string* error) const {
   if (progress_every_n_keyframes < 1) {
     *error = "progress_every_n_keyframes must be >= 1";
@@ -118,6 +120,12 @@ void MapViewFeed::UpdatePoses(
 void MapViewFeed::AddLoop(int64_t from_id, int64_t to_id) {
   render::MapUpdate update;
   update.loops.push_back({from_id, to_id});
+  impl_->view->Submit(std::move(update));
+}
+
+void MapViewFeed::RemoveLoop(int64_t from_id, int64_t to_id) {
+  render::MapUpdate update;
+  update.removed_loops.push_back({from_id, to_id});
   impl_->view->Submit(std::move(update));
 }
 

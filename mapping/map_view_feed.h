@@ -17,12 +17,17 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "core/link_type.h"
 #include "core/tracking_state.h"
 #include "store/model.h"
 
 namespace sightmap::mapping {
 
 enum class ViewChoice { kAuto, kPreview, kHeadless };
+
+// The map draws the links that close loops or join parts; odometry and a blind run's motion
+// priors lie along the track, which is drawn already.
+bool DrawnAsLoop(LinkType type);
 
 struct MapViewFeedOptions {
   ViewChoice choice = ViewChoice::kAuto;
@@ -70,6 +75,8 @@ class MapViewFeed {
                    const cv::Mat& bgr, const cv::Mat& depth_mm, const Intrinsics& intrinsics);
   void UpdatePoses(const std::vector<std::pair<int64_t, Eigen::Isometry3d>>& world_from_cam);
   void AddLoop(int64_t from_id, int64_t to_id);
+  // A loop drawn before and switched off since (or one of two drawn with the same ends).
+  void RemoveLoop(int64_t from_id, int64_t to_id);
   void SetCamera(const Eigen::Isometry3d& world_from_cam);
   void SetStatus(const FeedStatus& status);
   void SetLiveImages(const cv::Mat& bgr, const cv::Mat& depth_mm);

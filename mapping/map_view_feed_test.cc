@@ -4,6 +4,7 @@
 #include "mapping/map_view_feed.h"
 
 #include <cstdlib>
+#include <functional>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -64,6 +65,52 @@ TEST(MapViewFeed, AKeyframeThatSeesALabelTurnsItsSectorGreen) {
   ASSERT_FALSE(hidden.empty());
   EXPECT_EQ(CountNear(hidden, green), 0);
   EXPECT_GT(CountNear(hidden, red), 100);
+}
+
+// The floor plan after three keyframes (a right angle: 2 m along x, then 2 m along z) and the loop
+// operations `loops` makes on the feed between the first and the third.
+cv::Mat FloorPlanAfterLoops(const std::string& name,
+                            const std::function<void(MapViewFeed&)>& loops) {
+  MapViewFeedOptions options;
+  options.choice = ViewChoice::kHeadless;
+  options.progress_png = testing::MakeTempDir(name) + "/progress.png";
+  std::unique_ptr<MapViewFeed> feed = MapViewFeed::Create(options, nullptr);
+  const Intrinsics camera = store::SyntheticIntrinsics(640, 480);
+  const cv::Mat bgr(480, 640, CV_8UC3, cv::Scalar(120, 120, 120));
+  const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(2500));
+  const Eigen::Vector3d positions[] = {{0, 0, 0}, {2, 0, 0}, {2, 0, 2}};
+  for (int id = 1; id <= 3; ++id) {
+    feed->AddKeyframe(id, 1, Eigen::Isometry3d(Eigen::Translation3d(positions[id - 1])), bgr, depth,
+                      camera);
+  }
+  loops(*feed);
+  feed->Finish();
+  const cv::Mat image = cv::imread(options.progress_png);
+  EXPECT_FALSE(image.empty()) << options.progress_png;
+  return image.empty() ? image : image(cv::Rect(0, 0, image.cols / 2, image.rows)).clone();
+}
+
+// The view draws the loops the model holds: a loop switched off after it was drawn leaves the
+// floor plan, and one switched back on (the end's solve judging again) returns.
+TEST(MapViewFeed, ALoopSwitchedOffLeavesTheMapAndReturnsWhenSwitchedBackOn) {
+  const cv::Vec3b magenta(230, 64, 255);  // the loops' colour (render/map_renderer.cc), BGR
+  const cv::Mat drawn =
+      FloorPlanAfterLoops("feed_loop_on", [](MapViewFeed& feed) { feed.AddLoop(1, 3); });
+  ASSERT_FALSE(drawn.empty());
+  EXPECT_GT(CountNear(drawn, magenta), 50);
+  const cv::Mat removed = FloorPlanAfterLoops("feed_loop_off", [](MapViewFeed& feed) {
+    feed.AddLoop(1, 3);
+    feed.RemoveLoop(1, 3);
+  });
+  ASSERT_FALSE(removed.empty());
+  EXPECT_EQ(CountNear(removed, magenta), 0);
+  const cv::Mat back = FloorPlanAfterLoops("feed_loop_back", [](MapViewFeed& feed) {
+    feed.AddLoop(1, 3);
+    feed.RemoveLoop(1, 3);
+    feed.AddLoop(1, 3);
+  });
+  ASSERT_FALSE(back.empty());
+  EXPECT_GT(CountNear(back, magenta), 50);
 }
 
 }  // namespace

@@ -57,7 +57,7 @@ RestoredModel RestoreModel(const store::Model& model, const Intrinsics& camera, 
     link.type = record.type;
     link.active = record.active;
     mapper->RestoreLink(link);
-    if (view && link.active && link.type != LinkType::kOdometry) {
+    if (view && link.active && DrawnAsLoop(link.type)) {
       view->AddLoop(link.from, link.to);
     }
   }

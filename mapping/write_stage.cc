@@ -103,7 +103,7 @@ void WriteStage::WriteKeyframe(WriteTask& task) {
   view_->AddKeyframe(task.mapper_id, session_number_, record.world_from_cam, record.color,
                      record.depth, record.intrinsics);
   for (const slam::MapperLink& link : task.links) {
-    if (link.active && link.type != LinkType::kOdometry) view_->AddLoop(link.from, link.to);
+    if (link.active && DrawnAsLoop(link.type)) view_->AddLoop(link.from, link.to);
   }
   view_->SetCamera(record.world_from_cam);
   view_->SetStatus(task.status);
@@ -125,7 +125,16 @@ void WriteStage::WritePoses(const WriteTask& task) {
     return keys;
   };
   model_->UpdateGraph(poses, keys_of(task.deactivated), keys_of(task.reactivated));
-  if (view_) view_->UpdatePoses(task.poses);
+  if (!view_) return;
+  view_->UpdatePoses(task.poses);
+  // The view draws what the model holds: a loop switched off leaves the map, one switched back on
+  // (the end's solve judging again) returns.
+  for (const slam::MapperLink& link : task.deactivated) {
+    if (DrawnAsLoop(link.type)) view_->RemoveLoop(link.from, link.to);
+  }
+  for (const slam::MapperLink& link : task.reactivated) {
+    if (DrawnAsLoop(link.type)) view_->AddLoop(link.from, link.to);
+  }
 }
 
 }  // namespace sightmap::mapping

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/thread_priority.h"
@@ -193,6 +194,55 @@ TEST(WriteStage, LinksToRestoredKeyframesUseTheirModelIds) {
   EXPECT_EQ(links[1].type, LinkType::kRelocalisation);
   EXPECT_EQ(links[1].from, restored[1]);
   EXPECT_EQ(links[1].to, model.Keyframes().back().id);
+}
+
+// Magenta pixels (the loops' colour, render/map_renderer.cc) of the floor plan, the progress
+// image's left half.
+int LoopPixels(const std::string& progress_png) {
+  const cv::Mat image = cv::imread(progress_png);
+  EXPECT_FALSE(image.empty()) << progress_png;
+  if (image.empty()) return -1;
+  cv::Mat near;
+  cv::inRange(image(cv::Rect(0, 0, image.cols / 2, image.rows)), cv::Scalar(210, 44, 235),
+              cv::Scalar(250, 84, 255), near);
+  return cv::countNonZero(near);
+}
+
+// The view shows the loops the model holds: a stored loop the optimiser switches off leaves the
+// floor plan, one switched back on returns; a blind run's prior is never drawn as a loop.
+TEST(WriteStage, TheViewDrawsTheLoopsThePoseUpdatesLeaveOn) {
+  const std::string folder = testing::MakeTempDir("write-stage-view");
+  store::Model model = store::Model::Open(folder + "/model.db");
+  const SessionId session = Begin(model);
+  const auto loop_pixels_after = [&](const std::string& name,
+                                     const std::vector<WriteTask>& updates) {
+    MapViewFeedOptions options;
+    options.choice = ViewChoice::kHeadless;
+    options.progress_png = folder + "/" + name + ".png";
+    std::unique_ptr<MapViewFeed> feed = MapViewFeed::Create(options, nullptr);
+    WriteStage stage(&model, feed.get(), 1, {}, 8);
+    // A right angle: 1 m along x, then 1 m along z; the loop joins its ends.
+    WriteTask corner = KeyframeTask(
+        session, 2, {Link(1, 2, LinkType::kPrior), Link(0, 2, LinkType::kLoopClosure)});
+    corner.record.world_from_cam = Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.0, 1.0));
+    EXPECT_TRUE(stage.Push(KeyframeTask(session, 0, {})));
+    EXPECT_TRUE(stage.Push(KeyframeTask(session, 1, {Link(0, 1, LinkType::kOdometry)})));
+    EXPECT_TRUE(stage.Push(corner));
+    for (const WriteTask& update : updates) EXPECT_TRUE(stage.Push(update));
+    stage.Finish();
+    EXPECT_FALSE(stage.failed());
+    feed->Finish();
+    return LoopPixels(options.progress_png);
+  };
+  WriteTask off;
+  off.kind = WriteTask::Kind::kPoses;
+  off.deactivated = {Link(0, 2, LinkType::kLoopClosure)};
+  WriteTask on = off;
+  on.deactivated.clear();
+  on.reactivated = {Link(0, 2, LinkType::kLoopClosure)};
+  EXPECT_GT(loop_pixels_after("drawn", {}), 30);
+  EXPECT_EQ(loop_pixels_after("off", {off}), 0);
+  EXPECT_GT(loop_pixels_after("back_on", {off, on}), 30);
 }
 
 // A replay's writer runs at a lower priority than the stage that starts it; the starter keeps its

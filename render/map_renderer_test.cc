@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -304,6 +305,48 @@ TEST(MapScene, MergedUpdatesEqualUpdatesInOrder) {
   EXPECT_DOUBLE_EQ(scene.keyframes().at(7).world_from_cam.translation().x(), 2.0);
   EXPECT_EQ(scene.loops().size(), 1u);
   EXPECT_EQ(scene.status().tracking, TrackingState::kRelocalised);
+}
+
+// A removed loop takes one edge with its ends out of the scene; merged batches keep the order the
+// feed sent them in: a loop added then removed is gone, removed then added again is drawn.
+TEST(MapScene, RemovedLoopsLeaveTheSceneInTheOrderSent) {
+  const auto apply_in_order = [](std::vector<MapUpdate> updates, bool merged) {
+    MapScene scene;
+    MapUpdate first;
+    first.loops = {{1, 2}, {1, 2}, {3, 4}};  // two loops may join the same keyframes
+    scene.Apply(std::move(first));
+    if (merged) {
+      for (size_t i = 1; i < updates.size(); ++i) updates[0].Merge(std::move(updates[i]));
+      updates.resize(1);
+    }
+    for (MapUpdate& update : updates) scene.Apply(std::move(update));
+    return scene.loops();
+  };
+  const auto loops_of = [](std::vector<LoopEdge> add, std::vector<LoopEdge> remove) {
+    MapUpdate update;
+    update.loops = std::move(add);
+    update.removed_loops = std::move(remove);
+    return update;
+  };
+  for (bool merged : {false, true}) {
+    SCOPED_TRACE(merged ? "merged" : "one at a time");
+    std::vector<MapUpdate> off_on_off;
+    off_on_off.push_back(loops_of({}, {{3, 4}}));
+    off_on_off.push_back(loops_of({{3, 4}}, {}));
+    off_on_off.push_back(loops_of({}, {{3, 4}, {1, 2}}));
+    off_on_off.push_back(loops_of({{5, 6}}, {{7, 8}}));  // an unknown loop removes nothing
+    EXPECT_EQ(apply_in_order(std::move(off_on_off), merged),
+              (std::vector<LoopEdge>{{1, 2}, {5, 6}}));
+    std::vector<MapUpdate> on_off_on;
+    on_off_on.push_back(loops_of({{9, 10}}, {}));
+    on_off_on.push_back(loops_of({}, {{9, 10}}));
+    on_off_on.push_back(loops_of({{9, 10}}, {}));
+    EXPECT_EQ(apply_in_order(std::move(on_off_on), merged),
+              (std::vector<LoopEdge>{{1, 2}, {1, 2}, {3, 4}, {9, 10}}));
+  }
+  MapUpdate only_removal;
+  only_removal.removed_loops.push_back({1, 2});
+  EXPECT_FALSE(only_removal.empty());
 }
 
 // Sightings count for the sector their keyframe stands in now, within the distance band; a pose

@@ -104,6 +104,16 @@ void MapUpdate::Merge(MapUpdate&& later) {
       }
     }
   }
+  // A removal of a loop this batch adds cancels that addition: removing it when applied (before
+  // the additions) would find it absent, or take an older copy of it instead.
+  for (const LoopEdge& removed : later.removed_loops) {
+    const auto added = std::find(loops.begin(), loops.end(), removed);
+    if (added != loops.end()) {
+      loops.erase(added);
+    } else {
+      removed_loops.push_back(removed);
+    }
+  }
   loops.insert(loops.end(), later.loops.begin(), later.loops.end());
   sightings.insert(sightings.end(), later.sightings.begin(), later.sightings.end());
   if (later.camera) camera = later.camera;
@@ -112,8 +122,8 @@ void MapUpdate::Merge(MapUpdate&& later) {
 }
 
 bool MapUpdate::empty() const {
-  return keyframes.empty() && poses.empty() && loops.empty() && sightings.empty() && !camera &&
-         !appliances && !status;
+  return keyframes.empty() && poses.empty() && loops.empty() && removed_loops.empty() &&
+         sightings.empty() && !camera && !appliances && !status;
 }
 
 MapScene::MapScene(const Eigen::Vector3d& world_up) : world_up_(world_up) {
@@ -178,6 +188,10 @@ void MapScene::Apply(MapUpdate&& update) {
   for (const PoseUpdate& pose : update.poses) {
     const auto it = keyframes_.find(pose.id);
     if (it != keyframes_.end()) it->second.world_from_cam = pose.world_from_cam;
+  }
+  for (const LoopEdge& removed : update.removed_loops) {
+    const auto it = std::find(loops_.begin(), loops_.end(), removed);
+    if (it != loops_.end()) loops_.erase(it);
   }
   loops_.insert(loops_.end(), update.loops.begin(), update.loops.end());
   sightings_.insert(sightings_.end(), update.sightings.begin(), update.sightings.end());

@@ -55,6 +55,10 @@ struct PoseUpdate {
 struct LoopEdge {
   int64_t from_id = 0;
   int64_t to_id = 0;
+
+  bool operator==(const LoopEdge& other) const {
+    return from_id == other.from_id && to_id == other.to_id;
+  }
 };
 
 struct ApplianceLabel {
@@ -96,6 +100,10 @@ struct MapUpdate {
   std::vector<MapKeyframe> keyframes;  // new keyframes; a known id replaces that keyframe
   std::vector<PoseUpdate> poses;       // corrected poses of known keyframes (unknown ids ignored)
   std::vector<LoopEdge> loops;         // new loop-closure edges
+  // Loop edges switched off (a loop the optimiser no longer trusts), each removing one edge of
+  // those with its ends; applied before `loops`, so a loop switched off and later back on in
+  // one merged batch is drawn.
+  std::vector<LoopEdge> removed_loops;
   std::optional<Eigen::Isometry3d> camera;                // the current camera pose
   std::optional<std::vector<ApplianceLabel>> appliances;  // replaces every label
   std::vector<LabelSighting> sightings;                   // new sightings
