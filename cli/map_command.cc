@@ -57,11 +57,13 @@ class StatusLine {
     line << progress.keyframes << " keyframes (" << std::fixed << std::setprecision(2)
          << progress.keyframes_per_s << "/s), " << TrackingText(progress) << ", " << progress.loops
          << " loops, " << progress.dropped_frames << " dropped";
+    if (progress.optimising_whole_map) line << ", optimising the whole map";
     if (tty_) {
       std::cerr << "\r" << line.str() << "\033[K" << std::flush;
       shown_ = true;
       if (progress.finished) End();
-    } else if (progress.finished || progress.elapsed_s - last_printed_s_ >= 10.0) {
+    } else if (progress.finished || progress.optimising_whole_map ||
+               progress.elapsed_s - last_printed_s_ >= 10.0) {
       // Logs and pipes get a line every 10 s rather than one per keyframe.
       std::cerr << line.str() << "\n";
       last_printed_s_ = progress.elapsed_s;
@@ -115,6 +117,7 @@ nlohmann::json SummaryJson(const mapping::MappingSummary& summary) {
       summary.continued_after_s ? nlohmann::json(*summary.continued_after_s) : nlohmann::json();
   json["links_rejected_after_commit"] = summary.links_rejected_after_commit;
   json["links_reactivated_at_end"] = summary.links_reactivated_at_end;
+  json["final_optimisation_s"] = summary.final_optimisation_s;
   json["ate_rmse_m"] = summary.ate_rmse_m ? nlohmann::json(*summary.ate_rmse_m) : nlohmann::json();
   json["ate_max_m"] = summary.ate_max_m ? nlohmann::json(*summary.ate_max_m) : nlohmann::json();
   json["ate_poses"] = summary.ate_poses;

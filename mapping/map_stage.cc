@@ -1,5 +1,6 @@
 #include "mapping/map_stage.h"
 
+#include <chrono>
 #include <utility>
 
 #include "core/check.h"
@@ -117,7 +118,10 @@ WriteTask MapStage::Finish() {
   std::vector<slam::MapperLink> deactivated;
   std::vector<slam::MapperLink> reactivated;
   if (!options_.ground_truth_poses && mapper_->NumKeyframes() > 0) {
+    const auto start = std::chrono::steady_clock::now();
     const slam::KeyframeReport report = mapper_->OptimiseWhole();
+    final_optimisation_s_ =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (size_t index : report.rejected_links) deactivated.push_back(mapper_->Links()[index]);
     for (size_t index : report.reactivated_links) reactivated.push_back(mapper_->Links()[index]);
     links_rejected_after_commit_ += static_cast<int64_t>(deactivated.size());

@@ -58,6 +58,8 @@ class MapStage {
   int64_t links_rejected_after_commit() const { return links_rejected_after_commit_; }
   // Loop links switched off while mapping that the end's solve switched back on.
   int64_t links_reactivated_at_end() const { return links_reactivated_at_end_; }
+  // Wall time of Finish's whole-map optimisation [s] (0 before it, or with ground_truth_poses).
+  double final_optimisation_s() const { return final_optimisation_s_; }
   // This session's keyframes against their ground truth, when every one had it (and at least 3).
   std::optional<slam::TrajectoryError> Accuracy() const;
 
@@ -80,6 +82,7 @@ class MapStage {
   std::vector<double> keyframe_s_;
   int64_t links_rejected_after_commit_ = 0;
   int64_t links_reactivated_at_end_ = 0;
+  double final_optimisation_s_ = 0.0;
 };
 
 }  // namespace sightmap::mapping

@@ -289,6 +289,7 @@ void Summarise(const slam::Mapper& mapper, const MapStage& map, const TrackStage
   summary->frames_skipped = capture.frames_skipped();
   summary->links_rejected_after_commit = map.links_rejected_after_commit();
   summary->links_reactivated_at_end = map.links_reactivated_at_end();
+  summary->final_optimisation_s = map.final_optimisation_s();
   summary->joined_stored_map = map.joined_stored_map();
   if (const std::optional<slam::TrajectoryError> error = map.Accuracy()) {
     summary->ate_rmse_m = error->ate_rmse_m;
@@ -382,6 +383,11 @@ std::exception_ptr MappingSession::DrainStages(const Pipeline& pipeline) {
   pipeline.track.Join();
   std::exception_ptr error = pipeline.track.error();
   if (!error && !pipeline.writer.failed() && pipeline.map.keyframes() > 0) {
+    if (progress_ && !options_.ground_truth_poses) {  // true poses are not optimised
+      MappingProgress optimising = Progress(pipeline);
+      optimising.optimising_whole_map = true;
+      progress_(optimising);
+    }
     try {
       pipeline.writer.Push(pipeline.map.Finish());
     } catch (...) {

@@ -146,6 +146,9 @@ struct MappingProgress {
   bool paused = false;
   double elapsed_s = 0.0;
   double keyframes_per_s = 0.0;
+  // Mapping stopped and the whole map is being optimised once more (seconds on a long capture,
+  // more when loops switched off while mapping are judged again); `finished` comes after it.
+  bool optimising_whole_map = false;
   bool finished = false;  // the last call: mapping stopped, the files are being written
 };
 
@@ -187,7 +190,8 @@ struct MappingSummary {
   int64_t links_rejected_after_commit = 0;  // loop links switched off after being stored
   // Loop links switched off while mapping (stored or not yet) that the end's solve switched on.
   int64_t links_reactivated_at_end = 0;
-  std::optional<double> ate_rmse_m;  // this session's keyframes vs. ground truth
+  double final_optimisation_s = 0.0;  // the end's whole-map optimisation (wall) [s]
+  std::optional<double> ate_rmse_m;   // this session's keyframes vs. ground truth
   std::optional<double> ate_max_m;
   int64_t ate_poses = 0;
   double elapsed_s = 0.0;

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -47,12 +48,17 @@ TEST(MappingSession, ASimWalkReachesTheModelKeyframeByKeyframe) {
   const std::string dir = testing::MakeTempDir("mapping-sim");
   MappingSession session(SimOptions(dir, 12));
   int64_t callbacks = 0;
+  std::vector<std::string> ends;  // the calls that say mapping is ending, in order
   session.SetProgressCallback([&](const MappingProgress& progress) {
     ++callbacks;
     ASSERT_TRUE(progress.frames_total.has_value());
     EXPECT_EQ(*progress.frames_total, 12);
+    if (progress.optimising_whole_map) ends.push_back("optimising");
+    if (progress.finished) ends.push_back("finished");
   });
   const MappingSummary summary = session.Run();
+  EXPECT_EQ(ends, (std::vector<std::string>{"optimising", "finished"}));
+  EXPECT_GT(summary.final_optimisation_s, 0.0);
   EXPECT_EQ(summary.reason, StopReason::kSourceEnded);
   EXPECT_EQ(summary.frames_before_start, kBareStartFrames);
   const int keyframes = 12 - kBareStartFrames;

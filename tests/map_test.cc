@@ -160,6 +160,9 @@ void ExpectRecordingMapsEveryFrame(const std::string& recording, int frames) {
   EXPECT_EQ(summary.at("largest_part_ratio"), 1.0);
   EXPECT_EQ(summary.at("dropped_frames"), 0) << "a replay waits for the mapper";
   EXPECT_EQ(summary.at("reason"), "the source ended");
+  // The end's whole-map optimisation is timed, and the status line says it is running.
+  EXPECT_GT(summary.at("final_optimisation_s").get<double>(), 0.0);
+  EXPECT_NE(run.err.find("optimising the whole map"), std::string::npos) << run.err;
   EXPECT_EQ(Info(dir + "/m.db").at("keyframes"), frames);
   const store::Model model = store::Model::Open(dir + "/m.db", store::ModelOptions::ReadOnly());
   EXPECT_EQ(model.NumKeyframes(), frames);
