@@ -1,6 +1,7 @@
 // The feed's coverage while mapping, through the real progress writer (OSMesa): a keyframe that
 // sees a label turns a sector of its ring green in the written floor plan; one whose depth shows a
-// box in front of the label leaves every sector red.
+// box in front of the label leaves every sector red. Loops switched off leave the floor plan and
+// return when switched back on.
 #include "mapping/map_view_feed.h"
 
 #include <cstdlib>

@@ -1,6 +1,7 @@
 // The writing stage against a real model file: keyframes and links reach it with the model's ids,
 // pose updates switch stored links off, a keyframe's revisions replace older links, the vocabulary
-// is stored, and a failed write stops the stage without losing what was committed.
+// is stored, the view draws the loops the model holds, and a failed write stops the stage without
+// losing what was committed.
 #include "mapping/write_stage.h"
 
 #include <chrono>
