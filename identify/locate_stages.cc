@@ -1101,6 +1101,27 @@ bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& option
   return verdict.projected > 0 && verdict.inliers < options.min_inlier_share * verdict.projected;
 }
 
+bool RestsOnCeilingOnly(const PlaceVerdict& verdict, const Eigen::Vector3d& world_up,
+                        const LocatorOptions& options) {
+  if (options.ceiling_only_max_thickness_m <= 0.0 || !verdict.pose.valid ||
+      verdict.inlier_points.empty()) {
+    return false;
+  }
+  const Eigen::Vector3d up = world_up.normalized();
+  std::vector<double> heights;
+  heights.reserve(verdict.inlier_points.size());
+  for (const cv::Point3f& point : verdict.inlier_points) {
+    heights.push_back(up.dot(Eigen::Vector3d(point.x, point.y, point.z)));
+  }
+  std::sort(heights.begin(), heights.end());
+  const auto percentile = [&](double share) {
+    return heights[static_cast<size_t>(share * static_cast<double>(heights.size() - 1))];
+  };
+  const double camera_height = up.dot(verdict.pose.world_from_cam.translation());
+  return percentile(0.9) - percentile(0.1) <= options.ceiling_only_max_thickness_m &&
+         percentile(0.1) > camera_height;
+}
+
 namespace {
 
 // The verdict with a pose and most inliers (the first of equals), among the accepted ones only
@@ -1149,6 +1170,13 @@ Refusal WhyNotMatched(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
              "photo, and a pose with fewer than "
           << options.min_inliers_unchecked << " inliers needs the check.";
       return Refusal{UnmatchedReason::kFewMatches, why.str()};
+    }
+    if (best->ceiling_only) {
+      std::ostringstream ceiling;
+      ceiling << "the best pose (" << most_inliers
+              << " inliers) rests on the ceiling alone, whose tiles and lights repeat across the "
+                 "building: include a wall or furniture in the photo.";
+      return Refusal{UnmatchedReason::kBareView, ceiling.str()};
     }
     if (best->looks_different) {
       std::ostringstream different;
@@ -1250,7 +1278,7 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   const PlaceVerdict* runner_up = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
     if (&verdict == &best || !verdict.pose.valid || verdict.inliers < options.min_inliers ||
-        verdict.looks_different || verdict.copy) {
+        verdict.looks_different || verdict.ceiling_only || verdict.copy) {
       continue;
     }
     if (!PosesDisagree(best.pose.world_from_cam, verdict.pose.world_from_cam, options)) continue;

@@ -195,6 +195,8 @@ struct PlaceVerdict {
   // Accepted by the other checks, not judged, and fewer inliers than min_inliers_unchecked: a weak
   // pose nothing confirms.
   bool unconfirmed = false;
+  // Its inliers lie on the ceiling alone (RestsOnCeilingOnly): refused, and nobody's rival.
+  bool ceiling_only = false;
   bool accepted = false;  // valid and every check passed
   // Verified from the winner's pose moved by a copy offset (CopyOffsets): a copy of what the
   // winner matched elsewhere.
@@ -215,6 +217,11 @@ int RequiredInlierCells(const PreparedPhoto& photo, const LocatorOptions& option
 // Whether a verdict's inliers are fewer than min_inlier_share of the place's points its pose
 // projects into the photo (one of VerifyPlace's checks).
 bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& options);
+// Whether a verdict's inliers lie on the ceiling alone: 80% of them (the 10th to the 90th
+// percentile of their heights along `world_up`) within ceiling_only_max_thickness_m, and all of
+// those above its camera. The model's up comes from its keyframes (EstimateWorldUp).
+bool RestsOnCeilingOnly(const PlaceVerdict& verdict, const Eigen::Vector3d& world_up,
+                        const LocatorOptions& options);
 
 // Stage 5b: places that may be the winner's twin. The model repeats itself (identical desks, the
 // same box in two rooms), and a photo of one copy verifies against the other; the search stops at

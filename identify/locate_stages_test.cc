@@ -1066,6 +1066,78 @@ TEST(DecideTest, NothingAcceptedSaysWhyFromTheBestRefusedPose) {
   EXPECT_EQ(Decide({}, options).refusal->code, UnmatchedReason::kFewMatches);
 }
 
+// A verdict whose inliers lie at the given heights (z up), spread over 2 x 2 m, its camera at
+// 1.6 m.
+PlaceVerdict VerdictWithInliersAt(const std::vector<double>& heights) {
+  PlaceVerdict verdict = Verdict(static_cast<int>(heights.size()), {0, 0, 1.6}, true);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> across(-1.0f, 1.0f);
+  for (double z : heights) {
+    verdict.inlier_points.emplace_back(across(rng), 2.0f + across(rng), static_cast<float>(z));
+  }
+  return verdict;
+}
+
+// A ceiling's tiles and lights repeat across the building: a pose whose inliers lie on it alone is
+// one guess among the repeats. Inliers on a desk below the camera, on a wall (spread in height),
+// or a ceiling with a wall's points in it are not; a few stray points do not hide a ceiling.
+TEST(RestsOnCeilingOnlyTest, InliersOnOneHorizontalPlaneAboveTheCameraAlone) {
+  const LocatorOptions options;
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  std::vector<double> ceiling(40, 2.78);
+  for (size_t i = 0; i < ceiling.size(); ++i) ceiling[i] += 0.001 * static_cast<double>(i % 7);
+  EXPECT_TRUE(RestsOnCeilingOnly(VerdictWithInliersAt(ceiling), up, options));
+  std::vector<double> with_strays = ceiling;
+  with_strays[0] = 1.2;  // two stray points: under the 10th percentile
+  with_strays[1] = 2.1;
+  EXPECT_TRUE(RestsOnCeilingOnly(VerdictWithInliersAt(with_strays), up, options));
+  // Up is the model's, whatever its axes: the same points in a frame whose up is its y.
+  PlaceVerdict turned = VerdictWithInliersAt(ceiling);
+  const Eigen::Isometry3d turned_frame(Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX()));
+  for (cv::Point3f& point : turned.inlier_points) {
+    const Eigen::Vector3d p = turned_frame * Eigen::Vector3d(point.x, point.y, point.z);
+    point = cv::Point3f(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                        static_cast<float>(p.z()));
+  }
+  turned.pose.world_from_cam = turned_frame * turned.pose.world_from_cam;
+  EXPECT_TRUE(RestsOnCeilingOnly(turned, turned_frame * up, options));
+  EXPECT_FALSE(RestsOnCeilingOnly(turned, up, options));
+
+  EXPECT_FALSE(RestsOnCeilingOnly(VerdictWithInliersAt(std::vector<double>(40, 0.75)), up, options))
+      << "a desk below the camera";
+  std::vector<double> wall;
+  for (int i = 0; i < 40; ++i) wall.push_back(1.0 + 0.04 * i);
+  EXPECT_FALSE(RestsOnCeilingOnly(VerdictWithInliersAt(wall), up, options));
+  std::vector<double> ceiling_and_wall = ceiling;
+  for (int i = 0; i < 10; ++i) ceiling_and_wall.push_back(1.2 + 0.1 * i);
+  EXPECT_FALSE(RestsOnCeilingOnly(VerdictWithInliersAt(ceiling_and_wall), up, options));
+  LocatorOptions off;
+  off.ceiling_only_max_thickness_m = 0.0;
+  EXPECT_FALSE(RestsOnCeilingOnly(VerdictWithInliersAt(ceiling), up, off));
+  off.ceiling_only_max_thickness_m = -0.1;
+  std::string error;
+  EXPECT_FALSE(off.Check(&error));
+  EXPECT_NE(error.find("ceiling_only_max_thickness_m"), std::string::npos) << error;
+}
+
+// A pose on the ceiling alone wins nothing, makes no photo ambiguous, and says what to do.
+TEST(DecideTest, APoseOnTheCeilingAloneIsNoAnswerAndNoRival) {
+  const LocatorOptions options;
+  PlaceVerdict ceiling = Verdict(90, {3, 0, 0}, false);
+  ceiling.ceiling_only = true;
+  Decision decision = Decide({Verdict(100, {0, 0, 0}, true), ceiling}, options);
+  EXPECT_EQ(decision.winner, 0);
+  EXPECT_EQ(decision.runner_up_inliers, 0);
+  decision = Decide({ceiling, Verdict(20, {1, 0, 0}, false)}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kBareView);
+  EXPECT_NE(decision.refusal->reason.find("(90 inliers) rests on the ceiling alone"),
+            std::string::npos)
+      << decision.refusal->reason;
+  EXPECT_NE(decision.refusal->reason.find("include a wall or furniture"), std::string::npos);
+}
+
 // A photo with corners everywhere: random rectangles of random greys.
 cv::Mat TexturedPhoto(int width, int height) {
   cv::Mat photo(height, width, CV_8UC3, cv::Scalar::all(128));

@@ -17,6 +17,7 @@
 
 #include "core/check.h"
 #include "core/options_json.h"
+#include "identify/coverage.h"
 #include "identify/locate_stages.h"
 #include "identify/visibility.h"
 #include "slam/place_index.h"
@@ -92,6 +93,8 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "bare_view_max_detail_cells must be in [0, 16]";
   else if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0))
     why << "min_inlier_share must be in [0, 1]";
+  else if (!(ceiling_only_max_thickness_m >= 0.0 && ceiling_only_max_thickness_m <= 1.0))
+    why << "ceiling_only_max_thickness_m must be in [0, 1] m";
   else if (!(same_pose_m >= 0.0) || !(same_pose_deg >= 0.0) ||
            !(min_inlier_ratio_over_runner_up >= 1.0) ||
            !(min_unique_inlier_share >= 0.0 && min_unique_inlier_share <= 1.0) ||
@@ -213,6 +216,8 @@ struct Locator::Impl {
   // Over sift_keyframes' RootSIFT, by slot; empty unless second_look_retrieval is vlad.
   slam::VladIndex vlad;
   size_t num_synthetic_views = 0;  // the last ones of `keyframes`
+  // The model's up (EstimateWorldUp of its keyframes), for RestsOnCeilingOnly.
+  Eigen::Vector3d world_up = Eigen::Vector3d::UnitZ();
   size_t num_sift_extracted = 0;
   OcclusionCloud cloud;
   // Every keyframe's depth at 80x60, to tell from which side the walk saw each label point.
@@ -306,6 +311,9 @@ struct Locator::Impl {
                                    std::future<TimedSiftPhoto>* sift_ahead,
                                    LocateResult* result) const;
 
+  // VerifyPlace, then the check that needs the model's up (RestsOnCeilingOnly).
+  PlaceVerdict Verify(const PreparedPhoto& photo, const Place& place, const PlaceMatches& matches,
+                      const std::vector<LocatorKeyframe>& matched) const;
   // Stages 3-4 over `places`, place_threads at a time; with `until_certain`, in order until one
   // is certain (accepted with confident_inliers), the first alone. Their verdicts in order, none
   // after the certain one: the same whatever the thread count. Matching and PnP times are summed
@@ -317,6 +325,17 @@ struct Locator::Impl {
                                          bool until_certain, LocateTimings* timings,
                                          const std::function<void()>& first_refused = {}) const;
 };
+
+PlaceVerdict Locator::Impl::Verify(const PreparedPhoto& photo, const Place& place,
+                                   const PlaceMatches& matches,
+                                   const std::vector<LocatorKeyframe>& matched) const {
+  PlaceVerdict verdict = VerifyPlace(photo, place, matches, matched, VerifyingOptions(matched));
+  if (RestsOnCeilingOnly(verdict, world_up, options)) {
+    verdict.ceiling_only = true;
+    verdict.accepted = false;
+  }
+  return verdict;
+}
 
 std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(
     const PreparedPhoto& photo, const std::vector<Place>& places,
@@ -343,7 +362,7 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(
           const PlaceMatches matches = MatchPlace(photo, place, matched, options);
           slot.matching_ms = MsSince(stage);
           stage = Clock::now();
-          slot.verdict = VerifyPlace(photo, place, matches, matched, VerifyingOptions(matched));
+          slot.verdict = Verify(photo, place, matches, matched);
           slot.pnp_ms = MsSince(stage);
         } catch (...) {
           slot.error = std::current_exception();
@@ -437,7 +456,7 @@ std::vector<PlaceVerdict> Locator::Impl::VerifyCopies(
     const PlaceMatches matches = MatchPlaceFrom(photo, place, matched, moved, options);
     timings->matching_ms += MsSince(stage);
     stage = Clock::now();
-    verdicts.push_back(VerifyPlace(photo, place, matches, matched, VerifyingOptions(matched)));
+    verdicts.push_back(Verify(photo, place, matches, matched));
     verdicts.back().copy = true;
     timings->pnp_ms += MsSince(stage);
   }
@@ -754,6 +773,7 @@ Locator::Locator(const store::Model& model, const LocatorOptions& options,
                                               << " has no keyframes: map a building into it "
                                                  "first ('sightmap map')");
   impl_->vocabulary = LoadOrTrainVocabulary(model, infos);
+  impl_->world_up = EstimateWorldUp(infos);
 
   OcclusionCloudBuilder cloud(options.occlusion_voxel_m);
   bool any_orb_features = false;
@@ -1128,10 +1148,10 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
      min_ransac_inliers, guided_radius_px),
     (guided_max_distance, guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
-     bare_view_max_detail_cells, min_inlier_share, same_pose_m, same_pose_deg,
-     min_inlier_ratio_over_runner_up, ambiguity_min_agreement_lead, min_unique_inlier_share,
-     twin_places, twin_min_matches, twin_max_shared_share, copies, confident_inliers,
-     max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
+     bare_view_max_detail_cells, min_inlier_share, ceiling_only_max_thickness_m, same_pose_m,
+     same_pose_deg, min_inlier_ratio_over_runner_up, ambiguity_min_agreement_lead,
+     min_unique_inlier_share, twin_places, twin_min_matches, twin_max_shared_share, copies,
+     confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
      second_look_min_inliers_unchecked, view_agreement, focal_candidates_35mm,
      refine_estimated_focal, occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
      occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
