@@ -100,6 +100,14 @@ void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
   if (e.unknown_identified > 0) {
     std::cout << "names not in the ground truth  " << e.unknown_identified << "\n";
   }
+  if (e.retrieval_photos > 0) {
+    std::cout << "a keyframe that saw the view retrieved within rank";
+    for (size_t k = 0; k < e.options.retrieval_ranks.size(); ++k) {
+      std::cout << (k == 0 ? " " : ", ") << e.options.retrieval_ranks[k] << ": "
+                << Share(e.retrieval_found[k], e.retrieval_photos);
+    }
+    std::cout << "\n";
+  }
   std::cout << "\ninstances of matched photos (partially visible: either answer is right)\n";
   std::cout << std::left << std::setw(20) << "ground truth" << std::right << std::setw(12)
             << "identified" << std::setw(16) << "not identified"
@@ -156,6 +164,12 @@ void MarkCoveredPhotos(const store::Model& model, bool with_synthetic_views,
     truth.view_angle_deg = identify::NearestViewAngleDeg(*truth.world_from_cam, label->second,
                                                          keyframes, seen.max_distance_ratio);
     truth.covered = identify::IsSeenAngle(truth.view_angle_deg, seen);
+    truth.seeing_keyframes.clear();
+    for (const size_t i :
+         identify::KeyframesSeeingView(*truth.world_from_cam, label->second, keyframes, seen)) {
+      // Synthetic views have no id of their own here: retrieval ranks the model's keyframes.
+      if (keyframes[i].id.valid()) truth.seeing_keyframes.push_back(keyframes[i].id.value());
+    }
   }
 }
 

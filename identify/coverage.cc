@@ -414,6 +414,32 @@ bool ViewSeenOptions::Check(std::string* error) const {
   return true;
 }
 
+namespace {
+
+// The cosine of the angle between the photo's and the keyframe's lines of sight to the point,
+// when the keyframe has the point in its image within a factor max_distance_ratio of the photo's
+// distance.
+std::optional<double> ViewCosine(const Eigen::Vector3d& photo_ray, double photo_distance,
+                                 const Eigen::Vector3d& point_world,
+                                 const store::KeyframeInfo& keyframe, double max_distance_ratio) {
+  const Eigen::Vector3d ray = point_world - keyframe.world_from_cam.translation();
+  const double distance = ray.norm();
+  if (distance < photo_distance / max_distance_ratio ||
+      distance > photo_distance * max_distance_ratio) {
+    return std::nullopt;
+  }
+  const Eigen::Vector3d in_cam = keyframe.world_from_cam.inverse() * point_world;
+  if (in_cam.z() <= 0.0) return std::nullopt;
+  const Eigen::Vector2d pixel = keyframe.intrinsics.Project(in_cam);
+  if (pixel.x() < 0.0 || pixel.y() < 0.0 || pixel.x() >= keyframe.intrinsics.width ||
+      pixel.y() >= keyframe.intrinsics.height) {
+    return std::nullopt;
+  }
+  return ray.dot(photo_ray) / (distance * photo_distance);
+}
+
+}  // namespace
+
 std::optional<double> NearestViewAngleDeg(const Eigen::Isometry3d& world_from_photo,
                                           const Eigen::Vector3d& point_world,
                                           const std::vector<store::KeyframeInfo>& keyframes,
@@ -421,26 +447,32 @@ std::optional<double> NearestViewAngleDeg(const Eigen::Isometry3d& world_from_ph
   const Eigen::Vector3d photo_ray = point_world - world_from_photo.translation();
   const double photo_distance = photo_ray.norm();
   if (photo_distance < 1e-6) return std::nullopt;
-  double best_cos = -2.0;
+  std::optional<double> best_cos;
   for (const store::KeyframeInfo& keyframe : keyframes) {
-    const Eigen::Vector3d ray = point_world - keyframe.world_from_cam.translation();
-    const double distance = ray.norm();
-    if (distance < photo_distance / max_distance_ratio ||
-        distance > photo_distance * max_distance_ratio) {
-      continue;
-    }
-    const double cos = ray.dot(photo_ray) / (distance * photo_distance);
-    if (cos <= best_cos) continue;
-    const Eigen::Vector3d in_cam = keyframe.world_from_cam.inverse() * point_world;
-    if (in_cam.z() <= 0.0) continue;
-    const Eigen::Vector2d pixel = keyframe.intrinsics.Project(in_cam);
-    if (pixel.x() >= 0.0 && pixel.y() >= 0.0 && pixel.x() < keyframe.intrinsics.width &&
-        pixel.y() < keyframe.intrinsics.height) {
-      best_cos = cos;
-    }
+    const std::optional<double> cos =
+        ViewCosine(photo_ray, photo_distance, point_world, keyframe, max_distance_ratio);
+    if (cos && (!best_cos || *cos > *best_cos)) best_cos = cos;
   }
-  if (best_cos < -1.5) return std::nullopt;
-  return RadToDeg(std::acos(std::clamp(best_cos, -1.0, 1.0)));
+  if (!best_cos) return std::nullopt;
+  return RadToDeg(std::acos(std::clamp(*best_cos, -1.0, 1.0)));
+}
+
+std::vector<size_t> KeyframesSeeingView(const Eigen::Isometry3d& world_from_photo,
+                                        const Eigen::Vector3d& point_world,
+                                        const std::vector<store::KeyframeInfo>& keyframes,
+                                        const ViewSeenOptions& options) {
+  SIGHTMAP_CHECK_OPTIONS(options);
+  const Eigen::Vector3d photo_ray = point_world - world_from_photo.translation();
+  const double photo_distance = photo_ray.norm();
+  std::vector<size_t> seeing;
+  if (photo_distance < 1e-6) return seeing;
+  const double min_cos = std::cos(DegToRad(options.max_angle_deg));
+  for (size_t i = 0; i < keyframes.size(); ++i) {
+    const std::optional<double> cos = ViewCosine(photo_ray, photo_distance, point_world,
+                                                 keyframes[i], options.max_distance_ratio);
+    if (cos && *cos >= min_cos) seeing.push_back(i);
+  }
+  return seeing;
 }
 
 bool ViewWasSeen(const Eigen::Isometry3d& world_from_photo, const Eigen::Vector3d& point_world,

@@ -143,6 +143,12 @@ std::optional<double> NearestViewAngleDeg(const Eigen::Isometry3d& world_from_ph
                                           double max_distance_ratio = 2.0);
 // ViewWasSeen's rule on a NearestViewAngleDeg (with options.max_distance_ratio) already computed.
 bool IsSeenAngle(const std::optional<double>& nearest_angle_deg, const ViewSeenOptions& options);
+// The keyframes (their indices in `keyframes`) that each saw the view by ViewWasSeen's rule: the
+// ones a retrieval should rank first for this photo.
+std::vector<size_t> KeyframesSeeingView(const Eigen::Isometry3d& world_from_photo,
+                                        const Eigen::Vector3d& point_world,
+                                        const std::vector<store::KeyframeInfo>& keyframes,
+                                        const ViewSeenOptions& options = ViewSeenOptions());
 
 // {"share", "open_sectors", "seen_sectors", "up", "eye_height_m", "labels": [{"id", "name",
 // "type", "centre", "share", "open_sectors", "seen_sectors", "keyframes", "sectors": [{"from_deg",

@@ -283,6 +283,15 @@ TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
   bad.max_distance_ratio = 0.5;
   EXPECT_THROW(ViewWasSeen(photo, kThermostat, keyframe_at(eye, kThermostat), bad),
                InvalidArgument);
+  // Every keyframe that saw it, by the same rule: 20 and 35 deg off, not 45 deg or 4.1 m away.
+  std::vector<store::KeyframeInfo> four = keyframe_at(at_bearing(45, 2.0), kThermostat);
+  for (const auto& [bearing, distance] :
+       {std::pair(20.0, 2.5), std::pair(0.0, 4.1), std::pair(-35.0, 1.5)}) {
+    four.push_back(keyframe_at(at_bearing(bearing, distance), kThermostat).front());
+  }
+  EXPECT_EQ(KeyframesSeeingView(photo, kThermostat, four), (std::vector<size_t>{1, 3}));
+  EXPECT_TRUE(KeyframesSeeingView(photo, kThermostat, {}).empty());
+  EXPECT_THROW(KeyframesSeeingView(photo, kThermostat, four, bad), InvalidArgument);
 }
 
 TEST(Coverage, RefusesBadOptions) {

@@ -144,6 +144,9 @@ PhotoAnswer ToPhotoAnswer(const LocateResult& result) {
   answer.timings = result.timings;
   answer.photo_detail_cells = result.photo_detail_cells;
   answer.second_look = result.second_look;
+  for (const KeyframeId& id : result.retrieved_keyframes) {
+    answer.retrieved.push_back(id.valid() ? id.value() : -1);
+  }
   if (!result.matched) {
     answer.refused_world_from_cam = result.refused_world_from_cam;
     answer.refused_inliers = result.refused_inliers;
@@ -179,6 +182,10 @@ bool IdentifyEvalOptions::Check(std::string* error) const {
     if (error != nullptr) *error = "wrong_position_m and wrong_rotation_deg must be positive";
     return false;
   }
+  if (std::any_of(retrieval_ranks.begin(), retrieval_ranks.end(), [](int r) { return r < 1; })) {
+    if (error != nullptr) *error = "retrieval_ranks must be 1 or more";
+    return false;
+  }
   return true;
 }
 
@@ -192,6 +199,15 @@ PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& 
 bool IsWrongPose(const PoseError& error, const IdentifyEvalOptions& options) {
   return error.position_m > options.wrong_position_m ||
          error.rotation_deg > options.wrong_rotation_deg;
+}
+
+std::optional<int> RetrievalRank(const std::vector<int64_t>& retrieved,
+                                 const std::vector<int64_t>& seeing) {
+  const std::set<int64_t> seen(seeing.begin(), seeing.end());
+  for (size_t i = 0; i < retrieved.size(); ++i) {
+    if (retrieved[i] >= 0 && seen.count(retrieved[i]) > 0) return static_cast<int>(i) + 1;
+  }
+  return std::nullopt;
 }
 
 void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<PhotoAnswer>& answers,
@@ -264,6 +280,9 @@ std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
       row["possible_place_position_errors_m"].push_back(
           ComparePoses(*truth.world_from_cam, place).position_m);
     }
+    row["seeing_keyframes"] = truth.seeing_keyframes.size();
+    const std::optional<int> rank = RetrievalRank(answer.retrieved, truth.seeing_keyframes);
+    row["retrieval_rank"] = rank ? nlohmann::json(*rank) : nlohmann::json();
     row["identified"] = answer.identified;
     const auto if_matched = [&](int value) {
       return answer.matched ? nlohmann::json(value) : nlohmann::json();
@@ -298,6 +317,7 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
   out.photos = static_cast<int>(truths.size());
   out.recall_histogram.assign(static_cast<size_t>(options.histogram_bins + 1), 0);
   out.precision_histogram.assign(static_cast<size_t>(options.histogram_bins + 1), 0);
+  out.retrieval_found.assign(options.retrieval_ranks.size(), 0);
   std::map<std::string, std::vector<double>> stage_values;
   std::vector<double> position_errors;
   std::vector<double> rotation_errors;
@@ -312,6 +332,13 @@ IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
     stage_values["visibility"].push_back(t.visibility_ms);
     stage_values["total"].push_back(t.total_ms);
     out.second_look_photos += answer.second_look ? 1 : 0;
+    if (!truth.seeing_keyframes.empty()) {
+      ++out.retrieval_photos;
+      const std::optional<int> rank = RetrievalRank(answer.retrieved, truth.seeing_keyframes);
+      for (size_t k = 0; k < options.retrieval_ranks.size(); ++k) {
+        out.retrieval_found[k] += rank && *rank <= options.retrieval_ranks[k] ? 1 : 0;
+      }
+    }
     if (!answer.matched) {
       ++out.unmatched_reasons[answer.reason.empty() ? "(no reason given)" : answer.reason];
       if (!answer.possible_places.empty()) {
@@ -412,6 +439,13 @@ nlohmann::json ToJson(const IdentifyEvaluation& e) {
   out["median_position_error_m"] = e.median_position_error_m;
   out["median_rotation_error_deg"] = e.median_rotation_error_deg;
   out["unknown_identified"] = e.unknown_identified;
+  out["retrieval_photos"] = e.retrieval_photos;
+  nlohmann::json recall = nlohmann::json::object();
+  for (size_t k = 0; k < e.options.retrieval_ranks.size() && k < e.retrieval_found.size(); ++k) {
+    recall[std::to_string(e.options.retrieval_ranks[k])] =
+        Ratio(e.retrieval_found[k], e.retrieval_photos);
+  }
+  out["retrieval_recall"] = recall;
   nlohmann::json categories = nlohmann::json::object();
   for (int type = 0; type < kNumTruthTypes; ++type) {
     categories[kTruthNames[type]] = {

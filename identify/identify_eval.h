@@ -58,6 +58,9 @@ struct QueryTruth {
   // The nearest view's angle to the photo's line of sight to its target (NearestViewAngleDeg),
   // set by the caller; nullopt = not known or no view within the distance factor [deg].
   std::optional<double> view_angle_deg;
+  // The ids of the keyframes that saw the view (KeyframesSeeingView), set by the caller; empty
+  // when not known or none did.
+  std::vector<int64_t> seeing_keyframes;
 };
 
 // Reads a simulator query set. `path` may be the dataset folder (holding queries/queries.json),
@@ -87,6 +90,8 @@ struct PhotoAnswer {
   int refused_inliers = 0;
   // When ambiguous: the poses of the places it named (LocateResult::possible_places).
   std::vector<Eigen::Isometry3d> possible_places;
+  // LocateResult::retrieved_keyframes: ids best first, -1 for a synthetic view.
+  std::vector<int64_t> retrieved;
 };
 PhotoAnswer ToPhotoAnswer(const LocateResult& result);
 
@@ -96,6 +101,9 @@ struct IdentifyEvalOptions {
   // A matched photo's pose is wrong beyond either (the "> 0.5 m or > 10 deg").
   double wrong_position_m = 0.5;
   double wrong_rotation_deg = 10.0;
+  // Retrieval recall is counted at these ranks (the locator's defaults try 20 candidates, then 40
+  // more in reserve).
+  std::vector<int> retrieval_ranks = {1, 5, 20, 60};
 
   bool Check(std::string* error) const;
 };
@@ -146,6 +154,10 @@ struct IdentifyEvaluation {
   std::map<std::string, StageTiming>
       stages;  // features, retrieval, matching, pnp, visibility, total
   std::map<std::string, int> unmatched_reasons;  // reason -> photos
+  // Photos some keyframe saw (QueryTruth::seeing_keyframes not empty), and per
+  // options.retrieval_ranks entry those whose first seeing keyframe retrieval ranked within it.
+  int retrieval_photos = 0;
+  std::vector<int> retrieval_found;
   IdentifyEvalOptions options;
 };
 
@@ -157,6 +169,9 @@ struct PoseError {
 PoseError ComparePoses(const Eigen::Isometry3d& truth, const Eigen::Isometry3d& estimate);
 // Beyond options.wrong_position_m or options.wrong_rotation_deg.
 bool IsWrongPose(const PoseError& error, const IdentifyEvalOptions& options);
+// The 1-based rank of the first of `retrieved` that is one of `seeing`; nullopt when none is.
+std::optional<int> RetrievalRank(const std::vector<int64_t>& retrieved,
+                                 const std::vector<int64_t>& seeing);
 
 // `truths` and `answers` are parallel (photo i).
 IdentifyEvaluation EvaluateIdentification(const std::vector<QueryTruth>& truths,
@@ -178,14 +193,16 @@ void SelectCovered(const std::vector<QueryTruth>& truths, const std::vector<Phot
 // "refused_inliers", "refused_position_error_m" and "refused_rotation_error_deg" of the pose the
 // answer would have been (null when there was none, the errors also without a true pose), and
 // "possible_place_position_errors_m" of an ambiguous answer's places (empty for others or
-// without a true pose).
+// without a true pose); "seeing_keyframes" (how many saw the view) and "retrieval_rank"
+// (RetrievalRank, null when none was retrieved or none saw it).
 std::vector<nlohmann::json> PhotoRows(const std::vector<QueryTruth>& truths,
                                       const std::vector<PhotoAnswer>& answers,
                                       const IdentifyEvalOptions& options = {});
 
 // Stable keys: photos, matched_photos, matched_ratio, recall_ge_0_8_ratio, precision_ge_0_8_ratio,
 // posed_photos, wrong_poses, wrong_pose_ratio, median_position_error_m, median_rotation_error_deg,
-// ambiguous_photos, ambiguous_right_place_photos, occluded_false_positive_ratio, locate_median_ms,
+// ambiguous_photos, ambiguous_right_place_photos, occluded_false_positive_ratio,
+// retrieval_photos, retrieval_recall ({"<rank>": share of retrieval_photos}), locate_median_ms,
 // locate_p95_ms, categories
 // ({"visible": {"identified", "not_identified"}, ...}), recall/precision histograms and counts,
 // stages_ms ({"features": {"median", "p95", "mean", "max"}, ...}) and <stage>_median_ms /

@@ -287,6 +287,38 @@ TEST(IdentifyEval, WrongPosesAreCountedAndPhotosSplitByCoverage) {
   EXPECT_EQ(EvaluateIdentification(selected_truths, selected_answers).wrong_poses, 1);
 }
 
+TEST(IdentifyEval, RetrievalRecallCountsTheFirstKeyframeThatSawTheView) {
+  // Keyframes 7 and 9 saw photo 0's view; 4 saw photo 1's; nothing saw photo 2's (not counted).
+  std::vector<QueryTruth> truths(3, Truth({{"lamp", T::kVisible}}));
+  truths[0].seeing_keyframes = {9, 7};
+  truths[1].seeing_keyframes = {4};
+  std::vector<PhotoAnswer> answers(3, Answer(false, {}, 10));
+  answers[0].retrieved = {3, -1, 5, 9, 7};  // 9 at rank 4; a synthetic view (-1) holds a rank
+  answers[1].retrieved = {3, 5};            // 4 never retrieved
+  answers[2].retrieved = {4};
+  EXPECT_EQ(RetrievalRank(answers[0].retrieved, truths[0].seeing_keyframes), 4);
+  EXPECT_FALSE(RetrievalRank(answers[1].retrieved, truths[1].seeing_keyframes));
+  EXPECT_FALSE(RetrievalRank({-1, 2}, {}));
+
+  IdentifyEvalOptions options;
+  options.retrieval_ranks = {1, 4, 60};
+  const IdentifyEvaluation e = EvaluateIdentification(truths, answers, options);
+  EXPECT_EQ(e.retrieval_photos, 2);
+  EXPECT_EQ(e.retrieval_found, (std::vector<int>{0, 1, 1}));
+  const nlohmann::json json = ToJson(e);
+  EXPECT_EQ(json.at("retrieval_photos"), 2);
+  EXPECT_DOUBLE_EQ(json.at("retrieval_recall").at("4").get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(json.at("retrieval_recall").at("1").get<double>(), 0.0);
+  const std::vector<nlohmann::json> rows = PhotoRows(truths, answers);
+  EXPECT_EQ(rows[0].at("retrieval_rank"), 4);
+  EXPECT_EQ(rows[0].at("seeing_keyframes"), 2);
+  EXPECT_TRUE(rows[1].at("retrieval_rank").is_null());
+  EXPECT_TRUE(rows[2].at("retrieval_rank").is_null());
+
+  options.retrieval_ranks = {0};
+  EXPECT_THROW(EvaluateIdentification(truths, answers, options), InvalidArgument);
+}
+
 TEST(IdentifyEval, AmbiguousAnswersCountWhetherOneOfTheirPlacesIsRight) {
   const Eigen::Isometry3d truth_pose(Eigen::Translation3d(1, 2, 1.5));
   std::vector<QueryTruth> truths(4, Truth({{"lamp", T::kVisible}}));

@@ -51,6 +51,8 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "retrieval_candidates must be at least 1, reserve_candidates not negative";
   else if (vote_shortlist < 1 || vote_max_hamming < 0 || vote_max_hamming > 256)
     why << "vote_shortlist must be positive, vote_max_hamming in [0, 256]";
+  else if (wide_vote_shortlist < 0)
+    why << "wide_vote_shortlist must not be negative (0 turns the wider retrieval off)";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
     why << "neighbour_radius_m and max_neighbours must not be negative";
   else if (match_node_level < 0)
@@ -198,6 +200,25 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
   return v;
 }
 
+// A decision that answers the photo: a pose, or two places that fit about as well.
+bool Answered(const Decision& decision) {
+  return decision.winner >= 0 ||
+         (decision.refusal && decision.refusal->code == UnmatchedReason::kAmbiguous);
+}
+
+// Whether the two rankings hold the same keyframes (in any order).
+bool SameCandidates(const std::vector<slam::PlaceCandidate>& a,
+                    const std::vector<slam::PlaceCandidate>& b) {
+  if (a.size() != b.size()) return false;
+  std::vector<int64_t> ids_a;
+  std::vector<int64_t> ids_b;
+  for (const slam::PlaceCandidate& c : a) ids_a.push_back(c.id);
+  for (const slam::PlaceCandidate& c : b) ids_b.push_back(c.id);
+  std::sort(ids_a.begin(), ids_a.end());
+  std::sort(ids_b.begin(), ids_b.end());
+  return ids_a == ids_b;
+}
+
 }  // namespace
 
 struct Locator::Impl {
@@ -300,15 +321,13 @@ struct Locator::Impl {
                       int max_places, LocateTimings* timings,
                       const std::function<void()>& first_refused = {}) const;
 
-  // Stage 3-6 again with RootSIFT, for a photo ORB could not place: the photo's RootSIFT (from
-  // `sift_ahead` when it was extracted ahead, else now) matched against sift_keyframes at the
-  // same candidates (after VLAD's with second_look_retrieval vlad), at most
-  // second_look_max_places. Its search when it placed the photo or found
-  // it ambiguous, else nothing (ORB's refusal stands). Times and the second look's flags go to
-  // `result`.
-  std::optional<Search> SecondLook(const cv::Mat& photo, const PreparedPhoto& prepared,
+  // Stage 3-6 again with RootSIFT, for a photo ORB could not place: the photo's RootSIFT
+  // (`sift`) matched against sift_keyframes at the same candidates (after VLAD's with
+  // second_look_retrieval vlad), at most second_look_max_places. Its search when it placed the
+  // photo or found it ambiguous, else nothing (ORB's refusal stands). Times and the second
+  // look's flags go to `result`.
+  std::optional<Search> SecondLook(const PreparedPhoto& sift,
                                    const std::vector<slam::PlaceCandidate>& candidates,
-                                   std::future<TimedSiftPhoto>* sift_ahead,
                                    LocateResult* result) const;
 
   // VerifyPlace, then the check that needs the model's up (RestsOnCeilingOnly).
@@ -520,18 +539,13 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
 }
 
 std::optional<Locator::Impl::Search> Locator::Impl::SecondLook(
-    const cv::Mat& photo, const PreparedPhoto& prepared,
-    const std::vector<slam::PlaceCandidate>& candidates, std::future<TimedSiftPhoto>* sift_ahead,
+    const PreparedPhoto& sift_photo, const std::vector<slam::PlaceCandidate>& candidates,
     LocateResult* result) const {
   const Clock::time_point start = Clock::now();
   result->second_look = true;
-  TimedSiftPhoto timed = sift_ahead->valid()
-                             ? sift_ahead->get()
-                             : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
-  PreparedPhoto sift = std::move(timed.photo);
-  result->timings.features_ms += timed.ms;
   std::optional<Search> answered;
-  if (!sift.refusal) {
+  if (!sift_photo.refusal) {
+    PreparedPhoto sift = sift_photo;
     // ORB's first candidates, after VLAD's when it ranks, then ORB's reserve.
     const auto first_end = candidates.begin() +
                            std::min<std::ptrdiff_t>(options.retrieval_candidates,
@@ -546,15 +560,13 @@ std::optional<Locator::Impl::Search> Locator::Impl::SecondLook(
     tried = MergeCandidates(tried, std::vector<slam::PlaceCandidate>(first_end, candidates.end()));
     Search again = SearchPlaces(&sift, tried, reserve_from, sift_keyframes,
                                 options.second_look_max_places, &result->timings);
-    const Decision& decision = again.decision;
-    if (decision.winner >= 0 ||
-        (decision.refusal && decision.refusal->code == UnmatchedReason::kAmbiguous)) {
+    if (Answered(again.decision)) {
       result->photo_features = static_cast<int>(sift.features.size());
       result->answered_by_second_look = true;
       answered = std::move(again);
     }
   }
-  result->timings.second_look_ms = MsSince(start);
+  result->timings.second_look_ms += MsSince(start);
   return answered;
 }
 
@@ -890,6 +902,11 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
                          options.retrieval_candidates + options.reserve_candidates,
                          impl_->vocabulary, impl_->index, impl_->votes, impl_->keyframes, options);
   result.timings.retrieval_ms = MsSince(stage);
+  for (const slam::PlaceCandidate& candidate : candidates) {
+    const LocatorKeyframe& keyframe = impl_->keyframes[static_cast<size_t>(candidate.id)];
+    result.retrieved_keyframes.push_back(keyframe.synthetic_view.valid() ? KeyframeId()
+                                                                         : keyframe.id);
+  }
   if (candidates.empty()) {
     return finish({UnmatchedReason::kUnknownPlace,
                    "no keyframe of the model shares a visual word with the photo."});
@@ -905,21 +922,64 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
     sift_ahead = std::async(std::launch::async, ExtractRootSiftTimed, std::cref(photo),
                             RootSiftSeed(prepared), std::cref(options));
   };
-  Impl::Search search =
-      impl_->SearchPlaces(&prepared, candidates, static_cast<size_t>(options.retrieval_candidates),
-                          *matched, options.max_places, &result.timings, extract_sift_ahead);
-  // A photo ORB could not place (not one two places fit) gets a second look with RootSIFT; its
-  // answer stands when it places the photo or finds it ambiguous.
-  const auto retry_code =
-      search.decision.refusal ? search.decision.refusal->code : UnmatchedReason::kNone;
-  if (options.matcher == Matcher::kOrbThenRootSift && search.decision.winner < 0 &&
-      retry_code != UnmatchedReason::kAmbiguous) {
-    if (std::optional<Impl::Search> again =
-            impl_->SecondLook(photo, prepared, candidates, &sift_ahead, &result)) {
-      search = std::move(*again);
-      matched = &impl_->sift_keyframes;
+  // The photo's RootSIFT, extracted once (ahead, or when first needed).
+  std::optional<PreparedPhoto> sift;
+  const auto sift_photo = [&]() -> const PreparedPhoto& {
+    if (!sift) {
+      const Clock::time_point waiting = Clock::now();
+      TimedSiftPhoto timed = sift_ahead.valid()
+                                 ? sift_ahead.get()
+                                 : ExtractRootSiftTimed(photo, RootSiftSeed(prepared), options);
+      result.timings.features_ms += timed.ms;
+      result.timings.second_look_ms += MsSince(waiting);
+      sift = std::move(timed.photo);
+    }
+    return *sift;
+  };
+  // ORB's search over `ranked`; a photo ORB could not place (not one two places fit) gets a
+  // second look with RootSIFT, whose answer stands when it places the photo or finds it
+  // ambiguous.
+  const auto search_from = [&](const std::vector<slam::PlaceCandidate>& ranked,
+                               const std::vector<LocatorKeyframe>** matched_by,
+                               const std::function<void()>& first_refused) {
+    *matched_by = matched;
+    Impl::Search found =
+        impl_->SearchPlaces(&prepared, ranked, static_cast<size_t>(options.retrieval_candidates),
+                            *matched, options.max_places, &result.timings, first_refused);
+    if (options.matcher == Matcher::kOrbThenRootSift && !Answered(found.decision)) {
+      if (std::optional<Impl::Search> again = impl_->SecondLook(sift_photo(), ranked, &result)) {
+        found = std::move(*again);
+        *matched_by = &impl_->sift_keyframes;
+      }
+    }
+    return found;
+  };
+  const std::vector<LocatorKeyframe>* matched_by = matched;
+  Impl::Search search = search_from(candidates, &matched_by, extract_sift_ahead);
+  // Placed nowhere: retrieval again over a wider shortlist (wide_vote_shortlist), and the
+  // search again when that ranks other keyframes first.
+  if (!Answered(search.decision) && options.wide_vote_shortlist > options.vote_shortlist &&
+      options.retrieval == LocatorOptions::Retrieval::kVotes) {
+    stage = Clock::now();
+    LocatorOptions wide = options;
+    wide.vote_shortlist = options.wide_vote_shortlist;
+    const std::vector<slam::PlaceCandidate> wider =
+        RetrieveCandidates(prepared.retrieval_descriptors, options.retrieval,
+                           options.retrieval_candidates + options.reserve_candidates,
+                           impl_->vocabulary, impl_->index, impl_->votes, impl_->keyframes, wide);
+    result.timings.retrieval_ms += MsSince(stage);
+    if (!SameCandidates(wider, candidates)) {
+      const std::vector<LocatorKeyframe>* wide_matched_by = matched;
+      Impl::Search again = search_from(wider, &wide_matched_by, {});
+      if (Answered(again.decision)) {
+        search = std::move(again);
+        matched_by = wide_matched_by;
+        result.answered_by_wide_retrieval = true;
+      }
+      result.wide_retrieval = true;
     }
   }
+  matched = matched_by;
   const std::vector<PlaceVerdict>& verdicts = search.verdicts;
   const Decision& decision = search.decision;
   result.candidates_tried = static_cast<int>(verdicts.size());
@@ -1143,10 +1203,10 @@ SIGHTMAP_OPTIONS_JSON_LONG(
     (features, matcher, sift_features, sift_image_side_px, sift_photo_features, sift_max_distance,
      sift_guided_max_distance, second_look_max_places, second_look_retrieval, vlad, place_threads,
      extract_sift_ahead, max_image_side_px, retrieval_candidates, reserve_candidates, retrieval,
-     vote_shortlist, vote_max_hamming, place_radius_m, place_max_angle_deg, max_places,
-     neighbour_radius_m, neighbour_max_angle_deg, max_neighbours, match_node_level, match_ratio,
-     same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations, min_inliers,
-     min_ransac_inliers, guided_radius_px),
+     wide_vote_shortlist, vote_shortlist, vote_max_hamming, place_radius_m, place_max_angle_deg,
+     max_places, neighbour_radius_m, neighbour_max_angle_deg, max_neighbours, match_node_level,
+     match_ratio, same_point_m, max_descriptor_distance, pnp_reprojection_px, pnp_iterations,
+     min_inliers, min_ransac_inliers, guided_radius_px),
     (guided_max_distance, guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
      bare_view_max_detail_cells, min_inlier_share, ceiling_only_max_thickness_m, same_pose_m,
      same_pose_deg, min_inlier_ratio_over_runner_up, ambiguity_min_agreement_lead,

@@ -121,6 +121,10 @@ struct LocatorOptions {
   Retrieval retrieval = Retrieval::kVotes;
   int vote_shortlist = 100;
   int vote_max_hamming = 30;
+  // A photo ORB and RootSIFT place nowhere (and not ambiguous) is searched again from a vote
+  // ranking of the bag of words' best wide_vote_shortlist, when that ranks other keyframes; its
+  // answer stands when it places the photo or finds it ambiguous. 0 = off [keyframes].
+  int wide_vote_shortlist = 0;
   // Candidates within place_radius_m of an earlier candidate, looking within place_max_angle_deg
   // of it, join its place; each place (its candidates and their neighbours) is matched once
   // against the photo, at most max_places places per photo [m], [deg].
@@ -441,6 +445,10 @@ struct LocateResult {
   // answer is the one given.
   bool second_look = false;
   bool answered_by_second_look = false;
+  // The search ran again from the wider retrieval (LocatorOptions::wide_vote_shortlist), and its
+  // answer is the one given.
+  bool wide_retrieval = false;
+  bool answered_by_wide_retrieval = false;
   // When not matched: the pose the answer would have been (an ambiguous photo's winner, else the
   // pose with most inliers that the checks refused) and its inliers; to tell right refusals from
   // wrong ones.
@@ -450,6 +458,10 @@ struct LocateResult {
   // first), each with the appliances in view from it. A person may tell which it is from them; when
   // both hold the same kind of appliance, that much is known either way.
   std::vector<PossiblePlace> possible_places;
+  // The first retrieval's candidates (retrieval_candidates, then reserve_candidates), best first:
+  // each a keyframe's id, or an invalid id for a synthetic view. To measure how high retrieval
+  // ranks the keyframes that saw the photo's view (`eval identify`'s retrieval ranks).
+  std::vector<KeyframeId> retrieved_keyframes;
 };
 
 // The answer's JSON: {"matched", "reason"?, "reason_code"?, "advice"?, "pose": {"world_from_cam":

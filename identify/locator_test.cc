@@ -353,6 +353,52 @@ TEST_F(LocatorTest, RootSiftPlacesPhotosOrbCouldNotAndNoneWrong) {
   EXPECT_GE(by_sift, static_cast<int>(0.40 * static_cast<double>(seen_photos_->size())));
 }
 
+// A photo placed nowhere is searched again from votes over a wider shortlist
+// (wide_vote_shortlist): a narrow retrieval (the bag of words' best 2, one place) misses places
+// the votes over every keyframe rank first. The retry's answers are right, and a photo the first
+// search answered keeps its answer and is not searched again.
+TEST_F(LocatorTest, APhotoPlacedNowhereIsSearchedAgainFromAWiderShortlist) {
+  LocatorOptions narrow;
+  narrow.retrieval_candidates = 2;
+  narrow.reserve_candidates = 0;
+  narrow.vote_shortlist = 2;
+  narrow.max_places = 1;
+  narrow.matcher = LocatorOptions::Matcher::kOrb;
+  LocatorOptions wide = narrow;
+  wide.wide_vote_shortlist = 1000;
+  const Locator first(*model_, narrow);
+  const Locator again(*model_, wide);
+  int retried = 0;
+  int placed_by_retry = 0;
+  for (const sim::QueryPhoto& photo : *seen_photos_) {
+    const LocateResult before = first.Locate(photo.image, photo.intrinsics);
+    const LocateResult after = again.Locate(photo.image, photo.intrinsics);
+    EXPECT_FALSE(before.wide_retrieval || before.answered_by_wide_retrieval) << photo.index;
+    if (after.matched) ExpectRightPose(after, photo);
+    if (before.matched || before.reason_code == UnmatchedReason::kAmbiguous) {
+      EXPECT_FALSE(after.wide_retrieval) << photo.index;
+      EXPECT_EQ(after.matched, before.matched) << photo.index;
+      EXPECT_EQ(after.keyframe, before.keyframe) << photo.index;
+      EXPECT_EQ(after.inliers, before.inliers) << photo.index;
+      continue;
+    }
+    retried += after.wide_retrieval ? 1 : 0;
+    EXPECT_EQ(after.answered_by_wide_retrieval,
+              after.matched || after.reason_code == UnmatchedReason::kAmbiguous)
+        << photo.index;
+    EXPECT_TRUE(after.wide_retrieval || !after.answered_by_wide_retrieval) << photo.index;
+    placed_by_retry += after.matched ? 1 : 0;
+  }
+  std::printf("of %zu seen photos: %d searched again, %d of them placed\n", seen_photos_->size(),
+              retried, placed_by_retry);
+  EXPECT_GE(placed_by_retry, 2);
+  LocatorOptions bad;
+  bad.wide_vote_shortlist = -1;
+  std::string error;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("wide_vote_shortlist"), std::string::npos) << error;
+}
+
 // A pose RootSIFT's second look found must pass the view check (second_look_min_inliers_unchecked
 // defaults to every pose): with a check that can never judge, ORB's answers of
 // min_inliers_unchecked inliers and more stand and the second look places nothing, unless
