@@ -51,8 +51,10 @@ bool LocatorOptions::Check(std::string* error) const {
     why << "retrieval_candidates must be at least 1, reserve_candidates not negative";
   else if (vote_shortlist < 1 || vote_max_hamming < 0 || vote_max_hamming > 256)
     why << "vote_shortlist must be positive, vote_max_hamming in [0, 256]";
-  else if (wide_vote_shortlist < 0)
-    why << "wide_vote_shortlist must not be negative (0 turns the wider retrieval off)";
+  else if (wide_vote_shortlist < 0 ||
+           (wide_vote_shortlist > 0 && wide_vote_shortlist <= vote_shortlist))
+    why << "wide_vote_shortlist must exceed vote_shortlist (" << vote_shortlist
+        << "), or be 0 to turn the second search off";
   else if (neighbour_radius_m < 0.0 || max_neighbours < 0)
     why << "neighbour_radius_m and max_neighbours must not be negative";
   else if (match_node_level < 0)
@@ -958,7 +960,7 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   Impl::Search search = search_from(candidates, &matched_by, extract_sift_ahead);
   // Placed nowhere: retrieval again over a wider shortlist (wide_vote_shortlist), and the
   // search again when that ranks other keyframes first.
-  if (!Answered(search.decision) && options.wide_vote_shortlist > options.vote_shortlist &&
+  if (!Answered(search.decision) && options.wide_vote_shortlist > 0 &&
       options.retrieval == LocatorOptions::Retrieval::kVotes) {
     stage = Clock::now();
     LocatorOptions wide = options;
@@ -1141,6 +1143,8 @@ nlohmann::json ToJson(const LocateResult& result) {
       {"second_look", result.timings.second_look_ms}};
   out["second_look"] = result.second_look;
   out["answered_by_second_look"] = result.answered_by_second_look;
+  out["wide_retrieval"] = result.wide_retrieval;
+  out["answered_by_wide_retrieval"] = result.answered_by_wide_retrieval;
   return out;
 }
 

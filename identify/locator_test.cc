@@ -393,10 +393,12 @@ TEST_F(LocatorTest, APhotoPlacedNowhereIsSearchedAgainFromAWiderShortlist) {
               retried, placed_by_retry);
   EXPECT_GE(placed_by_retry, 2);
   LocatorOptions bad;
-  bad.wide_vote_shortlist = -1;
   std::string error;
-  EXPECT_FALSE(bad.Check(&error));
-  EXPECT_NE(error.find("wide_vote_shortlist"), std::string::npos) << error;
+  for (const int shortlist : {-1, bad.vote_shortlist}) {
+    bad.wide_vote_shortlist = shortlist;
+    EXPECT_FALSE(bad.Check(&error)) << shortlist;
+    EXPECT_NE(error.find("wide_vote_shortlist"), std::string::npos) << error;
+  }
 }
 
 // A pose RootSIFT's second look found must pass the view check (second_look_min_inliers_unchecked
@@ -695,8 +697,10 @@ TEST_F(LocatorTest, AppliancesInViewAgreeWithTheGroundTruth) {
 TEST_F(LocatorTest, JsonHasTheDocumentedKeys) {
   const sim::QueryPhoto& photo = seen_photos_->front();
   const nlohmann::json json = ToJson(locator_->Locate(photo.image, photo.intrinsics));
-  for (const char* key : {"matched", "pose", "inliers", "matches", "keyframe", "intrinsics",
-                          "appliances", "possible_places", "timings_ms"}) {
+  for (const char* key :
+       {"matched", "pose", "inliers", "matches", "keyframe", "intrinsics", "appliances",
+        "possible_places", "timings_ms", "second_look", "answered_by_second_look", "wide_retrieval",
+        "answered_by_wide_retrieval"}) {
     EXPECT_TRUE(json.contains(key)) << key;
   }
   EXPECT_TRUE(json["possible_places"].empty());  // only an ambiguous photo has them
