@@ -940,27 +940,28 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   };
   // ORB's search over `ranked`; a photo ORB could not place (not one two places fit) gets a
   // second look with RootSIFT, whose answer stands when it places the photo or finds it
-  // ambiguous.
+  // ambiguous. With the keyframes the answer's verdicts were verified against.
+  struct Searched {
+    Impl::Search search;
+    const std::vector<LocatorKeyframe>* matched;
+  };
   const auto search_from = [&](const std::vector<slam::PlaceCandidate>& ranked,
-                               const std::vector<LocatorKeyframe>** matched_by,
                                const std::function<void()>& first_refused) {
-    *matched_by = matched;
-    Impl::Search found =
+    Searched found{
         impl_->SearchPlaces(&prepared, ranked, static_cast<size_t>(options.retrieval_candidates),
-                            *matched, options.max_places, &result.timings, first_refused);
-    if (options.matcher == Matcher::kOrbThenRootSift && !Answered(found.decision)) {
+                            *matched, options.max_places, &result.timings, first_refused),
+        matched};
+    if (options.matcher == Matcher::kOrbThenRootSift && !Answered(found.search.decision)) {
       if (std::optional<Impl::Search> again = impl_->SecondLook(sift_photo(), ranked, &result)) {
-        found = std::move(*again);
-        *matched_by = &impl_->sift_keyframes;
+        found = {std::move(*again), &impl_->sift_keyframes};
       }
     }
     return found;
   };
-  const std::vector<LocatorKeyframe>* matched_by = matched;
-  Impl::Search search = search_from(candidates, &matched_by, extract_sift_ahead);
+  Searched searched = search_from(candidates, extract_sift_ahead);
   // Placed nowhere: retrieval again over a wider shortlist (wide_vote_shortlist), and the
   // search again when that ranks other keyframes first.
-  if (!Answered(search.decision) && options.wide_vote_shortlist > 0 &&
+  if (!Answered(searched.search.decision) && options.wide_vote_shortlist > 0 &&
       options.retrieval == LocatorOptions::Retrieval::kVotes) {
     stage = Clock::now();
     LocatorOptions wide = options;
@@ -971,17 +972,16 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
                            impl_->vocabulary, impl_->index, impl_->votes, impl_->keyframes, wide);
     result.timings.retrieval_ms += MsSince(stage);
     if (!SameCandidates(wider, candidates)) {
-      const std::vector<LocatorKeyframe>* wide_matched_by = matched;
-      Impl::Search again = search_from(wider, &wide_matched_by, {});
-      if (Answered(again.decision)) {
-        search = std::move(again);
-        matched_by = wide_matched_by;
+      Searched again = search_from(wider, {});
+      if (Answered(again.search.decision)) {
+        searched = std::move(again);
         result.answered_by_wide_retrieval = true;
       }
       result.wide_retrieval = true;
     }
   }
-  matched = matched_by;
+  matched = searched.matched;
+  const Impl::Search& search = searched.search;
   const std::vector<PlaceVerdict>& verdicts = search.verdicts;
   const Decision& decision = search.decision;
   result.candidates_tried = static_cast<int>(verdicts.size());
