@@ -1207,16 +1207,81 @@ bool ViewLeads(const PlaceVerdict& a, const PlaceVerdict& b, double lead) {
   return JudgedScore(a) >= 0.0 && JudgedScore(a) >= JudgedScore(b) + lead;
 }
 
-// Of two poses that both passed or may pass (`best` is accepted), the one whose view check
-// scores ambiguity_min_agreement_lead above the other's; null when either was not judged, the
-// lead is smaller, or the leader is a `runner_up` a check refused.
-const PlaceVerdict* ViewLeader(const PlaceVerdict& best, const PlaceVerdict& runner_up,
+// Of poses that fit the photo about as well (`best` is accepted, `rivals` disagree with it), the
+// one whose view check scores ambiguity_min_agreement_lead above every other pose placed elsewhere;
+// null when the lead is smaller, a pose was not judged, or the leader is a rival a check refused.
+// Every rival competes, not only the one of most inliers: where a box carries one picture on
+// every face, two poses facing the wrong faces can outnumber the right one's inliers.
+const PlaceVerdict* ViewLeader(const PlaceVerdict& best,
+                               const std::vector<const PlaceVerdict*>& rivals,
                                const LocatorOptions& options) {
   const double lead = options.ambiguity_min_agreement_lead;
-  if (lead <= 0.0 || !best.agreement.judged || !runner_up.agreement.judged) return nullptr;
-  if (ViewLeads(best, runner_up, lead)) return &best;
-  if (runner_up.accepted && ViewLeads(runner_up, best, lead)) return &runner_up;
-  return nullptr;
+  if (lead <= 0.0) return nullptr;
+  std::vector<const PlaceVerdict*> poses = {&best};
+  poses.insert(poses.end(), rivals.begin(), rivals.end());
+  for (const PlaceVerdict* pose : poses) {
+    if (!pose->agreement.judged) return nullptr;
+  }
+  const PlaceVerdict* leader = *std::max_element(poses.begin(), poses.end(),
+                                                 [](const PlaceVerdict* a, const PlaceVerdict* b) {
+                                                   return JudgedScore(*a) < JudgedScore(*b);
+                                                 });
+  if (leader != &best && !leader->accepted) return nullptr;
+  for (const PlaceVerdict* pose : poses) {
+    if (pose != leader &&
+        PosesDisagree(leader->pose.world_from_cam, pose->pose.world_from_cam, options) &&
+        !ViewLeads(*leader, *pose, lead)) {
+      return nullptr;
+    }
+  }
+  return leader;
+}
+
+// A pose elsewhere with min_inlier_ratio_over_runner_up x the answer's inliers that the view check
+// refused, yet scored at least ambiguity_min_doubted_agreement: it half looks like the photo, and
+// the answer fits too little more than a repeated detail to outweigh it. Null when none.
+const PlaceVerdict* StrongerDoubtedPose(const std::vector<PlaceVerdict>& verdicts,
+                                        const PlaceVerdict& answer, const LocatorOptions& options) {
+  if (options.ambiguity_min_doubted_agreement <= 0.0) return nullptr;
+  const PlaceVerdict* doubted = nullptr;
+  for (const PlaceVerdict& verdict : verdicts) {
+    if (!verdict.looks_different || verdict.ceiling_only || verdict.copy ||
+        JudgedScore(verdict) < options.ambiguity_min_doubted_agreement ||
+        verdict.inliers < options.min_inlier_ratio_over_runner_up * answer.inliers ||
+        !PosesDisagree(answer.pose.world_from_cam, verdict.pose.world_from_cam, options)) {
+      continue;
+    }
+    if (doubted == nullptr || verdict.inliers > doubted->inliers) doubted = &verdict;
+  }
+  return doubted;
+}
+
+// Whether a pose other than `best` may make the photo ambiguous: it has min_inliers, lies
+// elsewhere, and is not one the view check found unlike the photo (it fits only the repeated
+// details), on the ceiling alone, or a copy's (DecideAmongCopies judges those). A pose other checks
+// refused still fits the photo, and with the inliers the view is as ambiguous as with an accepted
+// one (measured on 200 photos: one wrong pose fewer, the same right ones).
+bool CanRival(const PlaceVerdict& verdict, const PlaceVerdict& best,
+              const LocatorOptions& options) {
+  return &verdict != &best && verdict.pose.valid && verdict.inliers >= options.min_inliers &&
+         !verdict.looks_different && !verdict.ceiling_only && !verdict.copy &&
+         PosesDisagree(best.pose.world_from_cam, verdict.pose.world_from_cam, options);
+}
+
+// The rivals of `best` (CanRival) with about as many inliers: more than
+// 1 / min_inlier_ratio_over_runner_up of its count.
+std::vector<const PlaceVerdict*> RivalsFittingAsWell(const std::vector<PlaceVerdict>& verdicts,
+                                                     const PlaceVerdict& best,
+                                                     const LocatorOptions& options) {
+  std::vector<const PlaceVerdict*> rivals;
+  for (const PlaceVerdict& verdict : verdicts) {
+    if (CanRival(verdict, best, options) &&
+        static_cast<double>(best.inliers) <
+            options.min_inlier_ratio_over_runner_up * verdict.inliers) {
+      rivals.push_back(&verdict);
+    }
+  }
+  return rivals;
 }
 
 }  // namespace
@@ -1258,7 +1323,9 @@ std::optional<Decision> DecideAmongCopies(const std::vector<PlaceVerdict>& verdi
   return decision;
 }
 
-Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options) {
+namespace {
+
+Decision DecideWinner(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options) {
   Decision decision;
   const PlaceVerdict* winner = MostInliers(verdicts, /*accepted_only=*/true);
   if (winner == nullptr) {
@@ -1271,17 +1338,10 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
           DecideAmongCopies(verdicts, static_cast<size_t>(decision.winner), options)) {
     return *among_copies;
   }
-  // The strongest pose elsewhere, accepted or not: a pose the checks refused still fits the photo,
-  // and when it has the inliers the view is as ambiguous as with an accepted one (measured on 200
-  // photos: one wrong pose fewer, the same right ones). Not one whose view is unlike the photo:
-  // that one fits only the repeated details.
+  // The strongest pose elsewhere, accepted or not.
   const PlaceVerdict* runner_up = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
-    if (&verdict == &best || !verdict.pose.valid || verdict.inliers < options.min_inliers ||
-        verdict.looks_different || verdict.ceiling_only || verdict.copy) {
-      continue;
-    }
-    if (!PosesDisagree(best.pose.world_from_cam, verdict.pose.world_from_cam, options)) continue;
+    if (!CanRival(verdict, best, options)) continue;
     if (runner_up == nullptr || verdict.inliers > runner_up->inliers) runner_up = &verdict;
   }
   if (runner_up == nullptr) return decision;
@@ -1294,11 +1354,12 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   why << std::fixed << std::setprecision(1);
   if (static_cast<double>(best.inliers) <
       options.min_inlier_ratio_over_runner_up * runner_up->inliers) {
-    // About as many inliers: the one that looks clearly more like the photo wins (the runner-up
-    // only when it passed every check).
-    if (const PlaceVerdict* leader = ViewLeader(best, *runner_up, options)) {
-      if (leader == runner_up) {
-        decision.winner = static_cast<int>(runner_up - verdicts.data());
+    // About as many inliers: the one that looks clearly more like the photo wins (a rival only
+    // when it passed every check).
+    if (const PlaceVerdict* leader =
+            ViewLeader(best, RivalsFittingAsWell(verdicts, best, options), options)) {
+      if (leader != &best) {
+        decision.winner = static_cast<int>(leader - verdicts.data());
         decision.runner_up_inliers = best.inliers;
         decision.runner_up_pose = best.pose.world_from_cam;
       }
@@ -1319,6 +1380,29 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   }
   decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
   decision.ambiguous = {decision.winner, static_cast<int>(runner_up - verdicts.data())};
+  decision.winner = -1;
+  return decision;
+}
+
+}  // namespace
+
+Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options) {
+  Decision decision = DecideWinner(verdicts, options);
+  if (decision.winner < 0) return decision;
+  const PlaceVerdict& answer = verdicts[static_cast<size_t>(decision.winner)];
+  const PlaceVerdict* doubted = StrongerDoubtedPose(verdicts, answer, options);
+  if (doubted == nullptr) return decision;
+  std::ostringstream why;
+  why << std::fixed << std::setprecision(2) << "a place "
+      << (answer.pose.world_from_cam.translation() - doubted->pose.world_from_cam.translation())
+             .norm()
+      << " m away fits " << doubted->inliers << " of the photo's features against the answer's "
+      << answer.inliers << ", and looks partly like it (agreement " << doubted->agreement.Score()
+      << "): the view is ambiguous; include something that tells them apart.";
+  decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
+  decision.ambiguous = {decision.winner, static_cast<int>(doubted - verdicts.data())};
+  decision.runner_up_inliers = doubted->inliers;
+  decision.runner_up_pose = doubted->pose.world_from_cam;
   decision.winner = -1;
   return decision;
 }

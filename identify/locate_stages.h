@@ -299,7 +299,11 @@ PlaceMatches MatchPlaceFrom(const PreparedPhoto& photo, const Place& place,
 // photo with other things (less than min_unique_inlier_share of the winner's inliers lie in cells
 // of the 8x8 grid the runner-up's leave empty, and the two inlier centroids lie more than
 // same_pose_m apart: a copy elsewhere, not the same things seen with another focal length): then
-// the photo is ambiguous. Copies (PlaceVerdict::copy) are decided apart: DecideAmongCopies.
+// the photo is ambiguous. Among poses with about as many inliers, the one whose view check leads
+// every other placed elsewhere by ambiguity_min_agreement_lead wins instead (a rival only when
+// accepted). Last, an answer is ambiguous when a pose elsewhere the view check refused, scoring
+// at least ambiguity_min_doubted_agreement, has min_inlier_ratio_over_runner_up x its inliers.
+// Copies (PlaceVerdict::copy) are decided apart: DecideAmongCopies.
 struct Decision {
   int winner = -1;  // index into the verdicts, -1 when not matched
   int runner_up_inliers = 0;

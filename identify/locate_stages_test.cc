@@ -2,6 +2,7 @@
 #include "identify/locate_stages.h"
 
 #include <cmath>
+#include <functional>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -1007,6 +1008,85 @@ TEST(DecideTest, BetweenPlacesThatFitAboutAsWellTheViewCheckDecidesWhenOneLeadsC
   decision =
       Decide({Judged(144, {0, 0, 0}, 0.77, false), Judged(139, {0.8, 0, 0}, 0.89, false)}, options);
   EXPECT_EQ(decision.winner, -1);
+}
+
+TEST(DecideTest, EveryPoseThatFitsAboutAsWellCompetesOnTheView) {
+  const LocatorOptions options;  // 1.5x the inliers, ambiguity_min_agreement_lead 0.05
+  // A printer with one picture on every face: two poses facing the wrong faces (158 and 138
+  // inliers) and the right one (134), whose view the check scores far above both.
+  const std::vector<PlaceVerdict> printer = {Judged(158, {2.7, 0, 0}, 0.64, false),
+                                             Judged(138, {1.8, 1.2, 0}, 0.56, false),
+                                             Judged(134, {0, 0, 0}, 0.97, false)};
+  Decision decision = Decide(printer, options);
+  EXPECT_EQ(decision.winner, 2);
+  EXPECT_EQ(decision.runner_up_inliers, 158);
+  EXPECT_TRUE(decision.runner_up_pose.translation().isApprox(Eigen::Vector3d(2.7, 0, 0)));
+  // The leader must lead every pose placed elsewhere: 0.97 against 0.95 is no lead.
+  std::vector<PlaceVerdict> close = printer;
+  close[1] = Judged(138, {1.8, 1.2, 0}, 0.95, false);
+  decision = Decide(close, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  // ... but not a pose agreeing with it (the same place found twice).
+  close[1] = Judged(138, {0.1, 0, 0}, 0.95, false);
+  decision = Decide(close, options);
+  EXPECT_EQ(decision.winner, 2);
+  // A refused leader does not win, and a pose the check could not judge leaves the photo
+  // ambiguous.
+  std::vector<PlaceVerdict> refused = printer;
+  refused[2].accepted = false;
+  EXPECT_EQ(Decide(refused, options).winner, -1);
+  std::vector<PlaceVerdict> unjudged = printer;
+  unjudged[1] = Judged(138, {1.8, 1.2, 0}, -1.0, false);
+  EXPECT_EQ(Decide(unjudged, options).winner, -1);
+  // Too few inliers to fit about as well (158 > 1.5 x 100): no rival, the count stands.
+  std::vector<PlaceVerdict> weak = printer;
+  weak[1] = Judged(100, {1.8, 1.2, 0}, 0.56, false);
+  weak[2] = Judged(100, {0, 0, 0}, 0.97, false);
+  decision = Decide(weak, options);
+  EXPECT_EQ(decision.winner, 0);
+}
+
+TEST(DecideTest, AStrongerPoseTheViewCheckHalfRefusedMakesThePhotoAmbiguous) {
+  LocatorOptions options;  // ambiguity_min_doubted_agreement 0.40, 1.5x the inliers
+  // A ceiling light: 57 inliers on the repeated fitting 4.5 m away whose view scores 0.79; the
+  // right pose fits 125 but its view check scored 0.45, under min_view_agreement.
+  PlaceVerdict right = Judged(125, {4.5, 0, 0}, 0.45, false);
+  right.accepted = false;
+  right.looks_different = true;
+  Decision decision = Decide({Judged(57, {0, 0, 0}, 0.79, false), right}, options);
+  EXPECT_EQ(decision.winner, -1);
+  ASSERT_TRUE(decision.refusal.has_value());
+  EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
+  EXPECT_EQ(decision.ambiguous, (std::vector<int>{0, 1}));
+  EXPECT_EQ(decision.runner_up_inliers, 125);
+  EXPECT_NE(decision.refusal->reason.find("a place 4.50 m away fits 125 of the photo's features "
+                                          "against the answer's 57"),
+            std::string::npos)
+      << decision.refusal->reason;
+  // One whose view is plainly another (0.19), or without 1.5x the inliers, or at the answer's
+  // place, or on the ceiling alone, leaves the answer standing.
+  for (auto change : std::vector<std::function<void(PlaceVerdict*)>>{
+           [](PlaceVerdict* v) { v->agreement.global_ncc = v->agreement.cell_median_ncc = 0.19; },
+           [](PlaceVerdict* v) { v->inliers = 85; },
+           [](PlaceVerdict* v) {
+             v->pose.world_from_cam = PoseAt({0.1, 0, 0}, 0);
+           },
+           [](PlaceVerdict* v) { v->ceiling_only = true; }}) {
+    PlaceVerdict rival = right;
+    change(&rival);
+    decision = Decide({Judged(57, {0, 0, 0}, 0.79, false), rival}, options);
+    EXPECT_EQ(decision.winner, 0);
+    EXPECT_FALSE(decision.refusal.has_value());
+  }
+  // Off.
+  options.ambiguity_min_doubted_agreement = 0.0;
+  EXPECT_EQ(Decide({Judged(57, {0, 0, 0}, 0.79, false), right}, options).winner, 0);
+  options.ambiguity_min_doubted_agreement = 1.5;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("ambiguity_min_doubted_agreement"), std::string::npos) << error;
 }
 
 TEST(ExplainBareViewTest, FailedMatchingOnAPhotoOfFewDetailCellsAsksForMoreOfTheRoom) {

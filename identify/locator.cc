@@ -102,10 +102,11 @@ bool LocatorOptions::Check(std::string* error) const {
   else if (!(same_pose_m >= 0.0) || !(same_pose_deg >= 0.0) ||
            !(min_inlier_ratio_over_runner_up >= 1.0) ||
            !(min_unique_inlier_share >= 0.0 && min_unique_inlier_share <= 1.0) ||
-           !(ambiguity_min_agreement_lead >= 0.0 && ambiguity_min_agreement_lead <= 1.0))
+           !(ambiguity_min_agreement_lead >= 0.0 && ambiguity_min_agreement_lead <= 1.0) ||
+           !(ambiguity_min_doubted_agreement >= 0.0 && ambiguity_min_doubted_agreement <= 1.0))
     why << "same_pose_m and same_pose_deg must not be negative, "
-           "min_inlier_ratio_over_runner_up at least 1, min_unique_inlier_share and "
-           "ambiguity_min_agreement_lead in [0, 1]";
+           "min_inlier_ratio_over_runner_up at least 1, min_unique_inlier_share, "
+           "ambiguity_min_agreement_lead and ambiguity_min_doubted_agreement in [0, 1]";
   else if (focal_candidates_35mm.empty())
     why << "focal_candidates_35mm must not be empty";
   else if (!(occlusion_voxel_m > 0.0) || occlusion_downscale < 1 || occlusion_pixel_step < 1 ||
@@ -1214,11 +1215,12 @@ SIGHTMAP_OPTIONS_JSON_LONG(
     (guided_max_distance, guided_rounds, min_inlier_cells, min_inlier_cells_few_detail,
      bare_view_max_detail_cells, min_inlier_share, ceiling_only_max_thickness_m, same_pose_m,
      same_pose_deg, min_inlier_ratio_over_runner_up, ambiguity_min_agreement_lead,
-     min_unique_inlier_share, twin_places, twin_min_matches, twin_max_shared_share, copies,
-     confident_inliers, max_rotation_from_keyframe_deg, min_view_agreement, min_inliers_unchecked,
-     second_look_min_inliers_unchecked, view_agreement, focal_candidates_35mm,
-     refine_estimated_focal, occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step,
-     occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
-     occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views))
+     ambiguity_min_doubted_agreement, min_unique_inlier_share, twin_places, twin_min_matches,
+     twin_max_shared_share, copies, confident_inliers, max_rotation_from_keyframe_deg,
+     min_view_agreement, min_inliers_unchecked, second_look_min_inliers_unchecked, view_agreement,
+     focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
+     occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
+     occlusion_max_hole_px, occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share,
+     use_synthetic_views))
 
 }  // namespace sightmap::identify

@@ -223,6 +223,15 @@ struct LocatorOptions {
   // ceiling light whose runner-up one tile away scored 0.89 against 0.77, and hand-held 111, both
   // right), no wrong one.
   double ambiguity_min_agreement_lead = 0.05;
+  // A pose elsewhere that the view check refused but scored at least this, with
+  // min_inlier_ratio_over_runner_up x the answer's inliers, makes the photo ambiguous: a box with
+  // one picture on every face, or a ceiling grid, lets a weaker pose line up the photo's texture
+  // better than the right one lines up the whole view. 0 turns this off. Chosen on 600 session-2
+  // photos (seeds 7, 8, 9) against the survey walk's model: three wrong answers had such a rival,
+  // each the right pose (0.45, 0.52, 0.54 at 2.2-3.5x the inliers), no right answer one above
+  // 0.19. Checked on the same photos against the hand-held walk's model (seed 11): two wrong
+  // answers and one right one became ambiguous [].
+  double ambiguity_min_doubted_agreement = 0.40;
   // And at least this share of the winner's inliers must lie in cells of an 8x8 grid over the
   // photo where the runner-up has none, when the runner-up's inliers are other things (their
   // centroids more than same_pose_m apart): a copy of the same furniture elsewhere explains the
