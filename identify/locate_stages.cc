@@ -1393,11 +1393,12 @@ Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions&
   const PlaceVerdict* doubted = StrongerDoubtedPose(verdicts, answer, options);
   if (doubted == nullptr) return decision;
   std::ostringstream why;
-  why << std::fixed << std::setprecision(2) << "a place "
+  why << std::fixed << std::setprecision(1) << "a place "
       << (answer.pose.world_from_cam.translation() - doubted->pose.world_from_cam.translation())
              .norm()
       << " m away fits " << doubted->inliers << " of the photo's features against the answer's "
-      << answer.inliers << ", and looks partly like it (agreement " << doubted->agreement.Score()
+      << answer.inliers << ", and looks partly like it (agreement " << std::setprecision(2)
+      << doubted->agreement.Score()
       << "): the view is ambiguous; include something that tells them apart.";
   decision.refusal = Refusal{UnmatchedReason::kAmbiguous, why.str()};
   decision.ambiguous = {decision.winner, static_cast<int>(doubted - verdicts.data())};

@@ -310,7 +310,8 @@ struct Decision {
   Eigen::Isometry3d runner_up_pose = Eigen::Isometry3d::Identity();
   std::optional<Refusal> refusal;  // when not matched: ambiguous, unseen view, few matches, ...
   // When ambiguous: the two verdicts that fit about as well (indices into the verdicts), the
-  // leader first: the one of most inliers, or between copies the one the view check scored higher.
+  // leader first: the one of most inliers, between copies the one the view check scored higher,
+  // and against a stronger pose the view check half refused, the accepted one.
   std::vector<int> ambiguous;
 };
 Decision Decide(const std::vector<PlaceVerdict>& verdicts, const LocatorOptions& options);

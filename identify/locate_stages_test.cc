@@ -1061,8 +1061,9 @@ TEST(DecideTest, AStrongerPoseTheViewCheckHalfRefusedMakesThePhotoAmbiguous) {
   EXPECT_EQ(decision.refusal->code, UnmatchedReason::kAmbiguous);
   EXPECT_EQ(decision.ambiguous, (std::vector<int>{0, 1}));
   EXPECT_EQ(decision.runner_up_inliers, 125);
-  EXPECT_NE(decision.refusal->reason.find("a place 4.50 m away fits 125 of the photo's features "
-                                          "against the answer's 57"),
+  EXPECT_NE(decision.refusal->reason.find("a place 4.5 m away fits 125 of the photo's features "
+                                          "against the answer's 57, and looks partly like it "
+                                          "(agreement 0.45)"),
             std::string::npos)
       << decision.refusal->reason;
   // One whose view is plainly another (0.19), or without 1.5x the inliers, or at the answer's
