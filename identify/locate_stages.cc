@@ -1268,20 +1268,12 @@ bool CanRival(const PlaceVerdict& verdict, const PlaceVerdict& best,
          PosesDisagree(best.pose.world_from_cam, verdict.pose.world_from_cam, options);
 }
 
-// The rivals of `best` (CanRival) with about as many inliers: more than
+// Whether `rival` has about as many inliers as `best`: more than
 // 1 / min_inlier_ratio_over_runner_up of its count.
-std::vector<const PlaceVerdict*> RivalsFittingAsWell(const std::vector<PlaceVerdict>& verdicts,
-                                                     const PlaceVerdict& best,
-                                                     const LocatorOptions& options) {
-  std::vector<const PlaceVerdict*> rivals;
-  for (const PlaceVerdict& verdict : verdicts) {
-    if (CanRival(verdict, best, options) &&
-        static_cast<double>(best.inliers) <
-            options.min_inlier_ratio_over_runner_up * verdict.inliers) {
-      rivals.push_back(&verdict);
-    }
-  }
-  return rivals;
+bool FitsAboutAsWell(const PlaceVerdict& best, const PlaceVerdict& rival,
+                     const LocatorOptions& options) {
+  return static_cast<double>(best.inliers) <
+         options.min_inlier_ratio_over_runner_up * rival.inliers;
 }
 
 }  // namespace
@@ -1338,10 +1330,12 @@ Decision DecideWinner(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
           DecideAmongCopies(verdicts, static_cast<size_t>(decision.winner), options)) {
     return *among_copies;
   }
-  // The strongest pose elsewhere, accepted or not.
+  // The poses elsewhere, accepted or not, and the strongest of them.
+  std::vector<const PlaceVerdict*> rivals;
   const PlaceVerdict* runner_up = nullptr;
   for (const PlaceVerdict& verdict : verdicts) {
     if (!CanRival(verdict, best, options)) continue;
+    rivals.push_back(&verdict);
     if (runner_up == nullptr || verdict.inliers > runner_up->inliers) runner_up = &verdict;
   }
   if (runner_up == nullptr) return decision;
@@ -1352,12 +1346,15 @@ Decision DecideWinner(const std::vector<PlaceVerdict>& verdicts, const LocatorOp
           .norm();
   std::ostringstream why;
   why << std::fixed << std::setprecision(1);
-  if (static_cast<double>(best.inliers) <
-      options.min_inlier_ratio_over_runner_up * runner_up->inliers) {
-    // About as many inliers: the one that looks clearly more like the photo wins (a rival only
-    // when it passed every check).
-    if (const PlaceVerdict* leader =
-            ViewLeader(best, RivalsFittingAsWell(verdicts, best, options), options)) {
+  if (FitsAboutAsWell(best, *runner_up, options)) {
+    // About as many inliers: of every such pose, the one that looks clearly more like the photo
+    // wins (a rival only when it passed every check).
+    rivals.erase(std::remove_if(rivals.begin(), rivals.end(),
+                                [&](const PlaceVerdict* rival) {
+                                  return !FitsAboutAsWell(best, *rival, options);
+                                }),
+                 rivals.end());
+    if (const PlaceVerdict* leader = ViewLeader(best, rivals, options)) {
       if (leader != &best) {
         decision.winner = static_cast<int>(leader - verdicts.data());
         decision.runner_up_inliers = best.inliers;
