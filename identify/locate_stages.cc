@@ -1072,10 +1072,11 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                                           found.world_from_cam.linear());
   verdict.cells = CoveredCells(*image, found.inliers, photo.size.width, photo.size.height);
   verdict.required_cells = RequiredInlierCells(photo, options);
-  verdict.accepted = verdict.inliers >= options.min_inliers &&
-                     verdict.rotation_deg <= options.max_rotation_from_keyframe_deg &&
-                     verdict.cells >= verdict.required_cells &&
-                     !HasLowInlierShare(verdict, options);
+  verdict.passed_other_checks = verdict.inliers >= options.min_inliers &&
+                                verdict.rotation_deg <= options.max_rotation_from_keyframe_deg &&
+                                verdict.cells >= verdict.required_cells &&
+                                !HasLowInlierShare(verdict, options);
+  verdict.accepted = verdict.passed_other_checks;
   verdict.pose = std::move(found);
   // Last: the keyframe's pixels must line up with the photo's. Measured on a pose the cheaper
   // checks refused too, when it holds min_inliers: such a pose still makes the photo ambiguous
@@ -1093,6 +1094,66 @@ PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
     verdict.accepted = verdict.accepted && !verdict.looks_different && !verdict.unconfirmed;
   }
   return verdict;
+}
+
+std::vector<size_t> SecondOpinionKeyframes(const PlaceVerdict& verdict, const Place& place,
+                                           const std::vector<LocatorKeyframe>& keyframes,
+                                           const LocatorOptions& options) {
+  const LocatorOptions::ViewSecondOpinion& second = options.view_second_opinion;
+  const Eigen::Vector3d photo_position = verdict.pose.world_from_cam.translation();
+  const Eigen::Vector3d photo_direction = verdict.pose.world_from_cam.linear().col(2);
+  const double min_cos = std::cos(DegToRad(second.max_angle_deg));
+  std::vector<std::pair<double, size_t>> near;
+  for (const size_t slot : place.slots) {
+    const LocatorKeyframe& keyframe = keyframes[slot];
+    if (slot == verdict.verified_slot || !keyframe.thumbnail) continue;
+    const double distance = (keyframe.world_from_cam.translation() - photo_position).norm();
+    if (distance > second.radius_m || keyframe.view_direction.dot(photo_direction) < min_cos) {
+      continue;
+    }
+    near.emplace_back(distance, slot);
+  }
+  std::sort(near.begin(), near.end());
+  std::vector<size_t> slots = {verdict.verified_slot};
+  for (size_t i = 0; i < near.size() && static_cast<int>(i) < second.keyframes; ++i) {
+    slots.push_back(near[i].second);
+  }
+  return slots;
+}
+
+bool JudgeViewAgain(const PreparedPhoto& photo, const Place& place,
+                    const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options,
+                    PlaceVerdict* verdict) {
+  if (options.view_second_opinion.keyframes <= 0 || !verdict->looks_different ||
+      !verdict->passed_other_checks || verdict->ceiling_only || photo.agreement_image.empty() ||
+      !keyframes[verdict->verified_slot].thumbnail) {
+    return false;
+  }
+  const std::vector<size_t> slots = SecondOpinionKeyframes(*verdict, place, keyframes, options);
+  if (slots.size() < 2) return false;  // the verified keyframe alone: its judgement stands
+  std::vector<PlacedThumbnail> placed;
+  for (const size_t slot : slots) {
+    placed.push_back({keyframes[slot].thumbnail.get(), keyframes[slot].world_from_cam});
+  }
+  const ViewAgreement again =
+      MeasureViewAgreement(photo.agreement_image, verdict->pose.intrinsics,
+                           verdict->pose.world_from_cam, placed, options.view_agreement);
+  if (!again.judged || again.Score() < options.min_view_agreement) return false;
+  verdict->agreement = again;
+  verdict->looks_different = false;
+  verdict->accepted = true;
+  return true;
+}
+
+void JudgeViewsAgain(const PreparedPhoto& photo, const std::vector<Place>& places,
+                     const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options,
+                     std::vector<PlaceVerdict>* verdicts) {
+  SIGHTMAP_CHECK(verdicts->size() <= places.size(), "JudgeViewsAgain: a verdict without a place");
+  const auto accepted = [](const PlaceVerdict& verdict) { return verdict.accepted; };
+  if (std::any_of(verdicts->begin(), verdicts->end(), accepted)) return;
+  for (size_t i = 0; i < verdicts->size(); ++i) {
+    JudgeViewAgain(photo, places[i], keyframes, options, &(*verdicts)[i]);
+  }
 }
 
 bool HasLowInlierShare(const PlaceVerdict& verdict, const LocatorOptions& options) {

@@ -192,6 +192,8 @@ struct PlaceVerdict {
   // The view check, made on a pose of min_inliers or more, whatever the other checks said.
   ViewAgreement agreement;
   bool looks_different = false;  // judged, and scored below min_view_agreement
+  // Every check but the view check passed (and the pose is valid).
+  bool passed_other_checks = false;
   // Accepted by the other checks, not judged, and fewer inliers than min_inliers_unchecked: a weak
   // pose nothing confirms.
   bool unconfirmed = false;
@@ -211,6 +213,29 @@ struct PlaceVerdict {
 PlaceVerdict VerifyPlace(const PreparedPhoto& photo, const Place& place,
                          const PlaceMatches& matches, const std::vector<LocatorKeyframe>& keyframes,
                          const LocatorOptions& options);
+// Stage 5d, when no place's pose was accepted: a pose refused by the view check alone is judged
+// again against the keyframes of its place standing near it (view_second_opinion), their pixels
+// projected together (MeasureViewAgreement over several). The verified keyframe may have seen its
+// view past furniture that stands between the photo and the wall (a quarter of photos are taken
+// with something in the way); a keyframe from nearer the photo's standpoint shows that furniture
+// where the photo does. Accepts the verdict when that scores min_view_agreement; whether it did.
+bool JudgeViewAgain(const PreparedPhoto& photo, const Place& place,
+                    const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options,
+                    PlaceVerdict* verdict);
+// JudgeViewAgain for each of `verdicts` (verdicts[i] verified against places[i]) when none of
+// them was accepted; nothing when one was: a pose the view check refused beside an accepted one
+// only competes with it (on 1,200 session-2 photos, two of those so accepted were wrong answers).
+void JudgeViewsAgain(const PreparedPhoto& photo, const std::vector<Place>& places,
+                     const std::vector<LocatorKeyframe>& keyframes, const LocatorOptions& options,
+                     std::vector<PlaceVerdict>* verdicts);
+// The keyframes JudgeViewAgain compares: the verified one, then up to
+// view_second_opinion.keyframes of the place's others with thumbnails standing within
+// view_second_opinion.radius_m of the pose and looking within view_second_opinion.max_angle_deg
+// of it, nearest first (slots).
+std::vector<size_t> SecondOpinionKeyframes(const PlaceVerdict& verdict, const Place& place,
+                                           const std::vector<LocatorKeyframe>& keyframes,
+                                           const LocatorOptions& options);
+
 // The cells of the 4x4 grid a pose's inliers must cover in this photo: min_inlier_cells, or half
 // the photo's detail cells when that is fewer, but at least min_inlier_cells_few_detail.
 int RequiredInlierCells(const PreparedPhoto& photo, const LocatorOptions& options);

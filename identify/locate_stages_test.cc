@@ -1333,5 +1333,140 @@ TEST(PreparePhotoTest, ABlankOrNarrowPhotoIsRefusedForTooFewFeatures) {
   EXPECT_NE(prepared.refusal->reason.find("960x24"), std::string::npos);
 }
 
+// A photo taken past a board that stands in front of a wall, and a place whose verified keyframe
+// stood between the board and the wall (it saw the wall only) while another stood near the photo.
+class JudgeViewAgainTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const Intrinsics keyframe_camera =
+        Intrinsics::FromPinhole(640, 480, 525.0, 525.0, 319.5, 239.5);
+    const auto add = [&](const Eigen::Vector3d& position, double yaw_deg) {
+      LocatorKeyframe keyframe = KeyframeAt(position, yaw_deg);
+      cv::Mat grey;
+      cv::Mat depth;
+      scene_.Render(keyframe.world_from_cam, keyframe_camera, &grey, &depth);
+      keyframe.thumbnail = std::make_shared<const KeyframeThumbnail>(
+          MakeThumbnail(grey, depth, keyframe_camera, options_.view_agreement));
+      keyframes_.push_back(std::move(keyframe));
+    };
+    add({-0.2, 0, 2.2}, 0);    // 0: verified, behind the board
+    add({0.3, 0.1, 0.3}, -5);  // 1: near the photo, sees the board
+    add({0.0, 0.0, -4.0}, 0);  // 2: 4 m behind the photo
+    add({0.2, 0.0, 0.2}, 90);  // 3: beside the photo, turned 90 degrees
+    add({-0.3, 0.0, 0.1}, 5);  // 4: near the photo, but a synthetic view (no thumbnail)
+    keyframes_[4].thumbnail.reset();
+    place_.head = 0;
+    place_.slots = {0, 1, 2, 3, 4};
+
+    const Intrinsics photo_camera =
+        Intrinsics::FromPinhole(1280, 960, 1000.0, 1000.0, 639.5, 479.5);
+    cv::Mat grey;
+    cv::Mat depth;
+    scene_.Render(PoseAt({0, 0, 0}, 0), photo_camera, &grey, &depth);
+    photo_.agreement_image = AgreementImage(grey, options_.view_agreement);
+    // Refused by the view check alone, as VerifyPlace leaves such a pose.
+    verdict_.pose.valid = true;
+    verdict_.pose.world_from_cam = PoseAt({0, 0, 0}, 0);
+    verdict_.pose.intrinsics = photo_camera;
+    verdict_.verified_slot = 0;
+    verdict_.inliers = 120;
+    verdict_.passed_other_checks = true;
+    verdict_.looks_different = true;
+  }
+
+  testing::WallBehindBoard scene_;
+  LocatorOptions options_;
+  std::vector<LocatorKeyframe> keyframes_;
+  Place place_;
+  PreparedPhoto photo_;
+  PlaceVerdict verdict_;
+};
+
+TEST_F(JudgeViewAgainTest, TheVerifiedKeyframeAndThoseStandingNearThePoseLookingItsWay) {
+  EXPECT_EQ(SecondOpinionKeyframes(verdict_, place_, keyframes_, options_),
+            (std::vector<size_t>{0, 1}));
+  options_.view_second_opinion.radius_m = 5.0;  // keyframe 2 within reach now
+  EXPECT_EQ(SecondOpinionKeyframes(verdict_, place_, keyframes_, options_),
+            (std::vector<size_t>{0, 1, 2}));
+  options_.view_second_opinion.keyframes = 1;  // the nearest only
+  EXPECT_EQ(SecondOpinionKeyframes(verdict_, place_, keyframes_, options_),
+            (std::vector<size_t>{0, 1}));
+  options_.view_second_opinion.max_angle_deg = 95.0;  // keyframe 3 too, and it is nearest
+  EXPECT_EQ(SecondOpinionKeyframes(verdict_, place_, keyframes_, options_),
+            (std::vector<size_t>{0, 3}));
+}
+
+TEST_F(JudgeViewAgainTest, APoseTheVerifiedKeyframeSawPastFurnitureIsAccepted) {
+  // The verified keyframe alone finds the photo unlike its view.
+  const LocatorKeyframe& verified = keyframes_[0];
+  const ViewAgreement alone = MeasureViewAgreement(
+      photo_.agreement_image, verdict_.pose.intrinsics, verdict_.pose.world_from_cam,
+      *verified.thumbnail, verified.world_from_cam, options_.view_agreement);
+  ASSERT_TRUE(alone.judged);
+  ASSERT_LT(alone.Score(), options_.min_view_agreement);
+  PlaceVerdict verdict = verdict_;
+  EXPECT_TRUE(JudgeViewAgain(photo_, place_, keyframes_, options_, &verdict));
+  EXPECT_TRUE(verdict.accepted);
+  EXPECT_FALSE(verdict.looks_different);
+  EXPECT_GT(verdict.agreement.Score(), 0.8);
+}
+
+TEST_F(JudgeViewAgainTest, OnlyAPoseTheViewCheckAloneRefusedIsJudgedAgain) {
+  const auto unchanged = [&](PlaceVerdict verdict, const LocatorOptions& options) {
+    const bool accepted = JudgeViewAgain(photo_, place_, keyframes_, options, &verdict);
+    return !accepted && !verdict.accepted && verdict.agreement.samples == 0;
+  };
+  PlaceVerdict refused_elsewhere = verdict_;
+  refused_elsewhere.passed_other_checks = false;  // too few cells, say
+  EXPECT_TRUE(unchanged(refused_elsewhere, options_));
+  PlaceVerdict on_ceiling = verdict_;
+  on_ceiling.ceiling_only = true;
+  EXPECT_TRUE(unchanged(on_ceiling, options_));
+  LocatorOptions off = options_;
+  off.view_second_opinion.keyframes = 0;
+  EXPECT_TRUE(unchanged(verdict_, off));
+  // No other keyframe near the pose: the verified keyframe's judgement stands.
+  Place alone = place_;
+  alone.slots = {0, 2, 3, 4};
+  PlaceVerdict verdict = verdict_;
+  EXPECT_FALSE(JudgeViewAgain(photo_, alone, keyframes_, options_, &verdict));
+  EXPECT_FALSE(verdict.accepted);
+  // A pose half a metre off stays refused with both keyframes.
+  verdict = verdict_;
+  verdict.pose.world_from_cam = PoseAt({0.5, 0, 0}, 0);
+  EXPECT_FALSE(JudgeViewAgain(photo_, place_, keyframes_, options_, &verdict));
+  EXPECT_FALSE(verdict.accepted);
+  EXPECT_TRUE(verdict.looks_different);
+}
+
+TEST_F(JudgeViewAgainTest, OptionsThatCannotWorkAreRefused) {
+  EXPECT_TRUE(options_.Check(nullptr));
+  for (const auto& spoil : std::vector<std::function<void(LocatorOptions*)>>{
+           [](LocatorOptions* o) { o->view_second_opinion.keyframes = -1; },
+           [](LocatorOptions* o) { o->view_second_opinion.radius_m = 0.0; },
+           [](LocatorOptions* o) { o->view_second_opinion.max_angle_deg = 0.0; },
+           [](LocatorOptions* o) { o->view_second_opinion.max_angle_deg = 181.0; }}) {
+    LocatorOptions options = options_;
+    spoil(&options);
+    std::string error;
+    EXPECT_FALSE(options.Check(&error));
+    EXPECT_NE(error.find("view_second_opinion"), std::string::npos) << error;
+  }
+}
+
+TEST_F(JudgeViewAgainTest, PosesAreJudgedAgainOnlyWhenNoneWasAccepted) {
+  PlaceVerdict accepted_elsewhere;
+  accepted_elsewhere.accepted = true;
+  std::vector<PlaceVerdict> verdicts = {verdict_, accepted_elsewhere};
+  const std::vector<Place> places = {place_, place_};
+  JudgeViewsAgain(photo_, places, keyframes_, options_, &verdicts);
+  EXPECT_FALSE(verdicts[0].accepted);
+  EXPECT_TRUE(verdicts[0].looks_different);
+  verdicts = {verdict_, PlaceVerdict()};
+  JudgeViewsAgain(photo_, places, keyframes_, options_, &verdicts);
+  EXPECT_TRUE(verdicts[0].accepted);
+  EXPECT_FALSE(verdicts[1].accepted);
+}
+
 }  // namespace
 }  // namespace sightmap::identify

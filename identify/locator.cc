@@ -121,6 +121,10 @@ bool LocatorOptions::Check(std::string* error) const {
            second_look_min_inliers_unchecked < 0)
     why << "min_view_agreement must be in [0, 1], min_inliers_unchecked and "
            "second_look_min_inliers_unchecked not negative";
+  else if (view_second_opinion.keyframes < 0 || !(view_second_opinion.radius_m > 0.0) ||
+           !(view_second_opinion.max_angle_deg > 0.0 && view_second_opinion.max_angle_deg <= 180.0))
+    why << "view_second_opinion needs keyframes not negative, radius_m positive and "
+           "max_angle_deg in (0, 180]";
   else if (!view_agreement.Check(error))
     return false;
   else if (!(min_in_view_share > 0.0 && min_in_view_share <= 1.0) ||
@@ -507,6 +511,9 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   search.verdicts =
       VerifyPlaces(*photo, places, matched, /*until_certain=*/true, timings, first_refused);
   std::vector<PlaceVerdict>& verdicts = search.verdicts;
+  stage = Clock::now();
+  JudgeViewsAgain(*photo, places, matched, VerifyingOptions(matched), &verdicts);
+  timings->pnp_ms += MsSince(stage);
   search.decision = Decide(verdicts, VerifyingOptions(matched));
   if (search.decision.winner < 0 || (options.twin_places <= 0 && options.copies.offsets <= 0)) {
     return search;
@@ -1198,6 +1205,7 @@ void from_json(const nlohmann::json& json, LocatorOptions::SecondLookRetrieval& 
 }
 
 SIGHTMAP_OPTIONS_JSON(LocatorOptions::Vlad, candidates, codebook)
+SIGHTMAP_OPTIONS_JSON(LocatorOptions::ViewSecondOpinion, keyframes, radius_m, max_angle_deg)
 
 SIGHTMAP_OPTIONS_JSON(LocatorOptions::Copies, offsets, look_alikes, around_m, around_keyframes,
                       max_voters, cluster_m, min_support, place_radius_m, search_radius_px,
@@ -1217,10 +1225,10 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      same_pose_deg, min_inlier_ratio_over_runner_up, ambiguity_min_agreement_lead,
      ambiguity_min_doubted_agreement, min_unique_inlier_share, twin_places, twin_min_matches,
      twin_max_shared_share, copies, confident_inliers, max_rotation_from_keyframe_deg,
-     min_view_agreement, min_inliers_unchecked, second_look_min_inliers_unchecked, view_agreement,
-     focal_candidates_35mm, refine_estimated_focal, occlusion_voxel_m, occlusion_downscale,
-     occlusion_pixel_step, occlusion_max_depth_m, occlusion_margin_m, occlusion_margin_ratio,
-     occlusion_max_hole_px, occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share,
-     use_synthetic_views))
+     min_view_agreement, min_inliers_unchecked, second_look_min_inliers_unchecked,
+     view_second_opinion, view_agreement, focal_candidates_35mm, refine_estimated_focal,
+     occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
+     occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
+     occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views))
 
 }  // namespace sightmap::identify

@@ -319,6 +319,22 @@ struct LocatorOptions {
   // not 50: a later hand-held answer it could not judge held exactly 50 and was 2.3 m off; the
   // right ones held 83 and more.
   int min_inliers_unchecked = 60;
+  // When no place's pose was accepted, each pose the view check alone refused is judged again
+  // against up to `keyframes` more of its place's keyframes standing within radius_m of it and
+  // looking within max_angle_deg of it, their pixels projected together, and accepted when that
+  // scores min_view_agreement (JudgeViewAgain in locate_stages.h); 0 keyframes turns it off. A
+  // quarter of the photos are taken with furniture between the camera and what it shows, which
+  // the verified keyframe may have seen past. Only then: projected together for every pose, the
+  // keyframes' differing exposures and views lowered right poses' scores as much as wrong ones'
+  // (survey walk's model, 600 session-2 photos: 434 / 7 wrong -> 428 / 6), and as a second
+  // opinion for every refused pose, the poses it accepted beside an accepted one made 2 right
+  // answers wrong in 1,200 photos (README "A second opinion on the view") [keyframes], [m], [deg].
+  struct ViewSecondOpinion {
+    int keyframes = 7;
+    double radius_m = 3.0;
+    double max_angle_deg = 60.0;
+  };
+  ViewSecondOpinion view_second_opinion;
   // The same for a pose RootSIFT's second look found. That search tries more places with other
   // features, and the 60 above was measured on ORB's first look: on 200 session-2 photos the only
   // second-look pose the check could not judge, against the three SLAM models (survey, hand-held

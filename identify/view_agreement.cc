@@ -182,13 +182,27 @@ ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intri
                                    const KeyframeThumbnail& keyframe,
                                    const Eigen::Isometry3d& world_from_keyframe,
                                    const ViewAgreementOptions& options) {
+  return MeasureViewAgreement(image, intrinsics, world_from_photo,
+                              {PlacedThumbnail{&keyframe, world_from_keyframe}}, options);
+}
+
+ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intrinsics,
+                                   const Eigen::Isometry3d& world_from_photo,
+                                   const std::vector<PlacedThumbnail>& keyframes,
+                                   const ViewAgreementOptions& options) {
   SIGHTMAP_CHECK_OPTIONS(options);
   SIGHTMAP_CHECK(image.type() == CV_32FC1, "MeasureViewAgreement: use AgreementImage's image");
   const Intrinsics photo_camera = intrinsics.Scaled(image.cols, image.rows);
-  const std::vector<Sample> samples = KeepVisible(
-      ProjectKeyframe(image, photo_camera, world_from_photo.inverse() * world_from_keyframe,
-                      keyframe, options),
-      image.size(), options);
+  const Eigen::Isometry3d photo_from_world = world_from_photo.inverse();
+  std::vector<Sample> projected;
+  for (const PlacedThumbnail& keyframe : keyframes) {
+    SIGHTMAP_CHECK(keyframe.thumbnail != nullptr, "MeasureViewAgreement: a keyframe is null");
+    const std::vector<Sample> samples =
+        ProjectKeyframe(image, photo_camera, photo_from_world * keyframe.world_from_keyframe,
+                        *keyframe.thumbnail, options);
+    projected.insert(projected.end(), samples.begin(), samples.end());
+  }
+  const std::vector<Sample> samples = KeepVisible(std::move(projected), image.size(), options);
 
   Correlation global;
   std::array<Correlation, kGrid * kGrid> cells;

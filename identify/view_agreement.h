@@ -17,6 +17,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <nlohmann/json_fwd.hpp>
@@ -85,6 +86,19 @@ ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intri
                                    const Eigen::Isometry3d& world_from_photo,
                                    const KeyframeThumbnail& keyframe,
                                    const Eigen::Isometry3d& world_from_keyframe,
+                                   const ViewAgreementOptions& options);
+
+// A keyframe's thumbnail where the keyframe stood.
+struct PlacedThumbnail {
+  const KeyframeThumbnail* thumbnail = nullptr;
+  Eigen::Isometry3d world_from_keyframe = Eigen::Isometry3d::Identity();
+};
+// The same with several keyframes' pixels projected at once, the nearest kept where they land on
+// one z-buffer cell: where one keyframe saw past furniture that stands between the photo and the
+// wall, another may have seen that furniture.
+ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intrinsics,
+                                   const Eigen::Isometry3d& world_from_photo,
+                                   const std::vector<PlacedThumbnail>& keyframes,
                                    const ViewAgreementOptions& options);
 
 }  // namespace sightmap::identify

@@ -122,6 +122,50 @@ TEST_F(ViewAgreementTest, AKeyframePixelBehindANearerOneIsNotCompared) {
       << with_zbuffer.global_ncc << " " << without_zbuffer.global_ncc;
 }
 
+TEST_F(ViewAgreementTest, AKeyframeThatSawTheFurnitureHidesWhatAnotherSawPastIt) {
+  // A board stands 1.2 m in front of the wall. The photo, from 3 m, sees it cover a third of the
+  // wall; keyframe A stood between the board and the wall and saw only the wall behind it;
+  // keyframe B stood near the photo and saw both.
+  const testing::WallBehindBoard scene;
+  const Eigen::Isometry3d world_from_photo = PoseAt({0, 0, 0}, 0);
+  cv::Mat photo;
+  cv::Mat photo_depth;
+  scene.Render(world_from_photo, photo_camera_, &photo, &photo_depth);
+  const auto thumbnail_from = [&](const Eigen::Isometry3d& world_from_keyframe) {
+    cv::Mat grey;
+    cv::Mat depth;
+    scene.Render(world_from_keyframe, keyframe_camera_, &grey, &depth);
+    return MakeThumbnail(grey, depth, keyframe_camera_, options_);
+  };
+  const Eigen::Isometry3d world_from_a = PoseAt({-0.2, 0, 2.2}, 0);
+  const Eigen::Isometry3d world_from_b = PoseAt({0.3, 0.1, 0.3}, -5);
+  const KeyframeThumbnail a = thumbnail_from(world_from_a);
+  const KeyframeThumbnail b = thumbnail_from(world_from_b);
+  const cv::Mat image = AgreementImage(photo, options_);
+
+  // A alone compares the wall with the board the photo shows in front of it.
+  const ViewAgreement a_alone =
+      MeasureViewAgreement(image, photo_camera_, world_from_photo, a, world_from_a, options_);
+  ASSERT_TRUE(a_alone.judged);
+  EXPECT_LT(a_alone.Score(), 0.4) << a_alone.global_ncc << " " << a_alone.cell_median_ncc;
+  // With B, B's board is nearer where A's wall pixels land: those are dropped, the rest agree.
+  const std::vector<PlacedThumbnail> both = {{&a, world_from_a}, {&b, world_from_b}};
+  const ViewAgreement together =
+      MeasureViewAgreement(image, photo_camera_, world_from_photo, both, options_);
+  ASSERT_TRUE(together.judged);
+  EXPECT_GT(together.Score(), 0.8) << together.global_ncc << " " << together.cell_median_ncc;
+  // One keyframe in the list is the single-keyframe check.
+  const ViewAgreement a_listed =
+      MeasureViewAgreement(image, photo_camera_, world_from_photo, {{&a, world_from_a}}, options_);
+  EXPECT_EQ(a_listed.samples, a_alone.samples);
+  EXPECT_DOUBLE_EQ(a_listed.Score(), a_alone.Score());
+  // Together they still refuse a pose half a metre off.
+  const ViewAgreement off = MeasureViewAgreement(
+      image, photo_camera_, world_from_photo * PoseAt({0.5, 0, 0}, 0), both, options_);
+  ASSERT_TRUE(off.judged);
+  EXPECT_LT(off.Score(), 0.35) << off.global_ncc << " " << off.cell_median_ncc;
+}
+
 TEST(MakeThumbnailTest, AreaAveragedGreyAndDepthSampledNotAveraged) {
   const Intrinsics camera = Intrinsics::FromPinhole(640, 480, 525.0, 525.0, 319.5, 239.5);
   cv::Mat color(480, 640, CV_8UC3, cv::Scalar(10, 20, 30));

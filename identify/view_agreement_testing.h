@@ -69,4 +69,38 @@ class TexturedWall {
   cv::Mat texture_;  // CV_32F grey levels
 };
 
+// A TexturedWall with a board of another texture standing in front of it: the plane
+// z = board_z_m between x = board_x0_m and board_x1_m (the furniture a photo is taken past).
+class WallBehindBoard {
+ public:
+  WallBehindBoard(double wall_z_m = 3.0, double board_z_m = 1.8, double board_x0_m = -1.0,
+                  double board_x1_m = 0.2)
+      : wall_(wall_z_m), board_(board_z_m, /*seed=*/7), x0_(board_x0_m), x1_(board_x1_m) {}
+
+  // As TexturedWall::Render; the board where a ray meets it before the wall.
+  void Render(const Eigen::Isometry3d& world_from_cam, const Intrinsics& k, cv::Mat* grey,
+              cv::Mat* depth_mm) const {
+    wall_.Render(world_from_cam, k, grey, depth_mm);
+    cv::Mat board_grey;
+    cv::Mat board_depth;
+    board_.Render(world_from_cam, k, &board_grey, &board_depth);
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        const uint16_t z_mm = board_depth.at<uint16_t>(v, u);
+        if (z_mm == 0) continue;
+        const Eigen::Vector3d hit = world_from_cam * k.Unproject(u, v, 1e-3 * z_mm);
+        if (hit.x() < x0_ || hit.x() > x1_) continue;
+        grey->at<uint8_t>(v, u) = board_grey.at<uint8_t>(v, u);
+        depth_mm->at<uint16_t>(v, u) = z_mm;
+      }
+    }
+  }
+
+ private:
+  TexturedWall wall_;
+  TexturedWall board_;
+  double x0_;
+  double x1_;
+};
+
 }  // namespace sightmap::identify::testing
