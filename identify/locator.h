@@ -324,11 +324,13 @@ struct LocatorOptions {
   // looking within max_angle_deg of it, their pixels projected together, and accepted when that
   // scores min_view_agreement (JudgeViewAgain in locate_stages.h); 0 keyframes turns it off. A
   // quarter of the photos are taken with furniture between the camera and what it shows, which
-  // the verified keyframe may have seen past. Only then: projected together for every pose, the
-  // keyframes' differing exposures and views lowered right poses' scores as much as wrong ones'
-  // (survey walk's model, 600 session-2 photos: 434 / 7 wrong -> 428 / 6), and as a second
-  // opinion for every refused pose, the poses it accepted beside an accepted one made 2 right
-  // answers wrong in 1,200 photos (README "A second opinion on the view") [keyframes], [m], [deg].
+  // the verified keyframe may have seen past. On 600 session-2 photos (seeds 7, 8, 9): survey
+  // walk's model 434 / 7 wrong -> 439 / 7, hand-held walk's 387 / 13 -> 390 / 13. Only then:
+  // projected together for every pose, the keyframes' differing exposures and views lowered right
+  // poses' scores as much as wrong ones' (survey: 428 / 6), and as a second opinion for every
+  // refused pose, the poses it accepted beside an accepted one made 2 more wrong answers and 1
+  // right one ambiguous over both models (README "A second opinion on the view") [keyframes],
+  // [m], [deg].
   struct ViewSecondOpinion {
     int keyframes = 7;
     double radius_m = 3.0;
