@@ -1,6 +1,6 @@
 // The stages of Locator::Locate, each a function of its inputs so it can be tested alone:
 //   PreparePhoto -> RetrieveCandidates -> GroupPlaces -> (per place) MatchPlace -> VerifyPlace
-//   -> Decide.
+//   -> (when none was accepted) JudgeViewsAgain -> Decide.
 // The Locator loads the model's keyframes once and strings these together per photo; tests build
 // keyframes, places and matches by hand.
 #pragma once

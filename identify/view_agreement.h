@@ -88,7 +88,7 @@ ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intri
                                    const Eigen::Isometry3d& world_from_keyframe,
                                    const ViewAgreementOptions& options);
 
-// A keyframe's thumbnail where the keyframe stood.
+// A keyframe's thumbnail (not owned) and where the keyframe stood.
 struct PlacedThumbnail {
   const KeyframeThumbnail* thumbnail = nullptr;
   Eigen::Isometry3d world_from_keyframe = Eigen::Isometry3d::Identity();
