@@ -319,6 +319,12 @@ struct LocatorOptions {
   // not 50: a later hand-held answer it could not judge held exactly 50 and was 2.3 m off; the
   // right ones held 83 and more.
   int min_inliers_unchecked = 60;
+  // The same for a pose RootSIFT's second look found. That search tries more places with other
+  // features, and the 60 above was measured on ORB's first look: on 200 session-2 photos the only
+  // second-look pose the check could not judge, against the three SLAM models (survey, hand-held
+  // seeds 11 and 23: 26 second-look answers), held 127 inliers and was 2.3 m off. The default,
+  // sift_photo_features' 700, refuses every second-look pose the check cannot judge.
+  int second_look_min_inliers_unchecked = 700;
   // When no place's pose was accepted, each pose the view check alone refused is judged again
   // against up to `keyframes` more of its place's keyframes standing within radius_m of it and
   // looking within max_angle_deg of it, their pixels projected together, and accepted when that
@@ -337,12 +343,6 @@ struct LocatorOptions {
     double max_angle_deg = 60.0;
   };
   ViewSecondOpinion view_second_opinion;
-  // The same for a pose RootSIFT's second look found. That search tries more places with other
-  // features, and the 60 above was measured on ORB's first look: on 200 session-2 photos the only
-  // second-look pose the check could not judge, against the three SLAM models (survey, hand-held
-  // seeds 11 and 23: 26 second-look answers), held 127 inliers and was 2.3 m off. The default,
-  // sift_photo_features' 700, refuses every second-look pose the check cannot judge.
-  int second_look_min_inliers_unchecked = 700;
   ViewAgreementOptions view_agreement;
   // With no intrinsics known, these 35 mm-equivalent focal lengths are tried and the one with most
   // PnP inliers is kept [mm] (phones: 24-30 mm main camera).

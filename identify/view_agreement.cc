@@ -197,10 +197,14 @@ ViewAgreement MeasureViewAgreement(const cv::Mat& image, const Intrinsics& intri
   std::vector<Sample> projected;
   for (const PlacedThumbnail& keyframe : keyframes) {
     SIGHTMAP_CHECK(keyframe.thumbnail != nullptr, "MeasureViewAgreement: a keyframe is null");
-    const std::vector<Sample> samples =
+    std::vector<Sample> samples =
         ProjectKeyframe(image, photo_camera, photo_from_world * keyframe.world_from_keyframe,
                         *keyframe.thumbnail, options);
-    projected.insert(projected.end(), samples.begin(), samples.end());
+    if (projected.empty()) {
+      projected = std::move(samples);  // the one keyframe of most checks: no copy
+    } else {
+      projected.insert(projected.end(), samples.begin(), samples.end());
+    }
   }
   const std::vector<Sample> samples = KeepVisible(std::move(projected), image.size(), options);
 
