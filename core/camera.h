@@ -1,9 +1,11 @@
-// Pinhole intrinsics in pixels. Camera frame: x right, y down, z forward (OpenCV).
+// Pinhole intrinsics in pixels, and a camera pose looking at a point. Camera frame: x right,
+// y down, z forward (OpenCV).
 #pragma once
 
 #include <string>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <opencv2/core/types.hpp>
 
 namespace sightmap {
@@ -43,5 +45,10 @@ struct Intrinsics {
 // `size` scaled, aspect kept and each side at least 1 px, so that its longer side is at most
 // `max_side` [px]; `size` itself when it already is (or when max_side is not positive).
 cv::Size SizeAtMostOfSide(const cv::Size& size, int max_side);
+
+// world_from_cam of a camera at `eye` looking at `target`, its image rows running down along -up.
+// `up` must not be parallel to target - eye (throws).
+Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
+                         const Eigen::Vector3d& up);
 
 }  // namespace sightmap

@@ -112,5 +112,21 @@ TEST(Intrinsics, CheckRejectsAbsurdValues) {
   EXPECT_TRUE(with([](Intrinsics& k) { k.cx = -100.0; }).Check(&error)) << error;
 }
 
+TEST(LookAt, LooksAtTheTargetWithImageRowsDownTheWorld) {
+  const Eigen::Vector3d eye(1.0, 2.0, 1.5);
+  const Eigen::Vector3d target(4.0, -1.0, 2.5);
+  const Eigen::Isometry3d world_from_cam = LookAt(eye, target, Eigen::Vector3d::UnitZ());
+  const Eigen::Matrix3d r = world_from_cam.linear();
+  EXPECT_LT((r.transpose() * r - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_NEAR(r.determinant(), 1.0, 1e-12);
+  const Eigen::Vector3d in_cam = world_from_cam.inverse() * target;
+  EXPECT_NEAR(in_cam.x(), 0.0, 1e-12);
+  EXPECT_NEAR(in_cam.y(), 0.0, 1e-12);
+  EXPECT_NEAR(in_cam.z(), (target - eye).norm(), 1e-12);
+  EXPECT_NEAR(r.col(0).z(), 0.0, 1e-12);  // level: no roll
+  EXPECT_LT(r.col(1).z(), 0.0);           // image down is world down
+  EXPECT_THROW(LookAt(eye, eye + Eigen::Vector3d(0, 0, 2), Eigen::Vector3d::UnitZ()), Error);
+}
+
 }  // namespace
 }  // namespace sightmap

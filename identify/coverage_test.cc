@@ -19,18 +19,7 @@ const Eigen::Vector3d kRoomLo(0.0, 0.0, 0.0);
 const Eigen::Vector3d kRoomHi(6.0, 4.0, 3.0);
 // A thermostat on the east wall (x = 6).
 const Eigen::Vector3d kThermostat(5.95, 2.0, 1.5);
-
-// world_from_cam of a camera at `eye` looking at `target`, image up along world z.
-Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - eye).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear().col(0) = x;
-  pose.linear().col(1) = z.cross(x);
-  pose.linear().col(2) = z;
-  pose.translation() = eye;
-  return pose;
-}
+const Eigen::Vector3d kUp = Eigen::Vector3d::UnitZ();
 
 // The room's depth [mm] from a camera inside it (`room_from_cam`).
 cv::Mat RoomDepth(const Intrinsics& camera, const Eigen::Isometry3d& room_from_cam) {
@@ -62,7 +51,7 @@ class RoomModel {
     for (const double yaw_deg : {70.0, 110.0, 150.0, 180.0, 210.0, 250.0, 290.0}) {
       const double yaw = DegToRad(yaw_deg);
       const Eigen::Vector3d eye(3.0, 2.0, 1.5);
-      Add(LookAt(eye, eye + Eigen::Vector3d(std::cos(yaw), std::sin(yaw), -0.1)));
+      Add(LookAt(eye, eye + Eigen::Vector3d(std::cos(yaw), std::sin(yaw), -0.1), kUp));
     }
     store::LabelRecord label;
     label.name = "thermostat";
@@ -79,7 +68,7 @@ class RoomModel {
     const double b = DegToRad(bearing_deg);
     const Eigen::Vector3d eye = Eigen::Vector3d(kThermostat.x(), kThermostat.y(), 1.5) +
                                 distance_m * Eigen::Vector3d(std::cos(b), std::sin(b), 0.0);
-    Add(LookAt(eye, kThermostat));
+    Add(LookAt(eye, kThermostat, kUp));
   }
 
   store::Model& model() { return model_; }
@@ -241,10 +230,10 @@ TEST(Coverage, JsonAndPlanSayTheSame) {
 TEST(Coverage, APhotoIsCoveredByAKeyframeThatSawItsTargetFromASimilarView) {
   const Intrinsics camera = Intrinsics::FromFieldOfView(640, 480, DegToRad(62.0), 0.0);
   // The photo 2 m in front of the thermostat (which faces -x).
-  const Eigen::Isometry3d photo = LookAt({3.95, 2.0, 1.5}, kThermostat);
+  const Eigen::Isometry3d photo = LookAt({3.95, 2.0, 1.5}, kThermostat, kUp);
   auto keyframe_at = [&](const Eigen::Vector3d& eye, const Eigen::Vector3d& look_at) {
     store::KeyframeInfo keyframe;
-    keyframe.world_from_cam = LookAt(eye, look_at);
+    keyframe.world_from_cam = LookAt(eye, look_at, kUp);
     keyframe.intrinsics = camera;
     return std::vector<store::KeyframeInfo>{keyframe};
   };

@@ -125,19 +125,6 @@ bool ViewSynthesisOptions::Check(std::string* error) const {
   return true;
 }
 
-Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
-                         const Eigen::Vector3d& up) {
-  const Eigen::Vector3d z = (target - eye).normalized();
-  const Eigen::Vector3d x = (-up).cross(z);
-  SIGHTMAP_CHECK(x.norm() > 1e-6, "cannot look straight along the up direction");
-  Eigen::Isometry3d world_from_cam = Eigen::Isometry3d::Identity();
-  world_from_cam.linear().col(0) = x.normalized();
-  world_from_cam.linear().col(1) = z.cross(x.normalized());
-  world_from_cam.linear().col(2) = z;
-  world_from_cam.translation() = eye;
-  return world_from_cam;
-}
-
 std::vector<Standpoint> PlanStandpoints(const identify::ModelCoverage& coverage,
                                         const ViewSynthesisOptions& options) {
   std::vector<Standpoint> standpoints;

@@ -79,11 +79,6 @@ struct ViewSynthesisOptions {
 void to_json(nlohmann::json& json, const ViewSynthesisOptions& options);
 void from_json(const nlohmann::json& json, ViewSynthesisOptions& options);
 
-// A camera at `eye` looking at `target`, its image rows running down along -up (OpenCV camera
-// frame: x right, y down, z forward). `up` must not be parallel to target - eye.
-Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
-                         const Eigen::Vector3d& up);
-
 // Where to render a view, and for which label.
 struct Standpoint {
   LabelId label;
