@@ -115,8 +115,9 @@ bool LocatorOptions::Check(std::string* error) const {
            "occlusion_max_depth_m must be positive";
   else if (occlusion_max_hole_px < 0)
     why << "occlusion_max_hole_px must not be negative";
-  else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0)
-    why << "occlusion margins must not be negative";
+  else if (occlusion_margin_m < 0.0 || occlusion_margin_ratio < 0.0 ||
+           occlusion_own_surface_m < 0.0)
+    why << "occlusion margins and occlusion_own_surface_m must not be negative";
   else if (!(min_view_agreement >= 0.0 && min_view_agreement <= 1.0) || min_inliers_unchecked < 0 ||
            second_look_min_inliers_unchecked < 0)
     why << "min_view_agreement must be in [0, 1], min_inliers_unchecked and "
@@ -202,6 +203,7 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
   v.margin_m = options.occlusion_margin_m;
   v.margin_ratio = options.occlusion_margin_ratio;
   v.behind_needs_own_surface = options.occlusion_behind_needs_surface;
+  v.own_surface_m = options.occlusion_own_surface_m;
   v.min_in_view_share = options.min_in_view_share;
   v.min_unoccluded_share = options.min_unoccluded_share;
   return v;
@@ -859,8 +861,8 @@ Locator::~Locator() = default;
 void Locator::ReloadLabels(const store::Model& model) {
   auto labels = std::make_shared<Impl::LabelSet>();
   labels->labels = model.Labels();
-  labels->sightings =
-      SightLabels(labels->labels, impl_->sighting_views, ToVisibilityOptions(impl_->options));
+  labels->sightings = SightLabels(labels->labels, impl_->sighting_views,
+                                  ToVisibilityOptions(impl_->options), &impl_->cloud);
   std::lock_guard<std::mutex> lock(impl_->labels_mutex);
   impl_->labels = std::move(labels);
 }
@@ -1229,6 +1231,7 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      view_second_opinion, view_agreement, focal_candidates_35mm, refine_estimated_focal,
      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,
      occlusion_margin_m, occlusion_margin_ratio, occlusion_max_hole_px,
-     occlusion_behind_needs_surface, min_in_view_share, min_unoccluded_share, use_synthetic_views))
+     occlusion_behind_needs_surface, occlusion_own_surface_m, min_in_view_share,
+     min_unoccluded_share, use_synthetic_views))
 
 }  // namespace sightmap::identify

@@ -378,6 +378,10 @@ struct LocatorOptions {
   // (VisibilityOptions::behind_needs_own_surface) [px].
   int occlusion_max_hole_px = 40;
   bool occlusion_behind_needs_surface = true;
+  // A surface on the line of sight within this distance of the plane an appliance point sits on
+  // is that plane seen at a grazing angle and hides nothing (VisibilityOptions::own_surface_m;
+  // 0 = off) [m].
+  double occlusion_own_surface_m = 0.15;
   // An appliance is in view when at least this share of its points project inside the image in
   // front of the camera, and visible when at least this share of those are not occluded.
   double min_in_view_share = 0.5;

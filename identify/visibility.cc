@@ -6,6 +6,7 @@
 #include <optional>
 #include <tuple>
 
+#include <Eigen/Eigenvalues>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -231,6 +232,11 @@ bool VisibilityOptions::Check(std::string* error) const {
         "sighting_depth_m, sighting_max_m and min_sighting_keyframes must be positive, "
         "min_one_sidedness in [0, 1], behind_angle_deg in [90, 180], behind_margin_m not "
         "negative";
+  else if (own_surface_m < 0.0 || !(surface_radius_m > 0.0) ||
+           !(max_surface_flatness >= 0.0 && max_surface_flatness <= 1.0))
+    why =
+        "own_surface_m must not be negative, surface_radius_m positive, max_surface_flatness in "
+        "[0, 1]";
   if (why == nullptr) return true;
   if (error != nullptr) *error = std::string("VisibilityOptions: ") + why;
   return false;
@@ -339,9 +345,33 @@ bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
   return seen_mm * 1e-3 >= point_z_m - sighting_depth_m;
 }
 
+Eigen::Vector3d SurfaceNormal(const OcclusionCloud& cloud, const Eigen::Vector3d& world_point,
+                              const VisibilityOptions& options) {
+  const Eigen::Vector3f centre = world_point.cast<float>();
+  const float radius2 = static_cast<float>(options.surface_radius_m * options.surface_radius_m);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
+  int count = 0;
+  for (const Eigen::Vector3f& voxel : cloud.world_points) {
+    if ((voxel - centre).squaredNorm() > radius2) continue;
+    const Eigen::Vector3d offset = (voxel - centre).cast<double>();
+    sum += offset;
+    sum_outer += offset * offset.transpose();
+    ++count;
+  }
+  constexpr int kMinVoxels = 6;
+  if (count < kMinVoxels) return Eigen::Vector3d::Zero();
+  const Eigen::Vector3d mean = sum / count;
+  const Eigen::Matrix3d covariance = sum_outer / count - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
+  const Eigen::Vector3d spread = eigen.eigenvalues();  // ascending
+  if (!(spread(0) <= options.max_surface_flatness * spread(1))) return Eigen::Vector3d::Zero();
+  return eigen.eigenvectors().col(0).normalized();
+}
+
 LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
-                           const std::vector<SightingView>& views,
-                           const VisibilityOptions& options) {
+                           const std::vector<SightingView>& views, const VisibilityOptions& options,
+                           const OcclusionCloud* cloud) {
   SIGHTMAP_CHECK_OPTIONS(options);
   LabelSightings sightings(labels.size());
   for (size_t l = 0; l < labels.size(); ++l) {
@@ -358,6 +388,9 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
         ++sighting.keyframes;
       }
       if (sighting.keyframes > 0) sighting.mean_ray /= sighting.keyframes;
+      if (cloud != nullptr && options.own_surface_m > 0.0) {
+        sighting.surface_normal = SurfaceNormal(*cloud, point.world, options);
+      }
       sightings[l].push_back(sighting);
     }
   }
@@ -384,7 +417,7 @@ class OcclusionTest {
     const double surface = SurfaceDepth(cam_point);
     const double z = cam_point.z();
     const double margin = options_.margin_m + options_.margin_ratio * z;
-    if (surface < z - margin) return true;
+    if (surface < z - margin && !OnOwnSurface(cam_point, surface, sighting)) return true;
     if (!SeenFromBehind(cam_point, sighting)) return false;
     if (surface < z - options_.behind_margin_m) return true;
     return options_.behind_needs_own_surface && std::isfinite(surface) && surface > z + margin;
@@ -403,6 +436,22 @@ class OcclusionTest {
     const int u = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, small_.width - 1);
     const int v = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, small_.height - 1);
     return zbuffer_.at<float>(v, u);
+  }
+
+  // Whether the z-buffer's surface on the line of sight, `surface` deep, lies within
+  // own_surface_m of the plane the point sits on (so it is that plane, seen at a grazing angle).
+  bool OnOwnSurface(const Eigen::Vector3d& cam_point, double surface,
+                    const PointSighting* sighting) const {
+    if (sighting == nullptr || options_.own_surface_m <= 0.0 || sighting->surface_normal.isZero()) {
+      return false;
+    }
+    const Eigen::Vector3d normal = world_from_cam_.linear().transpose() * sighting->surface_normal;
+    // The camera's distance from the plane; within own_surface_m it sees the plane edge-on and
+    // cannot tell it from what stands on it.
+    const double camera_off_plane = std::abs(normal.dot(cam_point));
+    if (camera_off_plane <= options_.own_surface_m) return false;
+    // The surface's point on the line of sight is cam_point x surface / z.
+    return camera_off_plane * (1.0 - surface / cam_point.z()) <= options_.own_surface_m;
   }
 
   // Whether the photo looks at the point from the side the keyframes did not see it from (when

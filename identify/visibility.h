@@ -128,6 +128,16 @@ struct VisibilityOptions {
   // nothing at all is drawn (a ceiling the walk did not look at) nothing is known, and the
   // point stays visible.
   bool behind_needs_own_surface = true;
+  // A surface in front of a point hides it only when it stands more than own_surface_m off the
+  // plane the point sits on: seen along a wall at a grazing angle, the wall's measured thickness
+  // (depth noise and pose error put its voxels 5-15 cm proud of it) lies on the line of sight
+  // for a metre before a switch or thermostat on it. The plane is the occlusion cloud's within
+  // surface_radius_m of the point, where the cloud there is flat: its least spread (the smallest
+  // eigenvalue of the voxels' covariance) at most max_surface_flatness of the next; a lamp or a
+  // monitor on a desk has none (0 turns the rule off) [m], [m], [].
+  double own_surface_m = 0.15;
+  double surface_radius_m = 0.3;
+  double max_surface_flatness = 0.1;
 
   bool Check(std::string* error) const;
 };
@@ -137,6 +147,9 @@ struct VisibilityOptions {
 struct PointSighting {
   Eigen::Vector3d mean_ray = Eigen::Vector3d::Zero();  // length 1: all from one direction
   int keyframes = 0;
+  // The unit normal (either sign) of the flat surface the point sits on, from the occlusion
+  // cloud around it (SurfaceNormal); zero where the cloud there is not flat or not given.
+  Eigen::Vector3d surface_normal = Eigen::Vector3d::Zero();
 };
 // Per label, per point.
 using LabelSightings = std::vector<std::vector<PointSighting>>;
@@ -153,9 +166,16 @@ bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
 // `depth_mm` resized to `width` x `height` (nearest, so no depth is invented at edges).
 SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrinsics,
                               const Eigen::Isometry3d& world_from_cam, int width, int height);
+// With `cloud`, each point's surface_normal too.
 LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
-                           const std::vector<SightingView>& views,
-                           const VisibilityOptions& options);
+                           const std::vector<SightingView>& views, const VisibilityOptions& options,
+                           const OcclusionCloud* cloud = nullptr);
+
+// The unit normal of the occlusion cloud's plane within options.surface_radius_m of `world_point`
+// (the least-spread direction of those voxels), or zero when fewer than 6 voxels lie there or
+// they are not flat (VisibilityOptions::max_surface_flatness).
+Eigen::Vector3d SurfaceNormal(const OcclusionCloud& cloud, const Eigen::Vector3d& world_point,
+                              const VisibilityOptions& options);
 
 // The cloud's depth [m] seen from `world_from_cam` through `intrinsics` (already at the z-buffer's
 // resolution), +infinity where nothing was drawn. CV_32FC1.

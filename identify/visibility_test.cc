@@ -1,4 +1,5 @@
-// The see-through check's grid of view frusta, on views spread over a floor.
+// The see-through check's grid of view frusta, on views spread over a floor; the plane a label
+// point sits on, and what lies on it seen at a grazing angle.
 #include "identify/visibility.h"
 
 #include <cmath>
@@ -45,6 +46,91 @@ bool Reaches(const SightingView& view, const Eigen::Vector3d& p) {
   const long v = std::lround(pixel.y());
   if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) return false;
   return cam.z() <= view.depth_mm.at<uint16_t>(static_cast<int>(v), static_cast<int>(u)) * 1e-3;
+}
+
+// A wall in the plane x = 0 (y along it, z up) as the walk's depth measures it: three layers of
+// voxels 0-10 cm proud of it (depth noise and pose error), from y = -1 to y_end and z 0 to 2.5 m.
+void AddMeasuredWall(double y_end, OcclusionCloudBuilder* builder) {
+  for (double x : {0.0, 0.05, 0.10}) {
+    for (double y = -1.0; y <= y_end; y += 0.02) {
+      for (double z = 0.0; z <= 2.5; z += 0.02) builder->AddPoint({x, y, z});
+    }
+  }
+}
+
+store::LabelRecord PointLabel(const std::string& name, const Eigen::Vector3d& world) {
+  store::LabelRecord label;
+  label.name = name;
+  label.type = "thermostat";
+  store::LabelPoint point;
+  point.world = world;
+  label.points.push_back(point);
+  return label;
+}
+
+TEST(SurfaceNormalTest, AWallGivesItsNormalACornerAndEmptySpaceNone) {
+  OcclusionCloudBuilder builder(0.05);
+  AddMeasuredWall(6.0, &builder);
+  // A second wall across the first at y = 6: a corner, not a plane.
+  for (double x = 0.0; x <= 3.0; x += 0.02) {
+    for (double z = 0.0; z <= 2.5; z += 0.02) builder.AddPoint({x, 6.0, z});
+  }
+  const OcclusionCloud cloud = builder.Build();
+  const VisibilityOptions options;
+  const Eigen::Vector3d on_wall = SurfaceNormal(cloud, {0.08, 2.0, 1.5}, options);
+  EXPECT_NEAR(std::abs(on_wall.x()), 1.0, 0.01) << on_wall.transpose();
+  EXPECT_TRUE(SurfaceNormal(cloud, {0.1, 5.9, 1.5}, options).isZero());
+  EXPECT_TRUE(SurfaceNormal(cloud, {2.0, 2.0, 1.5}, options).isZero());  // nothing within 0.3 m
+
+  // SightLabels gives each point the normal when it has the cloud, and none without it.
+  const std::vector<store::LabelRecord> labels = {PointLabel("thermostat", {0.08, 2.0, 1.5})};
+  const LabelSightings with_cloud = SightLabels(labels, {}, options, &cloud);
+  EXPECT_NEAR(std::abs(with_cloud[0][0].surface_normal.x()), 1.0, 0.01);
+  EXPECT_TRUE(SightLabels(labels, {}, options)[0][0].surface_normal.isZero());
+  VisibilityOptions off;
+  off.own_surface_m = 0.0;
+  EXPECT_TRUE(SightLabels(labels, {}, off, &cloud)[0][0].surface_normal.isZero());
+}
+
+TEST(OwnSurfaceTest, AThermostatSeenAlongItsWallIsNotHiddenByTheWallsThickness) {
+  OcclusionCloudBuilder builder(0.05);
+  AddMeasuredWall(8.0, &builder);
+  const OcclusionCloud wall = builder.Build();
+  const Eigen::Vector3d thermostat(0.08, 0.0, 1.5);  // on the wall, 8 cm proud of it
+  const std::vector<store::LabelRecord> labels = {PointLabel("thermostat", thermostat)};
+  const Intrinsics intrinsics = Intrinsics::FromFieldOfView(1280, 960, 1.1, 0.0);
+  const VisibilityOptions options;
+  const LabelSightings sightings = SightLabels(labels, {}, options, &wall);
+  VisibilityOptions off = options;
+  off.own_surface_m = 0.0;
+  const auto occluded = [&](const Eigen::Isometry3d& world_from_cam, const OcclusionCloud& cloud,
+                            const VisibilityOptions& with) {
+    const std::vector<ApplianceInView> seen =
+        AppliancesInView(labels, &cloud, intrinsics, world_from_cam, with, &sightings);
+    EXPECT_EQ(seen.size(), 1u);
+    return seen.empty() || seen[0].occluded;
+  };
+  // From 4 m along the wall and 0.4 m off it (4.6 degrees): the wall's proud voxels lie on the
+  // line of sight from 0.55 m before the thermostat, farther in front than the occlusion margin
+  // (0.35 m there), and within 5 cm of the thermostat's plane.
+  const Eigen::Isometry3d along = LookAt({0.4, 4.0, 1.5}, thermostat, Eigen::Vector3d::UnitZ());
+  EXPECT_TRUE(occluded(along, wall, off));
+  EXPECT_FALSE(occluded(along, wall, options));
+  // Face on, nothing hid it either way.
+  const Eigen::Isometry3d facing = LookAt({3.0, 0.0, 1.5}, thermostat, Eigen::Vector3d::UnitZ());
+  EXPECT_FALSE(occluded(facing, wall, off));
+  EXPECT_FALSE(occluded(facing, wall, options));
+  // A cabinet's side standing out 0.5 m from the wall between them still hides it (where the line
+  // of sight meets it, 0.24 m off the thermostat's plane).
+  OcclusionCloudBuilder with_cabinet(0.05);
+  AddMeasuredWall(8.0, &with_cabinet);
+  for (double x = 0.1; x <= 0.6; x += 0.02) {
+    for (double z = 0.0; z <= 2.0; z += 0.02) with_cabinet.AddPoint({x, 3.0, z});
+  }
+  EXPECT_TRUE(occluded(along, with_cabinet.Build(), options));
+  // A camera within own_surface_m of the plane sees it edge-on: the rule does not apply.
+  const Eigen::Isometry3d edge_on = LookAt({0.12, 4.0, 1.5}, thermostat, Eigen::Vector3d::UnitZ());
+  EXPECT_TRUE(occluded(edge_on, wall, options));
 }
 
 TEST(ViewGridTest, ListsEveryViewThatReachesAPointAndFewOthers) {
