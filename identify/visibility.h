@@ -129,12 +129,13 @@ struct VisibilityOptions {
   // point stays visible.
   bool behind_needs_own_surface = true;
   // A surface in front of a point hides it only when it stands more than own_surface_m off the
-  // plane the point sits on: seen along a wall at a grazing angle, the wall's measured thickness
-  // (depth noise and pose error put its voxels 5-15 cm proud of it) lies on the line of sight
-  // for a metre before a switch or thermostat on it. The plane is the occlusion cloud's within
-  // surface_radius_m of the point, where the cloud there is flat: its least spread (the smallest
-  // eigenvalue of the voxels' covariance) at most max_surface_flatness of the next; a lamp or a
-  // monitor on a desk has none (0 turns the rule off) [m], [m], [].
+  // plane the point sits on (0 turns this off): seen along a wall at a grazing angle, the wall's
+  // measured thickness (depth noise and pose error put its voxels 5-15 cm proud of it) lies on
+  // the line of sight for a metre before a switch or thermostat on it. The plane is the
+  // occlusion cloud's within surface_radius_m of the point, where the cloud there is flat: its
+  // least spread (the smallest eigenvalue of the voxels' covariance) at most
+  // max_surface_flatness of the next; a lamp or a monitor on a desk has none. A camera within
+  // own_surface_m of the plane sees it edge-on, and the rule does not apply [m], [m], [].
   double own_surface_m = 0.15;
   double surface_radius_m = 0.3;
   double max_surface_flatness = 0.1;
