@@ -348,12 +348,20 @@ bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
 Eigen::Vector3d SurfaceNormal(const OcclusionCloud& cloud, const Eigen::Vector3d& world_point,
                               const VisibilityOptions& options) {
   const Eigen::Vector3f centre = world_point.cast<float>();
-  const float radius2 = static_cast<float>(options.surface_radius_m * options.surface_radius_m);
+  const float radius = static_cast<float>(options.surface_radius_m);
+  const std::vector<Eigen::Vector3f>& points = cloud.world_points;
+  const auto begin =
+      std::lower_bound(points.begin(), points.end(), centre.x() - radius,
+                       [](const Eigen::Vector3f& voxel, float x) { return voxel.x() < x; });
+  const auto end =
+      std::upper_bound(begin, points.end(), centre.x() + radius,
+                       [](float x, const Eigen::Vector3f& voxel) { return x < voxel.x(); });
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
   int count = 0;
-  for (const Eigen::Vector3f& voxel : cloud.world_points) {
-    if ((voxel - centre).squaredNorm() > radius2) continue;
+  for (auto it = begin; it != end; ++it) {
+    const Eigen::Vector3f& voxel = *it;
+    if ((voxel - centre).squaredNorm() > radius * radius) continue;
     const Eigen::Vector3d offset = (voxel - centre).cast<double>();
     sum += offset;
     sum_outer += offset * offset.transpose();
@@ -373,6 +381,12 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
                            const std::vector<SightingView>& views, const VisibilityOptions& options,
                            const OcclusionCloud* cloud) {
   SIGHTMAP_CHECK_OPTIONS(options);
+  SIGHTMAP_CHECK(
+      cloud == nullptr || std::is_sorted(cloud->world_points.begin(), cloud->world_points.end(),
+                                         [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+                                           return a.x() < b.x();
+                                         }),
+      "the occlusion cloud's points must be sorted by x");
   LabelSightings sightings(labels.size());
   for (size_t l = 0; l < labels.size(); ++l) {
     for (const store::LabelPoint& point : labels[l].points) {

@@ -22,7 +22,7 @@ namespace sightmap::identify {
 // The model's surfaces as voxel centres in the world frame [m]: what can hide an appliance.
 struct OcclusionCloud {
   double voxel_m = 0.05;
-  std::vector<Eigen::Vector3f> world_points;
+  std::vector<Eigen::Vector3f> world_points;  // sorted by (x, y, z), as Build gives them
 };
 
 // One keyframe's depth at a small size, for telling from where the walk saw a label point.
@@ -174,7 +174,8 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
 
 // The unit normal of the occlusion cloud's plane within options.surface_radius_m of `world_point`
 // (the least-spread direction of those voxels), or zero when fewer than 6 voxels lie there or
-// they are not flat (VisibilityOptions::max_surface_flatness).
+// they are not flat (VisibilityOptions::max_surface_flatness). The cloud's points must be sorted
+// by x (they are searched in the slab of x the radius spans).
 Eigen::Vector3d SurfaceNormal(const OcclusionCloud& cloud, const Eigen::Vector3d& world_point,
                               const VisibilityOptions& options);
 
