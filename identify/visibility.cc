@@ -381,11 +381,12 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
                            const std::vector<SightingView>& views, const VisibilityOptions& options,
                            const OcclusionCloud* cloud) {
   SIGHTMAP_CHECK_OPTIONS(options);
+  const bool with_planes = cloud != nullptr && options.own_surface_m > 0.0;
   SIGHTMAP_CHECK(
-      cloud == nullptr || std::is_sorted(cloud->world_points.begin(), cloud->world_points.end(),
-                                         [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-                                           return a.x() < b.x();
-                                         }),
+      !with_planes || std::is_sorted(cloud->world_points.begin(), cloud->world_points.end(),
+                                     [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+                                       return a.x() < b.x();
+                                     }),
       "the occlusion cloud's points must be sorted by x");
   LabelSightings sightings(labels.size());
   for (size_t l = 0; l < labels.size(); ++l) {
@@ -402,9 +403,7 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
         ++sighting.keyframes;
       }
       if (sighting.keyframes > 0) sighting.mean_ray /= sighting.keyframes;
-      if (cloud != nullptr && options.own_surface_m > 0.0) {
-        sighting.surface_normal = SurfaceNormal(*cloud, point.world, options);
-      }
+      if (with_planes) sighting.surface_normal = SurfaceNormal(*cloud, point.world, options);
       sightings[l].push_back(sighting);
     }
   }
