@@ -70,7 +70,11 @@ class Progress {
 void PrintTable(const EvalIdentifyArgs& args, size_t keyframes,
                 const identify::IdentifyEvaluation& e) {
   std::cout << "model      " << args.model_path << " (" << keyframes << " keyframes)\n";
-  std::cout << "queries    " << args.queries_path << " (" << e.photos << " photos)\n\n";
+  std::cout << "queries    " << args.queries_path << " (" << e.photos << " photos)\n";
+  if (args.seeing_keyframes_first) {
+    std::cout << "retrieval  the keyframes that saw each view first (--seeing-keyframes-first)\n";
+  }
+  std::cout << "\n";
   const int recall_undefined = e.matched_photos - e.recall_defined_photos;
   const int precision_undefined = e.matched_photos - e.precision_defined_photos;
   const std::string good = Fixed(e.options.good_share, 1);
@@ -231,6 +235,10 @@ CLI::App* AddEvalIdentify(CLI::App& eval, EvalIdentifyArgs& args) {
   identify->add_flag("--without-synthetic", args.without_synthetic_views,
                      "ignore the model's synthetic views ('sightmap synthesize'), to see what they "
                      "add");
+  identify->add_flag("--seeing-keyframes-first", args.seeing_keyframes_first,
+                     "search the keyframes that saw each photo's view (known from its true pose) "
+                     "before those retrieval ranks: what matching and the checks answer when "
+                     "retrieval is perfect");
   identify->add_option("--photos-out", args.photos_out,
                        "write one JSON line per photo: its answer, inliers, keyframe and pose "
                        "error, to find the photos behind a figure");
@@ -287,7 +295,11 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     identify::IntrinsicsHint hint;
     hint.upright = truth.intrinsics;
     const Clock::time_point start = Clock::now();
-    const identify::LocateResult result = locator->Locate(photo, hint);
+    std::vector<KeyframeId> first_keyframes;
+    if (args.seeing_keyframes_first) {
+      for (const int64_t id : truth.seeing_keyframes) first_keyframes.emplace_back(id);
+    }
+    const identify::LocateResult result = locator->Locate(photo, hint, first_keyframes);
     const double wall_ms = SecondsSince(start) * 1e3;
     identify::PhotoAnswer answer = identify::ToPhotoAnswer(result);
     if (answer.timings.total_ms <= 0.0) answer.timings.total_ms = wall_ms;
@@ -319,6 +331,7 @@ int RunEvalIdentify(const EvalIdentifyArgs& args) {
     out["keyframes"] = locator->NumKeyframes();
     out["model_load_s"] = load_s;
     out["match_kernel"] = slam::KernelName(slam::FastestKernel());
+    out["seeing_keyframes_first"] = args.seeing_keyframes_first;
     out["plot"] = args.plot_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.plot_path);
     out["covered"] = covered ? identify::ToJson(*covered) : nlohmann::json(nullptr);
     out["not_covered"] = not_covered ? identify::ToJson(*not_covered) : nlohmann::json(nullptr);

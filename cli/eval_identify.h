@@ -22,7 +22,10 @@ struct EvalIdentifyArgs {
   int limit = 0;           // 0 = every photo
   std::string photos_out;  // one JSON line per photo (identify::PhotoRows); empty = none
   bool without_synthetic_views = false;  // locate against keyframes only
-  identify::LocatorOptions locator;      // --config FILE (as `locate --print-config` prints)
+  // Search the keyframes that saw each photo's view before retrieval's ranking: what the
+  // locator answers when retrieval is perfect (a measurement; the ids come from ground truth).
+  bool seeing_keyframes_first = false;
+  identify::LocatorOptions locator;  // --config FILE (as `locate --print-config` prints)
 };
 
 // Adds the `identify` subcommand to `eval`, filling `args` when parsed.

@@ -546,6 +546,32 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
   return candidates;
 }
 
+std::vector<slam::PlaceCandidate> PutKeyframesFirst(std::vector<slam::PlaceCandidate> candidates,
+                                                    const std::vector<KeyframeId>& first,
+                                                    const std::vector<LocatorKeyframe>& keyframes) {
+  if (first.empty()) return candidates;
+  std::unordered_map<int64_t, int64_t> slot_of_id;
+  for (size_t slot = 0; slot < keyframes.size(); ++slot) {
+    const LocatorKeyframe& keyframe = keyframes[slot];
+    if (keyframe.id.valid() && !keyframe.synthetic_view.valid()) {
+      slot_of_id.emplace(keyframe.id.value(), static_cast<int64_t>(slot));
+    }
+  }
+  std::unordered_set<int64_t> first_slots;
+  std::vector<slam::PlaceCandidate> unranked;
+  for (const KeyframeId id : first) {
+    const auto found = slot_of_id.find(id.value());
+    if (found != slot_of_id.end() && first_slots.insert(found->second).second) {
+      unranked.push_back(slam::PlaceCandidate{found->second, 0.0});
+    }
+  }
+  const auto ranked_end =
+      std::stable_partition(candidates.begin(), candidates.end(),
+                            [&](const slam::PlaceCandidate& c) { return first_slots.count(c.id); });
+  std::vector<slam::PlaceCandidate> ranked_first(candidates.begin(), ranked_end);
+  return MergeCandidates(MergeCandidates(ranked_first, unranked), candidates);
+}
+
 std::vector<slam::PlaceCandidate> MergeCandidates(const std::vector<slam::PlaceCandidate>& first,
                                                   const std::vector<slam::PlaceCandidate>& then) {
   std::vector<slam::PlaceCandidate> merged;

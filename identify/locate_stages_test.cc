@@ -135,6 +135,34 @@ TEST(MergeCandidatesTest, TheFirstListsCandidatesComeFirstAndEachKeyframeOnce) {
   EXPECT_TRUE(MergeCandidates({}, {}).empty());
 }
 
+TEST(PutKeyframesFirstTest, TheGivenKeyframesComeFirstRankedOnesInRetrievalsOrder) {
+  std::vector<LocatorKeyframe> keyframes;
+  for (int slot = 0; slot < 6; ++slot) {
+    keyframes.push_back(KeyframeAt({slot * 1.0, 0, 0}, 0));
+    keyframes.back().id = KeyframeId(100 + slot);
+  }
+  // Slot 1 is a view rendered from keyframe 105 (slot 5): it carries that id but is not it.
+  keyframes[1].id = KeyframeId(105);
+  keyframes[1].synthetic_view = SyntheticViewId(1);
+  const std::vector<slam::PlaceCandidate> retrieved = {{0, 0.9}, {3, 0.8}, {1, 0.7}, {2, 0.6}};
+  // Keyframes 104 and 105 were not retrieved; 102 (slot 2) was, last; 999 is no keyframe.
+  const std::vector<slam::PlaceCandidate> put = PutKeyframesFirst(
+      retrieved,
+      {KeyframeId(104), KeyframeId(999), KeyframeId(102), KeyframeId(105), KeyframeId(104)},
+      keyframes);
+  std::vector<int64_t> slots;
+  for (const slam::PlaceCandidate& c : put) slots.push_back(c.id);
+  // 2 (ranked), then 4 and 5 (unranked, in the order given), then the rest as retrieved.
+  EXPECT_EQ(slots, (std::vector<int64_t>{2, 4, 5, 0, 3, 1}));
+  EXPECT_DOUBLE_EQ(put[0].score, 0.6);
+  EXPECT_DOUBLE_EQ(put[1].score, 0.0);
+  std::vector<int64_t> unchanged;
+  for (const slam::PlaceCandidate& c : PutKeyframesFirst(retrieved, {}, keyframes)) {
+    unchanged.push_back(c.id);
+  }
+  EXPECT_EQ(unchanged, (std::vector<int64_t>{0, 3, 1, 2}));
+}
+
 TEST(GroupPlacesTest, NearbySimilarViewsShareAPlaceWithTheirNeighboursAtMostMaxPlaces) {
   LocatorOptions options;
   options.place_radius_m = 2.0;

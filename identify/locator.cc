@@ -883,7 +883,8 @@ size_t Locator::NumOcclusionVoxels() const { return impl_->cloud.world_points.si
 std::vector<store::LabelRecord> Locator::Labels() const { return impl_->CurrentLabels()->labels; }
 
 LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
-                             IntrinsicsSource source) const {
+                             IntrinsicsSource source,
+                             const std::vector<KeyframeId>& first_keyframes) const {
   const Clock::time_point start = Clock::now();
   const LocatorOptions& options = impl_->options;
   LocateResult result;
@@ -909,10 +910,11 @@ LocateResult Locator::Locate(const cv::Mat& photo, const std::optional<Intrinsic
   if (prepared.refusal) return finish(*prepared.refusal);
 
   stage = Clock::now();
-  const std::vector<slam::PlaceCandidate> candidates =
+  const std::vector<slam::PlaceCandidate> candidates = PutKeyframesFirst(
       RetrieveCandidates(prepared.retrieval_descriptors, options.retrieval,
                          options.retrieval_candidates + options.reserve_candidates,
-                         impl_->vocabulary, impl_->index, impl_->votes, impl_->keyframes, options);
+                         impl_->vocabulary, impl_->index, impl_->votes, impl_->keyframes, options),
+      first_keyframes, impl_->keyframes);
   result.timings.retrieval_ms = MsSince(stage);
   for (const slam::PlaceCandidate& candidate : candidates) {
     const LocatorKeyframe& keyframe = impl_->keyframes[static_cast<size_t>(candidate.id)];
@@ -1158,9 +1160,10 @@ nlohmann::json ToJson(const LocateResult& result) {
   return out;
 }
 
-LocateResult Locator::Locate(const Photo& photo, const IntrinsicsHint& hint) const {
+LocateResult Locator::Locate(const Photo& photo, const IntrinsicsHint& hint,
+                             const std::vector<KeyframeId>& first_keyframes) const {
   const ChosenIntrinsics chosen = ChooseIntrinsics(photo, hint);
-  LocateResult result = Locate(photo.upright, chosen.intrinsics, chosen.source);
+  LocateResult result = Locate(photo.upright, chosen.intrinsics, chosen.source, first_keyframes);
   for (ApplianceInView& appliance : result.appliances) {
     appliance.pixel = photo.DisplayPixel(appliance.pixel);
   }

@@ -529,12 +529,18 @@ class Locator {
 
   // Locates one photo (BGR). `intrinsics` at the photo's resolution, or nullopt to estimate them
   // (then intrinsics_source is kEstimated). Thread-safe: concurrent calls share the loaded model.
+  // `first_keyframes`, when given, are searched before whatever retrieval ranks (those it ranked
+  // in its order, then the rest in the order given; ids the model lacks are ignored): a
+  // measurement of what retrieval costs, with the keyframes known to have seen the photo's view
+  // (`eval identify --seeing-keyframes-first`), not something a user can know.
   LocateResult Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
-                      IntrinsicsSource source = IntrinsicsSource::kGiven) const;
+                      IntrinsicsSource source = IntrinsicsSource::kGiven,
+                      const std::vector<KeyframeId>& first_keyframes = {}) const;
   // Locates a decoded photo with intrinsics by ChooseIntrinsics(photo, hint); the appliances'
   // pixels are in the picture a viewer shows (Photo::DisplayPixel). Throws InvalidArgument when
   // the hint does not fit the photo.
-  LocateResult Locate(const Photo& photo, const IntrinsicsHint& hint) const;
+  LocateResult Locate(const Photo& photo, const IntrinsicsHint& hint,
+                      const std::vector<KeyframeId>& first_keyframes = {}) const;
 
   // Re-reads the labels (after `label add` on a served model).
   void ReloadLabels(const store::Model& model);

@@ -767,6 +767,24 @@ TEST_F(ServeTest, EvalIdentifyReportsThePapersFigures) {
   }
   EXPECT_EQ(lines, 6);
   EXPECT_EQ(matched, e["matched_photos"].get<int>());
+  EXPECT_EQ(e["seeing_keyframes_first"], false);
+  // With the keyframes that saw each view searched first, retrieval ranks one of them first
+  // wherever the model has one.
+  const testing::CommandResult oracle = testing::RunCommand(
+      SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
+                           (*dir_ / "queries").string() +
+                           " --limit 6 --json --seeing-keyframes-first --photos-out " + rows);
+  ASSERT_EQ(oracle.exit_code, 0) << oracle.err;
+  EXPECT_EQ(nlohmann::json::parse(oracle.out)["seeing_keyframes_first"], true);
+  std::ifstream oracle_rows(rows);
+  int seen_views = 0;
+  for (std::string line; std::getline(oracle_rows, line);) {
+    const nlohmann::json row = nlohmann::json::parse(line);
+    if (row["seeing_keyframes"].get<int>() == 0) continue;
+    ++seen_views;
+    EXPECT_EQ(row["retrieval_rank"], 1) << line;
+  }
+  EXPECT_GT(seen_views, 0);
   // The queries/ folder itself is accepted too; the human table names the figures.
   const testing::CommandResult table = testing::RunCommand(
       SIGHTMAP_BINARY, "eval identify --model " + model + " --queries " +
