@@ -529,10 +529,11 @@ class Locator {
 
   // Locates one photo (BGR). `intrinsics` at the photo's resolution, or nullopt to estimate them
   // (then intrinsics_source is kEstimated). Thread-safe: concurrent calls share the loaded model.
-  // `first_keyframes`, when given, are searched before whatever retrieval ranks (those it ranked
-  // in its order, then the rest in the order given; ids the model lacks are ignored): a
-  // measurement of what retrieval costs, with the keyframes known to have seen the photo's view
-  // (`eval identify --seeing-keyframes-first`), not something a user can know.
+  // `first_keyframes`, when given, are searched before whatever the first retrieval ranks (those
+  // it ranked in its order, then the rest in the order given; ids the model lacks are ignored;
+  // the wider second search of wide_vote_shortlist ranks on its own): a measurement of what
+  // retrieval costs, with the keyframes known to have seen the photo's view (`eval identify
+  // --seeing-keyframes-first`), not something a user can know.
   LocateResult Locate(const cv::Mat& photo, const std::optional<Intrinsics>& intrinsics,
                       IntrinsicsSource source = IntrinsicsSource::kGiven,
                       const std::vector<KeyframeId>& first_keyframes = {}) const;
