@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <iterator>
 #include <limits>
 #include <sstream>
 #include <unordered_map>
@@ -546,9 +547,9 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
   return candidates;
 }
 
-std::vector<slam::PlaceCandidate> PutKeyframesFirst(std::vector<slam::PlaceCandidate> candidates,
-                                                    const std::vector<KeyframeId>& first,
-                                                    const std::vector<LocatorKeyframe>& keyframes) {
+std::vector<slam::PlaceCandidate> PutKeyframesFirst(
+    const std::vector<slam::PlaceCandidate>& candidates, const std::vector<KeyframeId>& first,
+    const std::vector<LocatorKeyframe>& keyframes) {
   if (first.empty()) return candidates;
   std::unordered_map<int64_t, int64_t> slot_of_id;
   for (size_t slot = 0; slot < keyframes.size(); ++slot) {
@@ -565,10 +566,9 @@ std::vector<slam::PlaceCandidate> PutKeyframesFirst(std::vector<slam::PlaceCandi
       unranked.push_back(slam::PlaceCandidate{found->second, 0.0});
     }
   }
-  const auto ranked_end =
-      std::stable_partition(candidates.begin(), candidates.end(),
-                            [&](const slam::PlaceCandidate& c) { return first_slots.count(c.id); });
-  std::vector<slam::PlaceCandidate> ranked_first(candidates.begin(), ranked_end);
+  std::vector<slam::PlaceCandidate> ranked_first;
+  std::copy_if(candidates.begin(), candidates.end(), std::back_inserter(ranked_first),
+               [&](const slam::PlaceCandidate& c) { return first_slots.count(c.id) > 0; });
   return MergeCandidates(MergeCandidates(ranked_first, unranked), candidates);
 }
 

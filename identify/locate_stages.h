@@ -127,9 +127,9 @@ std::vector<slam::PlaceCandidate> RetrieveCandidates(
 // before the others: those among `candidates` in their order, then the rest in `first`'s order
 // (score 0). Ids of no keyframe in `keyframes`, and synthetic views, are left out. Empty `first`:
 // `candidates` as they are.
-std::vector<slam::PlaceCandidate> PutKeyframesFirst(std::vector<slam::PlaceCandidate> candidates,
-                                                    const std::vector<KeyframeId>& first,
-                                                    const std::vector<LocatorKeyframe>& keyframes);
+std::vector<slam::PlaceCandidate> PutKeyframesFirst(
+    const std::vector<slam::PlaceCandidate>& candidates, const std::vector<KeyframeId>& first,
+    const std::vector<LocatorKeyframe>& keyframes);
 
 // Stage 2b: the candidates of `first`, then those of `then` not among them, each in its order (a
 // second retrieval's candidates tried before the first's).
