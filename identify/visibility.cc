@@ -99,6 +99,7 @@ namespace {
 struct ViewedPoint {
   Eigen::Vector3d in_view;
   uint16_t seen_mm = 0;
+  cv::Point pixel;
 };
 
 // Nothing when the point lies behind the view or outside its image.
@@ -110,7 +111,7 @@ std::optional<ViewedPoint> PointInView(const SightingView& view,
   const int u = static_cast<int>(std::lround(pixel.x()));
   const int v = static_cast<int>(std::lround(pixel.y()));
   if (u < 0 || v < 0 || u >= view.depth_mm.cols || v >= view.depth_mm.rows) return std::nullopt;
-  return ViewedPoint{cam, view.depth_mm.at<uint16_t>(v, u)};
+  return ViewedPoint{cam, view.depth_mm.at<uint16_t>(v, u), cv::Point(u, v)};
 }
 
 // Whether some view's depth at `world_point`'s pixel lies more than `margin_m` beyond it: that
@@ -336,7 +337,33 @@ SightingView MakeSightingView(const cv::Mat& depth_mm, const Intrinsics& intrins
   cv::resize(depth_mm, view.depth_mm, cv::Size(width, height), 0.0, 0.0, cv::INTER_NEAREST);
   view.intrinsics = intrinsics.Scaled(width, height);
   view.cam_from_world = world_from_cam.inverse();
+  view.measured = MeasuredArea(view.depth_mm);
   return view;
+}
+
+cv::Rect MeasuredArea(const cv::Mat& depth_mm) {
+  SIGHTMAP_CHECK(depth_mm.type() == CV_16UC1, "MeasuredArea needs 16-bit depth");
+  cv::Mat valid;
+  cv::compare(depth_mm, 0, valid, cv::CMP_GT);  // 255 where measured
+  cv::Mat per_column;
+  cv::Mat per_row;
+  cv::reduce(valid, per_column, 0, cv::REDUCE_SUM, CV_32S);
+  cv::reduce(valid, per_row, 1, cv::REDUCE_SUM, CV_32S);
+  constexpr double kMinShare = 0.05;
+  // The first and one past the last index whose count reaches the share of `length` pixels.
+  const auto span = [&](const cv::Mat& counts, int length) {
+    const double min_sum = 255.0 * std::max(1.0, kMinShare * length);
+    const int n = static_cast<int>(counts.total());
+    int first = 0;
+    while (first < n && counts.at<int>(first) < min_sum) ++first;
+    int end = n;
+    while (end > first && counts.at<int>(end - 1) < min_sum) --end;
+    return std::make_pair(first, end);
+  };
+  const auto [left, right] = span(per_column, depth_mm.rows);
+  const auto [top, bottom] = span(per_row, depth_mm.cols);
+  if (left >= right || top >= bottom) return cv::Rect();
+  return cv::Rect(left, top, right - left, bottom - top);
 }
 
 bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
@@ -397,6 +424,9 @@ LabelSightings SightLabels(const std::vector<store::LabelRecord>& labels,
         if (!seen || !ClearSighting(seen->seen_mm, seen->in_view.z(), options.sighting_depth_m,
                                     options.sighting_max_m)) {
           continue;
+        }
+        if (seen->seen_mm == 0 && !view.measured.empty() && !view.measured.contains(seen->pixel)) {
+          continue;  // the band the sensor does not measure: nothing was seen through
         }
         // The ray from the keyframe to the point, in the world frame.
         sighting.mean_ray += view.cam_from_world.linear().transpose() * seen->in_view.normalized();

@@ -30,7 +30,18 @@ struct SightingView {
   cv::Mat depth_mm;       // CV_16UC1
   Intrinsics intrinsics;  // at depth_mm's size
   Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
+  // The part of depth_mm the sensor measured (MeasuredArea); empty = all of it. Depth registered
+  // to the colour camera has none in a band along the image's edges, and missing depth there is
+  // not a sighting.
+  cv::Rect measured;
 };
+
+// The rectangle of `depth_mm` (CV_16UC1) between its first and last rows (columns) in which at
+// least 5% of the pixels hold depth: the image less the bands along its edges where the sensor
+// measured nothing. At 640x480, columns left / right and rows top / bottom: the 3dmatch lounge
+// recording's Kinect 2-5 / 35-36 and 12 / 8, the simulator's 8 / 35 and 20 / 5. Empty when
+// nothing was measured.
+cv::Rect MeasuredArea(const cv::Mat& depth_mm);
 
 // Which sighting views can see a point: each view's frustum, out to the farthest depth it measured,
 // bounded by an axis-aligned box and entered in the cells of a grid of `cell_m` it overlaps. A
@@ -158,7 +169,8 @@ using LabelSightings = std::vector<std::vector<PointSighting>>;
 // Whether a keyframe has a clear line of sight to a point `point_z_m` in front of it, from its
 // depth at the point's pixel (`seen_mm`, 0 when missing): the depth reaches the point, or beyond,
 // within sighting_depth_m, or is missing with the point within the sensor's range sighting_max_m
-// (a dark screen or a window returns no depth) [m]. The one rule for the side the walk saw a
+// (a dark screen or a window returns no depth; SightLabels also needs the pixel inside the view's
+// measured area) [m]. The one rule for the side the walk saw a
 // point from: the sightings `locate` tells occlusion with, and the clicks of `label import
 // --as-clicked`.
 bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,

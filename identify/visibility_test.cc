@@ -133,6 +133,61 @@ TEST(OwnSurfaceTest, AThermostatSeenAlongItsWallIsNotHiddenByTheWallsThickness) 
   EXPECT_TRUE(occluded(edge_on, wall, options));
 }
 
+// Depth registered to the colour camera: none in the 10 columns on the right and 6 rows at the
+// top, as the sensor's own bands.
+cv::Mat WithUnmeasuredBands(cv::Mat depth_mm) {
+  depth_mm.colRange(depth_mm.cols - 10, depth_mm.cols).setTo(0);
+  depth_mm.rowRange(0, 6).setTo(0);
+  return depth_mm;
+}
+
+TEST(MeasuredAreaTest, LeavesOutTheBandsAlongTheEdgesWithoutDepth) {
+  cv::Mat depth = WithUnmeasuredBands(cv::Mat(120, 160, CV_16UC1, cv::Scalar(2000)));
+  depth(cv::Rect(40, 30, 50, 40)).setTo(0);  // a screen: inside the measured area
+  depth.at<uint16_t>(50, 155) = 1500;        // one stray measurement in the band
+  EXPECT_EQ(MeasuredArea(depth), cv::Rect(0, 6, 150, 114));
+  EXPECT_TRUE(MeasuredArea(cv::Mat(120, 160, CV_16UC1, cv::Scalar(0))).empty());
+}
+
+// A TV screen (no depth) on the near face of a wall (faces z = 3.0 and 3.2), seen by three
+// keyframes in front of it through its hole in their depth; a fourth keyframe behind the wall
+// has the point in the band along its image's right edge where registered depth has no
+// measurement, the wall's far face 0.2 m before the point everywhere else.
+TEST(SightLabelsTest, MissingDepthInTheBandTheSensorDoesNotMeasureIsNoSighting) {
+  const Eigen::Vector3d tv(0.0, 0.0, 3.0);
+  const std::vector<store::LabelRecord> labels = {PointLabel("tv", tv)};
+  const Intrinsics intrinsics = Intrinsics::FromFieldOfView(160, 120, 1.0, 0.0);
+  std::vector<SightingView> views;
+  for (int i = 0; i < 3; ++i) {
+    Eigen::Isometry3d world_from_keyframe = Eigen::Isometry3d::Identity();
+    world_from_keyframe.translation() = Eigen::Vector3d(0.2 * i - 0.2, 0.1, 1.0);
+    cv::Mat wall = WithUnmeasuredBands(cv::Mat(120, 160, CV_16UC1, cv::Scalar(2000)));
+    wall(cv::Rect(50, 35, 60, 50)).setTo(0);  // the screen round the image's centre
+    views.push_back(MakeSightingView(wall, intrinsics, world_from_keyframe, 80, 60));
+  }
+  Eigen::Isometry3d world_from_behind = Eigen::Isometry3d::Identity();
+  world_from_behind.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  world_from_behind.translation() = Eigen::Vector3d(1.05, 0.0, 5.0);
+  views.push_back(
+      MakeSightingView(WithUnmeasuredBands(cv::Mat(120, 160, CV_16UC1, cv::Scalar(1800))),
+                       intrinsics, world_from_behind, 80, 60));
+  const Eigen::Vector2d pixel = views.back().intrinsics.Project(views.back().cam_from_world * tv);
+  ASSERT_GT(pixel.x(), 75.0);  // in the band without depth (columns 75-79 of 80)
+  ASSERT_LT(pixel.x(), 79.5);
+
+  const VisibilityOptions options;
+  const LabelSightings sightings = SightLabels(labels, views, options);
+  EXPECT_EQ(sightings[0][0].keyframes, 3);
+  EXPECT_GT(sightings[0][0].mean_ray.z(), 0.9);  // seen from the front only
+
+  // Taken as measured, the band would count the view behind the wall as a sighting too, and the
+  // point would no longer read as seen from one side.
+  views.back().measured = cv::Rect();
+  const LabelSightings unmeasured_taken = SightLabels(labels, views, options);
+  EXPECT_EQ(unmeasured_taken[0][0].keyframes, 4);
+  EXPECT_LT(unmeasured_taken[0][0].mean_ray.norm(), options.min_one_sidedness);
+}
+
 TEST(ViewGridTest, ListsEveryViewThatReachesAPointAndFewOthers) {
   std::mt19937 rng(3);
   const std::vector<SightingView> views = ViewsOnAFloor(300, &rng);
