@@ -30,9 +30,10 @@ struct SightingView {
   cv::Mat depth_mm;       // CV_16UC1
   Intrinsics intrinsics;  // at depth_mm's size
   Eigen::Isometry3d cam_from_world = Eigen::Isometry3d::Identity();
-  // The part of depth_mm the sensor measured (MeasuredArea); empty = all of it. Depth registered
-  // to the colour camera has none in a band along the image's edges, and missing depth there is
-  // not a sighting.
+  // The part of depth_mm the sensor measured (MeasuredArea): depth registered to the colour
+  // camera has none in bands along the image's edges, and missing depth there is not a sighting.
+  // Empty = all of it: views built by hand, and a view that measured nothing at all (a window or
+  // a screen filling the frame), whose missing depth counts as it always did.
   cv::Rect measured;
 };
 
@@ -170,9 +171,8 @@ using LabelSightings = std::vector<std::vector<PointSighting>>;
 // depth at the point's pixel (`seen_mm`, 0 when missing): the depth reaches the point, or beyond,
 // within sighting_depth_m, or is missing with the point within the sensor's range sighting_max_m
 // (a dark screen or a window returns no depth; SightLabels also needs the pixel inside the view's
-// measured area) [m]. The one rule for the side the walk saw a
-// point from: the sightings `locate` tells occlusion with, and the clicks of `label import
-// --as-clicked`.
+// measured area) [m]. The one rule for the side the walk saw a point from: the sightings `locate`
+// tells occlusion with, and the clicks of `label import --as-clicked`.
 bool ClearSighting(uint16_t seen_mm, double point_z_m, double sighting_depth_m,
                    double sighting_max_m);
 
