@@ -930,10 +930,11 @@ class VisibilityTest : public ::testing::Test {
   }
 
   static store::LabelRecord Label(const std::string& name,
-                                  const std::vector<Eigen::Vector3d>& points) {
+                                  const std::vector<Eigen::Vector3d>& points,
+                                  const std::string& type = "lamp") {
     store::LabelRecord label;
     label.name = name;
-    label.type = "lamp";
+    label.type = type;
     for (const Eigen::Vector3d& p : points) {
       store::LabelPoint point;
       point.world = p;
@@ -1031,7 +1032,7 @@ TEST_F(VisibilityTest, AFarSwitchSeenFromBehindItsWallIsOccludedWhenTheWalkSawIt
   }
   const OcclusionCloud wall = builder.Build();
   const Eigen::Vector3d switch_point(0.3, 0.2, 2.99);
-  const std::vector<store::LabelRecord> labels = {Label("switch", {switch_point})};
+  const std::vector<store::LabelRecord> labels = {Label("switch", {switch_point}, "light_switch")};
   // Keyframes 1.5-2.5 m in front of the wall, looking at it (+z): their depth sees the near face.
   const Intrinsics keyframe_intrinsics = Intrinsics::FromFieldOfView(160, 120, 1.0, 0.0);
   std::vector<SightingView> views;
@@ -1216,6 +1217,10 @@ TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
   std::string error;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_FALSE(error.empty());
+  options = VisibilityOptions();
+  options.free_standing_behind_margin_m = options.behind_margin_m / 2;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("free_standing_behind_margin_m"), std::string::npos) << error;
   LocatorOptions locator;
   EXPECT_TRUE(locator.Check(nullptr));
   locator.min_inliers = 3;

@@ -1,6 +1,7 @@
 #include "identify/visibility.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -228,11 +229,12 @@ bool VisibilityOptions::Check(std::string* error) const {
     why = "min_in_view_share and min_unoccluded_share must be in (0, 1]";
   else if (!(sighting_depth_m > 0.0) || !(sighting_max_m > 0.0) || min_sighting_keyframes < 1 ||
            !(min_one_sidedness >= 0.0 && min_one_sidedness <= 1.0) ||
-           !(behind_angle_deg >= 90.0 && behind_angle_deg <= 180.0) || behind_margin_m < 0.0)
+           !(behind_angle_deg >= 90.0 && behind_angle_deg <= 180.0) || behind_margin_m < 0.0 ||
+           free_standing_behind_margin_m < behind_margin_m)
     why =
         "sighting_depth_m, sighting_max_m and min_sighting_keyframes must be positive, "
         "min_one_sidedness in [0, 1], behind_angle_deg in [90, 180], behind_margin_m not "
-        "negative";
+        "negative, free_standing_behind_margin_m not below behind_margin_m";
   else if (own_surface_m < 0.0 || !(surface_radius_m > 0.0) ||
            !(max_surface_flatness >= 0.0 && max_surface_flatness <= 1.0))
     why =
@@ -455,14 +457,17 @@ class OcclusionTest {
         options_(options),
         cos_behind_(std::cos(DegToRad(options.behind_angle_deg))) {}
 
-  bool Occluded(const Eigen::Vector3d& cam_point, const PointSighting* sighting) {
+  bool Occluded(const Eigen::Vector3d& cam_point, const PointSighting* sighting,
+                bool free_standing) {
     if (cloud_ == nullptr || cloud_->world_points.empty()) return false;
     const double surface = SurfaceDepth(cam_point);
     const double z = cam_point.z();
     const double margin = options_.margin_m + options_.margin_ratio * z;
     if (surface < z - margin && !OnOwnSurface(cam_point, surface, sighting)) return true;
     if (!SeenFromBehind(cam_point, sighting)) return false;
-    if (surface < z - options_.behind_margin_m) return true;
+    const double behind_margin =
+        free_standing ? options_.free_standing_behind_margin_m : options_.behind_margin_m;
+    if (surface < z - behind_margin) return true;
     return options_.behind_needs_own_surface && std::isfinite(surface) && surface > z + margin;
   }
 
@@ -529,6 +534,7 @@ std::optional<ApplianceInView> LabelInView(const store::LabelRecord& label,
   Eigen::Vector2d sum_visible = Eigen::Vector2d::Zero();
   Eigen::Vector2d sum_in_view = Eigen::Vector2d::Zero();
   double nearest = std::numeric_limits<double>::infinity();
+  const bool free_standing = IsFreeStanding(label.type);
   for (size_t p = 0; p < label.points.size(); ++p) {
     const Eigen::Vector3d cam_point = cam_from_world * label.points[p].world;
     if (!(cam_point.z() > 0.0)) continue;
@@ -541,7 +547,8 @@ std::optional<ApplianceInView> LabelInView(const store::LabelRecord& label,
     ++in_view;
     sum_in_view += pixel;
     nearest = std::min(nearest, cam_point.norm());
-    if (!occlusion->Occluded(cam_point, sightings != nullptr ? &sightings->at(p) : nullptr)) {
+    if (!occlusion->Occluded(cam_point, sightings != nullptr ? &sightings->at(p) : nullptr,
+                             free_standing)) {
       ++unoccluded;
       sum_visible += pixel;
     }
@@ -563,6 +570,21 @@ std::optional<ApplianceInView> LabelInView(const store::LabelRecord& label,
 }
 
 }  // namespace
+
+bool IsFreeStanding(const std::string& type) {
+  std::string words = type;
+  for (char& c : words) {
+    c = c == '_' || c == '-' ? ' ' : static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  // "wall lamp": hung on a wall, whatever it is.
+  if ((" " + words + " ").find(" wall ") != std::string::npos) return false;
+  const size_t end = words.find_last_not_of(' ');
+  if (end == std::string::npos) return false;
+  const size_t space = words.find_last_of(' ', end);
+  const size_t first = space == std::string::npos ? 0 : space + 1;
+  const std::string last = words.substr(first, end + 1 - first);
+  return last == "projector" || last == "lamp" || last == "monitor" || last == "printer";
+}
 
 std::vector<ApplianceInView> AppliancesInView(const std::vector<store::LabelRecord>& labels,
                                               const OcclusionCloud* cloud,

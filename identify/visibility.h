@@ -140,6 +140,13 @@ struct VisibilityOptions {
   // nothing at all is drawn (a ceiling the walk did not look at) nothing is known, and the
   // point stays visible.
   bool behind_needs_own_surface = true;
+  // A free-standing appliance (IsFreeStanding: a projector hung from the ceiling, a lamp, a
+  // monitor on a desk) is not hidden by a wall behind it: seen from behind it shows its own body,
+  // which stands up to half its depth in front of its label point. From behind, such a point is
+  // hidden only by a surface more than free_standing_behind_margin_m in front of it, not
+  // behind_margin_m (so one standing within that of a wall shows through the wall from its far
+  // side, as it does under the occlusion margin alone) [m].
+  double free_standing_behind_margin_m = 0.25;
   // A surface in front of a point hides it only when it stands more than own_surface_m off the
   // plane the point sits on (0 turns this off): seen along a wall at a grazing angle, the wall's
   // measured thickness (depth noise and pose error put its voxels 5-15 cm proud of it) lies on
@@ -154,6 +161,13 @@ struct VisibilityOptions {
 
   bool Check(std::string* error) const;
 };
+
+// Whether a label's type names an appliance that stands free of the walls: its last word, after
+// lower-casing and reading '_' and '-' as spaces, is projector, lamp, monitor or printer ("desk
+// lamp", "Floor_Lamp"), and no word is "wall" ("wall lamp"). Other types (a switch, a thermostat,
+// a TV, a screen, a ceiling light, any type not known here) hang on a wall or the ceiling, which
+// hides them from behind.
+bool IsFreeStanding(const std::string& type);
 
 // From where the walk saw a label point: the mean of the unit rays (keyframe centre to point) of
 // the keyframes with a clear line of sight to it (VisibilityOptions), and how many there were.

@@ -188,6 +188,68 @@ TEST(SightLabelsTest, MissingDepthInTheBandTheSensorDoesNotMeasureIsNoSighting) 
   EXPECT_LT(unmeasured_taken[0][0].mean_ray.norm(), options.min_one_sidedness);
 }
 
+TEST(FreeStandingTest, TellsAppliancesThatStandFreeByTheLastWordOfTheirType) {
+  for (const char* type :
+       {"projector", "lamp", "desk lamp", "Floor_Lamp", "monitor ", "printer", "colour-printer"}) {
+    EXPECT_TRUE(IsFreeStanding(type)) << type;
+  }
+  for (const char* type :
+       {"", " ", "tv", "screen", "projector screen", "thermostat", "light_switch", "ceiling light",
+        "lamp shade", "printers", "wall lamp", "Wall_Lamp"}) {
+    EXPECT_FALSE(IsFreeStanding(type)) << type;
+  }
+}
+
+// A box of voxels 5 cm apart, `size` wide along x, y and z, centred on `centre`.
+void AddSolidBox(const Eigen::Vector3d& centre, const Eigen::Vector3d& size,
+                 OcclusionCloudBuilder* builder) {
+  const Eigen::Vector3d low = centre - size / 2;
+  for (double x = 0.0; x <= size.x() + 1e-9; x += 0.05) {
+    for (double y = 0.0; y <= size.y() + 1e-9; y += 0.05) {
+      for (double z = 0.0; z <= size.z() + 1e-9; z += 0.05)
+        builder->AddPoint(low + Eigen::Vector3d(x, y, z));
+    }
+  }
+}
+
+// A projector's body (0.35 x 0.25 x 0.1 m) hung from the ceiling, its label point at its centre,
+// seen by the walk from the -x side only. From the +x side its own body stands 0.15-0.2 m in
+// front of the point: nearer than the occlusion margin, farther than behind_margin_m.
+TEST(FreeStandingTest, SeenFromBehindAProjectorShowsItsOwnBodyWhereAWallHungPointIsHidden) {
+  const Eigen::Vector3d point(0.0, 0.0, 2.5);
+  OcclusionCloudBuilder builder(0.05);
+  AddSolidBox(point, {0.35, 0.25, 0.1}, &builder);
+  const OcclusionCloud body = builder.Build();
+  PointSighting from_one_side;
+  from_one_side.mean_ray = Eigen::Vector3d::UnitX();  // keyframes looked along +x at it
+  from_one_side.keyframes = 5;
+  const LabelSightings sightings = {{from_one_side}};
+  const Intrinsics intrinsics = Intrinsics::FromFieldOfView(1280, 960, 1.1, 0.0);
+  const VisibilityOptions options;
+  const auto occluded = [&](const std::string& type, const Eigen::Vector3d& eye,
+                            const OcclusionCloud& cloud) {
+    store::LabelRecord label = PointLabel("it", point);
+    label.type = type;
+    const std::vector<ApplianceInView> seen =
+        AppliancesInView({label}, &cloud, intrinsics, LookAt(eye, point, Eigen::Vector3d::UnitZ()),
+                         options, &sightings);
+    EXPECT_EQ(seen.size(), 1u) << type;
+    return seen.empty() || seen[0].occluded;
+  };
+  const Eigen::Vector3d behind(5.0, 0.5, 1.6);
+  EXPECT_FALSE(occluded("projector", behind, body));
+  EXPECT_TRUE(occluded("tv", behind, body));    // a body in front of a wall-hung point: its wall
+  const Eigen::Vector3d front(-4.0, 0.5, 1.6);  // the side the walk saw it from
+  EXPECT_FALSE(occluded("projector", front, body));
+  EXPECT_FALSE(occluded("tv", front, body));
+  // A partition 0.33 m in front of it, seen through from behind, hides it: farther than
+  // free_standing_behind_margin_m, nearer than the occlusion margin at 5 m (0.40 m).
+  OcclusionCloudBuilder partitioned(0.05);
+  AddSolidBox(point, {0.35, 0.25, 0.1}, &partitioned);
+  AddSolidBox({0.33, 0.0, 1.5}, {0.0, 3.0, 3.0}, &partitioned);
+  EXPECT_TRUE(occluded("projector", behind, partitioned.Build()));
+}
+
 TEST(ViewGridTest, ListsEveryViewThatReachesAPointAndFewOthers) {
   std::mt19937 rng(3);
   const std::vector<SightingView> views = ViewsOnAFloor(300, &rng);
