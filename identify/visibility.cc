@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <sstream>
 #include <tuple>
 
 #include <Eigen/Eigenvalues>
@@ -576,13 +577,13 @@ bool IsFreeStanding(const std::string& type) {
   for (char& c : words) {
     c = c == '_' || c == '-' ? ' ' : static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   }
-  // "wall lamp": hung on a wall, whatever it is.
-  if ((" " + words + " ").find(" wall ") != std::string::npos) return false;
-  const size_t end = words.find_last_not_of(' ');
-  if (end == std::string::npos) return false;
-  const size_t space = words.find_last_of(' ', end);
-  const size_t first = space == std::string::npos ? 0 : space + 1;
-  const std::string last = words.substr(first, end + 1 - first);
+  std::istringstream in(words);
+  std::string word;
+  std::string last;
+  while (in >> word) {
+    if (word == "wall") return false;  // "wall lamp": hung on a wall, whatever it is
+    last = word;
+  }
   return last == "projector" || last == "lamp" || last == "monitor" || last == "printer";
 }
 
