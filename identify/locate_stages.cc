@@ -19,6 +19,7 @@
 #include "slam/features.h"
 #include "slam/hamming.h"
 #include "slam/matching.h"
+#include "slam/pnp_ransac.h"
 
 namespace sightmap::identify {
 
@@ -119,13 +120,14 @@ PoseHypothesis SolvePoseUnguarded(const std::vector<cv::Point3f>& object,
   hypothesis.intrinsics = intrinsics;
   if (object.size() < 4) return hypothesis;
   const cv::Matx33d camera = CameraMatrix(intrinsics);
-  cv::Vec3d rvec;
-  cv::Vec3d tvec;
-  std::vector<int> inliers;
-  const bool found = cv::solvePnPRansac(
-      object, image, camera, cv::noArray(), rvec, tvec, false, options.pnp_iterations,
-      static_cast<float>(options.pnp_reprojection_px), 0.999, inliers, cv::SOLVEPNP_AP3P);
-  if (!found || inliers.size() < 4) return hypothesis;
+  slam::PnpRansacOptions ransac;
+  ransac.max_iterations = options.pnp_iterations;
+  ransac.reprojection_px = options.pnp_reprojection_px;
+  slam::PnpRansacResult found = slam::SolvePnpRansac(object, image, camera, ransac);
+  if (!found.found || found.inliers.size() < 4) return hypothesis;
+  cv::Vec3d rvec = found.rvec;
+  cv::Vec3d tvec = found.tvec;
+  std::vector<int> inliers = std::move(found.inliers);
   for (int round = 0; round < 2; ++round) {
     cv::solvePnPRefineLM(Subset(object, inliers), Subset(image, inliers), camera, cv::noArray(),
                          rvec, tvec);
@@ -140,8 +142,8 @@ PoseHypothesis SolvePoseUnguarded(const std::vector<cv::Point3f>& object,
   return hypothesis;
 }
 
-// OpenCV's PnP throws on some degenerate inputs (collinear or repeated points); a degenerate
-// sample is a failed hypothesis, not a failed request.
+// OpenCV's EPnP and refinement throw on some degenerate inputs (collinear or repeated points); a
+// degenerate set of inliers is a failed hypothesis, not a failed request.
 PoseHypothesis SolvePose(const std::vector<cv::Point3f>& object,
                          const std::vector<cv::Point2f>& image, const Intrinsics& intrinsics,
                          const LocatorOptions& options) {

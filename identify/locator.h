@@ -155,8 +155,8 @@ struct LocatorOptions {
   // ORB matches farther than this Hamming distance are dropped whatever their ratio [bits of 256]
   // (RootSIFT's: sift_max_distance).
   int max_descriptor_distance = 80;
-  // PnP RANSAC (OpenCV): reprojection threshold [px, at the feature image's scale], iterations,
-  // and the inliers a pose needs to count as matched.
+  // PnP RANSAC (slam::SolvePnpRansac, OpenCV's sampling): reprojection threshold [px, at the
+  // feature image's scale], iterations, and the inliers a pose needs to count as matched.
   double pnp_reprojection_px = 4.0;
   // 500 iterations: a candidate with a 20% inlier share finds its pose with 0.99 confidence in
   // ~290; a wrong candidate runs them all, so more only slows down failures.

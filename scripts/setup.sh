@@ -15,6 +15,7 @@ packages=(
   libnanoflann-dev                          # the PLY export's outlier filter (nearest neighbours)
   libosmesa6-dev                            # off-screen rendering (render/, the simulator)
   libceres-dev                              # pose-graph optimisation (slam/)
+  libopengv-dev                             # P3P for the photo locator's PnP RANSAC (slam/)
   libglfw3-dev                              # the live preview window (render/)
   libcpp-httplib-dev                        # the HTTP server phones talk to (sightmap serve)
   libexif-dev                               # a photo's focal length from its EXIF (sightmap locate)
