@@ -88,13 +88,11 @@ class Correspondences {
       // Kneip's quartic hands back the real parts of complex roots too: poses that do not put
       // the three points on their rays, which the fourth could still prefer when it is an
       // outlier. AP3P returns real roots only.
-      if (SquaredError(candidate, sample[0]) + SquaredError(candidate, sample[1]) +
-              SquaredError(candidate, sample[2]) >
-          kSolutionTolerancePxSq) {
-        continue;
-      }
-      const double error = SquaredError(candidate, sample[0]) + SquaredError(candidate, sample[1]) +
-                           SquaredError(candidate, sample[2]) + SquaredError(candidate, sample[3]);
+      const double solved_error = SquaredError(candidate, sample[0]) +
+                                  SquaredError(candidate, sample[1]) +
+                                  SquaredError(candidate, sample[2]);
+      if (solved_error > kSolutionTolerancePxSq) continue;
+      const double error = solved_error + SquaredError(candidate, sample[3]);
       if (error < best_error) {
         best_error = error;
         *pose = candidate;
