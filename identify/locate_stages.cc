@@ -9,6 +9,8 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -1171,6 +1173,138 @@ bool JudgeViewAgain(const PreparedPhoto& photo, const Place& place,
   verdict->looks_different = false;
   verdict->accepted = true;
   return true;
+}
+
+bool PoseCovariance(const std::vector<cv::Point3f>& world_points,
+                    const Eigen::Isometry3d& world_from_cam, const Intrinsics& intrinsics,
+                    Eigen::Matrix<double, 6, 6>* covariance) {
+  const Eigen::Matrix3d cam_from_world = world_from_cam.linear().transpose();
+  const Eigen::Vector3d centre = world_from_cam.translation();
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+  int used = 0;
+  for (const cv::Point3f& point : world_points) {
+    const Eigen::Vector3d x =
+        cam_from_world * (Eigen::Vector3d(point.x, point.y, point.z) - centre);
+    if (!(x.z() > 0.0)) continue;
+    // Axial noise of a structured-light sensor at this range (Nguyen, Izadi, Lovell 2012).
+    const double depth_sd_m = 0.0012 + 0.0019 * (x.z() - 0.4) * (x.z() - 0.4);
+    const double point_sd_px = intrinsics.fx * depth_sd_m / x.z();
+    const double weight = 1.0 / (1.0 + point_sd_px * point_sd_px);
+    Eigen::Matrix<double, 2, 3> projection;
+    projection << intrinsics.fx / x.z(), 0.0, -intrinsics.fx * x.x() / (x.z() * x.z()), 0.0,
+        intrinsics.fy / x.z(), -intrinsics.fy * x.y() / (x.z() * x.z());
+    Eigen::Matrix<double, 3, 6> motion;
+    motion.leftCols<3>() = -cam_from_world;  // the camera centre moved in the world
+    // x turned by a small rotation w about the camera's axes: x + w x x = x - [x]x w.
+    motion.rightCols<3>() << 0.0, x.z(), -x.y(), -x.z(), 0.0, x.x(), x.y(), -x.x(), 0.0;
+    const Eigen::Matrix<double, 2, 6> jacobian = projection * motion;
+    information += weight * jacobian.transpose() * jacobian;
+    ++used;
+  }
+  if (used < 3) return false;
+  const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(information);
+  if (!lu.isInvertible()) return false;
+  *covariance = lu.inverse();
+  return true;
+}
+
+namespace {
+
+// The pose with its camera centre moved by `shift` (world) [m] and turned by `turn` about the
+// camera's own axes [rad].
+Eigen::Isometry3d Slid(const Eigen::Isometry3d& world_from_cam, const Eigen::Vector3d& shift,
+                       const Eigen::Vector3d& turn) {
+  Eigen::Matrix3d cam_from_world = world_from_cam.linear().transpose();
+  const double angle = turn.norm();
+  if (angle > 0.0) {
+    cam_from_world = Eigen::AngleAxisd(angle, turn / angle).toRotationMatrix() * cam_from_world;
+  }
+  Eigen::Isometry3d moved = Eigen::Isometry3d::Identity();
+  moved.linear() = cam_from_world.transpose();
+  moved.translation() = world_from_cam.translation() + shift;
+  return moved;
+}
+
+// One round of the slide: the step along the spread's major axis that gains most, or nothing.
+struct SlideStep {
+  PoseHypothesis pose;
+  std::vector<cv::Point3f> inlier_points;
+};
+std::optional<SlideStep> BestStepAlongWeakAxis(const PreparedPhoto& photo,
+                                               const PlaceMatches& points,
+                                               const PoseHypothesis& from,
+                                               const std::vector<cv::Point3f>& inlier_points,
+                                               const LocatorOptions& options) {
+  const LocatorOptions::Slide& slide = options.slide;
+  Eigen::Matrix<double, 6, 6> covariance;
+  if (!PoseCovariance(inlier_points, from.world_from_cam, from.intrinsics, &covariance)) {
+    return std::nullopt;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> position(covariance.topLeftCorner<3, 3>());
+  const double sd = std::sqrt(std::max(0.0, position.eigenvalues()(2)));
+  if (!(sd > slide.min_sd_m && sd < slide.max_sd_m)) return std::nullopt;
+  const Eigen::Vector3d axis = position.eigenvectors().col(2);
+  const Eigen::Vector3d turn_per_m =
+      covariance.bottomLeftCorner<3, 3>() * covariance.topLeftCorner<3, 3>().inverse() * axis;
+  const double reach = std::min(slide.reach_sd * sd, slide.reach_m);
+  const int max_distance = GuidedMaxDistance(points.model_descriptors, options);
+  std::optional<SlideStep> best;
+  size_t most = from.inliers.size();
+  for (int k = -slide.steps; k <= slide.steps; ++k) {
+    if (k == 0) continue;
+    const double along = reach * k / slide.steps;
+    PoseHypothesis step = from;
+    step.world_from_cam = Slid(from.world_from_cam, along * axis, along * turn_per_m);
+    std::vector<cv::Point3f> object;
+    std::vector<cv::Point2f> image;
+    std::vector<int> model;
+    int projected = 0;
+    GuidedMatch(photo.features.descriptors, photo.points, photo.grid, points.model_descriptors,
+                points.model_points, step, max_distance, options.guided_radius_px, &object, &image,
+                &model, &projected);
+    if (!RefineOn(object, image, options, &step)) continue;
+    const size_t inliers = step.inliers.size();
+    if (inliers < most + static_cast<size_t>(slide.min_gain) || 10 * inliers < 11 * most) continue;
+    most = inliers;
+    best = SlideStep{step, Subset(object, step.inliers)};
+  }
+  if (!best) return best;
+  // The step was grown from a pose a few pixels off; grown again from its refined pose, the
+  // points that were just outside the window join.
+  std::vector<cv::Point3f> object;
+  std::vector<cv::Point2f> image;
+  std::vector<int> model;
+  int projected = 0;
+  PoseHypothesis regrown = best->pose;
+  GuidedMatch(photo.features.descriptors, photo.points, photo.grid, points.model_descriptors,
+              points.model_points, regrown, max_distance, options.guided_radius_px, &object, &image,
+              &model, &projected);
+  if (RefineOn(object, image, options, &regrown) && regrown.inliers.size() >= most) {
+    best = SlideStep{regrown, Subset(object, regrown.inliers)};
+  }
+  return best;
+}
+
+}  // namespace
+
+std::optional<PoseHypothesis> SlideAlongWeakAxis(const PreparedPhoto& photo, const Place& place,
+                                                 const std::vector<LocatorKeyframe>& keyframes,
+                                                 const PlaceVerdict& winner,
+                                                 const LocatorOptions& options) {
+  if (!winner.pose.valid || options.slide.min_sd_m <= 0.0) return std::nullopt;
+  const PlaceMatches points = PlacePoints(place, keyframes, /*model_nodes=*/nullptr);
+  if (points.model_points.empty() || photo.features.descriptors.empty()) return std::nullopt;
+  std::optional<SlideStep> current;
+  for (int round = 0; round < options.slide.rounds; ++round) {
+    std::optional<SlideStep> next =
+        current
+            ? BestStepAlongWeakAxis(photo, points, current->pose, current->inlier_points, options)
+            : BestStepAlongWeakAxis(photo, points, winner.pose, winner.inlier_points, options);
+    if (!next) break;
+    current = std::move(next);
+  }
+  if (!current) return std::nullopt;
+  return current->pose;
 }
 
 void JudgeViewsAgain(const PreparedPhoto& photo, const std::vector<Place>& places,

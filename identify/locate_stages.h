@@ -324,6 +324,25 @@ PlaceMatches MatchPlaceFrom(const PreparedPhoto& photo, const Place& place,
                             const std::vector<LocatorKeyframe>& keyframes,
                             const PoseHypothesis& pose, const LocatorOptions& options);
 
+// How firmly a pose's inliers fix it: the covariance of (the camera centre in the world [m], a
+// turn of the camera about its own axes [rad]) from the reprojection Jacobian at the pose, each
+// inlier weighted by a pixel of keypoint noise and its model point's depth noise (the sensor's
+// axial noise at its distance, seen across the photo's ray). False when the inliers do not fix
+// the pose (fewer than three, collinear).
+bool PoseCovariance(const std::vector<cv::Point3f>& world_points,
+                    const Eigen::Isometry3d& world_from_cam, const Intrinsics& intrinsics,
+                    Eigen::Matrix<double, 6, 6>* covariance);
+
+// Stage 5e: LocatorOptions::slide for an accepted winner verified against `place`. Along the
+// major axis of its position's spread (PoseCovariance of its inlier points), the camera moved
+// with the turn that keeps those inliers in place (the rotation's regression on the position),
+// each step grown by guided matching and refined. The pose so found, or nothing when no step
+// gained.
+std::optional<PoseHypothesis> SlideAlongWeakAxis(const PreparedPhoto& photo, const Place& place,
+                                                 const std::vector<LocatorKeyframe>& keyframes,
+                                                 const PlaceVerdict& winner,
+                                                 const LocatorOptions& options);
+
 // Stage 6: the answer from the verdicts, in the order the places were tried. The accepted
 // verdict with most inliers wins unless the disagreeing pose with most inliers (more than
 // same_pose_m or same_pose_deg away, accepted or refused with min_inliers, but not one whose view

@@ -6,6 +6,7 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
 #include "core/check.h"
@@ -813,6 +814,124 @@ TEST_F(VerifyPlaceTest, RandomMatchesGiveNoAcceptedPose) {
   const PlaceVerdict verdict = VerifyPlace(photo_, place_, matches, keyframes_, options);
   EXPECT_FALSE(verdict.accepted);
   EXPECT_LT(verdict.inliers, options.min_inliers);
+}
+
+// A photo of a poster 6 m away in its upper right corner and of furniture 2-3 m away on its
+// left, and a keyframe holding both as 3D points: the poster alone fixes the photo's pose only
+// up to a slide sideways with a turn.
+class SlideTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    intrinsics_ = Intrinsics::FromPinhole(640, 480, 500.0, 500.0, 319.5, 239.5);
+    world_from_photo_ = PoseAt({0.0, 0.0, 0.0}, 0);
+    LocatorKeyframe keyframe = KeyframeAt({0, 0, 0}, 0, 0);
+    keyframe.descriptors = RandomDescriptors(kPoster + kFurniture, &rng);
+    for (int i = 0; i < kPoster + kFurniture; ++i) {
+      const Eigen::Vector3d cam =
+          i < kPoster ? Eigen::Vector3d(1.4 + 0.5 * u(rng), -0.9 + 0.35 * u(rng), 5.0)
+                      : Eigen::Vector3d(-0.7 + 0.3 * u(rng), 0.6 * u(rng), 2.5 + 0.5 * u(rng));
+      const Eigen::Vector3d world = world_from_photo_ * cam;
+      keyframe.world_points.emplace_back(static_cast<float>(world.x()),
+                                         static_cast<float>(world.y()),
+                                         static_cast<float>(world.z()));
+      const Eigen::Vector2d uv = intrinsics_.Project(cam);
+      photo_.points.emplace_back(static_cast<float>(uv.x()), static_cast<float>(uv.y()));
+      photo_.features.descriptors.push_back(keyframe.descriptors.row(i).clone());
+      photo_.features.keypoints.emplace_back(photo_.points.back(), 31.0f);
+      if (i < kPoster) poster_.push_back(keyframe.world_points.back());
+    }
+    photo_.size = cv::Size(640, 480);
+    photo_.feature_candidates = {intrinsics_};
+    photo_.intrinsics_given = true;
+    photo_.grid = PhotoGrid(photo_.points, 640, 480, LocatorOptions().guided_radius_px);
+    keyframes_.push_back(std::move(keyframe));
+    place_.head = 0;
+    place_.slots = {0};
+  }
+
+  // A winner whose inliers are the poster's points, at `world_from_cam`.
+  PlaceVerdict PosterWinner(const Eigen::Isometry3d& world_from_cam) const {
+    PlaceVerdict winner;
+    winner.pose.valid = true;
+    winner.pose.intrinsics = intrinsics_;
+    winner.pose.world_from_cam = world_from_cam;
+    for (int i = 0; i < kPoster; ++i) winner.pose.inliers.push_back(i);
+    winner.inliers = kPoster;
+    winner.inlier_points = poster_;
+    winner.accepted = true;
+    return winner;
+  }
+
+  static constexpr int kPoster = 150;
+  static constexpr int kFurniture = 100;
+  Intrinsics intrinsics_;
+  Eigen::Isometry3d world_from_photo_;
+  PreparedPhoto photo_;
+  std::vector<cv::Point3f> poster_;
+  std::vector<LocatorKeyframe> keyframes_;
+  Place place_;
+};
+
+double PositionSd(const Eigen::Matrix<double, 6, 6>& covariance) {
+  return std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.topLeftCorner<3, 3>())
+                       .eigenvalues()(2));
+}
+
+TEST_F(SlideTest, PoseCovarianceOfAFarPosterSpreadsFarMoreThanOfThePosterAndTheFurniture) {
+  Eigen::Matrix<double, 6, 6> poster;
+  ASSERT_TRUE(PoseCovariance(poster_, world_from_photo_, intrinsics_, &poster));
+  Eigen::Matrix<double, 6, 6> both;
+  ASSERT_TRUE(PoseCovariance(keyframes_[0].world_points, world_from_photo_, intrinsics_, &both));
+  EXPECT_GT(PositionSd(poster), 0.15);  // a pose the slide moves (slide.min_sd_m)
+  EXPECT_LT(PositionSd(both), 0.05);
+  EXPECT_GT(PositionSd(poster), 5.0 * PositionSd(both));
+  // Two points fix nothing.
+  EXPECT_FALSE(PoseCovariance({poster_[0], poster_[1]}, world_from_photo_, intrinsics_, &both));
+}
+
+TEST_F(SlideTest, APoseSlidAlongTheFarPostersValleyFindsTheFurnitureAndTheTruePose) {
+  // The photo's pose moved 2.9 sd along the poster's valley, turned to keep the poster in place:
+  // the furniture then lands tens of pixels off, beyond guided matching's window.
+  Eigen::Matrix<double, 6, 6> covariance;
+  ASSERT_TRUE(PoseCovariance(poster_, world_from_photo_, intrinsics_, &covariance));
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> position(covariance.topLeftCorner<3, 3>());
+  const Eigen::Vector3d axis = position.eigenvectors().col(2);
+  const Eigen::Vector3d turn =
+      covariance.bottomLeftCorner<3, 3>() * covariance.topLeftCorner<3, 3>().inverse() * axis;
+  const double along = 2.9 * std::sqrt(position.eigenvalues()(2));
+  Eigen::Isometry3d off = world_from_photo_;
+  off.translation() += along * axis;
+  off.linear() = (Eigen::AngleAxisd(along * turn.norm(), turn.normalized()).toRotationMatrix() *
+                  world_from_photo_.linear().transpose())
+                     .transpose();
+  ASSERT_GT((off.translation() - world_from_photo_.translation()).norm(), 0.4);
+
+  const LocatorOptions options;
+  const std::optional<PoseHypothesis> slid =
+      SlideAlongWeakAxis(photo_, place_, keyframes_, PosterWinner(off), options);
+  ASSERT_TRUE(slid.has_value());
+  EXPECT_LT((slid->world_from_cam.translation() - world_from_photo_.translation()).norm(), 0.01);
+  EXPECT_LT(RotationAngleDeg(slid->world_from_cam.linear(), world_from_photo_.linear()), 0.1);
+  EXPECT_EQ(slid->inliers.size(), static_cast<size_t>(kPoster + kFurniture));
+
+  // Off, or with a reach short of the pose's error, it stays where it was.
+  LocatorOptions off_options;
+  off_options.slide.min_sd_m = 0.0;
+  EXPECT_FALSE(SlideAlongWeakAxis(photo_, place_, keyframes_, PosterWinner(off), off_options));
+  LocatorOptions short_reach;
+  short_reach.slide.reach_m = 0.05;
+  EXPECT_FALSE(SlideAlongWeakAxis(photo_, place_, keyframes_, PosterWinner(off), short_reach));
+}
+
+TEST_F(SlideTest, APoseTheFurnitureFixesIsNotSlid) {
+  PlaceVerdict winner = PosterWinner(world_from_photo_);
+  winner.inlier_points = keyframes_[0].world_points;
+  winner.pose.inliers.clear();
+  for (int i = 0; i < kPoster + kFurniture; ++i) winner.pose.inliers.push_back(i);
+  winner.inliers = kPoster + kFurniture;
+  EXPECT_FALSE(SlideAlongWeakAxis(photo_, place_, keyframes_, winner, LocatorOptions()));
 }
 
 PlaceVerdict Verdict(int inliers, const Eigen::Vector3d& position, bool accepted,

@@ -75,6 +75,10 @@ bool LocatorOptions::Check(std::string* error) const {
            !(twin_max_shared_share >= 0.0 && twin_max_shared_share <= 1.0))
     why << "twin_places must not be negative, twin_min_matches positive, twin_max_shared_share "
            "in [0, 1]";
+  else if (slide.min_sd_m < 0.0 || !(slide.max_sd_m > slide.min_sd_m) || !(slide.reach_sd > 0.0) ||
+           !(slide.reach_m > 0.0) || slide.steps < 1 || slide.rounds < 1 || slide.min_gain < 0)
+    why << "slide needs 0 <= min_sd_m < max_sd_m, positive reach_sd, reach_m, steps and rounds, "
+           "and min_gain >= 0";
   else if (copies.offsets < 0 || copies.look_alikes < 0 || copies.around_keyframes < 0 ||
            !(copies.around_m > 0.0) || copies.max_voters < 1 || !(copies.cluster_m > 0.0) ||
            copies.min_support < 3 || !(copies.place_radius_m > 0.0) ||
@@ -339,6 +343,13 @@ struct Locator::Impl {
                                    const std::vector<slam::PlaceCandidate>& candidates,
                                    LocateResult* result) const;
 
+  // LocatorOptions::slide for the search's winner among `places` (verdicts[i] verified against
+  // places[i]): its pose slid along its spread (SlideAlongWeakAxis), verified again with the
+  // winner's camera, replaces it when accepted with slide.min_gain more inliers, and the search
+  // is decided again.
+  void SlideWinner(const PreparedPhoto& photo, const std::vector<Place>& places,
+                   const std::vector<LocatorKeyframe>& matched, Search* search,
+                   LocateTimings* timings) const;
   // VerifyPlace, then the check that needs the model's up (RestsOnCeilingOnly).
   PlaceVerdict Verify(const PreparedPhoto& photo, const Place& place, const PlaceMatches& matches,
                       const std::vector<LocatorKeyframe>& matched) const;
@@ -363,6 +374,33 @@ PlaceVerdict Locator::Impl::Verify(const PreparedPhoto& photo, const Place& plac
     verdict.accepted = false;
   }
   return verdict;
+}
+
+void Locator::Impl::SlideWinner(const PreparedPhoto& photo, const std::vector<Place>& places,
+                                const std::vector<LocatorKeyframe>& matched, Search* search,
+                                LocateTimings* timings) const {
+  const int winner_index = search->decision.winner;
+  if (options.slide.min_sd_m <= 0.0 || winner_index < 0 ||
+      static_cast<size_t>(winner_index) >= places.size()) {
+    return;
+  }
+  const Clock::time_point stage = Clock::now();
+  PlaceVerdict& winner = search->verdicts[static_cast<size_t>(winner_index)];
+  const Place& place = places[static_cast<size_t>(winner_index)];
+  PreparedPhoto same_camera = photo;
+  same_camera.feature_candidates = {winner.pose.intrinsics};
+  same_camera.intrinsics_given = true;
+  const std::optional<PoseHypothesis> slid =
+      SlideAlongWeakAxis(same_camera, place, matched, winner, options);
+  if (slid) {
+    PlaceVerdict again = Verify(
+        same_camera, place, MatchPlaceFrom(same_camera, place, matched, *slid, options), matched);
+    if (again.accepted && again.inliers >= winner.inliers + options.slide.min_gain) {
+      winner = std::move(again);
+      search->decision = Decide(search->verdicts, VerifyingOptions(matched));
+    }
+  }
+  timings->pnp_ms += MsSince(stage);
 }
 
 std::vector<PlaceVerdict> Locator::Impl::VerifyPlaces(
@@ -517,6 +555,7 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   JudgeViewsAgain(*photo, places, matched, VerifyingOptions(matched), &verdicts);
   timings->pnp_ms += MsSince(stage);
   search.decision = Decide(verdicts, VerifyingOptions(matched));
+  SlideWinner(*photo, places, matched, &search, timings);
   if (search.decision.winner < 0 || (options.twin_places <= 0 && options.copies.offsets <= 0)) {
     return search;
   }
@@ -1216,6 +1255,9 @@ SIGHTMAP_OPTIONS_JSON(LocatorOptions::Copies, offsets, look_alikes, around_m, ar
                       max_voters, cluster_m, min_support, place_radius_m, search_radius_px,
                       min_agreement_lead)
 
+SIGHTMAP_OPTIONS_JSON(LocatorOptions::Slide, min_sd_m, max_sd_m, reach_sd, reach_m, steps, rounds,
+                      min_gain)
+
 SIGHTMAP_OPTIONS_JSON_LONG(
     LocatorOptions,
     (features, matcher, sift_features, sift_image_side_px, sift_photo_features, sift_max_distance,
@@ -1229,7 +1271,7 @@ SIGHTMAP_OPTIONS_JSON_LONG(
      bare_view_max_detail_cells, min_inlier_share, ceiling_only_max_thickness_m, same_pose_m,
      same_pose_deg, min_inlier_ratio_over_runner_up, ambiguity_min_agreement_lead,
      ambiguity_min_doubted_agreement, min_unique_inlier_share, twin_places, twin_min_matches,
-     twin_max_shared_share, copies, confident_inliers, max_rotation_from_keyframe_deg,
+     twin_max_shared_share, copies, slide, confident_inliers, max_rotation_from_keyframe_deg,
      min_view_agreement, min_inliers_unchecked, second_look_min_inliers_unchecked,
      view_second_opinion, view_agreement, focal_candidates_35mm, refine_estimated_focal,
      occlusion_voxel_m, occlusion_downscale, occlusion_pixel_step, occlusion_max_depth_m,

@@ -1229,6 +1229,15 @@ TEST(VisibilityOptionsTest, CheckRejectsNonsense) {
   locator.match_node_level = -1;
   EXPECT_FALSE(locator.Check(&error));
   EXPECT_NE(error.find("match_node_level"), std::string::npos) << error;
+  locator = LocatorOptions();
+  locator.slide.min_sd_m = 0.0;  // off
+  EXPECT_TRUE(locator.Check(&error)) << error;
+  locator.slide.max_sd_m = 0.0;
+  EXPECT_FALSE(locator.Check(&error));
+  EXPECT_NE(error.find("slide"), std::string::npos) << error;
+  locator = LocatorOptions();
+  locator.slide.steps = 0;
+  EXPECT_FALSE(locator.Check(&error));
 }
 
 }  // namespace
