@@ -214,6 +214,14 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
 }
 
 // A decision that answers the photo: a pose, or two places that fit about as well.
+// The photo verified with the one camera `intrinsics` (a winner's: the photo was taken with one).
+PreparedPhoto WithCamera(const PreparedPhoto& photo, const Intrinsics& intrinsics) {
+  PreparedPhoto same_camera = photo;
+  same_camera.feature_candidates = {intrinsics};
+  same_camera.intrinsics_given = true;
+  return same_camera;
+}
+
 bool Answered(const Decision& decision) {
   return decision.winner >= 0 ||
          (decision.refusal && decision.refusal->code == UnmatchedReason::kAmbiguous);
@@ -387,12 +395,10 @@ void Locator::Impl::SlideWinner(const PreparedPhoto& photo, const std::vector<Pl
   const Clock::time_point stage = Clock::now();
   PlaceVerdict& winner = search->verdicts[static_cast<size_t>(winner_index)];
   const Place& place = places[static_cast<size_t>(winner_index)];
-  PreparedPhoto same_camera = photo;
-  same_camera.feature_candidates = {winner.pose.intrinsics};
-  same_camera.intrinsics_given = true;
   const std::optional<PoseHypothesis> slid =
-      SlideAlongWeakAxis(same_camera, place, matched, winner, options);
+      SlideAlongWeakAxis(photo, place, matched, winner, options);
   if (slid) {
+    const PreparedPhoto same_camera = WithCamera(photo, winner.pose.intrinsics);
     PlaceVerdict again = Verify(
         same_camera, place, MatchPlaceFrom(same_camera, place, matched, *slid, options), matched);
     if (again.accepted && again.inliers >= winner.inliers + options.slide.min_gain) {
@@ -563,9 +569,7 @@ Locator::Impl::Search Locator::Impl::SearchPlaces(
   // moved along the building, verified against the photo with the winner's camera (it was taken
   // with one) and decided with the rest. The winner is copied: the verdicts grow below.
   const PlaceVerdict winner = verdicts[static_cast<size_t>(search.decision.winner)];
-  PreparedPhoto same_camera = *photo;
-  same_camera.feature_candidates = {winner.pose.intrinsics};
-  same_camera.intrinsics_given = true;
+  const PreparedPhoto same_camera = WithCamera(*photo, winner.pose.intrinsics);
   const Clock::time_point looking = Clock::now();
   const std::vector<slam::PlaceCandidate> look_alikes = LookAlikes(winner, matched);
   timings->retrieval_ms += MsSince(looking);
