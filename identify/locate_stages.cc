@@ -1248,6 +1248,18 @@ std::optional<SlideStep> BestStepAlongWeakAxis(const PreparedPhoto& photo,
       covariance.bottomLeftCorner<3, 3>() * covariance.topLeftCorner<3, 3>().inverse() * axis;
   const double reach = std::min(slide.reach_sd * sd, slide.reach_m);
   const int max_distance = GuidedMaxDistance(points.model_descriptors, options);
+  // The place's points matched around `pose` and the pose refined on them; its inliers' points.
+  const auto grow = [&](PoseHypothesis* pose) -> std::optional<std::vector<cv::Point3f>> {
+    std::vector<cv::Point3f> object;
+    std::vector<cv::Point2f> image;
+    std::vector<int> model;
+    int projected = 0;
+    GuidedMatch(photo.features.descriptors, photo.points, photo.grid, points.model_descriptors,
+                points.model_points, *pose, max_distance, options.guided_radius_px, &object, &image,
+                &model, &projected);
+    if (!RefineOn(object, image, options, pose)) return std::nullopt;
+    return Subset(object, pose->inliers);
+  };
   std::optional<SlideStep> best;
   size_t most = from.inliers.size();
   for (int k = -slide.steps; k <= slide.steps; ++k) {
@@ -1255,33 +1267,19 @@ std::optional<SlideStep> BestStepAlongWeakAxis(const PreparedPhoto& photo,
     const double along = reach * k / slide.steps;
     PoseHypothesis step = from;
     step.world_from_cam = Slid(from.world_from_cam, along * axis, along * turn_per_m);
-    std::vector<cv::Point3f> object;
-    std::vector<cv::Point2f> image;
-    std::vector<int> model;
-    int projected = 0;
-    GuidedMatch(photo.features.descriptors, photo.points, photo.grid, points.model_descriptors,
-                points.model_points, step, max_distance, options.guided_radius_px, &object, &image,
-                &model, &projected);
-    if (!RefineOn(object, image, options, &step)) continue;
+    std::optional<std::vector<cv::Point3f>> grown = grow(&step);
+    if (!grown) continue;
     const size_t inliers = step.inliers.size();
     if (inliers < most + static_cast<size_t>(slide.min_gain) || 10 * inliers < 11 * most) continue;
     most = inliers;
-    best = SlideStep{step, Subset(object, step.inliers)};
+    best = SlideStep{step, std::move(*grown)};
   }
   if (!best) return best;
   // The step was grown from a pose a few pixels off; grown again from its refined pose, the
   // points that were just outside the window join.
-  std::vector<cv::Point3f> object;
-  std::vector<cv::Point2f> image;
-  std::vector<int> model;
-  int projected = 0;
   PoseHypothesis regrown = best->pose;
-  GuidedMatch(photo.features.descriptors, photo.points, photo.grid, points.model_descriptors,
-              points.model_points, regrown, max_distance, options.guided_radius_px, &object, &image,
-              &model, &projected);
-  if (RefineOn(object, image, options, &regrown) && regrown.inliers.size() >= most) {
-    best = SlideStep{regrown, Subset(object, regrown.inliers)};
-  }
+  std::optional<std::vector<cv::Point3f>> grown = grow(&regrown);
+  if (grown && regrown.inliers.size() >= most) best = SlideStep{regrown, std::move(*grown)};
   return best;
 }
 
