@@ -1230,23 +1230,39 @@ struct SlideStep {
   PoseHypothesis pose;
   std::vector<cv::Point3f> inlier_points;
 };
-std::optional<SlideStep> BestStepAlongWeakAxis(const PreparedPhoto& photo,
-                                               const PlaceMatches& points,
-                                               const PoseHypothesis& from,
-                                               const std::vector<cv::Point3f>& inlier_points,
-                                               const LocatorOptions& options) {
-  const LocatorOptions::Slide& slide = options.slide;
+// The direction a pose is free to slide in: its position's major axis, the turn per metre that
+// keeps its inliers in place, and how far to look; nothing when it spreads outside slide's band.
+struct WeakAxis {
+  Eigen::Vector3d axis;
+  Eigen::Vector3d turn_per_m;
+  double reach_m = 0.0;
+};
+std::optional<WeakAxis> FindWeakAxis(const PoseHypothesis& pose,
+                                     const std::vector<cv::Point3f>& inlier_points,
+                                     const LocatorOptions::Slide& slide) {
   Eigen::Matrix<double, 6, 6> covariance;
-  if (!PoseCovariance(inlier_points, from.world_from_cam, from.intrinsics, &covariance)) {
+  if (!PoseCovariance(inlier_points, pose.world_from_cam, pose.intrinsics, &covariance)) {
     return std::nullopt;
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> position(covariance.topLeftCorner<3, 3>());
   const double sd = std::sqrt(std::max(0.0, position.eigenvalues()(2)));
   if (!(sd > slide.min_sd_m && sd < slide.max_sd_m)) return std::nullopt;
-  const Eigen::Vector3d axis = position.eigenvectors().col(2);
-  const Eigen::Vector3d turn_per_m =
-      covariance.bottomLeftCorner<3, 3>() * covariance.topLeftCorner<3, 3>().inverse() * axis;
-  const double reach = std::min(slide.reach_sd * sd, slide.reach_m);
+  WeakAxis weak;
+  weak.axis = position.eigenvectors().col(2);
+  weak.turn_per_m =
+      covariance.bottomLeftCorner<3, 3>() * covariance.topLeftCorner<3, 3>().inverse() * weak.axis;
+  weak.reach_m = std::min(slide.reach_sd * sd, slide.reach_m);
+  return weak;
+}
+
+std::optional<SlideStep> BestStepAlongWeakAxis(const PreparedPhoto& photo,
+                                               const PlaceMatches& points,
+                                               const PoseHypothesis& from, const WeakAxis& weak,
+                                               const LocatorOptions& options) {
+  const LocatorOptions::Slide& slide = options.slide;
+  const Eigen::Vector3d& axis = weak.axis;
+  const Eigen::Vector3d& turn_per_m = weak.turn_per_m;
+  const double reach = weak.reach_m;
   const int max_distance = GuidedMaxDistance(points.model_descriptors, options);
   // The place's points matched around `pose` and the pose refined on them; its inliers' points.
   const auto grow = [&](PoseHypothesis* pose) -> std::optional<std::vector<cv::Point3f>> {
@@ -1289,15 +1305,22 @@ std::optional<PoseHypothesis> SlideAlongWeakAxis(const PreparedPhoto& photo, con
                                                  const std::vector<LocatorKeyframe>& keyframes,
                                                  const PlaceVerdict& winner,
                                                  const LocatorOptions& options) {
-  if (!winner.pose.valid || options.slide.min_sd_m <= 0.0) return std::nullopt;
-  const PlaceMatches points = PlacePoints(place, keyframes, /*model_nodes=*/nullptr);
-  if (points.model_points.empty() || photo.features.descriptors.empty()) return std::nullopt;
+  if (!winner.pose.valid || options.slide.min_sd_m <= 0.0 || photo.features.descriptors.empty()) {
+    return std::nullopt;
+  }
+  // The place's points are gathered only for a pose that spreads: most winners do not.
+  PlaceMatches points;
   std::optional<SlideStep> current;
   for (int round = 0; round < options.slide.rounds; ++round) {
-    std::optional<SlideStep> next =
-        current
-            ? BestStepAlongWeakAxis(photo, points, current->pose, current->inlier_points, options)
-            : BestStepAlongWeakAxis(photo, points, winner.pose, winner.inlier_points, options);
+    const PoseHypothesis& from = current ? current->pose : winner.pose;
+    const std::optional<WeakAxis> weak =
+        FindWeakAxis(from, current ? current->inlier_points : winner.inlier_points, options.slide);
+    if (!weak) break;
+    if (points.model_points.empty()) {
+      points = PlacePoints(place, keyframes, /*model_nodes=*/nullptr);
+      if (points.model_points.empty()) return std::nullopt;
+    }
+    std::optional<SlideStep> next = BestStepAlongWeakAxis(photo, points, from, *weak, options);
     if (!next) break;
     current = std::move(next);
   }
