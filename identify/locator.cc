@@ -213,7 +213,6 @@ VisibilityOptions ToVisibilityOptions(const LocatorOptions& options) {
   return v;
 }
 
-// A decision that answers the photo: a pose, or two places that fit about as well.
 // The photo verified with the one camera `intrinsics` (a winner's: the photo was taken with one).
 PreparedPhoto WithCamera(const PreparedPhoto& photo, const Intrinsics& intrinsics) {
   PreparedPhoto same_camera = photo;
@@ -222,6 +221,7 @@ PreparedPhoto WithCamera(const PreparedPhoto& photo, const Intrinsics& intrinsic
   return same_camera;
 }
 
+// A decision that answers the photo: a pose, or two places that fit about as well.
 bool Answered(const Decision& decision) {
   return decision.winner >= 0 ||
          (decision.refusal && decision.refusal->code == UnmatchedReason::kAmbiguous);
